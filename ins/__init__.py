@@ -1,0 +1,11 @@
+"""Strapdown inertial navigation and GNSS/INS post-processing.
+
+Frames (see ``conventions.md``): ``n`` local-level North-East-Down, ``b`` IMU body
+forward-right-down, ``e`` ECEF WGS84.  ``C_nb`` takes a vector from ``b`` to ``n``;
+quaternions are scalar-last ``[x, y, z, w]``.  SI units inside: rad, m, s, m/s.
+Geodetic position is ``(lat, lon, h)`` in rad, rad, m (ellipsoidal height).
+IMU logs hold increments ``dtheta_b`` (rad) and ``dvel_b`` (m/s) stamped at the END
+of their integration interval.
+"""
+
+__version__ = "0.1.0"
