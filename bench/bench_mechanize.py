@@ -79,20 +79,35 @@ def pyins_speed(log, init_deg, repeat):
     return len(inc) / t_int, len(inc) / t_bare
 
 
+_CHILD = """
+import sys
+from ins import cli
+code = cli.main(sys.argv[1:])
+with open('/proc/self/status') as f:      # VmHWM: this process's own peak (reset at exec)
+    hwm = [line.split()[1] for line in f if line.startswith('VmHWM')][0]
+sys.stderr.write('VMHWM_KB ' + hwm + chr(10))
+sys.exit(code)
+"""
+
+
 def end_to_end(imu_path, init_args, out_path, repeat):
-    """Best wall time and the peak RSS (MB) of fresh ``ins mechanize`` processes."""
-    cmd = [sys.executable, "-m", "ins.cli", "mechanize", str(imu_path), *init_args, "-q",
+    """Best wall time and the peak RSS (MB) of fresh ``ins mechanize`` processes.
+
+    The peak is the child's own VmHWM: ``ru_maxrss`` of a child started from this
+    (large) process would include the parent's memory copied at fork.
+    """
+    cmd = [sys.executable, "-c", _CHILD, "mechanize", str(imu_path), *init_args, "-q",
            "-o", str(out_path)]
     best, peak = np.inf, 0.0
     for _ in range(repeat):
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd)
-        _, status, usage = os.wait4(proc.pid, 0)
+        proc = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
-        if status != 0:
-            raise SystemExit(f"ins mechanize failed on {imu_path} (status {status})")
+        if proc.returncode != 0:
+            raise SystemExit(f"ins mechanize failed on {imu_path}: {proc.stderr}")
         best = min(best, wall)
-        peak = max(peak, usage.ru_maxrss / 1024.0)     # Linux: kB
+        kb = [ln.split()[1] for ln in proc.stderr.splitlines() if ln.startswith("VMHWM_KB")]
+        peak = max(peak, float(kb[0]) / 1024.0)
     return best, peak
 
 
@@ -129,9 +144,9 @@ def main():
     init_deg = np.array([x["lat"], x["lon"], x["alt"], x["VN"], x["VE"], x["VD"],
                          x["roll"], x["pitch"], x["yaw"]])
     init = NavState.from_degrees(*init_deg[:3], init_deg[3:6], init_deg[6:9])
-    init_args = ["--init-lla", ",".join(map(repr, init_deg[:3])),
-                 "--init-vel", ",".join(map(repr, init_deg[3:6])),
-                 "--init-att", ",".join(map(repr, init_deg[6:9]))]
+    init_args = ["--init-lla", ",".join(repr(float(v)) for v in init_deg[:3]),
+                 "--init-vel", ",".join(repr(float(v)) for v in init_deg[3:6]),
+                 "--init-att", ",".join(repr(float(v)) for v in init_deg[6:9])]
 
     flight_txt = data / "imu_clean.txt"
     flight = read_kfgins_text(flight_txt)

@@ -640,8 +640,45 @@ def table_error_message(res, buf, ncols_min, ncols_max, column_names=None):
     return f"parse error {s}"   # pragma: no cover
 
 
-def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column_names=None):
-    """Read a numeric text table from a file.
+def _last_newline(buf, total):
+    """Index of the last newline byte in ``buf[:total]`` (-1 when none)."""
+    stop = total
+    while stop > 0:
+        start = max(0, stop - 65536)
+        hit = np.flatnonzero(buf[start:stop] == _NL)
+        if hit.size:
+            return start + int(hit[-1])
+        stop = start
+    return -1
+
+
+def _count_lines(path, block_bytes):
+    """Number of lines in the file (newlines + 1): an upper bound of its data rows."""
+    buf = np.empty(max(int(block_bytes), 16), np.uint8)
+    count = 1
+    with open(path, "rb") as f:
+        while True:
+            got = f.readinto(memoryview(buf))
+            if not got:
+                return count
+            count += int(np.count_nonzero(buf[:got] == _NL))
+
+
+#: Bytes read and parsed at a time by :func:`read_table` (bounds its memory).
+BLOCK_BYTES = 1 << 24
+
+
+def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column_names=None,
+               hint=None, block_bytes=BLOCK_BYTES):
+    """Read a numeric text table from a file, in blocks of whole lines.
+
+    Memory: the table plus one block of text (``block_bytes``, 16 MiB by default), not
+    the whole file's text.  A first pass counts the lines to size the table.
+
+    Parameters
+    ----------
+    hint : str, optional
+        Appended in parentheses to column-count errors (e.g. the expected layout).
 
     Returns
     -------
@@ -654,12 +691,78 @@ def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column
     InputError
         On any of the :func:`parse_table` errors, naming the file and line.
     """
-    buf = file_buffer(path)
-    res = parse_table(buf, ncols_min, ncols_max, skip_header_lines)
-    if res.status != OK:
-        msg = table_error_message(res, buf, ncols_min, ncols_max, column_names)
-        raise InputError(msg, path=os.fspath(path), line=res.err_line or None)
-    return res.values, res.row_line
+    max_rows = _count_lines(path, block_bytes)
+    table = row_lines = None
+    nrows = 0
+    lo, hi = int(ncols_min), int(ncols_max)
+    line_offset = 0
+    skip = int(skip_header_lines)
+    first_line = 0
+    buf = np.empty(max(int(block_bytes), 16) + 1, np.uint8)   # reused for every block
+    have = 0                                                 # carried bytes at buf[:have]
+    first_block = True
+    with open(path, "rb") as f:
+        while True:
+            if have == buf.size - 1:                         # a line longer than buf
+                grown = np.empty(2 * buf.size, np.uint8)
+                grown[:have] = buf[:have]
+                buf = grown
+            got = f.readinto(memoryview(buf)[have:buf.size - 1])
+            total = have + got
+            if total == 0:
+                break
+            if got:
+                cut = _last_newline(buf, total) + 1
+                if cut == 0:                                 # no end of line yet
+                    have = total
+                    continue
+            else:
+                cut = total                                  # the last line, unterminated
+            if first_block and cut >= 3 and buf[0] == 0xEF and buf[1] == 0xBB and buf[2] == 0xBF:
+                buf[:3] = _SP
+            first_block = False
+            saved = buf[cut]
+            buf[cut] = 0
+            block = buf[:cut + 1]
+            res = parse_table(block, lo, hi, skip)
+            if res.status == OK:
+                if table is None:
+                    table = np.empty((max_rows, res.width))
+                    row_lines = np.empty(max_rows, np.int64)
+                m = len(res.values)
+                if nrows + m > max_rows:                     # the file grew meanwhile
+                    raise InputError("the file changed while being read",
+                                     path=os.fspath(path))
+                table[nrows:nrows + m] = res.values
+                row_lines[nrows:nrows + m] = res.row_line + line_offset
+                nrows += m
+                if lo != hi or lo != res.width:
+                    lo = hi = res.width       # later blocks must keep the first width
+                    first_line = res.first_line + line_offset
+            elif res.status != NO_DATA:
+                msg = table_error_message(res, block, lo, hi, column_names)
+                if res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS) and table is not None:
+                    msg = (f"{res.err_col} columns, expected {lo} as on the first data "
+                           f"line (line {first_line})")
+                if hint and res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS, COLUMN_COUNT):
+                    msg += f" ({hint})"
+                raise InputError(msg, path=os.fspath(path),
+                                 line=(res.err_line + line_offset) if res.err_line else None)
+            buf[cut] = saved
+            nl = int(np.count_nonzero(block[:cut] == _NL))
+            skip = max(0, skip - nl)
+            line_offset += nl
+            have = total - cut
+            if have:
+                buf[:have] = buf[cut:total].copy()
+            if not got:
+                break
+    if table is None:
+        raise InputError("no data lines (the file is empty or holds only blank and comment "
+                         "lines)", path=os.fspath(path))
+    if nrows < 0.8 * max_rows:
+        return table[:nrows].copy(), row_lines[:nrows].copy()
+    return table[:nrows], row_lines[:nrows]
 
 
 # ---------------------------------------------------------------------------------------

@@ -186,6 +186,15 @@ class ImuLog:
         for name, a in arrays.items():
             object.__setattr__(self, name, _frozen(a))
 
+    @classmethod
+    def _adopt(cls, time, dtheta_b, dvel_b):
+        """A log around arrays this package has just made, without copying them again
+        (contiguous float64 ones are used as they are and made read-only)."""
+        log = object.__new__(cls)
+        for name, a in (("time", time), ("dtheta_b", dtheta_b), ("dvel_b", dvel_b)):
+            object.__setattr__(log, name, _frozen(np.ascontiguousarray(a, dtype=np.float64)))
+        return log
+
     def __len__(self):
         return self.time.shape[0]
 
@@ -226,7 +235,7 @@ class ImuLog:
             keep &= self.time >= start
         if end is not None:
             keep &= self.time <= end
-        return ImuLog(self.time[keep], self.dtheta_b[keep], self.dvel_b[keep])
+        return ImuLog._adopt(self.time[keep], self.dtheta_b[keep], self.dvel_b[keep])
 
     def find_gaps(self, factor=1.5):
         """Indices ``k`` with ``time[k] - time[k-1] > factor * nominal_dt``.
@@ -278,8 +287,11 @@ def compensate(log, gyro_bias=None, accel_bias=None, gyro_scale=None, accel_scal
     Returns
     -------
     ImuLog
-        A new log with the compensated increments and the same time.
+        A new log with the compensated increments and the same time (``log`` itself
+        when no error is given).
     """
+    if gyro_bias is None and accel_bias is None and gyro_scale is None and accel_scale is None:
+        return log                                  # immutable: nothing to remove
     n = len(log)
     dt = log.dt[:, None]
     dtheta = np.array(log.dtheta_b)
@@ -295,7 +307,7 @@ def compensate(log, gyro_bias=None, accel_bias=None, gyro_scale=None, accel_scal
         if np.any(s <= -1.0):
             raise ValueError(f"{name} must be greater than -1, got {s!r}")
         arr /= 1.0 + s
-    return ImuLog(log.time, dtheta, dvel)
+    return ImuLog._adopt(log.time, dtheta, dvel)
 
 
 def _intervals(time):
@@ -432,7 +444,7 @@ def _finish(path, table, cols, names, scale, row_line, rates, axes, hint):
     if axes != "FRD":
         dtheta = dtheta @ C.T
         dvel = dvel @ C.T
-    return ImuLog(time, dtheta, dvel)
+    return ImuLog._adopt(time, dtheta, dvel)
 
 
 def _check_axes(axes):
@@ -480,15 +492,10 @@ def read_kfgins_text(path, axes="FRD", rates=False):
     """
     axes = _check_axes(axes)
     names = _KFGINS_RATE_NAMES if rates else _KFGINS_NAMES
-    buf = _textio.file_buffer(path)
-    res = _textio.parse_table(buf, 7, 1 << 30)
-    if res.status != _textio.OK:
-        layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
-                  else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
-        raise _parse_error(path, buf, res, 7, 1 << 30, names, layout)
-    del buf
-    return _finish(path, res.values, range(7), names, None, res.row_line, rates, axes,
-                   _RATES_HINT)
+    layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
+              else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
+    values, row_line = _textio.read_table(path, 7, 1 << 30, column_names=names, hint=layout)
+    return _finish(path, values, range(7), names, None, row_line, rates, axes, _RATES_HINT)
 
 
 def read_kfgins_binary(path, axes="FRD", rates=False):

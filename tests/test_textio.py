@@ -333,3 +333,55 @@ def test_roundtrip_decimals():
 def test_is_number():
     assert tx.is_number("1.5e-3") and tx.is_number(b"-inf") and tx.is_number("nan")
     assert not tx.is_number("time_s") and not tx.is_number("1.2.3") and not tx.is_number("")
+
+
+# --- read_table in blocks: the same table and line numbers whatever the block size ------
+
+def _block_file(tmp_path, crlf=False):
+    rng = np.random.default_rng(5)
+    rows = rng.normal(size=(300, 7)) * 10.0 ** rng.integers(-8, 4, size=(300, 7))
+    lines = ["# header comment", "", "  "]
+    for i, r in enumerate(rows):
+        lines.append(" ".join(f"{v:.17e}" for v in r))
+        if i % 37 == 5:
+            lines += ["# a comment in the middle", ""]
+    text = ("\r\n" if crlf else "\n").join(lines)          # no newline after the last line
+    p = tmp_path / "blocks.txt"
+    p.write_bytes(text.encode())
+    return p, rows, lines
+
+
+@pytest.mark.parametrize("block_bytes", [1, 50, 200, 4096, 1 << 24])
+@pytest.mark.parametrize("crlf", [False, True])
+def test_read_table_blocks_same_result(tmp_path, block_bytes, crlf):
+    p, rows, lines = _block_file(tmp_path, crlf)
+    values, row_line = tx.read_table(p, 7, 7, block_bytes=block_bytes)
+    np.testing.assert_array_equal(values, rows)
+    expect = [i + 1 for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]
+    np.testing.assert_array_equal(row_line, expect)
+
+
+@pytest.mark.parametrize("block_bytes", [64, 333, 1 << 24])
+def test_read_table_blocks_error_lines(tmp_path, block_bytes):
+    p, rows, lines = _block_file(tmp_path)
+    for k, bad in [(250, lines[250] + " 1.0"), (251, " ".join(lines[251].split()[:5])),
+                   (190, lines[190].replace("e", "x", 1))]:
+        mod = list(lines)
+        mod[k] = bad
+        q = tmp_path / "bad.txt"
+        q.write_text("\n".join(mod) + "\n")
+        with pytest.raises(InputError) as exc:
+            tx.read_table(q, 7, 64, block_bytes=block_bytes)
+        assert exc.value.line == k + 1, str(exc.value)
+    empty = tmp_path / "comments.txt"
+    empty.write_text("# only\n\n# comments\n" * 50)
+    with pytest.raises(InputError, match="no data lines"):
+        tx.read_table(empty, 7, 7, block_bytes=block_bytes)
+
+
+def test_read_table_blocks_skip_header(tmp_path):
+    p = tmp_path / "h.csv"
+    p.write_text("time_s,a,b\n" + "".join(f"{i},{2 * i},{3 * i}\n" for i in range(100)))
+    values, row_line = tx.read_table(p, 3, 3, skip_header_lines=1, block_bytes=7)
+    np.testing.assert_array_equal(values[:, 1], 2.0 * np.arange(100))
+    assert row_line[0] == 2 and row_line[-1] == 101
