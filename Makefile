@@ -26,9 +26,11 @@ $(VENV)/.bench-deps: pyproject.toml | $(VENV)/bin/python
 # The embedded example: 60 s of the benchmark flight's error-free IMU (data/example/README.md)
 demo: $(VENV)/.run-deps
 	@mkdir -p demo-output
+	@echo "== strapdown mechanization of 60 s of error-free 200 Hz increments (data/example)"
 	$(VENV)/bin/ins mechanize data/example/imu.txt --init-lla 30.44,114.47,1000 \
 	    --init-vel 60,0,-0.1438276615812609 \
 	    --init-att 0,2.3056392336543654,0.09092974268256818 -o demo-output/example.nav
+	@echo "== errors against the simulator's truth (the algorithm's own error; 0 = below print precision)"
 	$(VENV)/bin/ins compare demo-output/example.nav data/example/truth.nav
 
 test: $(VENV)/.test-deps

@@ -9,3 +9,11 @@ of their integration interval.
 """
 
 __version__ = "0.1.0"
+
+from .errors import InputError, InputWarning  # noqa: E402
+from .imu import ImuLog, compensate, read_imu  # noqa: E402
+from .mechanization import NavState, iter_mechanize, mechanize  # noqa: E402
+from .trajectory import Trajectory, read_nav, write_nav  # noqa: E402
+
+__all__ = ["ImuLog", "InputError", "InputWarning", "NavState", "Trajectory", "compensate",
+           "iter_mechanize", "mechanize", "read_imu", "read_nav", "write_nav"]

@@ -115,6 +115,12 @@ class _Progress:
         self.enabled = enabled and sys.stderr.isatty()
         self.last = 0.0
 
+    def note(self, text):
+        """A transient status line (erased by the bar)."""
+        if self.enabled:
+            sys.stderr.write(f"\r{text}")
+            sys.stderr.flush()
+
     def __call__(self, done, total):
         if not self.enabled:
             return
@@ -124,7 +130,8 @@ class _Progress:
         self.last = now
         frac = done / max(total, 1)
         bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total}")
+        sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} epochs"
+                         "      ")
         if done >= total:
             sys.stderr.write("\n")
         sys.stderr.flush()
@@ -140,6 +147,9 @@ def _cmd_mechanize(args):
         raise InputError(f"--init-lla: latitude {args.init_lla[0]} deg is outside +-90 deg")
     if os.path.abspath(args.output) == os.path.abspath(args.imu_file):
         raise InputError(f"--output {args.output} would overwrite the input file")
+    size = os.path.getsize(args.imu_file) if os.path.isfile(args.imu_file) else 0
+    reading = _Progress("mechanize", not args.quiet and size > 10_000_000)
+    reading.note(f"reading {args.imu_file} ({size / 1e6:.0f} MB)...")
     log = imu_mod.read_imu(args.imu_file, format=args.format, rates=args.rates, axes=args.axes)
     t_read = wallclock.perf_counter()
     log = imu_mod.compensate(
@@ -191,18 +201,23 @@ def _cmd_compare(args):
     from .accuracy import compare
     from .trajectory import read_nav
 
-    errors = compare(read_nav(args.result), read_nav(args.reference))
+    try:
+        errors = compare(read_nav(args.result), read_nav(args.reference))
+    except InputError:
+        raise
+    except ValueError as exc:          # no common epoch
+        raise InputError(f"{args.result} vs {args.reference}: {exc}") from None
     s = errors.summary()
     print(f"{s['n_epochs']} common epochs, {s['t_from']:.3f} .. {s['t_to']:.3f} s "
           f"({s['t_to'] - s['t_from']:.1f} s)")
-    print(f"{'error':<16}{'final':>14}{'RMS':>14}{'max':>14}")
-    rows = [("horizontal m", "horizontal_m"), ("north m", "north_m"), ("east m", "east_m"),
-            ("down m", "down_m"), ("velocity m/s", "vel_3d_mps"),
-            ("tilt N arcsec", "tilt_n_arcsec"), ("tilt E arcsec", "tilt_e_arcsec"),
-            ("heading arcsec", "heading_arcsec")]
-    for label, key in rows:
+    print(f"{'error':<18}{'final':>12}{'RMS':>12}{'max':>12}")
+    rows = [("horizontal mm", "horizontal_m", 1e3), ("north mm", "north_m", 1e3),
+            ("east mm", "east_m", 1e3), ("down mm", "down_m", 1e3),
+            ("velocity mm/s", "vel_3d_mps", 1e3), ("tilt N arcsec", "tilt_n_arcsec", 1.0),
+            ("tilt E arcsec", "tilt_e_arcsec", 1.0), ("heading arcsec", "heading_arcsec", 1.0)]
+    for label, key, scale in rows:
         v = s[key]
-        print(f"{label:<16}{v['final']:>14.3e}{v['rms']:>14.3e}{v['max']:>14.3e}")
+        print(f"{label:<18}" + "".join(f"{scale * v[k]:>12.4g}" for k in ("final", "rms", "max")))
     return 0
 
 

@@ -107,11 +107,21 @@ def write_nav(path, pieces, week=0):
 
 def read_nav(path):
     """Read a ``.nav`` file (11 or more columns) into a :class:`Trajectory`."""
-    rows, _ = _textio.read_table(path, ncols_min=11, ncols_max=64)
+    rows, row_line = _textio.read_table(path, ncols_min=11, ncols_max=64,
+                                        hint="KF-GINS .nav: week t lat lon h vN vE vD "
+                                             "roll pitch yaw")
     rows = rows[:, :11]
-    bad = ~np.all(np.isfinite(rows), axis=1)
-    if np.any(bad):
-        raise InputError("non-finite value", path=str(path), line=None)
-    if np.any(np.diff(rows[:, 1]) <= 0):
-        raise InputError("time not increasing", path=str(path), line=None)
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+    if bad.size:
+        raise InputError("non-finite value", path=str(path), line=int(row_line[bad[0]]))
+    back = np.flatnonzero(np.diff(rows[:, 1]) <= 0)
+    if back.size:
+        k = back[0] + 1
+        what = "duplicated epoch" if rows[k, 1] == rows[k - 1, 1] else "time not increasing"
+        raise InputError(f"{what}: t = {rows[k, 1]!r} s after {rows[k - 1, 1]!r} s",
+                         path=str(path), line=int(row_line[k]))
+    if np.any(np.abs(rows[:, 2]) > 90.0):
+        k = int(np.flatnonzero(np.abs(rows[:, 2]) > 90.0)[0])
+        raise InputError(f"latitude {rows[k, 2]!r} deg outside +-90 deg", path=str(path),
+                         line=int(row_line[k]))
     return Trajectory.from_nav_rows(rows)

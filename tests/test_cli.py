@@ -211,3 +211,15 @@ def test_console_script_help_names_units():
     assert res.returncode == 0
     for needle in ["deg", "m/s", "FRD", "rad", "END of the interval", "[0, 360)"]:
         assert needle in res.stdout
+
+
+def test_compare_bad_nav_names_line(tmp_path, capsys):
+    good = (EXAMPLE / "truth.nav").read_text().splitlines()
+    bad = good[:5] + [good[3]] + good[6:]
+    p = tmp_path / "bad.nav"
+    p.write_text("\n".join(bad) + "\n")
+    code, _, err = _run(capsys, "compare", p, EXAMPLE / "truth.nav")
+    assert code == 2 and f"{p}:6:" in err and "not increasing" in err
+    p.write_text("\n".join(good[:3] + [good[3] + "x"] + good[4:]) + "\n")
+    code, _, err = _run(capsys, "compare", p, EXAMPLE / "truth.nav")
+    assert code == 2 and f"{p}:4:" in err

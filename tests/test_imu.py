@@ -577,12 +577,9 @@ def test_reading_leaves_files_untouched(tmp_path):
     assert sorted(q.name for q in tmp_path.iterdir()) == sorted(p.name for p in paths)
 
 
-def test_bench_file_head(tmp_path):
+def test_bench_file_head(tmp_path, bench_data):
     """The first lines of the shared benchmark log (KF-GINS text) read as expected."""
-    src = os.path.join(os.path.dirname(__file__), "..", ".cache", "ins-bench-data",
-                       "imu_clean.txt")
-    if not os.path.exists(src):
-        pytest.skip("benchmark data not built")
+    src = bench_data / "imu_clean.txt"
     with open(src, "rb") as f:
         head = b"".join(f.readline() for _ in range(2000))
     (tmp_path / "head.txt").write_bytes(head)
