@@ -133,8 +133,11 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     os.environ.setdefault("INS_BENCH_DATA", str(args.data))
-    import conftest
-    data = conftest.ensure_bench_data() if not (args.data / "meta.json").exists() else args.data
+    import benchdata
+    data = args.data if (args.data / "meta.json").exists() else benchdata.ensure_bench_data()
+    if data is None:
+        raise SystemExit(f"no benchmark data in {args.data} and no shared script under "
+                         f"{benchdata.SHARED}")
     from ins.imu import read_kfgins_text, write_kfgins_binary
     from ins.mechanization import NavState
 

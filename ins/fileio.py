@@ -1,5 +1,6 @@
 """Atomic output files: written to a temporary file beside the target, renamed when complete."""
 import contextlib
+import errno
 import os
 import tempfile
 
@@ -22,6 +23,11 @@ def atomic_open(path, mode="wb"):
         raise ValueError(f"mode must be a write mode ('w' or 'wb'), got {mode!r}")
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
+    if not os.path.isdir(directory):
+        raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
+                                directory)
     fd, tmp = tempfile.mkstemp(dir=directory, prefix="." + os.path.basename(path) + ".",
                                suffix=".part")
     try:

@@ -223,3 +223,12 @@ def test_compare_bad_nav_names_line(tmp_path, capsys):
     p.write_text("\n".join(good[:3] + [good[3] + "x"] + good[4:]) + "\n")
     code, _, err = _run(capsys, "compare", p, EXAMPLE / "truth.nav")
     assert code == 2 and f"{p}:4:" in err
+
+
+def test_output_path_errors(tmp_path, capsys):
+    src = _write(tmp_path / "imu.txt", _static_rows())
+    code, _, err = _run(capsys, "mechanize", src, *STATIC_INIT, "-o", tmp_path)
+    assert code == 2 and f"{tmp_path}: is a directory" in err
+    code, _, err = _run(capsys, "mechanize", src, *STATIC_INIT, "-o", tmp_path / "no" / "o.nav")
+    assert code == 2 and "directory does not exist" in err and str(tmp_path / "no") in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.txt"]
