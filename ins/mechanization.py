@@ -146,6 +146,10 @@ def iter_mechanize(imu, initial, *, start=None, end=None, every=1, strict=False,
     while k < i1:
         k1 = min(k + chunk_epochs, i1)
         _kernels.mechanize_rows(time, imu.dtheta_b, imu.dvel_b, k, k1, state, out)
+        if not np.all(np.isfinite(state)):
+            bad = int(np.flatnonzero(~np.all(np.isfinite(out[:k1 - k]), axis=1))[0])
+            raise InputError(f"the solution became non-finite at t = {float(time[k + bad])!r} s "
+                             f"(over a pole, or implausible increments or initial state)")
         keep = np.arange(k, k1)
         sel = (keep - i0) % every == 0
         if np.any(sel):

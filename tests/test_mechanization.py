@@ -190,3 +190,13 @@ def test_bad_arguments():
         NavState.from_degrees(91.0, 0.0, 0.0, [0, 0, 0], [0, 0, 0])
     with pytest.raises(ValueError, match="unit quaternion"):
         NavState(np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 0.0, 2.0]))
+
+
+def test_divergence_is_an_error_not_nan():
+    log = _static_log(0.5, 0.0, np.eye(3), 2.0)
+    dv = np.array(log.dvel_b)
+    dv[150] = [1e308, 0.0, 0.0]                    # one absurd increment
+    bad = ImuLog(time=log.time, dtheta_b=log.dtheta_b, dvel_b=dv)
+    init = NavState(np.array([0.5, 0.0, 0.0]), np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    with pytest.raises(InputError, match="non-finite at t = 1000.75"):
+        mechanize(bad, init)
