@@ -1,9 +1,12 @@
-"""Command-line interface: ``ins mechanize``, ``ins compare`` (later: simulate, process).
+"""Command-line interface: ``ins mechanize``, ``ins compare`` and the commands of the
+modules listed in ``COMMAND_MODULES`` (each has ``add_parser(sub)`` that registers one
+sub-command and sets ``func``).
 
 Units on the command line are degrees and metres; inside, SI.  Errors in the input give
 one line on stderr and exit code 2, and no output file.
 """
 import argparse
+import importlib
 import os
 import sys
 import time as wallclock
@@ -221,6 +224,11 @@ def _cmd_compare(args):
     return 0
 
 
+# Sub-commands that live in modules of their own (one line each).
+COMMAND_MODULES = [
+]
+
+
 def build_parser():
     parser = _Parser(prog="ins", description="Strapdown INS and GNSS/INS post-processing. "
                      "Frames: n = north-east-down, b = forward-right-down; units on the "
@@ -230,25 +238,32 @@ def build_parser():
     sub.required = True
     _add_mechanize(sub)
     _add_compare(sub)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).add_parser(sub)
     return parser
 
 
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    return run_command(args, "ins")
+
+
+def run_command(args, prog):
+    """Run ``args.func(args)``: bad input -> one line on stderr and exit code 2."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
         try:
             code = args.func(args)
         except InputError as exc:
             _flush_warnings(caught)
-            print(f"ins {args.command}: error: {exc}", file=sys.stderr)
+            print(f"{prog} {args.command}: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-            print(f"ins {args.command}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
+            print(f"{prog} {args.command}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except KeyboardInterrupt:
-            print(f"ins {args.command}: interrupted; no output written", file=sys.stderr)
+            print(f"{prog} {args.command}: interrupted; no output written", file=sys.stderr)
             return 130
     _flush_warnings(caught)
     return code

@@ -1,29 +1,39 @@
 """Command-line interface of the photogrammetry package.
 
-Its commands (``eo``, ``refine``, ``lunar-heading``) arrive with the issues that build
-them; until then the command only explains itself.
+Each command lives in a module of its own listed in ``COMMAND_MODULES``; the module has
+``add_parser(sub)`` that registers one sub-command and sets ``func``.  Bad input gives
+one line on stderr, exit code 2 and no output (shared with ``ins.cli.run_command``).
 """
-import argparse
+import importlib
 import sys
+
+from ins.cli import _Parser, run_command
 
 from . import __version__
 
+# Sub-commands that live in modules of their own (one line each).
+COMMAND_MODULES = [
+]
+
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="photogrammetry",
-        description="Photogrammetric orientation from an INS solution. No command is "
-                    "available in this version yet: exterior orientation (eo), coplanarity "
-                    "refinement (refine) and lunar heading (lunar-heading) are planned.")
+        description="Photogrammetric orientation from an INS solution: exterior orientation "
+                    "per exposure, coplanarity refinement of the angles, lunar heading. "
+                    "Angles in files are degrees in a named system (phi-omega-kappa or "
+                    "omega-phi-kappa); lengths in m, photo coordinates in mm.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).add_parser(sub)
     return parser
 
 
 def main(argv=None):
-    build_parser().parse_args(argv)
-    print("photogrammetry: no command is available in this version yet (see --help)",
-          file=sys.stderr)
-    return 2
+    args = build_parser().parse_args(argv)
+    return run_command(args, "photogrammetry")
 
 
 if __name__ == "__main__":
