@@ -1,0 +1,161 @@
+"""``photogrammetry eo``: exterior orientation per exposure from an INS trajectory."""
+import argparse
+import os
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ins.cli import _Progress, _triplet
+from ins.errors import InputError
+
+EPILOG = """\
+frames and units:
+  The trajectory is the IMU's (.nav: lat, lon deg, ellipsoidal h m, NED velocity m/s,
+  roll, pitch, yaw deg with C_nb = Rz(yaw) Ry(pitch) Rx(roll), body forward-right-down).
+  It is interpolated at each event time (s, same time scale): position by cubic Hermite
+  with the velocities, attitude by a cubic on rotation vectors (error at 200 Hz below
+  1 um and 0.001 arcsec).  The camera file gives the camera axes C_bc, the boresight
+  (deg) and the lever arm (IMU centre to perspective centre, body frame, m).
+  Camera attitude C_mc = C_mn C_nb C_bc; angles in deg in the named system:
+    phi-omega-kappa  R = Ry(phi) Rx(omega) Rz(kappa)   (columns phi, omega, kappa)
+    omega-phi-kappa  R = Rx(omega) Ry(phi) Rz(kappa)   (columns omega, phi, kappa)
+  R maps camera-frame rays (x, y, -f) into the mapping frame.
+  Mapping frame: enu = east, north, up (m) at the block origin (--origin, or the
+  flight folder's, or the first exposure's lat/lon at h = 0); utm or EPSG:<code> =
+  easting, northing (m) of the projection with the meridian convergence applied to
+  the attitude, heights ellipsoidal or orthometric with --geoid-undulation N (m).
+
+inputs:
+  FLIGHT_DIR with manifest.toml (ins simulate) supplies truth.nav, events.csv,
+  camera.toml and the mapping-frame origin; --trajectory etc. override them.
+  events: CSV image_id,time_s.  --sigma: solution_std.txt (time, std N E D m,
+  std vN vE vD m/s, std roll pitch yaw deg) adds sigma columns.
+
+output formats:
+  csv       EO CSV: header comments (system, frame, units), image_id,time_s,X_m,...
+  applanix  ID event time_s E_m N_m h_m omega_deg phi_deg kappa_deg (omega-phi-kappa)
+  patb      per image: ID X0 Y0 Z0, then R = C_mc by rows; -99 at the end
+
+examples:
+  photogrammetry eo FLIGHT_DIR -o eo.csv
+  photogrammetry eo --trajectory sol.nav --events events.csv --camera camera.toml \\
+      --frame EPSG:32650 --system omega-phi-kappa -o eo.csv
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "eo", help="exterior orientation per exposure from an INS trajectory",
+        description="Interpolate an IMU trajectory at the exposure events and compute the "
+                    "perspective centre and camera angles (phi-omega-kappa or "
+                    "omega-phi-kappa) in a mapping frame.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
+                   help="simulated flight folder with manifest.toml")
+    p.add_argument("--trajectory", metavar="T.nav", help="IMU trajectory (.nav)")
+    p.add_argument("--events", metavar="EVENTS.csv", help="exposure events image_id,time_s")
+    p.add_argument("--camera", metavar="CAM.toml", help="camera file")
+    p.add_argument("--sigma", metavar="STD.txt", help="trajectory standard deviations")
+    p.add_argument("--system", choices=["phi-omega-kappa", "omega-phi-kappa"],
+                   default="phi-omega-kappa", help="angle system (default phi-omega-kappa)")
+    p.add_argument("--frame", default="enu", metavar="enu|utm|EPSG:CODE",
+                   help="mapping frame (default enu)")
+    p.add_argument("--origin", type=_triplet, metavar="LAT,LON,H",
+                   help="ENU origin: lat, lon (deg), ellipsoidal h (m)")
+    p.add_argument("--geoid-undulation", type=float, metavar="N_M",
+                   help="constant geoid undulation (m): orthometric heights H = h - N "
+                        "(projected frames)")
+    p.add_argument("--attitude-interp", choices=["cubic", "slerp"], default="cubic",
+                   help="attitude interpolation (default cubic)")
+    p.add_argument("--format", choices=["csv", "applanix", "patb"], default="csv",
+                   help="output format (default csv)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary")
+    p.add_argument("-o", "--output", required=True, metavar="EO.csv", help="output file")
+    p.set_defaults(func=run)
+
+
+def _flight_inputs(folder):
+    """Paths and origin from a flight folder's manifest.toml."""
+    folder = Path(folder)
+    manifest = folder / "manifest.toml"
+    if not manifest.is_file():
+        raise InputError(f"{folder} has no manifest.toml (not a flight folder)")
+    try:
+        with open(manifest, "rb") as f:
+            doc = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", path=str(manifest)) from None
+    files = doc.get("files", {})
+    out = {}
+    for key in ("truth", "events", "camera"):
+        if key not in files:
+            raise InputError(f"missing key [files] {key}", path=str(manifest))
+        out[key] = str(folder / files[key])
+    mf = doc.get("mapping_frame", {})
+    if mf:
+        try:
+            out["origin"] = np.array([float(mf["origin_lat_deg"]), float(mf["origin_lon_deg"]),
+                                      float(mf.get("origin_h_m", 0.0))])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"[mapping_frame] needs origin_lat_deg, origin_lon_deg "
+                             f"(deg), origin_h_m (m): {exc}", path=str(manifest)) from None
+    return out
+
+
+def _inputs(args):
+    found = _flight_inputs(args.flight_dir) if args.flight_dir else {}
+    traj = args.trajectory or found.get("truth")
+    events = args.events or found.get("events")
+    camera = args.camera or found.get("camera")
+    for name, value in (("--trajectory", traj), ("--events", events), ("--camera", camera)):
+        if value is None:
+            raise InputError(f"{name} is required without a FLIGHT_DIR")
+    origin = args.origin if args.origin is not None else found.get("origin")
+    return traj, events, camera, origin
+
+
+def run(args):
+    from ins.trajectory import read_nav
+
+    from .camera import read_camera
+    from .exposure import (compute_eo, read_events, read_solution_std, write_eo_applanix,
+                           write_eo_csv, write_eo_patb)
+    from .mapping import parse_frame
+
+    traj_path, events_path, camera_path, origin = _inputs(args)
+    out = os.path.abspath(args.output)
+    for p in (traj_path, events_path, camera_path, args.sigma):
+        if p is not None and os.path.abspath(p) == out:
+            raise InputError(f"--output {args.output} would overwrite the input file {p}")
+    if origin is not None and abs(origin[0]) > 90:
+        raise InputError(f"--origin: latitude {origin[0]} deg is outside +-90 deg")
+    ids, times = read_events(events_path)
+    _, mounting = read_camera(camera_path)
+    progress = _Progress("eo", not args.quiet)
+    progress.note(f"reading {traj_path}...")
+    traj = read_nav(traj_path)
+    sigma = read_solution_std(args.sigma) if args.sigma else None
+    if origin is None:
+        from ins.interpolation import interpolate_trajectory
+        first = interpolate_trajectory(traj, times[:1], names=ids[:1], path=traj_path)
+        origin_rad = np.array([first.lla[0, 0], first.lla[0, 1], 0.0])
+    else:
+        origin_rad = np.array([np.deg2rad(origin[0]), np.deg2rad(origin[1]), origin[2]])
+    frame = parse_frame(args.frame, origin_rad, args.geoid_undulation)
+    eo = compute_eo(traj, ids, times, mounting, frame, args.system, sigma=sigma,
+                    method=args.attitude_interp, path=traj_path)
+    progress.note("")
+    if args.format == "csv":
+        comments = [f"trajectory = {traj_path}", f"events = {events_path}",
+                    f"camera = {camera_path}", f"attitude interpolation = {args.attitude_interp}"]
+        write_eo_csv(args.output, eo, comments=comments)
+    elif args.format == "applanix":
+        write_eo_applanix(args.output, eo)
+    else:
+        write_eo_patb(args.output, eo)
+    if not args.quiet:
+        print(f"{len(eo)} exposures, {times.min():.3f} .. {times.max():.3f} s, "
+              f"trajectory {traj_path} ({len(traj)} epochs)")
+        print(f"wrote {args.output} ({args.format}; {eo.system}; frame {eo.frame})")
+    return 0
