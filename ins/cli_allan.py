@@ -1,0 +1,78 @@
+"""``ins allan IMU_FILE``: Allan deviation of a (static) IMU log, noise terms per axis."""
+import argparse
+
+import numpy as np
+
+from .errors import InputError
+
+EPILOG = """\
+frames and units:
+  The IMU file holds increments (dtheta rad, dvel m/s) over (t[k-1], t[k]] in the body
+  frame forward-right-down (KF-GINS text/binary or CSV, as for `ins mechanize`); the log
+  should be static.  The Allan deviation is that of the rates (overlapping estimator).
+  The table gives per axis the angle random walk (deg/sqrt(h)) and gyro bias instability
+  (deg/h), the velocity random walk (m/s/sqrt(h)) and accelerometer bias instability
+  (mGal = 1e-5 m/s^2); random walk = sigma(1 s) of the slope -1/2, bias instability =
+  flat minimum / 0.664.
+
+example:
+  ins allan static_imu.txt --plot allan.png
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser("allan", help="Allan deviation and noise densities of an IMU log",
+                       description="Overlapping Allan deviation of the gyro and accelerometer "
+                                   "axes of a static IMU log, with the random walks and bias "
+                                   "instabilities read from it.",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("imu_file", metavar="IMU_FILE")
+    p.add_argument("--format", choices=["kfgins", "kfgins-bin", "csv"], default=None,
+                   help="IMU file format (default: from the extension)")
+    p.add_argument("--axes", choices=["FRD", "FLU", "RFU", "FUR"], default="FRD")
+    p.add_argument("--plot", metavar="PNG", help="write the log-log plot of the deviations")
+    p.set_defaults(func=_cmd_allan)
+
+
+def _cmd_allan(args):
+    from . import imu as imu_mod
+    from .allan import allan_deviation, noise_densities
+    from .fileio import atomic_open
+
+    log = imu_mod.read_imu(args.imu_file, format=args.format, axes=args.axes)
+    if len(log) < 100:
+        raise InputError(f"{args.imu_file}: {len(log)} epochs are too few for an Allan "
+                         f"deviation (expected >= 100)")
+    dt = log.nominal_dt
+    tau, ag = allan_deviation(log.dtheta_b, dt)
+    _, aa = allan_deviation(log.dvel_b, dt)
+    try:
+        arw, gbi = noise_densities(tau, ag)
+        vrw, abi = noise_densities(tau, aa)
+    except ValueError as exc:
+        raise InputError(f"{args.imu_file}: {exc}") from None
+    print(f"{args.imu_file}: {len(log)} epochs, dt {dt:.6g} s, {len(log) * dt:.1f} s")
+    print(f"{'axis':<6}{'ARW deg/sqrt(h)':>17}{'gyro BI deg/h':>15}"
+          f"{'VRW m/s/sqrt(h)':>17}{'accel BI mGal':>15}")
+    for i, name in enumerate("xyz"):
+        print(f"{name:<6}{np.degrees(arw[i]) * 60:>17.5g}{np.degrees(gbi[i]) * 3600:>15.5g}"
+              f"{vrw[i] * 60:>17.5g}{abi[i] / 1e-5:>15.5g}")
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+        for i, name in enumerate("xyz"):
+            a1.loglog(tau, np.degrees(ag[:, i]) * 3600, label=f"gyro {name}")
+            a2.loglog(tau, aa[:, i] / 1e-5, label=f"accel {name}")
+        a1.set(xlabel="tau (s)", ylabel="Allan deviation (deg/h)", title="gyroscopes")
+        a2.set(xlabel="tau (s)", ylabel="Allan deviation (mGal)", title="accelerometers")
+        for a in (a1, a2):
+            a.grid(True, which="both", alpha=0.3)
+            a.legend()
+        fig.tight_layout()
+        with atomic_open(args.plot, "wb") as f:
+            fig.savefig(f, format="png", dpi=100)
+        plt.close(fig)
+        print(f"wrote {args.plot}")
+    return 0

@@ -1,0 +1,102 @@
+"""``ins simulate PLAN.toml -o FLIGHT_DIR``: simulate a survey flight into a flight folder."""
+import argparse
+import time as wallclock
+from pathlib import Path
+
+from .errors import InputError
+
+EPILOG = """\
+frames and units:
+  The plan (TOML, units in the key names: _deg, _m, _mps, _hz, _s, _percent; see
+  data/flights/demo.toml) gives the block origin (WGS84 lat/lon deg, ellipsoidal h m),
+  strips, flying height, speed, wind, turbulence, the stabilized mount, the IMU grade,
+  GNSS, camera, terrain and tie points.
+
+output folder (docs/interfaces.md; manifest.toml names every file, frame and unit):
+  imu.txt      KF-GINS IMU text: time_s, dtheta x y z (rad), dvel x y z (m/s), body FRD
+               (IMU on the stabilized platform), increments stamped at their END
+  gnss.txt     antenna: time_s lat_deg lon_deg h_m std_n std_e std_d (m) [vN vE vD, std m/s]
+  mount.txt    time_s roll pitch yaw (deg) of the platform relative to the aircraft
+  truth.nav    the IMU's true trajectory at every IMU epoch (.nav: week t lat lon h vN vE vD
+               roll pitch yaw; deg, m, m/s)
+  events.csv   image_id,time_s (mid-exposure, GPS s of week)
+  camera.toml  frame camera and its mounting (axes, lever arm m, boresight deg)
+  eo_true.csv, eo_true_omega-phi-kappa.csv
+               true exterior orientation in the mapping frame ENU at the block origin (m),
+               angles (deg) of C_mc = C_mn C_nb C_bc in the named system
+  tiepoints.csv    image_id,point_id,x_mm,y_mm (distorted, with pixel noise)
+  ground_points.csv  point_id,X_m,Y_m,Z_m (mapping frame)
+  plan.toml    a verbatim copy of the plan
+
+  The same plan and seed give the same bytes.  The folder is built beside FLIGHT_DIR and
+  renamed into place when complete; a non-empty FLIGHT_DIR is refused unless --force.
+
+example:
+  ins simulate data/flights/demo.toml -o flight1 --seed 1 --grade tactical
+"""
+
+
+def _seed(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def add_parser(sub):
+    """Register ``ins simulate``."""
+    from .simulate.sensor_errors import PRESETS
+    p = sub.add_parser(
+        "simulate", help="simulate a survey flight (IMU, GNSS, mount, images, tie points)",
+        description="Simulate a photogrammetric survey flight from a TOML flight plan: the "
+                    "true trajectory with a stabilized mount, IMU increments with sensor "
+                    "errors, the GNSS antenna log, mount angles, exposures with their true "
+                    "exterior orientation, terrain and tie points; written as a flight "
+                    "folder with manifest.toml.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("plan", metavar="PLAN.toml", help="flight plan (TOML)")
+    p.add_argument("-o", "--output", required=True, metavar="FLIGHT_DIR",
+                   help="flight folder to create (its parent must exist)")
+    p.add_argument("--seed", type=_seed, default=0, metavar="N",
+                   help="seed of all random errors (integer >= 0, default 0)")
+    p.add_argument("--grade", choices=sorted(PRESETS), default=None,
+                   help="IMU grade, replacing the plan's [imu] grade (its overrides still "
+                        "apply)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty FLIGHT_DIR (only once the new folder is complete)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=_cmd_simulate)
+
+
+def _cmd_simulate(args):
+    from .cli import _Progress
+    from .simulate.folder import check_target, simulate_flight
+
+    t0 = wallclock.perf_counter()
+    out = Path(args.output)
+    plan_path = Path(args.plan)
+    if not plan_path.is_file():
+        raise InputError("no such plan file", path=args.plan)
+    if out.exists() and out.resolve() == plan_path.resolve().parent:
+        raise InputError("--output is the plan's own folder; choose a new folder",
+                         path=args.output)
+    try:
+        check_target(out, args.force)
+    except InputError as exc:
+        raise InputError(f"--output {exc}") from None
+    progress = _Progress("simulate", not args.quiet)
+    folder = simulate_flight(args.plan, out, args.seed, grade=args.grade, force=args.force,
+                             progress=progress)
+    if not args.quiet:
+        import tomllib
+        with open(folder / "manifest.toml", "rb") as f:
+            manifest = tomllib.load(f)
+        fl = manifest["flight"]
+        print(f"wrote {folder}: {fl['end_time_s'] - fl['start_time_s']:.1f} s of flight, "
+              f"{fl['imu_rate_hz']:g} Hz IMU ({fl['grade']}), {fl['n_images']} images, "
+              f"{fl['n_tiepoint_observations']} tie-point observations, seed {fl['seed']}, "
+              f"in {wallclock.perf_counter() - t0:.1f} s")
+    return 0

@@ -1,0 +1,146 @@
+"""Numba loops of the simulator (private): recursions that cannot be vectorized and the
+per-sample attitude/rate formulas of the truth (one pass, no temporaries)."""
+import math
+
+import numba as nb
+import numpy as np
+from numba.extending import register_jitable
+
+from ..earth import _earth_rate, _gravity, _transport_rate
+
+
+@nb.njit(cache=True)
+def gauss_markov_add(y, dt, white, sigma, corr_time, state):
+    """Add ``g_k dt_k`` of a first-order Gauss-Markov process to the rows of ``y``.
+
+    ``g_k = e^{-dt_k/T} g_{k-1} + sigma sqrt(1 - e^{-2 dt_k/T}) white_k`` (exact
+    discretization, steady-state standard deviation ``sigma``).  ``state`` is
+    ``g`` before the first row; the new state is returned.
+    """
+    g = state.copy()
+    for k in range(y.shape[0]):
+        phi = math.exp(-dt[k] / corr_time)
+        s = math.sqrt(max(1.0 - phi * phi, 0.0))
+        for i in range(3):
+            g[i] = phi * g[i] + sigma[i] * s * white[k, i]
+            y[k, i] += g[i] * dt[k]
+    return g
+
+
+@nb.njit(cache=True)
+def quantize(y, q, carry):
+    """Quantize the rows of ``y`` in place to multiples of ``q``, carrying the residue.
+
+    Equivalent to ``Y_k = q round(S_k / q)``, ``y_k = Y_k - Y_{k-1}`` on the running sum
+    ``S_k``; ``carry`` is the residue before the first row, the new one is returned.
+    """
+    c = carry.copy()
+    for k in range(y.shape[0]):
+        for i in range(3):
+            s = c[i] + y[k, i]
+            v = q * np.round(s / q)
+            c[i] = s - v
+            y[k, i] = v
+    return c
+
+
+# ---------------------------------------------------------------------------------------
+# truth: attitude, mount and rates of the platform (one pass per sample, no temporaries)
+
+@register_jitable
+def euler_rates_to_body(r, p, dr, dp, dy):
+    """Body angular rate of ``C = Rz(yaw) Ry(pitch) Rx(roll)`` from the Euler rates."""
+    sr, cr, sp, cp = np.sin(r), np.cos(r), np.sin(p), np.cos(p)
+    return dr - dy * sp, dp * cr + dy * sr * cp, -dp * sr + dy * cr * cp
+
+
+@register_jitable
+def body_to_euler_rates(r, p, wx, wy, wz):
+    """Euler rates (roll, pitch, yaw) from the body rate; inverse of the above."""
+    sr, cr = np.sin(r), np.cos(r)
+    a = wy * sr + wz * cr
+    return wx + a * np.tan(p), wy * cr - wz * sr, a / np.cos(p)
+
+
+@nb.njit(cache=True, inline="always")
+def _zyx(C, r, p, y):
+    """C = Rz(y) Ry(p) Rx(r), in place."""
+    sr, cr, sp, cp, sy, cy = math.sin(r), math.cos(r), math.sin(p), math.cos(p), \
+        math.sin(y), math.cos(y)
+    C[0, 0], C[0, 1], C[0, 2] = cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy
+    C[1, 0], C[1, 1], C[1, 2] = cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy
+    C[2, 0], C[2, 1], C[2, 2] = -sp, sr * cp, cr * cp
+
+
+@nb.njit(cache=True, inline="always")
+def _soft_limit(x, dx, limit, knee):
+    """C2 saturation: identity below ``knee * limit``, then a tanh knee to the limit."""
+    k = knee * limit
+    ax = abs(x)
+    if ax <= k:
+        return x, dx
+    span = limit - k
+    u = (ax - k) / span
+    return math.copysign(k + span * math.tanh(u), x), dx / math.cosh(u) ** 2
+
+
+@nb.njit(cache=True)
+def platform_state(psi, psi_dot, ac, ac_dot, lag, lag_dot, lat, h, v_n, a_n, limits, knee,
+                   enabled, C_na, C_nb, mount, mount_rate, w_ib_b, f_b):
+    """Aircraft and platform attitude, mount angles and the IMU's rates, per sample.
+
+    ``ac = (roll, pitch, d)`` of the aircraft (yaw ``= psi + d``), ``lag`` the same angles
+    as the mount's servos follow them (lagged).  The mount command ``C_ap* = Rx(-roll)
+    Ry(-pitch) Rz(-d)`` (of the lagged angles) levels the platform along the track;
+    its ZYX angles are soft-limited.  Outputs (filled in place): ``C_na``, ``C_nb``
+    (n, 3, 3), ``mount``, ``mount_rate``, ``w_ib_b``, ``f_b`` (n, 3).
+    """
+    Cm = np.empty((3, 3))
+    Ca = np.empty((3, 3))
+    for k in range(psi.shape[0]):
+        r, p, d = ac[k, 0], ac[k, 1], ac[k, 2]
+        _zyx(Ca, r, p, psi[k] + d)
+        wa = euler_rates_to_body(r, p, ac_dot[k, 0], ac_dot[k, 1], psi_dot[k] + ac_dot[k, 2])
+        if enabled:
+            # command: C = Rx(a) Ry(b) Rz(c), a, b, c = -lagged (roll, pitch, d)
+            a, b, c = -lag[k, 0], -lag[k, 1], -lag[k, 2]
+            da, db, dc = -lag_dot[k, 0], -lag_dot[k, 1], -lag_dot[k, 2]
+            sa, ca, sb, cb, sc, cc = math.sin(a), math.cos(a), math.sin(b), math.cos(b), \
+                math.sin(c), math.cos(c)
+            c00, c10 = cb * cc, ca * sc + sa * sb * cc      # column 0 and row 2 of C
+            c20, c21, c22 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
+            mr = math.atan2(c21, c22)
+            mp = math.atan2(-c20, math.hypot(c21, c22))
+            my = math.atan2(c10, c00)
+            # body rate of C: Rz(c)^T Ry(b)^T (da, 0, 0) + Rz(c)^T (0, db, 0) + (0, 0, dc)
+            ux, uz = cb * da, sb * da
+            wx = cc * ux + sc * db
+            wy = -sc * ux + cc * db
+            wz = uz + dc
+            dmr, dmp, dmy = body_to_euler_rates(mr, mp, wx, wy, wz)
+            mr, dmr = _soft_limit(mr, dmr, limits[0], knee)
+            mp, dmp = _soft_limit(mp, dmp, limits[1], knee)
+            my, dmy = _soft_limit(my, dmy, limits[2], knee)
+        else:
+            mr = mp = my = dmr = dmp = dmy = 0.0
+        _zyx(Cm, mr, mp, my)
+        wm = euler_rates_to_body(mr, mp, dmr, dmp, dmy)
+        for i in range(3):
+            for j in range(3):
+                C_na[k, i, j] = Ca[i, j]
+                C_nb[k, i, j] = Ca[i, 0] * Cm[0, j] + Ca[i, 1] * Cm[1, j] + Ca[i, 2] * Cm[2, j]
+        mount[k, 0], mount[k, 1], mount[k, 2] = mr, mp, my
+        mount_rate[k, 0], mount_rate[k, 1], mount_rate[k, 2] = dmr, dmp, dmy
+        vn, ve, vd = v_n[k, 0], v_n[k, 1], v_n[k, 2]
+        ie_n, ie_e, ie_d = _earth_rate(lat[k])
+        en_n, en_e, en_d = _transport_rate(lat[k], h[k], vn, ve)
+        wn, we, wd = ie_n + en_n, ie_e + en_e, ie_d + en_d
+        xn, xe, xd = wn + ie_n, we + ie_e, wd + ie_d       # 2 w_ie + w_en
+        fn = a_n[k, 0] + (xe * vd - xd * ve)
+        fe = a_n[k, 1] + (xd * vn - xn * vd)
+        fd = a_n[k, 2] - _gravity(lat[k], h[k]) + (xn * ve - xe * vn)
+        for i in range(3):
+            # w_nb_b = C_ap^T w_na_a + w_ap_p ; + C_bn w_in_n
+            w_ib_b[k, i] = (Cm[0, i] * wa[0] + Cm[1, i] * wa[1] + Cm[2, i] * wa[2] + wm[i]
+                            + C_nb[k, 0, i] * wn + C_nb[k, 1, i] * we + C_nb[k, 2, i] * wd)
+            f_b[k, i] = C_nb[k, 0, i] * fn + C_nb[k, 1, i] * fe + C_nb[k, 2, i] * fd

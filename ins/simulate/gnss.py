@@ -1,0 +1,189 @@
+"""Simulated GNSS antenna log: the varying lever arm of a stabilized mount, noise, outages.
+
+Geometry (``conventions.md`` item 4, ``docs/interfaces.md``): the IMU sits on the mount
+platform (``b = p``), the antenna on the aircraft ``a``.  With ``l_bp`` the constant
+IMU-to-platform-centre arm in ``b`` and ``l_ap`` the constant platform-centre-to-antenna
+arm in ``a``, and ``C_pa(t)`` from the mount angles (``C_ap = Rz(yaw) Ry(pitch) Rx(roll)``,
+platform relative to aircraft)::
+
+    l_b(t)  = l_bp + C_pa(t) l_ap                       (C_bp = I)
+    r_ant   = r_imu + C_nb l_b                          (exact, through ECEF)
+    v_ant   = v_imu + C_nb (w_ib_b x l_b) - w_in_n x (C_nb l_b) + C_nb dl_b/dt
+
+The velocity is the usual first-order form (KF-GINS, the lever-arm paper): it neglects the
+transport-rate term ``w_en_n x (C_nb l_b)`` and the rotation between the n frames of the
+IMU and of the antenna, both about ``|v| |l_b| / R`` (1e-5 m/s for 60 m/s and 1 m).
+
+The log is an :class:`ins.gnss.GnssLog`, written with :func:`ins.gnss.write_gnss` (the
+KF-GINS GNSS text of ``docs/interfaces.md``).
+"""
+import numpy as np
+import pymap3d
+
+from ..earth import dcm_en, earth_rate_n, lla_to_ecef, radii, transport_rate_n
+from ..gnss import GnssLog
+from ..rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew
+
+__all__ = ["lever_arm_b", "antenna_state", "offset_ecef", "offset_lla", "gnss_times",
+           "simulate_gnss"]
+
+#: Smallest standard deviation written to the log, m and m/s.
+STD_FLOOR = 1e-3
+
+_E_X, _E_Y, _E_Z = skew(np.eye(3))
+
+
+def lever_arm_b(mount_rpy, mount_rate, l_bp, l_ap):
+    """IMU-to-antenna arm in the body frame and its time derivative.
+
+    Parameters
+    ----------
+    mount_rpy : array_like, shape (n, 3)
+        Mount angles roll, pitch, yaw of the platform relative to the aircraft, rad
+        (``C_ap = Rz(yaw) Ry(pitch) Rx(roll)``).
+    mount_rate : array_like, shape (n, 3)
+        Their time derivatives, rad/s.
+    l_bp : array_like, shape (3,)
+        IMU to platform centre, in ``b`` (FRD), m.
+    l_ap : array_like, shape (3,)
+        Platform centre to antenna, in ``a`` (FRD), m.
+
+    Returns
+    -------
+    l_b : ndarray, shape (n, 3)
+        ``l_bp + C_pa l_ap``, m.
+    dl_b : ndarray, shape (n, 3)
+        ``d l_b / dt = (dC_ap/dt)^T l_ap``, m/s, with ``dC_ap/dt`` from the chain rule
+        on the three elementary rotations.
+    """
+    rpy = np.atleast_2d(np.asarray(mount_rpy, dtype=float))
+    rate = np.atleast_2d(np.asarray(mount_rate, dtype=float))
+    l_bp = np.asarray(l_bp, dtype=float)
+    l_ap = np.asarray(l_ap, dtype=float)
+    Rx, Ry, Rz = rot_x(rpy[:, 0]), rot_y(rpy[:, 1]), rot_z(rpy[:, 2])
+    C_ap = Rz @ Ry @ Rx
+    dC_ap = (rate[:, 2, None, None] * (Rz @ _E_Z @ Ry @ Rx)
+             + rate[:, 1, None, None] * (Rz @ Ry @ _E_Y @ Rx)
+             + rate[:, 0, None, None] * (C_ap @ _E_X))
+    l_b = l_bp + np.einsum("nji,j->ni", C_ap, l_ap)
+    dl_b = np.einsum("nji,j->ni", dC_ap, l_ap)
+    return l_b, dl_b
+
+
+def antenna_state(sample, l_bp, l_ap):
+    """True antenna position and velocity from a truth sample.
+
+    Parameters
+    ----------
+    sample : ins.simulate.truth.TruthSample
+        Uses ``lla``, ``v_n``, ``q_nb``, ``w_ib_b``, ``mount_rpy``, ``mount_rate``.
+    l_bp, l_ap : array_like, shape (3,)
+        The constant arms (m), see :func:`lever_arm_b`.
+
+    Returns
+    -------
+    lla_ant : ndarray, shape (n, 3)
+        Antenna latitude, longitude (rad), ellipsoidal height (m); exact through ECEF.
+    v_ant_n : ndarray, shape (n, 3)
+        Antenna velocity NED, m/s (first-order form of the module docstring).
+    """
+    lla = np.atleast_2d(sample.lla)
+    C_nb = quat_to_dcm(np.atleast_2d(sample.q_nb))
+    l_b, dl_b = lever_arm_b(sample.mount_rpy, sample.mount_rate, l_bp, l_ap)
+    arm_n = np.einsum("nij,nj->ni", C_nb, l_b)
+    lla_ant = offset_lla(lla, arm_n)
+    w_in_n = earth_rate_n(lla[:, 0]) + transport_rate_n(lla[:, 0], lla[:, 2], sample.v_n)
+    w_ib_b = np.atleast_2d(sample.w_ib_b)
+    v_ant = (np.atleast_2d(sample.v_n) + np.einsum("nij,nj->ni", C_nb, np.cross(w_ib_b, l_b))
+             - np.cross(w_in_n, arm_n) + np.einsum("nij,nj->ni", C_nb, dl_b))
+    return lla_ant, v_ant
+
+
+def offset_ecef(lla, offset_n):
+    """ECEF (m) of ``lla`` (rows: rad, rad, m) plus ``offset_n`` (NED at ``lla``, m), (n, 3)."""
+    lla = np.atleast_2d(np.asarray(lla, dtype=float))
+    r_e = lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2])
+    return r_e + np.einsum("nij,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), offset_n)
+
+
+def offset_lla(lla, offset_n):
+    """Geodetic position of ``lla + offset_n`` (offset NED in the n frame at ``lla``, m).
+
+    Exact: ECEF of the point plus ``C_en offset_n``, back to geodetic with pymap3d.
+    """
+    r_e = offset_ecef(lla, offset_n)
+    lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
+    return np.column_stack([lat, lon, h])
+
+
+def gnss_times(t_start, t_end, rate_hz, outages=()):
+    """GNSS epochs: whole multiples of ``1 / rate_hz`` in ``[t_start, t_end]``, minus outages.
+
+    Parameters
+    ----------
+    t_start, t_end : float
+        Flight start and end, GPS s of week.
+    rate_hz : float
+        Fix rate, Hz.
+    outages : sequence of (start_s, duration_s)
+        Outages; ``start_s`` from the flight start (``t_start``), s.  Epochs with
+        ``t_start + start_s <= t < t_start + start_s + duration_s`` are dropped.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    k0 = int(np.ceil(t_start * rate_hz - 1e-9))
+    k1 = int(np.floor(t_end * rate_hz + 1e-9))
+    time = np.arange(k0, k1 + 1) / rate_hz
+    keep = np.ones(len(time), dtype=bool)
+    for start_s, duration_s in outages:
+        t0 = t_start + start_s
+        keep &= ~((time >= t0) & (time < t0 + duration_s))
+    return time[keep]
+
+
+def _ned_to_dlla(lla, d_ned):
+    """Small NED offsets (m) to (dlat, dlon, dh) in rad, rad, m (``D^-1``)."""
+    M, N = radii(lla[:, 0])
+    return np.column_stack([d_ned[:, 0] / (M + lla[:, 2]),
+                            d_ned[:, 1] / ((N + lla[:, 2]) * np.cos(lla[:, 0])),
+                            -d_ned[:, 2]])
+
+
+def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
+                  sigma_vel_mps=None):
+    """Noisy antenna fixes at the given epochs.
+
+    Parameters
+    ----------
+    truth : ins.simulate.truth.FlightTruth
+        Evaluated at ``time``.
+    time : array_like, shape (n,)
+        Epochs (GPS s of week), e.g. from :func:`gnss_times`.
+    l_bp, l_ap : array_like, shape (3,)
+        Lever arms, m (:func:`lever_arm_b`).
+    sigma_ned_m : array_like, shape (3,)
+        White position noise north, east, down, m.
+    rng : numpy.random.Generator
+        Noise source (one generator per product keeps products independent of each other).
+    velocity : bool
+        Whether to add the antenna velocity (with white noise ``sigma_vel_mps``, m/s).
+
+    Returns
+    -------
+    ins.gnss.GnssLog
+        The standard deviations are the noise sigmas, at least :data:`STD_FLOOR` (an
+        error-free simulation still states a positive sigma, which the readers require).
+    """
+    time = np.asarray(time, dtype=float)
+    sigma = np.broadcast_to(np.asarray(sigma_ned_m, dtype=float), (3,))
+    sample = truth.evaluate(time)
+    lla, v_n = antenna_state(sample, l_bp, l_ap)
+    lla = lla + _ned_to_dlla(lla, rng.standard_normal((len(time), 3)) * sigma)
+    std = np.tile(np.maximum(sigma, STD_FLOOR), (len(time), 1))
+    if not velocity:
+        return GnssLog(time, lla, std)
+    sigma_v = np.broadcast_to(np.asarray(sigma_vel_mps, dtype=float), (3,))
+    v_n = v_n + rng.standard_normal((len(time), 3)) * sigma_v
+    return GnssLog(time, lla, std, v_n, np.tile(np.maximum(sigma_v, STD_FLOOR), (len(time), 1)))

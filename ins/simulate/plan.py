@@ -1,0 +1,553 @@
+"""Flight plan of a photogrammetric survey flight (TOML), validated, SI units inside.
+
+The file has the sections ``[block] [flight] [wind] [turbulence] [mount] [imu] [gnss]
+[camera] [terrain] [tie_points]``; key names carry their unit (``_deg``, ``_m``,
+``_mps``, ``_hz``, ``_s``, ``_percent``).  ``data/flights/demo.toml`` is the documented
+example.  Every key has a default except the block origin; unknown keys and sections are
+errors.  :func:`load_plan` and :func:`parse_plan` raise :class:`~ins.errors.InputError`
+as ``"plan.toml: [section] key: message (expected unit)"``.
+
+Geometry of the photo block
+---------------------------
+The strips are straight lines of azimuth ``strip_azimuth_deg`` (clockwise from north)
+and length ``strip_length_m``; strip 0 starts at the block origin, the next strips lie to
+the right of the first (looking along the azimuth), ``strip_spacing`` apart, flown
+alternately back and forth.  With the nominal camera axes (``[camera] axes``, rows of
+``C_bc``) the body x axis (forward, along track) is the image axis whose row of ``axes``
+has the larger entry: for the default nadir axes ``[[1,0,0],[0,-1,0],[0,0,-1]]`` the
+camera x axis (image columns, ``width_px``) is along track and the image rows
+(``height_px``) across track.  Then::
+
+    footprint_along  = height_agl * n_px_along  * pixel_size / focal_length
+    footprint_across = height_agl * n_px_across * pixel_size / focal_length
+    exposure_interval = (1 - forward_overlap) * footprint_along / ground_speed
+    strip_spacing     = (1 - side_overlap) * footprint_across
+"""
+import math
+import tomllib
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+from ..errors import InputError
+from .sensor_errors import MANIFEST_KEYS, PRESETS
+
+__all__ = ["FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
+           "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "load_plan",
+           "parse_plan", "G_TURN"]
+
+D2R = math.pi / 180.0
+#: Gravity used to relate bank and turn rate of a coordinated turn, m/s^2.
+G_TURN = 9.80665
+_NADIR_AXES = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
+
+
+@dataclass(frozen=True)
+class Block:
+    """Photo block: origin (lat, lon rad; ground height m), strip azimuth (rad), strips."""
+    origin_lat: float
+    origin_lon: float
+    origin_h: float
+    strip_azimuth: float
+    strip_length: float
+    n_strips: int
+    side_overlap: float | None          # fraction, or None when strip_spacing is given
+    strip_spacing: float | None         # m
+    forward_overlap: float | None       # fraction
+    exposure_interval: float | None     # s
+
+
+@dataclass(frozen=True)
+class Flight:
+    """Flight parameters (m, m/s, rad/s, s)."""
+    height_agl: float
+    ground_speed: float
+    turn_rate: float                    # rad/s of the coordinated turns
+    climb_rate: float                   # m/s (0: no climb; start in the air at height)
+    start: str                          # "ground" or "air"
+    stationary: float                   # s
+    run_in: float                       # m
+    takeoff_accel: float                # m/s^2, peak acceleration of the ground roll
+    gps_week: int
+    start_time: float                   # GPS s of week
+
+    @property
+    def bank(self):
+        """Bank angle of the coordinated turns, rad: ``atan(V * turn_rate / g)``."""
+        return math.atan(self.ground_speed * self.turn_rate / G_TURN)
+
+
+@dataclass(frozen=True)
+class Wind:
+    """Constant wind: speed (m/s), direction it blows FROM (rad, clockwise from north)."""
+    speed: float = 0.0
+    from_azimuth: float = 0.0
+
+    @property
+    def w_n(self):
+        """Wind velocity (toward), north and east components, m/s."""
+        return (-self.speed * math.cos(self.from_azimuth),
+                -self.speed * math.sin(self.from_azimuth))
+
+
+@dataclass(frozen=True)
+class Turbulence:
+    """Sums of sinusoids: amplitudes (rad, m) and frequencies (Hz); phases from ``seed``."""
+    roll_amp: tuple = ()
+    roll_freq: tuple = ()
+    pitch_amp: tuple = ()
+    pitch_freq: tuple = ()
+    yaw_amp: tuple = ()
+    yaw_freq: tuple = ()
+    heave_amp: tuple = ()
+    heave_freq: tuple = ()
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class Mount:
+    """Stabilized mount: limits (rad), servo lag (s), log rate (Hz), lever arms (m)."""
+    enabled: bool = True
+    level_limit: float = 5.0 * D2R
+    azimuth_limit: float = 30.0 * D2R
+    servo_lag: float = 0.1
+    log_rate_hz: float = 50.0
+    l_bp: tuple = (0.0, 0.0, 0.0)       # IMU to platform centre, b, m
+    l_ap: tuple = (0.0, 0.0, -1.5)      # platform centre to antenna, a, m
+
+
+@dataclass(frozen=True)
+class ImuSettings:
+    """IMU grade, output rate and per-item overrides (manifest key names and units)."""
+    grade: str = "tactical"
+    rate_hz: float = 200.0
+    overrides: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+
+
+@dataclass(frozen=True)
+class GnssSettings:
+    """GNSS antenna log settings."""
+    rate_hz: float = 1.0
+    sigma_ned: tuple = (0.02, 0.02, 0.04)     # m
+    velocity: bool = False
+    sigma_vel: float = 0.01                   # m/s
+    outages: tuple = ()                       # ((start s from flight start, duration s), ...)
+
+
+@dataclass(frozen=True)
+class CameraSettings:
+    """Frame camera (mm, px) and its mounting on the platform (see docs/interfaces.md)."""
+    focal_length_mm: float = 100.0
+    pixel_size_mm: float = 0.01
+    width_px: int = 8000
+    height_px: int = 6000
+    principal_point_px: tuple = (3999.5, 2999.5)
+    radial_k: tuple = (0.0, 0.0, 0.0)
+    tangential_p: tuple = (0.0, 0.0)
+    axes: tuple = _NADIR_AXES
+    lever_arm_m: tuple = (0.0, 0.0, 0.0)
+    boresight_deg: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def width_along_track(self):
+        """True when the image x axis (columns, width) is along track (body x)."""
+        return abs(self.axes[0][0]) >= abs(self.axes[0][1])
+
+
+@dataclass(frozen=True)
+class Terrain:
+    relief_m: float = 0.0
+    wavelength_m: float = 2000.0
+    seed_offset: int = 0
+
+
+@dataclass(frozen=True)
+class TiePoints:
+    per_image: int = 100
+    sigma_px: float = 0.5
+
+
+@dataclass(frozen=True)
+class FlightPlan:
+    """A validated flight plan (SI units inside; see the module docstring)."""
+    block: Block
+    flight: Flight
+    wind: Wind
+    turbulence: Turbulence
+    mount: Mount
+    imu: ImuSettings
+    gnss: GnssSettings
+    camera: CameraSettings
+    terrain: Terrain
+    tie_points: TiePoints
+    source: str = "<string>"
+
+    def _footprint(self, along):
+        c = self.camera
+        n_px = c.width_px if c.width_along_track == along else c.height_px
+        return self.flight.height_agl * n_px * c.pixel_size_mm / c.focal_length_mm
+
+    @property
+    def footprint_along_m(self):
+        """Ground footprint of an image along track, m (flat terrain at block height)."""
+        return self._footprint(True)
+
+    @property
+    def footprint_across_m(self):
+        """Ground footprint of an image across track, m."""
+        return self._footprint(False)
+
+    @property
+    def exposure_interval_s(self):
+        """Time between exposures on a strip, s."""
+        b = self.block
+        if b.exposure_interval is not None:
+            return b.exposure_interval
+        return (1.0 - b.forward_overlap) * self.footprint_along_m / self.flight.ground_speed
+
+    @property
+    def strip_spacing_m(self):
+        """Distance between neighbouring strips, m."""
+        b = self.block
+        if b.strip_spacing is not None:
+            return b.strip_spacing
+        return (1.0 - b.side_overlap) * self.footprint_across_m
+
+    @property
+    def flying_height_m(self):
+        """Ellipsoidal height of the photo flight, m."""
+        return self.block.origin_h + self.flight.height_agl
+
+
+# ---------------------------------------------------------------------------------------
+# reading
+
+class _Section:
+    """Typed access to one TOML table; records the keys used, rejects the others."""
+
+    def __init__(self, source, name, table):
+        self.source, self.name = source, name
+        if not isinstance(table, dict):
+            raise InputError(f"[{name}]: expected a table, got {type(table).__name__}",
+                             path=source)
+        self.table, self.used = table, set()
+
+    def error(self, key, message, unit=None):
+        tail = f" (expected {unit})" if unit else ""
+        return InputError(f"[{self.name}] {key}: {message}{tail}", path=self.source)
+
+    def has(self, key):
+        return key in self.table
+
+    def number(self, key, default=None, unit="", lo=None, hi=None, lo_open=False,
+               integer=False):
+        self.used.add(key)
+        if key not in self.table:
+            if default is None:
+                raise self.error(key, "missing", unit)
+            return default
+        v = self.table[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.error(key, f"expected a number, got {v!r}", unit)
+        if integer and (not float(v).is_integer()):
+            raise self.error(key, f"expected an integer, got {v!r}", unit)
+        if not math.isfinite(v):
+            raise self.error(key, f"must be finite, got {v!r}", unit)
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            raise self.error(key, f"must be {'>' if lo_open else '>='} {lo}, got {v!r}", unit)
+        if hi is not None and v > hi:
+            raise self.error(key, f"must be <= {hi}, got {v!r}", unit)
+        return int(v) if integer else float(v)
+
+    def numbers(self, key, default=(), unit="", length=None, lo=None):
+        self.used.add(key)
+        if key not in self.table:
+            return tuple(default)
+        v = self.table[key]
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = [v]
+        if not isinstance(v, list) or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v):
+            raise self.error(key, f"expected a list of finite numbers, got {v!r}", unit)
+        if length is not None and len(v) != length:
+            raise self.error(key, f"expected {length} numbers, got {len(v)}", unit)
+        if lo is not None and any(x < lo for x in v):
+            raise self.error(key, f"values must be >= {lo}, got {v!r}", unit)
+        return tuple(float(x) for x in v)
+
+    def boolean(self, key, default):
+        self.used.add(key)
+        v = self.table.get(key, default)
+        if not isinstance(v, bool):
+            raise self.error(key, f"expected true or false, got {v!r}")
+        return v
+
+    def choice(self, key, default, options):
+        self.used.add(key)
+        v = self.table.get(key, default)
+        if v not in options:
+            raise self.error(key, f"expected one of {', '.join(map(repr, options))}, got {v!r}")
+        return v
+
+    def finish(self):
+        unknown = sorted(set(self.table) - self.used)
+        if unknown:
+            raise self.error(unknown[0], "unknown key (known: "
+                             + ", ".join(sorted(self.used)) + ")")
+
+
+def _either(sec, a, b):
+    if sec.has(a) and sec.has(b):
+        raise sec.error(b, f"give either {a} or {b}, not both")
+
+
+def _block(sec):
+    _either(sec, "side_overlap_percent", "strip_spacing_m")
+    _either(sec, "forward_overlap_percent", "exposure_interval_s")
+    spacing = sec.number("strip_spacing_m", 0.0, "m", lo=0.0, lo_open=True) \
+        if sec.has("strip_spacing_m") else None
+    interval = sec.number("exposure_interval_s", 0.0, "s", lo=0.0, lo_open=True) \
+        if sec.has("exposure_interval_s") else None
+    side = None if spacing is not None else sec.number(
+        "side_overlap_percent", 30.0, "percent in [0, 100)", lo=0.0) / 100.0
+    fwd = None if interval is not None else sec.number(
+        "forward_overlap_percent", 60.0, "percent in [0, 100)", lo=0.0) / 100.0
+    for key, v in (("side_overlap_percent", side), ("forward_overlap_percent", fwd)):
+        if v is not None and v >= 1.0:
+            raise sec.error(key, f"must be below 100, got {100 * v:g}", "percent in [0, 100)")
+    return Block(
+        origin_lat=sec.number("origin_lat_deg", None, "deg in [-85, 85]", -85.0, 85.0) * D2R,
+        origin_lon=sec.number("origin_lon_deg", None, "deg in [-180, 360]", -180.0, 360.0) * D2R,
+        origin_h=sec.number("origin_h_m", 0.0, "m (ellipsoidal)", -500.0, 9000.0),
+        strip_azimuth=sec.number("strip_azimuth_deg", 0.0, "deg", -360.0, 360.0) * D2R,
+        strip_length=sec.number("strip_length_m", 3000.0, "m > 0", 0.0, 200e3, lo_open=True),
+        n_strips=sec.number("n_strips", 4, "integer >= 1", 1, 1000, integer=True),
+        side_overlap=side, strip_spacing=spacing, forward_overlap=fwd,
+        exposure_interval=interval)
+
+
+def _flight(sec):
+    _either(sec, "turn_rate_deg_s", "bank_deg")
+    speed = sec.number("ground_speed_mps", 60.0, "m/s > 5", 5.0, 400.0)
+    if sec.has("bank_deg"):
+        bank = sec.number("bank_deg", 0.0, "deg in (0, 60]", 0.0, 60.0, lo_open=True) * D2R
+        rate = G_TURN * math.tan(bank) / speed
+    else:
+        rate = sec.number("turn_rate_deg_s", 1.0, "deg/s in (0, 10]", 0.0, 10.0,
+                          lo_open=True) * D2R
+    start = sec.choice("start", "air", ("ground", "air"))
+    return Flight(
+        height_agl=sec.number("height_agl_m", 1000.0, "m > 0", 0.0, 20000.0, lo_open=True),
+        ground_speed=speed, turn_rate=rate,
+        climb_rate=sec.number("climb_rate_mps", 5.0, "m/s >= 0", 0.0, 30.0),
+        start=start,
+        stationary=sec.number("stationary_s", 60.0, "s >= 0", 0.0, 86400.0),
+        run_in=sec.number("run_in_m", 1000.0, "m >= 0", 0.0, 100e3),
+        takeoff_accel=sec.number("takeoff_accel_mps2", 2.0, "m/s^2 > 0", 0.0, 20.0,
+                                 lo_open=True),
+        gps_week=sec.number("gps_week", 2300, "integer >= 0", 0, 10000, integer=True),
+        start_time=sec.number("start_time_s", 100000.0, "GPS s of week in [0, 604800)",
+                              0.0, 604800.0))
+
+
+def _wind(sec):
+    return Wind(speed=sec.number("speed_mps", 0.0, "m/s >= 0", 0.0, 100.0),
+                from_azimuth=sec.number("from_deg", 0.0, "deg", -360.0, 360.0) * D2R)
+
+
+def _turbulence(sec):
+    out = {}
+    for name, unit, scale in (("roll", "deg", D2R), ("pitch", "deg", D2R),
+                              ("yaw", "deg", D2R), ("heave", "m", 1.0)):
+        amp = sec.numbers(f"{name}_amp_{unit}", (), unit, lo=0.0)
+        freq = sec.numbers(f"{name}_freq_hz", (), "Hz")
+        if len(amp) != len(freq):
+            raise sec.error(f"{name}_freq_hz", f"needs one frequency per amplitude of "
+                            f"{name}_amp_{unit} ({len(amp)}), got {len(freq)}", "Hz")
+        if any(not 0.0 < f <= 20.0 for f in freq):
+            raise sec.error(f"{name}_freq_hz", f"frequencies must be in (0, 20], got {freq}",
+                            "Hz")
+        out[f"{name}_amp"] = tuple(a * scale for a in amp)
+        out[f"{name}_freq"] = freq
+    return Turbulence(**out, seed=sec.number("seed", 0, "integer >= 0", 0, integer=True))
+
+
+def _mount(sec):
+    return Mount(
+        enabled=sec.boolean("enabled", True),
+        level_limit=sec.number("level_limit_deg", 5.0, "deg in (0, 45]", 0.0, 45.0,
+                               lo_open=True) * D2R,
+        azimuth_limit=sec.number("azimuth_limit_deg", 30.0, "deg in (0, 90]", 0.0, 90.0,
+                                 lo_open=True) * D2R,
+        servo_lag=sec.number("servo_lag_s", 0.1, "s in [0, 5]", 0.0, 5.0),
+        log_rate_hz=sec.number("log_rate_hz", 50.0, "Hz > 0", 0.0, 10000.0, lo_open=True),
+        l_bp=sec.numbers("imu_to_platform_centre_b_m", (0.0, 0.0, 0.0), "m", length=3),
+        l_ap=sec.numbers("platform_centre_to_antenna_a_m", (0.0, 0.0, -1.5), "m", length=3))
+
+
+def _imu(sec):
+    grade = sec.choice("grade", "tactical", tuple(PRESETS))
+    rate = sec.number("rate_hz", 200.0, "Hz in [1, 5000]", 1.0, 5000.0)
+    over = {}
+    for key in MANIFEST_KEYS:
+        if not sec.has(key):
+            continue
+        if key == "corr_time_h":
+            over[key] = sec.number(key, 1.0, "h > 0", 0.0, lo_open=True)
+            continue
+        v = sec.table[key]
+        per_axis = isinstance(v, list)
+        vals = sec.numbers(key, (), MANIFEST_KEYS[key], length=3 if per_axis else None)
+        if key.endswith(("_sqrth", "_instability_dph", "_instability_mgal", "_quantization_rad",
+                         "_quantization_mps")) and min(vals) < 0:
+            raise sec.error(key, f"must be >= 0, got {v!r}", MANIFEST_KEYS[key])
+        over[key] = vals if per_axis else vals[0]
+    return ImuSettings(grade=grade, rate_hz=rate, overrides=MappingProxyType(over))
+
+
+def _gnss(sec):
+    outages = []
+    sec.used.add("outages")
+    raw = sec.table.get("outages", [])
+    if not isinstance(raw, list) or not all(
+            isinstance(o, list) and len(o) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in o)
+            and o[0] >= 0 and o[1] > 0 for o in raw):
+        raise sec.error("outages", f"expected [[start_s, duration_s], ...] with start >= 0 "
+                        f"and duration > 0, got {raw!r}", "s")
+    outages = tuple((float(a), float(b)) for a, b in raw)
+    sigma = sec.numbers("sigma_ned_m", (0.02, 0.02, 0.04), "m", lo=0.0)
+    if len(sigma) == 1:
+        sigma = sigma * 3
+    if len(sigma) != 3:
+        raise sec.error("sigma_ned_m", f"expected 1 or 3 numbers, got {len(sigma)}", "m")
+    return GnssSettings(
+        rate_hz=sec.number("rate_hz", 1.0, "Hz in (0, 100]", 0.0, 100.0, lo_open=True),
+        sigma_ned=sigma, velocity=sec.boolean("velocity", False),
+        sigma_vel=sec.number("sigma_vel_mps", 0.01, "m/s >= 0", 0.0),
+        outages=outages)
+
+
+def _camera(sec):
+    axes = sec.table.get("axes", [list(r) for r in _NADIR_AXES])
+    sec.used.add("axes")
+    a = np.asarray(axes, dtype=float) if isinstance(axes, list) else np.zeros(0)
+    if a.shape != (3, 3) or not np.allclose(a @ a.T, np.eye(3), atol=1e-9) \
+            or np.linalg.det(a) < 0:
+        raise sec.error("axes", f"expected a 3x3 rotation matrix (rows), got {axes!r}",
+                        "rows of C_bc")
+    w = sec.number("width_px", 8000, "integer px > 0", 1, integer=True)
+    h = sec.number("height_px", 6000, "integer px > 0", 1, integer=True)
+    return CameraSettings(
+        focal_length_mm=sec.number("focal_length_mm", 100.0, "mm > 0", 0.0, lo_open=True),
+        pixel_size_mm=sec.number("pixel_size_mm", 0.01, "mm > 0", 0.0, lo_open=True),
+        width_px=w, height_px=h,
+        principal_point_px=sec.numbers("principal_point_px", ((w - 1) / 2, (h - 1) / 2),
+                                       "px", length=2),
+        radial_k=sec.numbers("radial_k", (0.0, 0.0, 0.0), "mm^-2, mm^-4, mm^-6", length=3),
+        tangential_p=sec.numbers("tangential_p", (0.0, 0.0), "mm^-1", length=2),
+        axes=tuple(tuple(float(x) for x in row) for row in a),
+        lever_arm_m=sec.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m", length=3),
+        boresight_deg=sec.numbers("boresight_deg", (0.0, 0.0, 0.0), "deg", length=3))
+
+
+def _terrain(sec):
+    return Terrain(relief_m=sec.number("relief_m", 0.0, "m >= 0", 0.0, 5000.0),
+                   wavelength_m=sec.number("wavelength_m", 2000.0, "m > 0", 0.0, lo_open=True),
+                   seed_offset=sec.number("seed_offset", 0, "integer", integer=True))
+
+
+def _tie_points(sec):
+    return TiePoints(per_image=sec.number("per_image", 100, "integer >= 0", 0, integer=True),
+                     sigma_px=sec.number("sigma_px", 0.5, "px >= 0", 0.0))
+
+
+_SECTIONS = {"block": _block, "flight": _flight, "wind": _wind, "turbulence": _turbulence,
+             "mount": _mount, "imu": _imu, "gnss": _gnss, "camera": _camera,
+             "terrain": _terrain, "tie_points": _tie_points}
+
+
+def parse_plan(data, source="<string>"):
+    """Validate a flight plan given as a dict (the parsed TOML); the dict is not modified.
+
+    Parameters
+    ----------
+    data : dict
+        Sections as in the module docstring.
+    source : str
+        Name used in error messages (the file path).
+
+    Returns
+    -------
+    FlightPlan
+
+    Raises
+    ------
+    InputError
+        ``"{source}: [section] key: message (expected unit)"``.
+    """
+    if not isinstance(data, dict):
+        raise InputError("expected a table of sections", path=source)
+    unknown = sorted(set(data) - set(_SECTIONS))
+    if unknown:
+        raise InputError(f"[{unknown[0]}]: unknown section (known: {', '.join(_SECTIONS)})",
+                         path=source)
+    if "block" not in data:
+        raise InputError("[block]: missing section (origin_lat_deg, origin_lon_deg, ...)",
+                         path=source)
+    parts = {}
+    for name, parse in _SECTIONS.items():
+        sec = _Section(source, name, data.get(name, {}))
+        parts[name] = parse(sec)
+        sec.finish()
+    plan = FlightPlan(**parts, source=str(source))
+    _check_feasible(plan, data)
+    return plan
+
+
+def load_plan(path):
+    """Read and validate a TOML flight plan (see :func:`parse_plan`)."""
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", path=path) from None
+    return parse_plan(data, source=str(path))
+
+
+def _check_feasible(plan, data):
+    """Cross-checks between sections: the mount limits and the wind."""
+    src = plan.source
+    f, m, tb = plan.flight, plan.mount, plan.turbulence
+    air = plan.wind.speed
+    if air >= 0.8 * f.ground_speed:
+        raise InputError(f"[wind] speed_mps: {air:g} m/s is too strong for the ground speed "
+                         f"{f.ground_speed:g} m/s (expected below 80 % of it)", path=src)
+    if m.enabled:
+        max_crab = max_crab_angle(f.ground_speed, plan.wind)
+        yaw_turb = sum(tb.yaw_amp)
+        if max_crab + yaw_turb >= m.azimuth_limit:
+            raise InputError(
+                f"[wind] speed_mps: crab angle up to {math.degrees(max_crab):.2f} deg "
+                f"(+ yaw turbulence {math.degrees(yaw_turb):.2f} deg) exceeds the mount's "
+                f"azimuth limit {math.degrees(m.azimuth_limit):g} deg ([mount] "
+                f"azimuth_limit_deg)", path=src)
+        roll_demand = f.bank + sum(tb.roll_amp)
+        if roll_demand >= m.level_limit:
+            key = "bank_deg" if "bank_deg" in data.get("flight", {}) else "turn_rate_deg_s"
+            raise InputError(
+                f"[flight] {key}: the turns bank {math.degrees(f.bank):.2f} deg (+ roll "
+                f"turbulence {math.degrees(sum(tb.roll_amp)):.2f} deg), more than the mount's "
+                f"level limit {math.degrees(m.level_limit):g} deg can follow ([mount] "
+                f"level_limit_deg; expected bank = atan(V turn_rate / g) below it)", path=src)
+
+
+def max_crab_angle(ground_speed, wind, n=3600):
+    """Largest |crab angle| (rad) over all tracks at a constant ground speed."""
+    psi = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    wn, we = wind.w_n
+    along = ground_speed - (wn * np.cos(psi) + we * np.sin(psi))
+    right = -(-wn * np.sin(psi) + we * np.cos(psi))
+    return float(np.max(np.abs(np.arctan2(right, along))))
