@@ -1,0 +1,160 @@
+"""``photogrammetry lunar-heading``: heading of a fisheye camera from Moon images and times."""
+import argparse
+import time as wallclock
+
+import numpy as np
+
+from ins.cli import _Progress, _triplet
+from ins.errors import InputError
+from ins.fileio import atomic_open
+
+EPILOG = """\
+frames and units:
+  Horizon frame h = NED at the station (north, east, down); azimuth from north,
+  clockwise.  Camera frame c: x, y along the image axes (x = column direction, y = up
+  the image), z opposite to the viewing direction.  HEADING = azimuth of the camera x
+  axis (the paper's eq. 14 axis; its xi counts from south: xi = heading - 180 deg).
+  --station: geodetic latitude, longitude (deg, WGS84) and ellipsoidal height (m).
+  Times: UTC (ISO 8601) or GPS week/seconds (GPS = UTC + 18 s); UT1 from the IERS table
+  shipped with skyfield, or UTC + --dut1.  Refraction from --pressure (hPa, default
+  the standard atmosphere at the station height) and --temperature (deg C, default 10).
+  Pixel coordinates (u, v) = (column, row), pixel centres at integers.
+
+inputs:
+  TIMES.csv    image_id,utc   or   image_id,gps_week,gps_time_s  (increasing times)
+  CENTRES.csv  image_id,u_px,v_px[,sigma_px]  (default sigma 0.1 px)
+  --images DIR <image_id>.png/.tif/.fits (FITS needs astropy)
+  CAM.toml     [camera] model = "fisheye-equisolid", focal_length_px (or _mm with
+               pixel_size_mm), width_px, height_px, principal_point_px, radial_k (rad)
+
+output:
+  heading and sigma (deg and arcsec), per-image residuals (arcsec; '*' = outlier,
+  whitened residual > 3.5), and a convergence plot (heading - final heading and sigma
+  against the number of images, as the paper's Figure 3) written to --plot.
+
+example:
+  photogrammetry lunar-heading --images moon/ --times times.csv \\
+      --station 40.0,116.0,50 --camera fisheye.toml --plot convergence.png
+"""
+
+OUTLIER = 3.5
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "lunar-heading", help="heading of a fisheye camera from Moon images and their times",
+        description="Heading (azimuth of the camera x axis) from a series of Moon images "
+                    "without level information: the Moon centre's direction in the camera "
+                    "(equisolid fisheye) and in the horizon frame (DE421 ephemeris), and "
+                    "the rotation between them by least squares.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--images", metavar="DIR", help="folder of Moon images <image_id>.png|tif|fits")
+    src.add_argument("--centres", metavar="CENTRES.csv", help="measured Moon centres, px")
+    p.add_argument("--times", required=True, metavar="TIMES.csv", help="exposure times (UTC)")
+    p.add_argument("--station", required=True, type=_triplet, metavar="LAT,LON,H",
+                   help="station latitude, longitude (deg) and ellipsoidal height (m)")
+    p.add_argument("--camera", required=True, metavar="CAM.toml", help="fisheye camera file")
+    p.add_argument("--pressure", type=float, metavar="hPa",
+                   help="air pressure for refraction, hPa (default: standard atmosphere; "
+                        "0 = no refraction)")
+    p.add_argument("--temperature", type=float, default=10.0, metavar="C",
+                   help="air temperature, deg C (default 10)")
+    p.add_argument("--dut1", type=float, metavar="S", help="UT1 - UTC, s (overrides the IERS table)")
+    p.add_argument("--plot", metavar="OUT.png", help="write the convergence plot here")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def _select(ids_times, utc, ids_other, what):
+    index = {k: i for i, k in enumerate(ids_times)}
+    missing = [k for k in ids_other if k not in index]
+    if missing:
+        raise InputError(f"{what}: image_id {missing[0]!r} has no time in --times")
+    return np.array([index[k] for k in ids_other], int)
+
+
+def run(args):
+    from .lunar import heading_from_centres, heading_from_images
+    from .lunar.ephemeris import standard_pressure_hpa
+    from .lunar.fisheye import read_camera
+    from .lunar.io import find_images, load_image, read_centres, read_times
+    from .lunar.solve import convergence
+
+    t0 = wallclock.perf_counter()
+    lat_deg, lon_deg, h = args.station
+    if abs(lat_deg) > 90:
+        raise InputError(f"--station: latitude {lat_deg} deg is outside +-90 deg")
+    if args.pressure is not None and args.pressure < 0:
+        raise InputError(f"--pressure: expected hPa >= 0, got {args.pressure}")
+    camera = read_camera(args.camera)
+    ids, utc = read_times(args.times)
+    pressure = standard_pressure_hpa(h) if args.pressure is None else args.pressure
+    sky_options = dict(pressure_hpa=None if pressure == 0 else float(pressure),
+                       temperature_c=args.temperature, dut1_s=args.dut1)
+    lat, lon = np.deg2rad(lat_deg), np.deg2rad(lon_deg)
+    if args.centres:
+        cids, uv, cov = read_centres(args.centres)
+        sel = _select(ids, utc, cids, args.centres)
+        if np.any(np.diff(sel) <= 0):
+            raise InputError(f"{args.centres}: rows are not in the order of the times")
+        used = [ids[i] for i in sel]
+        result = heading_from_centres(camera, uv, cov, utc[sel], lat, lon, h, **sky_options)
+    else:
+        files = find_images(args.images)
+        used = [k for k in ids if k in files]
+        if len(used) < 2:
+            raise InputError(f"{args.images}: {len(used)} image(s) match the ids of "
+                             f"{args.times}; at least 2 usable images are needed")
+        sel = np.array([ids.index(k) for k in used])
+        progress = _Progress("lunar-heading", not args.quiet)
+        result = heading_from_images(camera, [files[k] for k in used], utc[sel], lat, lon, h,
+                                     load=load_image, progress=progress, **sky_options)
+    sol = result.solution
+    arcsec = np.rad2deg(1.0) * 3600
+    print(f"{len(used)} images, {str(utc[sel][0])[:23]} .. {str(utc[sel][-1])[:23]} UTC; "
+          f"Moon altitude {np.rad2deg(result.sky.alt.mean()):.2f} deg, "
+          f"phase angle {np.rad2deg(result.sky.phase_angle.mean()):.1f} deg")
+    print(f"heading (azimuth of camera x axis) {np.rad2deg(sol.heading):.6f} deg  "
+          f"sigma {sol.heading_sigma * arcsec:.1f} arcsec  "
+          f"(variance factor {sol.variance_factor:.2f}; paper's Rodrigues LSQ: "
+          f"{np.rad2deg(sol.heading_rodrigues):.6f} deg)")
+    print(f"{'image_id':<16}{'u_px':>10}{'v_px':>10}{'resid_arcsec':>14}{'whitened':>10}")
+    norm = np.linalg.norm(sol.residuals, axis=1)
+    for k, name in enumerate(used):
+        flag = (" * dropped" if not sol.used[k] else " *") if norm[k] > OUTLIER else ""
+        print(f"{name:<16}{result.uv[k, 0]:>10.3f}{result.uv[k, 1]:>10.3f}"
+              f"{sol.residuals_rad[k] * arcsec:>14.2f}{norm[k]:>10.2f}{flag}")
+    n_out = int(np.sum(norm > OUTLIER))
+    if n_out:
+        print(f"{n_out} outlier(s) (whitened residual > {OUTLIER})")
+    if args.plot:
+        counts, hdg, sig = convergence(result.sky.moon_h, result.S_c, result.cov_c)
+        _plot(args.plot, counts, hdg, sig, sol.heading)
+        print(f"wrote {args.plot}")
+    if not args.quiet:
+        print(f"done in {wallclock.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _plot(path, counts, headings, sigmas, final):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    arcsec = np.rad2deg(1.0) * 3600
+    diff = np.angle(np.exp(1j * (headings - final))) * arcsec
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(counts, diff, "o", ms=3, label="heading - heading(all images)")
+    ax.plot(counts, sigmas * arcsec, "-", label="+1 sigma")
+    ax.plot(counts, -sigmas * arcsec, "-", color="C1", label="-1 sigma")
+    lim = 5 * np.median(sigmas) * arcsec
+    ax.set_ylim(-lim, lim)
+    ax.set_xlabel("number of images")
+    ax.set_ylabel("arcsec")
+    ax.set_title("Lunar heading convergence")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    with atomic_open(path, "wb") as f:
+        fig.savefig(f, format="png", dpi=100)
+    plt.close(fig)

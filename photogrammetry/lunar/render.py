@@ -1,0 +1,154 @@
+"""Synthetic Moon images with phase and a sharp lit limb, for tests and benchmarks.
+
+Photometry: Lommel-Seeliger, ``I = mu0 / (mu0 + mu)`` on the lit part of the visible
+hemisphere (``mu0``, ``mu`` the cosines of incidence and emission): the lit limb stays
+bright, the terminator fades to zero, as on the real Moon.  The disk is supersampled,
+blurred by a Gaussian point-spread function and given Gaussian read noise.
+
+Two geometries share the shading: a flat disk of given centre and radius in pixels
+(``render_moon``), and the Moon seen through a fisheye camera, where the disk is the cone
+of the apparent semidiameter around the Moon's direction (``render_moon_fisheye``).
+"""
+import numpy as np
+from scipy import ndimage
+
+__all__ = ["render_moon", "render_moon_fisheye", "shade"]
+
+
+def shade(X, Y, sun3):
+    """Lommel-Seeliger brightness of the disk at normalized coordinates.
+
+    Parameters
+    ----------
+    X, Y : ndarray
+        Sky-plane coordinates in units of the disk radius (limb at ``X**2 + Y**2 = 1``).
+    sun3 : array_like, shape (3,)
+        Unit vector from the Moon to the Sun in the basis (X axis, Y axis, towards the
+        observer); its angle to the third axis is the phase angle.
+
+    Returns
+    -------
+    ndarray
+        Brightness in [0, 1]; 0 outside the disk and on the night side.
+    """
+    rho2 = X * X + Y * Y
+    inside = rho2 < 1.0
+    mu = np.sqrt(np.where(inside, 1.0 - rho2, 0.0))
+    mu0 = X * sun3[0] + Y * sun3[1] + mu * sun3[2]
+    lit = inside & (mu0 > 0)
+    return np.where(lit, mu0 / np.where(lit, mu0 + mu, 1.0), 0.0)
+
+
+def _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype):
+    img = np.full(shape, float(background))
+    r0, r1, c0, c1 = box
+    if psf_sigma_px > 0:
+        flux = ndimage.gaussian_filter(flux, psf_sigma_px, mode="constant")
+    img[r0:r1, c0:c1] += peak * flux
+    if noise_sigma > 0:
+        rng = np.random.default_rng(rng)
+        img += rng.normal(0.0, noise_sigma, shape)
+    if np.issubdtype(np.dtype(dtype), np.integer):
+        info = np.iinfo(dtype)
+        img = np.clip(np.rint(img), info.min, info.max)
+    return img.astype(dtype)
+
+
+def _box(shape, centre_uv, half):
+    c0 = max(int(np.floor(centre_uv[0] - half)), 0)
+    c1 = min(int(np.ceil(centre_uv[0] + half)) + 1, shape[1])
+    r0 = max(int(np.floor(centre_uv[1] - half)), 0)
+    r1 = min(int(np.ceil(centre_uv[1] + half)) + 1, shape[0])
+    return r0, r1, c0, c1
+
+
+def _subpixels(box, n):
+    """Sub-pixel sample positions of a box: (u, v) arrays of shape (rows*n, cols*n)."""
+    r0, r1, c0, c1 = box
+    off = (np.arange(n) + 0.5) / n - 0.5
+    u = (np.arange(c0, c1)[:, None] + off[None, :]).ravel()
+    v = (np.arange(r0, r1)[:, None] + off[None, :]).ravel()
+    return np.meshgrid(u, v)
+
+
+def _bin(a, n):
+    rows, cols = a.shape[0] // n, a.shape[1] // n
+    return a.reshape(rows, n, cols, n).mean(axis=(1, 3))
+
+
+def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, peak=3000.0,
+                background=100.0, psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
+                dtype=np.uint16):
+    """A Moon disk of known centre on a flat image.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(rows, columns)``.
+    centre_uv : (float, float)
+        True centre, column ``u`` and row ``v``, px (pixel centres at integers).
+    radius_px : float
+        Disk radius, px.
+    phase_angle_deg : float
+        Sun-Moon-observer angle, deg (0 = full, 90 = quarter).
+    sun_angle_deg : float
+        Direction of the Sun on the image, deg, measured from the +u axis towards +v.
+    peak, background, noise_sigma : float
+        Brightness of a fully lit limb, sky level and read noise, in counts.
+    psf_sigma_px : float
+        Gaussian blur, px.
+    supersample : int
+        Sub-samples per pixel and axis.
+    rng : int or numpy.random.Generator, optional
+    dtype : numpy dtype
+        Output type (integers are rounded and clipped).
+
+    Returns
+    -------
+    ndarray, shape ``shape``
+    """
+    a, b = np.deg2rad(phase_angle_deg), np.deg2rad(sun_angle_deg)
+    sun3 = (np.sin(a) * np.cos(b), np.sin(a) * np.sin(b), np.cos(a))
+    box = _box(shape, centre_uv, radius_px + 4 * psf_sigma_px + 3)
+    u, v = _subpixels(box, supersample)
+    flux = _bin(shade((u - centre_uv[0]) / radius_px, (v - centre_uv[1]) / radius_px, sun3),
+                supersample)
+    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype)
+
+
+def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, background=100.0,
+                        psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
+                        dtype=np.uint16):
+    """The Moon imaged by a fisheye camera (the disk follows the lens distortion).
+
+    Parameters
+    ----------
+    camera : photogrammetry.lunar.fisheye.FisheyeCamera
+    moon_c : array_like, shape (3,)
+        Direction of the Moon's centre in the camera frame.
+    sun_c : array_like, shape (3,)
+        Direction from the Moon to the Sun in the camera frame (the direction to the Sun
+        from the station is close enough).
+    semidiameter : float
+        Apparent semidiameter, rad.
+    Other parameters as for `render_moon`.
+
+    Returns
+    -------
+    ndarray, shape ``(camera.height_px, camera.width_px)``
+    """
+    m = np.asarray(moon_c, float) / np.linalg.norm(moon_c)
+    s = np.asarray(sun_c, float) / np.linalg.norm(sun_c)
+    e1 = np.cross(m, [0.0, 0.0, 1.0] if abs(m[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(m, e1)
+    sun3 = np.array([s @ e1, s @ e2, -(s @ m)])
+    shape = (camera.height_px, camera.width_px)
+    centre = camera.direction_to_image(m)
+    half = 1.5 * 2 * camera.focal_length_px * semidiameter + 4 * psf_sigma_px + 3
+    box = _box(shape, centre, half)
+    u, v = _subpixels(box, supersample)
+    p = camera.image_to_direction(np.stack([u, v], axis=-1))
+    sin_rho = np.sin(semidiameter)
+    flux = _bin(shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3) * (p @ m > 0), supersample)
+    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype)

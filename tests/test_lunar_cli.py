@@ -1,0 +1,88 @@
+"""photogrammetry lunar-heading end to end: simulated centres and rendered images."""
+import numpy as np
+import pytest
+from PIL import Image
+
+from ins.rotation import euler_to_dcm
+from photogrammetry.cli import main
+from photogrammetry.lunar.ephemeris import moon_sun_directions
+from photogrammetry.lunar.fisheye import FisheyeCamera
+from photogrammetry.lunar.render import render_moon_fisheye
+
+CAM_TOML = ('[camera]\nmodel = "fisheye-equisolid"\nfocal_length_px = 800.0\nwidth_px = 1600\n'
+            'height_px = 1600\nprincipal_point_px = [799.5, 799.5]\nradial_k = [0.0, 0.0, 0.0]\n')
+CAM = FisheyeCamera(800.0, 1600, 1600, (799.5, 799.5))
+LAT, LON, H = 40.0, 116.0, 50.0
+HEADING = 123.4
+
+
+def _session(tmp_path, n):
+    utc = np.datetime64("2017-05-02T14:00:00") + np.arange(n) * np.timedelta64(int(9e5 / n), "ms")
+    sky = moon_sun_directions(utc, np.deg2rad(LAT), np.deg2rad(LON), H, pressure_hpa=1000.0)
+    C_hc = euler_to_dcm([0.03, 0.02, np.deg2rad(HEADING)])
+    (tmp_path / "cam.toml").write_text(CAM_TOML)
+    (tmp_path / "times.csv").write_text(
+        "image_id,utc\n" + "".join(f"m{k:03d},{str(t)}Z\n" for k, t in enumerate(utc)))
+    return sky, C_hc
+
+
+def test_centres(tmp_path, capsys):
+    sky, C_hc = _session(tmp_path, 72)
+    uv = CAM.direction_to_image(sky.moon_h @ C_hc)
+    uv += 0.1 * np.random.default_rng(5).standard_normal(uv.shape)
+    uv[10] += 5.0                                                # one outlier
+    (tmp_path / "c.csv").write_text("image_id,u_px,v_px,sigma_px\n" + "".join(
+        f"m{k:03d},{u:.4f},{v:.4f},0.1\n" for k, (u, v) in enumerate(uv)))
+    code = main(["lunar-heading", "--centres", str(tmp_path / "c.csv"), "--times",
+                 str(tmp_path / "times.csv"), "--station", f"{LAT},{LON},{H}", "--camera",
+                 str(tmp_path / "cam.toml"), "--pressure", "1000", "--plot",
+                 str(tmp_path / "conv.png"), "-q"])
+    out = capsys.readouterr().out
+    assert code == 0
+    line = next(x for x in out.splitlines() if x.startswith("heading"))
+    hdg, sig = float(line.split()[6]), float(line.split()[9])
+    assert abs(hdg - HEADING) * 3600 < 4 * sig + 60
+    assert "*" in next(x for x in out.splitlines() if x.startswith("m010"))
+    assert (tmp_path / "conv.png").stat().st_size > 1000
+
+
+def test_images(tmp_path, capsys):
+    sky, C_hc = _session(tmp_path, 8)
+    (tmp_path / "img").mkdir()
+    for k in range(8):
+        img = render_moon_fisheye(CAM, sky.moon_h[k] @ C_hc, sky.sun_h[k] @ C_hc,
+                                  sky.semidiameter[k], noise_sigma=3, rng=k)
+        Image.fromarray(img).save(tmp_path / "img" / f"m{k:03d}.png")
+    args = ["lunar-heading", "--images", str(tmp_path / "img"), "--times",
+            str(tmp_path / "times.csv"), "--station", f"{LAT},{LON},{H}", "--camera",
+            str(tmp_path / "cam.toml"), "--pressure", "1000", "-q"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.startswith("heading"))
+    assert abs(float(line.split()[6]) - HEADING) < 1.0       # 8 images over 15 min: weak
+    Image.fromarray(np.full((1600, 1600), 100, np.uint16)).save(tmp_path / "img" / "m003.png")
+    assert main(args) == 2
+    assert "m003.png" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("edit,message", [
+    ("station", "latitude"), ("order", "out of order"), ("few", "at least 2")])
+def test_errors(tmp_path, capsys, edit, message):
+    sky, C_hc = _session(tmp_path, 4)
+    uv = CAM.direction_to_image(sky.moon_h @ C_hc)
+    rows = [f"m{k:03d},{u},{v}\n" for k, (u, v) in enumerate(uv)]
+    station = f"{LAT},{LON},{H}"
+    if edit == "station":
+        station = f"95,{LON},{H}"
+    if edit == "order":
+        lines = (tmp_path / "times.csv").read_text().splitlines()
+        lines[2], lines[3] = lines[3], lines[2]
+        (tmp_path / "times.csv").write_text("\n".join(lines) + "\n")
+    if edit == "few":
+        rows = rows[:1]
+    (tmp_path / "c.csv").write_text("image_id,u_px,v_px\n" + "".join(rows))
+    code = main(["lunar-heading", "--centres", str(tmp_path / "c.csv"), "--times",
+                 str(tmp_path / "times.csv"), "--station", station, "--camera",
+                 str(tmp_path / "cam.toml"), "-q"])
+    assert code == 2
+    assert message in capsys.readouterr().err
