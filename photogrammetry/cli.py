@@ -13,6 +13,9 @@ from . import __version__
 
 # Sub-commands that live in modules of their own (one line each).
 COMMAND_MODULES = [
+    "photogrammetry.cli_eo",
+    "photogrammetry.cli_refine",
+    "photogrammetry.cli_lunar",
 ]
 
 

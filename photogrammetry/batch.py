@@ -1,0 +1,150 @@
+"""One refinement run (a block from its files' contents) and many of them on Dask.
+
+:func:`refine` is the unit of work: EO, tie points and camera in, refined EO, block
+adjustment and INS assessment out.  :func:`refine_many` runs several blocks or flights as
+tasks on ``dask.distributed`` (a local cluster by default, or an existing scheduler's
+address); the tasks are pure functions of their inputs, so the results are identical to
+running :func:`refine` on each block in one process.
+"""
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ins.errors import InputError
+
+from .assessment import assess
+from .block import adjust_block
+
+__all__ = ["RefineResult", "refine", "refine_many"]
+
+
+@dataclass
+class RefineResult:
+    """Result of :func:`refine`.
+
+    Attributes
+    ----------
+    eo : photogrammetry.exposure.ExposureOrientation
+        Refined angles with their sigmas (positions as given).
+    prior : photogrammetry.exposure.ExposureOrientation
+        The input in the working system.
+    block : photogrammetry.block.BlockResult
+    assessment : photogrammetry.assessment.Assessment
+    pairs : ndarray (P, 2)
+    pair_points : list of (xy_i, xy_j)
+    settings : dict
+    """
+    eo: object
+    prior: object
+    block: object
+    assessment: object
+    pairs: np.ndarray
+    pair_points: list
+    settings: dict
+
+
+def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
+           sigma_mm=None, prior_sigma_rad=None, snooping=True, progress=None):
+    """Refine the angles of one block.
+
+    Parameters
+    ----------
+    eo : photogrammetry.exposure.ExposureOrientation
+        INS exterior orientation (angles rad, positions m in the mapping frame).
+    tiepoints : photogrammetry.tiepoints.TiePoints
+    camera : photogrammetry.camera.FrameCamera, optional
+        Principal distance and distortion (required).
+    system : str, optional
+        Working and output angle system (default: the EO's).
+    method : {"known-base", "relative", "base-free"}
+    datum : {"first", "ins", "none"}
+    sigma_mm : float, optional
+        Photo-coordinate sigma, mm (default: the tie-point file's header, else 0.5 px).
+    prior_sigma_rad : float or array_like (3,), optional
+        INS angle sigma for datum "ins" (default: the EO file's sigmas, else 0.005 rad).
+
+    Returns
+    -------
+    RefineResult
+    """
+    if camera is None:
+        raise InputError("the camera (principal distance) is required: --camera CAM.toml")
+    if system is not None:
+        eo = eo.in_system(system)
+    system = eo.system
+    if sigma_mm is None:
+        sigma_mm = tiepoints.sigma_mm or 0.5 * camera.pixel_size_mm
+    if prior_sigma_rad is None:
+        prior_sigma_rad = eo.sigma_angles if eo.sigma_angles is not None else 0.005
+    min_common = 3 if method == "known-base" else 5
+    pairs, points, _ = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
+    if len(pairs) == 0:
+        raise InputError(f"no pair of images shares {min_common} or more tie points",
+                         path=tiepoints.path)
+    block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
+                         datum, positions=eo.position, prior_sigma=prior_sigma_rad,
+                         sigma_mm=sigma_mm, snooping=snooping, progress=progress)
+    result_eo = replace(eo, angles=block.angles, sigma_angles=block.sigma,
+                        sigma_position=(eo.sigma_position if eo.sigma_position is not None
+                                        else np.zeros((len(eo), 3))))
+    settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,
+                "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
+                "snooping": snooping, "n_images": len(eo), "n_pairs": len(pairs),
+                "n_observations": len(tiepoints)}
+    return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method),
+                        pairs, points, settings)
+
+
+def _run(kwargs):
+    return refine(**kwargs)
+
+
+def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=True):
+    """Run :func:`refine` on many blocks as Dask tasks.
+
+    Parameters
+    ----------
+    tasks : sequence of dict
+        Keyword arguments of :func:`refine`, one dict per block.
+    workers : int, optional
+        Size of the local cluster (default: the number of cores); ``1`` with no
+        scheduler runs in this process without Dask.
+    scheduler : str, optional
+        Address of a running ``dask.distributed`` scheduler (``tcp://host:8786``).
+    progress : callable(done, total), optional
+    processes : bool
+        Local cluster of processes (default) or of threads in this process.
+
+    Returns
+    -------
+    list of RefineResult, in the order of `tasks`.
+    """
+    tasks = list(tasks)
+    if scheduler is None and workers == 1:
+        out = []
+        for k, t in enumerate(tasks):
+            out.append(_run(t))
+            if progress is not None:
+                progress(k + 1, len(tasks))
+        return out
+    from dask.distributed import Client, LocalCluster, as_completed
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futures = client.map(_run, tasks, pure=False)
+        index = {f.key: k for k, f in enumerate(futures)}
+        results = [None] * len(tasks)
+        for done, fut in enumerate(as_completed(futures), 1):
+            results[index[fut.key]] = fut.result()
+            if progress is not None:
+                progress(done, len(tasks))
+        return results
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

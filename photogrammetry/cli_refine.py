@@ -1,0 +1,145 @@
+"""``photogrammetry refine``: coplanarity adjustment of the INS exposure angles."""
+import argparse
+import os
+
+import numpy as np
+
+from ins.cli import _Progress
+from ins.errors import InputError
+
+EPILOG = """\
+frames and units:
+  EO.csv is the INS exterior orientation (docs/interfaces.md): positions X_m Y_m Z_m in
+  the mapping frame (ENU at the block origin, or a projection), angles in deg in the
+  named system (R = C_mc takes a camera ray (x, y, -f) into the mapping frame):
+  phi-omega-kappa R = Ry(phi) Rx(omega) Rz(kappa), omega-phi-kappa R = Rx Ry Rz.
+  TIEPOINTS.csv: image_id,point_id,x_mm,y_mm (observed photo coordinates, mm, origin at
+  the principal point) or image_id,point_id,u_px,v_px.  CAM.toml gives f, pixel size
+  and distortion (removed before the adjustment).
+
+methods:
+  known-base  det[b, R1 u1, R2 u2] = 0 with the base b from the EO positions (GNSS)
+  relative    the same with each pair's base direction adjusted (5-parameter RO)
+  base-free   the base eliminated (pencil of epipolar planes; no base needed)
+datum:
+  first  the first image keeps its INS angles (the paper); ins  every image's INS angles
+  are weighted observations (EO sigmas or --prior-sigma-deg); none  only known-base.
+
+output:
+  REFINED.csv: EO CSV with the refined angles and their sigmas (deg; position sigmas as
+  given, 0 if none).  REPORT.md with REPORT_residuals.png and REPORT_corrections.png:
+  sigma0, redundancy, per-image sigmas and correlations, INS-minus-adjusted mean, RMS,
+  INS noise, boresight (rx, ry, rz as in the camera file).
+
+  A flight folder (ins simulate) may replace EO.csv TIEPOINTS.csv: its tiepoints.csv and
+  camera.toml are used, the EO from --eo or FOLDER/eo.csv.  Several folders run as Dask
+  tasks (--workers N local processes, or --scheduler tcp://host:8786); each gets
+  refined.csv and report.md unless -o/--report name a single output.
+
+example:
+  photogrammetry refine eo.csv tiepoints.csv --camera camera.toml --method base-free \\
+      --datum first -o refined.csv --report report.md
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "refine", help="coplanarity adjustment of the INS exposure angles",
+        description="Refine the angles of aerial images by least squares on the coplanarity "
+                    "of corresponding rays of every overlapping pair, and assess the INS "
+                    "(noise, boresight misalignment).",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("inputs", nargs="+", metavar="EO.csv TIEPOINTS.csv | FOLDER")
+    p.add_argument("--camera", metavar="CAM.toml", help="camera file (default: FOLDER/camera.toml)")
+    p.add_argument("--eo", metavar="EO.csv", help="INS EO for folder inputs")
+    p.add_argument("--system", choices=["phi-omega-kappa", "omega-phi-kappa"],
+                   help="angle system of the work and the output (default: the EO file's)")
+    p.add_argument("--datum", choices=["first", "ins", "none"], default="first")
+    p.add_argument("--method", choices=["known-base", "relative", "base-free"],
+                   default="base-free")
+    p.add_argument("--sigma-px", type=float, metavar="PX",
+                   help="photo-coordinate sigma, px (default: the tie-point file's header, "
+                        "else 0.5)")
+    p.add_argument("--prior-sigma-deg", type=float, metavar="DEG",
+                   help="INS angle sigma for --datum ins (default: EO sigmas, else 0.2865 deg)")
+    p.add_argument("--no-snooping", action="store_true", help="no outlier rejection")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, metavar="N", help="local Dask workers (several folders)")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler address")
+    p.add_argument("-o", "--output", metavar="REFINED.csv")
+    p.add_argument("--report", metavar="REPORT.md")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=run)
+
+
+def _task(args, eo_path, tp_path, cam_path):
+    from .camera import read_camera
+    from .exposure import read_eo_csv
+    from .tiepoints import read_tiepoints
+    if cam_path is None:
+        raise InputError("--camera CAM.toml is required (photo scale and distortion)")
+    camera, _ = read_camera(cam_path)
+    eo = read_eo_csv(eo_path)
+    tp = read_tiepoints(tp_path, camera)
+    tp.check_images(eo.image_id, eo_path)
+    if args.sigma_px is not None and not args.sigma_px > 0:
+        raise InputError(f"--sigma-px must be > 0 px, got {args.sigma_px}")
+    sigma_mm = None if args.sigma_px is None else args.sigma_px * camera.pixel_size_mm
+    prior = None if args.prior_sigma_deg is None else np.deg2rad(args.prior_sigma_deg)
+    return {"eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
+            "method": args.method, "datum": args.datum, "sigma_mm": sigma_mm,
+            "prior_sigma_rad": prior, "snooping": not args.no_snooping}
+
+
+def _jobs(args):
+    """(task kwargs, output csv, report) per block."""
+    ins = args.inputs
+    if all(os.path.isdir(d) for d in ins):
+        if len(ins) > 1 and (args.output or args.report or args.eo):
+            raise InputError("-o/--report/--eo name one output: give one folder, or none of "
+                             "them (each folder gets refined.csv and report.md)")
+        jobs = []
+        for d in ins:
+            eo = args.eo or os.path.join(d, "eo.csv")
+            if not os.path.isfile(eo):
+                raise InputError(f"{d}: no INS EO (eo.csv); run photogrammetry eo or pass --eo")
+            cam = args.camera or os.path.join(d, "camera.toml")
+            jobs.append((_task(args, eo, os.path.join(d, "tiepoints.csv"), cam),
+                         args.output or os.path.join(d, "refined.csv"),
+                         args.report or (None if args.output else os.path.join(d, "report.md"))))
+        return jobs
+    if len(ins) != 2:
+        raise InputError("expected EO.csv TIEPOINTS.csv, or flight folders")
+    if not args.output:
+        raise InputError("-o REFINED.csv is required")
+    for path in ins:
+        if os.path.abspath(path) == os.path.abspath(args.output):
+            raise InputError(f"--output {args.output} would overwrite an input file")
+    return [(_task(args, ins[0], ins[1], args.camera), args.output, args.report)]
+
+
+def run(args):
+    from .batch import refine, refine_many
+    from .exposure import write_eo_csv
+    from .report import write_report
+    jobs = _jobs(args)
+    if len(jobs) == 1 and args.scheduler is None:
+        results = [refine(**jobs[0][0], progress=_Progress("refine", not args.quiet))]
+    else:
+        results = refine_many([j[0] for j in jobs], workers=args.workers,
+                              scheduler=args.scheduler,
+                              progress=_Progress("refine", not args.quiet))
+    for (task, out, rep), res in zip(jobs, results):
+        blk = res.block
+        write_eo_csv(out, res.eo, comments=(
+            f"refined by photogrammetry refine: method = {res.settings['method']}; "
+            f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",))
+        if rep:
+            write_report(rep, res)
+        if not args.quiet:
+            s = res.settings
+            print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
+                  f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
+                  f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
+                  + (f"; report {rep}" if rep else ""))
+    return 0

@@ -1,0 +1,136 @@
+"""Markdown report of a refinement (tables) with PNG plots (matplotlib, Agg, lazy import).
+
+Angles in the report are arcsec (differences, sigmas) or deg (values); photo residuals
+are the normalized coplanarity misclosures ``g / sigma_g`` (unitless, ~N(0, 1)).
+"""
+import io
+import os
+
+import numpy as np
+
+from ins.fileio import atomic_open
+
+from .coplanarity import STATUS_TEXT
+
+__all__ = ["write_report"]
+
+_AS = 180.0 / np.pi * 3600.0
+
+
+def _plot_residuals(result, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    blk = result.block
+    fig, ax = plt.subplots(figsize=(7, 5.5))
+    xy = np.concatenate([p[1] for p in result.pair_points])
+    res = np.abs(np.concatenate([blk.residuals[k, :len(p[1])]
+                                 for k, p in enumerate(result.pair_points)]))
+    rej = np.concatenate([blk.rejected[k, :len(p[1])] for k, p in enumerate(result.pair_points)])
+    sc = ax.scatter(xy[~rej, 0], xy[~rej, 1], c=res[~rej], s=6, cmap="viridis",
+                    vmin=0, vmax=3)
+    ax.scatter(xy[rej, 0], xy[rej, 1], marker="x", c="red", s=30, label="rejected")
+    fig.colorbar(sc, ax=ax, label="|normalized coplanarity misclosure|")
+    ax.set_xlabel("x (mm, second image of each pair)")
+    ax.set_ylabel("y (mm)")
+    ax.set_aspect("equal")
+    ax.set_title("Residuals in the image")
+    if rej.any():
+        ax.legend(loc="upper right")
+    _save(fig, path)
+
+
+def _plot_corrections(result, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    a = result.assessment
+    fig, ax = plt.subplots(figsize=(8, 4))
+    idx = np.arange(len(a.diff))
+    for k, name in enumerate(a.names):
+        ax.plot(idx[a.used], a.diff[a.used, k] * _AS, ".-", label=f"{name}")
+    ax.set_xlabel("image (file order, along the strips)")
+    ax.set_ylabel("INS - adjusted (arcsec)")
+    ax.set_title("Angle corrections along the strips")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    _save(fig, path)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    with atomic_open(path, "wb") as f:
+        f.write(buf.getvalue())
+
+
+def _fmt3(v, scale=_AS, digits=1):
+    return " | ".join(f"{x * scale:.{digits}f}" for x in v)
+
+
+def report_text(result, plots=()):
+    """The report as Markdown text (plots: file names to link)."""
+    s, blk, a = result.settings, result.block, result.assessment
+    names = a.names
+    px = s["pixel_size_mm"]
+    lines = ["# Coplanarity refinement of the exposure angles", "",
+             f"- method **{s['method']}**, datum **{s['datum']}**, angle system "
+             f"`{s['system']}`, mapping frame `{result.eo.frame}`",
+             f"- {s['n_images']} images, {s['n_pairs']} pairs, {s['n_observations']} "
+             f"tie-point observations, {int(blk.mask.sum())} coplanarity conditions used, "
+             f"{int(blk.rejected.sum())} rejected (data snooping)",
+             f"- a-priori photo sigma {s['sigma_mm'] / px:.3g} px ({s['sigma_mm']:.4g} mm); "
+             f"**sigma0 = {blk.sigma0:.3f}** (= {blk.sigma0 * s['sigma_mm'] / px:.3g} px), "
+             f"redundancy {blk.redundancy}, {blk.iterations} iterations, "
+             f"{'converged' if blk.converged else 'NOT converged'}", ""]
+    bad = [(k, st) for k, st in enumerate(blk.pair_status) if st > 1]
+    if bad:
+        lines += ["Pairs left out:", ""]
+        lines += [f"- {result.eo.image_id[result.pairs[k, 0]]}-"
+                  f"{result.eo.image_id[result.pairs[k, 1]]}: {STATUS_TEXT[st]}"
+                  for k, st in bad] + [""]
+    lines += ["## INS assessment (INS minus adjusted, arcsec)", "",
+              "| | " + " | ".join(names) + " |", "|---|" + "---:|" * 3,
+              "| mean | " + _fmt3(a.mean) + " |",
+              "| sigma of the mean | " + _fmt3(a.mean_sigma) + " |",
+              "| RMS | " + _fmt3(a.rms) + " |",
+              "| RMS after boresight/datum | " + _fmt3(a.residual_rms) + " |",
+              "| adjustment sigma (RMS) | " + _fmt3(a.adj_sigma_rms) + " |",
+              "| **INS noise** sqrt(mean d^2 - sigma_adj^2) | " + _fmt3(a.ins_noise) + " |", ""]
+    if a.boresight_observable:
+        lines += ["**Boresight misalignment** (rx, ry, rz of the camera file, "
+                  "`C_bc = axes Rx Ry Rz`): "
+                  + ", ".join(f"{v * 180 / np.pi:.5f} +- {e * 180 / np.pi:.5f} deg"
+                              for v, e in zip(a.boresight, a.boresight_sigma)), ""]
+    else:
+        lines += ["Boresight: not observable with this datum/method (the block is oriented "
+                  "by INS angles); use --method known-base --datum none.", ""]
+    lines += ["## Images", "",
+              "| image | " + " | ".join(f"{n} (deg)" for n in names) + " | "
+              + " | ".join(f"sigma {n} (\")" for n in names) + " | "
+              + " | ".join(f"d{n} (\")" for n in names) + " | r(1,2) r(1,3) r(2,3) |",
+              "|---|" + "---:|" * 10]
+    for i, iid in enumerate(result.eo.image_id):
+        c = a.correlations[i]
+        lines.append(f"| {iid} | " + _fmt3(result.eo.angles[i], 180 / np.pi, 6) + " | "
+                     + _fmt3(blk.sigma[i]) + " | " + _fmt3(a.diff[i]) + " | "
+                     + f"{c[0, 1]:.2f} {c[0, 2]:.2f} {c[1, 2]:.2f} |")
+    lines.append("")
+    for title, name in plots:
+        lines += [f"![{title}]({name})", ""]
+    return "\n".join(lines)
+
+
+def write_report(path, result):
+    """Write the Markdown report and its two PNG plots beside it (atomically)."""
+    stem = os.path.splitext(path)[0]
+    plots = [("residuals in the image", stem + "_residuals.png"),
+             ("angle corrections along the strips", stem + "_corrections.png")]
+    _plot_residuals(result, plots[0][1])
+    _plot_corrections(result, plots[1][1])
+    text = report_text(result, [(t, os.path.basename(p)) for t, p in plots])
+    with atomic_open(path, "w") as f:
+        f.write(text)
+    return [p for _, p in plots]

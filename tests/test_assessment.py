@@ -1,0 +1,57 @@
+"""INS assessment: the noise and boresight estimates against a simulated block whose
+injected INS noise and boresight are known."""
+import numpy as np
+import pytest
+
+from photogrammetry import _scenario as sc
+from photogrammetry.assessment import assess
+from photogrammetry.block import adjust_block
+from photogrammetry.report import report_text
+
+
+@pytest.fixture(scope="module")
+def block50():
+    return sc.make_block(n_strips=5, n_per_strip=10, seed=31,
+                         boresight_rad=(0.004, -0.006, 0.008))
+
+
+def _run(B, method, datum):
+    res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                       method, datum, positions=B["positions"], sigma_mm=B["sigma_mm"])
+    return res, assess(res, B["prior"], B["system"], datum, method)
+
+
+def test_noise_and_boresight_from_a_50_image_block(block50):
+    B = block50
+    res, a = _run(B, "known-base", "none")
+    assert a.boresight_observable and a.used.sum() == 50
+    realized = B["ins_noise"].std(axis=0, ddof=1)          # the injected noise, this draw
+    np.testing.assert_allclose(a.ins_noise, realized, rtol=0.10)
+    assert np.all(np.abs(a.ins_noise - 0.005) < 0.10 * 0.005 + 3 * 0.005 / np.sqrt(100))
+    assert np.all(np.abs(a.boresight - B["boresight"]) < 2 * a.boresight_sigma)
+    np.testing.assert_allclose(a.boresight_sigma, 0.005 / np.sqrt(50), rtol=0.2)
+    # the adjustment's own sigma is far below the INS noise; the RMS contains the boresight
+    assert np.all(a.adj_sigma_rms < 0.05 * a.ins_noise)
+    assert np.all(a.rms > a.residual_rms)
+    # correlations of each image's angles are proper correlations
+    c = a.correlations
+    assert np.allclose(np.einsum("mii->mi", c), 1) and np.all(np.abs(c) <= 1 + 1e-12)
+
+
+def test_datum_first_hides_the_boresight_but_not_the_noise(block50):
+    B = block50
+    res, a = _run(B, "base-free", "first")
+    assert not a.boresight_observable and np.all(a.boresight == 0)
+    assert not a.used[0] and a.used[1:].all()
+    realized = B["ins_noise"][1:].std(axis=0, ddof=1)
+    np.testing.assert_allclose(a.ins_noise, realized, rtol=0.2)
+    text = report_text(type("R", (), {"settings": {"method": "base-free", "datum": "first",
+                                                   "system": B["system"], "sigma_mm": 0.005,
+                                                   "pixel_size_mm": 0.01, "n_images": 50,
+                                                   "n_pairs": len(B["pairs"]),
+                                                   "n_observations": 0},
+                                      "block": res, "assessment": a, "pairs": B["pairs"],
+                                      "eo": type("E", (), {"frame": "enu",
+                                                           "image_id": [str(i) for i in range(50)],
+                                                           "angles": res.angles})()})())
+    assert "not observable" in text and "nan" not in text.lower()

@@ -1,0 +1,100 @@
+"""Block adjustment of the angles: datums, consistency with the truth and the covariance,
+agreement with the pair adjustment, degenerate blocks."""
+import warnings
+
+import numpy as np
+import pytest
+
+from ins.errors import InputError
+from photogrammetry import _scenario as sc
+from photogrammetry._coplanarity_kernels import rotation_and_axes
+from photogrammetry.block import adjust_block
+from photogrammetry.coplanarity import adjust_pairs
+from photogrammetry.rotation import angles_to_matrix
+
+
+@pytest.fixture(scope="module")
+def block():
+    return sc.make_block(n_strips=3, n_per_strip=8, seed=21)
+
+
+def _run(B, method, datum, **kw):
+    return adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                        method, datum, positions=B["positions"], sigma_mm=B["sigma_mm"], **kw)
+
+
+def _errors(B, res, align=False):
+    Ra = angles_to_matrix(res.angles, B["system"])
+    Rt = angles_to_matrix(B["angles"], B["system"])
+    if align:                      # remove the datum's common rotation (first image)
+        Ra = (Rt[0] @ Ra[0].T) @ Ra
+    return sc.rotation_error(Ra, Rt)
+
+
+def test_known_base_block_is_absolute_and_consistent(block):
+    res = _run(block, "known-base", "none")
+    assert res.converged and abs(res.sigma0 - 1) < 0.06
+    err = _errors(block, res)
+    R, M = rotation_and_axes(res.angles, block["system"])
+    # chi-square of the rotation errors with the full per-image covariance
+    chi2 = []
+    for i in range(len(err)):
+        C = M[i] @ res.cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] @ M[i].T
+        chi2.append(err[i] @ np.linalg.solve(C, err[i]))
+    assert 0.6 < np.mean(chi2) / 3 < 1.5
+    prior_err = sc.rotation_error(angles_to_matrix(block["prior"], block["system"]),
+                                  angles_to_matrix(block["angles"], block["system"]))
+    assert np.sqrt(np.mean(err ** 2)) < 0.02 * np.sqrt(np.mean(prior_err ** 2))
+
+
+@pytest.mark.parametrize("method", ["relative", "base-free"])
+def test_datum_first_keeps_first_image_and_gets_relative_angles(block, method):
+    res = _run(block, method, "first")
+    np.testing.assert_array_equal(res.angles[0], block["prior"][0])
+    assert np.all(res.sigma[0] == 0) and np.all(res.sigma[1:] > 0)
+    err = _errors(block, res, align=True)
+    rms = np.sqrt(np.mean(err[1:] ** 2))
+    assert rms < 2.0 * np.sqrt(np.mean(res.sigma[1:] ** 2))
+    assert rms < 300 / 206265                          # far below the INS noise (1031")
+
+
+def test_datum_ins_and_equal_methods(block):
+    rel = _run(block, "relative", "ins")
+    free = _run(block, "base-free", "ins")
+    np.testing.assert_allclose(free.angles, rel.angles, atol=1e-9)
+    np.testing.assert_allclose(free.cov, rel.cov, rtol=1e-5, atol=1e-16)
+    assert np.all(free.sigma > 0)
+
+
+def test_two_image_block_equals_pair_adjustment():
+    p = sc.make_pairs(1, 30, seed=22)
+    pts = [(p["u1"][0, :, :2], p["u2"][0, :, :2])]
+    for method in ("known-base", "base-free"):
+        res = adjust_block(np.vstack([p["ang1"], p["prior2"]]), [[0, 1]], pts, p["f_mm"],
+                           p["system"], method, "first",
+                           positions=np.vstack([p["C1"], p["C2"]]), sigma_mm=p["sigma_mm"])
+        pair = adjust_pairs(pts[0][0][None], pts[0][1][None], p["f_mm"], p["ang1"], p["prior2"],
+                            p["system"], method, base=p["C2"] - p["C1"], sigma_mm=p["sigma_mm"])
+        np.testing.assert_allclose(res.angles[1], pair["angles"][0], atol=1e-10)
+        np.testing.assert_allclose(res.cov[3:, 3:], pair["cov"][0], rtol=1e-6)
+
+
+def test_image_without_tie_points_and_disconnected_block(block):
+    B = dict(block)
+    keep = [k for k, (i, j) in enumerate(B["pairs"]) if 5 not in (i, j)]
+    B["pairs"] = B["pairs"][keep]
+    B["pair_points"] = [B["pair_points"][k] for k in keep]
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        res = _run(B, "base-free", "first")
+    assert any("image 5 has no usable pair" in str(x.message) for x in w)
+    np.testing.assert_array_equal(res.angles[5], B["prior"][5])
+    assert np.all(np.isfinite(res.cov)) and res.sigma[5, 0] == pytest.approx(0.005)
+    # two separate pieces: with datum "first" the second piece has no datum
+    cut = [k for k, (i, j) in enumerate(block["pairs"]) if (i < 8) == (j < 8)]
+    C = dict(block, pairs=block["pairs"][cut], pair_points=[block["pair_points"][k] for k in cut])
+    with pytest.raises(InputError, match="singular"):
+        _run(C, "base-free", "first")
+    assert np.all(np.isfinite(_run(C, "base-free", "ins").angles))
+    with pytest.raises(InputError, match="known-base"):
+        _run(block, "base-free", "none")

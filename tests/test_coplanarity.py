@@ -1,0 +1,191 @@
+"""Pair adjustment on the coplanarity condition: derivatives, exactness, bias of the
+paper's form, Cramer-Rao efficiency, outliers and degenerate input."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ins.errors import InputError
+from ins.rotation import skew
+from photogrammetry import _coplanarity_kernels as K
+from photogrammetry import _scenario as sc
+from photogrammetry.coplanarity import (_paper_terms, adjust_pair, adjust_pairs,
+                                        pencil_determinants)
+from photogrammetry.rotation import angles_to_matrix
+
+ARCSEC = np.pi / 180 / 3600
+
+
+def _run(p, method, **kw):
+    return adjust_pairs(p["u1"][..., :2], p["u2"][..., :2], p["f_mm"], p["ang1"], p["prior2"],
+                        p["system"], method, base=p["C2"] - p["C1"], sigma_mm=p["sigma_mm"],
+                        **kw)
+
+
+def _err(p, out):
+    return sc.rotation_error(angles_to_matrix(out["angles"], p["system"]), p["R2"])
+
+
+@pytest.mark.parametrize("system,seq", [("phi-omega-kappa", "YXZ"), ("omega-phi-kappa", "XYZ")])
+def test_rotation_and_axes_against_scipy_and_differences(system, seq):
+    a = np.random.default_rng(1).uniform(-0.5, 0.5, (5, 3))
+    R, M = K.rotation_and_axes(a, system)
+    np.testing.assert_allclose(R, Rotation.from_euler(seq, a).as_matrix(), atol=1e-14)
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = 1e-6
+        dR = (K.rotation_and_axes(a + d, system)[0] - K.rotation_and_axes(a - d, system)[0]) / 2e-6
+        np.testing.assert_allclose(dR, skew(M[:, :, k]) @ R, atol=1e-9)
+
+
+def test_condition_derivatives_against_differences():
+    rng = np.random.default_rng(2)
+    R = Rotation.random(2, random_state=3).as_matrix()
+    R1, R2 = R[:1], R[1:]
+    u1, u2 = rng.normal(size=(1, 4, 3)), rng.normal(size=(1, 4, 3))
+    b = rng.normal(size=(1, 3))
+
+    def g_of(th2=np.zeros(3), bb=b, th1=np.zeros(3)):
+        Ra = Rotation.from_rotvec(th1).as_matrix() @ R1[0]
+        Rb = Rotation.from_rotvec(th2).as_matrix() @ R2[0]
+        return K.condition_terms(u1 @ Ra.T, u2 @ Rb.T, bb, Ra[None], Rb[None], 1.0)[0][0]
+
+    r1, r2 = u1 @ R1[0].T, u2 @ R2[0].T
+    g, var, N, A = K.condition_terms(r1, r2, b, R1, R2, 0.3)
+    h = 1e-6
+    for k in range(3):
+        e = np.eye(3)[k] * h
+        np.testing.assert_allclose((g_of(th2=e) - g_of(th2=-e)) / 2 / h, A[0, :, k], rtol=1e-6)
+        np.testing.assert_allclose((g_of(bb=b + e) - g_of(bb=b - e)) / 2 / h, N[0, :, k], rtol=1e-6)
+        A1 = np.cross(r1, np.cross(r2, b[:, None]))          # the block's dg/dtheta1
+        np.testing.assert_allclose((g_of(th1=e) - g_of(th1=-e)) / 2 / h, A1[0, :, k], rtol=1e-6)
+    # variance: propagated from the 4 photo coordinates by differences
+    J = np.zeros((4, 4))
+    for k in range(2):
+        e = np.zeros(3)
+        e[k] = h
+        J[:, k] = (np.cross((u1 + e) @ R1[0].T, r2)[0] @ b[0]
+                   - np.cross((u1 - e) @ R1[0].T, r2)[0] @ b[0]) / 2 / h
+        J[:, 2 + k] = (np.cross(r1, (u2 + e) @ R2[0].T)[0] @ b[0]
+                       - np.cross(r1, (u2 - e) @ R2[0].T)[0] @ b[0]) / 2 / h
+    np.testing.assert_allclose(var[0], 0.09 * np.sum(J ** 2, axis=1), rtol=1e-6)
+
+
+def test_noise_free_pairs_exact_and_paper_biased():
+    p = sc.make_pairs(20, 15, seed=5, noise_px=1e-9)
+    errs = {}
+    for method in ("known-base", "relative", "base-free", "paper"):
+        out = _run(p, method, snooping=False)
+        assert np.all(out["status"] == 0)
+        errs[method] = np.sqrt(np.mean(_err(p, out) ** 2))
+    for method in ("known-base", "relative", "base-free"):
+        assert errs[method] < 1e-4 * ARCSEC
+    assert errs["paper"] > 100 * ARCSEC       # erratum 1: biased even without noise
+    # at the true orientation the pencil determinants vanish, the paper's F1, F2 do not
+    r1 = np.einsum("pij,pnj->pni", p["R1"], p["u1"])
+    r2 = np.einsum("pij,pnj->pni", p["R2"], p["u2"])
+    triples = [[0, 1, k] for k in range(2, 15)]
+    assert np.max(np.abs(pencil_determinants(r1[0], r2[0], triples))) < 1e-9
+    F, _, _ = _paper_terms(r1, r2, p["mask"])
+    N = np.linalg.norm(np.cross(r1, r2), axis=2)
+    assert np.median(np.abs(F) / (N[:, 2:].repeat(2, axis=1) * N[:, :1])) > 1e-3
+
+
+def test_paper_jacobian_against_differences():
+    p = sc.make_pairs(2, 6, seed=8)
+    r1 = np.einsum("pij,pnj->pni", p["R1"], p["u1"])
+    r2 = np.einsum("pij,pnj->pni", p["R2"], p["u2"])
+    _, dF, _ = _paper_terms(r1, r2, p["mask"])
+    for k in range(3):
+        e = np.zeros((2, 3))
+        e[:, k] = 1e-7
+        Rp, Rm = Rotation.from_rotvec(e).as_matrix(), Rotation.from_rotvec(-e).as_matrix()
+        Fp = _paper_terms(r1, np.einsum("pij,pnj->pni", Rp, r2), p["mask"])[0]
+        Fm = _paper_terms(r1, np.einsum("pij,pnj->pni", Rm, r2), p["mask"])[0]
+        np.testing.assert_allclose((Fp - Fm) / 2e-7, dF[..., k], rtol=1e-5, atol=1e-3)
+
+
+@pytest.mark.parametrize("method,known", [("known-base", True), ("relative", False),
+                                          ("base-free", False)])
+def test_reaches_the_cramer_rao_bound(method, known):
+    p = sc.make_pairs(150, 20, seed=11)
+    out = _run(p, method, snooping=False)
+    assert np.all(out["status"] == 0)
+    err = _err(p, out)
+    rms = np.sqrt(np.mean(err ** 2))
+    bound = np.sqrt(np.mean(np.trace(sc.crb_rotation(p, known), axis1=1, axis2=2)) / 3)
+    assert 0.88 < rms / bound < 1.12
+    assert np.all(np.abs(err.mean(axis=0)) < 3.5 * rms / np.sqrt(len(err)))   # unbiased
+    # the adjustment's own covariance agrees with the bound and with the errors
+    R2, M2 = K.rotation_and_axes(out["angles"], p["system"])
+    cov_rot = M2 @ out["cov"] @ M2.transpose(0, 2, 1)
+    assert 0.85 < np.sqrt(np.mean(np.trace(cov_rot, axis1=1, axis2=2)) / 3) / bound < 1.15
+    s0 = np.sqrt(out["vtpv"].sum() / out["redundancy"].sum())
+    assert abs(s0 - 1) < 0.05
+
+
+def test_base_free_equals_relative_and_needs_no_base():
+    p = sc.make_pairs(30, 12, seed=12)
+    rel = _run(p, "relative", snooping=False)
+    free = adjust_pairs(p["u1"][..., :2], p["u2"][..., :2], p["f_mm"], p["ang1"], p["prior2"],
+                        p["system"], "base-free", sigma_mm=p["sigma_mm"], snooping=False)
+    np.testing.assert_allclose(free["angles"], rel["angles"], atol=1e-10)
+    np.testing.assert_allclose(free["cov"], rel["cov"], rtol=1e-6, atol=1e-18)
+    b_true = (p["C2"] - p["C1"]) / np.linalg.norm(p["C2"] - p["C1"], axis=1)[:, None]
+    assert np.all(np.abs(np.einsum("pi,pi->p", free["base"], b_true)) > 0.999)
+
+
+def test_outlier_rejected_by_data_snooping():
+    p = sc.make_pairs(40, 25, seed=13)
+    u2 = p["u2"].copy()
+    u2[:, 7, 1] += 0.05                                   # 5 px across the epipolar line
+    q = dict(p, u2=u2)
+    out = _run(q, "base-free")
+    assert out["rejected"][:, 7].mean() > 0.9
+    assert out["rejected"].sum() < 40 * 1.15
+    clean = _run(p, "base-free", snooping=False)
+    e_out, e_clean = np.sqrt(np.mean(_err(p, out) ** 2)), np.sqrt(np.mean(_err(p, clean) ** 2))
+    assert e_out < 1.3 * e_clean
+
+
+def test_single_pair_and_degenerate_input():
+    p = sc.make_pairs(1, 12, seed=14, system="omega-phi-kappa")
+    xy1, xy2 = p["u1"][0, :, :2], p["u2"][0, :, :2]
+    res = adjust_pair(xy1, xy2, p["f_mm"], p["ang1"][0], p["prior2"][0], p["system"],
+                      "known-base", base=p["C2"][0] - p["C1"][0], sigma_mm=p["sigma_mm"])
+    assert res.status == "ok" and np.all(np.isfinite(res.sigma)) and res.redundancy >= 8
+    err = sc.rotation_error(angles_to_matrix(res.angles, p["system"])[None], p["R2"])
+    assert np.linalg.norm(err) < 6 * np.linalg.norm(res.sigma)
+    with pytest.raises(InputError, match="at least 5"):
+        adjust_pair(xy1[:4], xy2[:4], p["f_mm"], p["ang1"][0], p["prior2"][0], p["system"])
+    with pytest.raises(InputError, match="zero base"):
+        adjust_pair(xy1, xy2, p["f_mm"], p["ang1"][0], p["prior2"][0], p["system"],
+                    "known-base", base=np.zeros(3))
+    line = np.column_stack([np.linspace(-30, 30, 12), np.zeros(12)])   # collinear points
+    with pytest.raises(InputError, match="singular"):
+        adjust_pair(line, line + [0.1, 0], p["f_mm"], np.zeros(3), np.zeros(3), p["system"])
+    # in a batch a bad pair gets a status, the others are solved, nothing is NaN
+    q = sc.make_pairs(3, 12, seed=15)
+    xy2b = q["u2"][..., :2].copy()
+    mask = np.ones((3, 12), bool)
+    mask[1, 3:] = False
+    out = adjust_pairs(q["u1"][..., :2], xy2b, q["f_mm"], q["ang1"], q["prior2"], q["system"],
+                       mask=mask, sigma_mm=q["sigma_mm"])
+    assert list(out["status"]) == [0, K.STATUS_TOO_FEW, 0]
+    np.testing.assert_array_equal(out["angles"][1], q["prior2"][1])
+    assert all(np.all(np.isfinite(v)) for v in out.values() if isinstance(v, np.ndarray))
+
+
+@pytest.mark.parametrize("mode", ["known", "relative", "free"])
+def test_numba_kernel_equals_numpy_reference(mode):
+    p = sc.make_pairs(12, 9, seed=16, system="omega-phi-kappa")
+    p["mask"][2, 6:] = False
+    args = (p["u1"], p["u2"], p["mask"], p["R1"], p["prior2"], p["C2"] - p["C1"], mode,
+            p["system"], p["sigma_mm"])
+    a, b = K.solve_pairs(*args, engine="numpy"), K.solve_pairs(*args, engine="numba")
+    ok = a["status"] <= 1
+    np.testing.assert_array_equal(a["status"], b["status"])
+    np.testing.assert_allclose(b["angles"], a["angles"], atol=1e-12)
+    np.testing.assert_allclose(b["Q"][ok], a["Q"][ok], rtol=1e-7, atol=1e-20)
+    np.testing.assert_allclose(b["vtpv"][ok], a["vtpv"][ok], rtol=1e-7)
+    m = p["mask"][ok]
+    np.testing.assert_allclose(b["g"][ok] * m, a["g"][ok] * m, rtol=1e-7, atol=1e-14)
