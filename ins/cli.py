@@ -226,6 +226,9 @@ def _cmd_compare(args):
 
 # Sub-commands that live in modules of their own (one line each).
 COMMAND_MODULES = [
+    "ins.cli_simulate",
+    "ins.cli_allan",
+    "ins.cli_process",
 ]
 
 

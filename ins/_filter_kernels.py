@@ -1,0 +1,114 @@
+"""Numba loops of the GNSS/INS filter (private): mechanization of the IMU rows between
+two filter nodes with the current sensor-error estimates removed, accumulating the
+integrals the covariance step needs, and the application of error-state corrections.
+
+State layout of the navigation vector: that of :mod:`ins._kernels`
+(lat, lon, h, vN, vE, vD, qx, qy, qz, qw).
+"""
+import math
+
+import numba as nb
+import numpy as np
+
+from . import _kernels, earth
+
+
+@nb.njit(cache=True, inline="always")
+def _compensate(raw, k, bias, scale, dt, out):
+    for i in range(3):
+        out[i] = (raw[k, i] - bias[i] * dt) / (1.0 + scale[i])
+
+
+@nb.njit(cache=True)
+def propagate_rows(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc):
+    """Mechanize rows ``k0 .. k1-1`` (in place on ``state``, the state at ``time[k0-1]``).
+
+    ``sensors`` = gyro bias (rad/s), accel bias (m/s^2), gyro scale, accel scale (12
+    values, estimates) are removed from the increments:
+    ``dtheta = (dtheta_raw - b_g dt) / (1 + s_g)``, the same for ``dvel``.
+    ``out[k - k0]`` receives the state at ``time[k]``.  ``acc`` (shape (10, 3)) receives
+    (added to what it holds) ``S_C = sum C_nb dt`` (rows 0-2), ``S_Cw = sum C_nb
+    diag(dtheta)`` (rows 3-5), ``S_Cf = sum C_nb diag(dvel)`` (rows 6-8) and the sum of
+    ``C_nb dvel`` (row 9), with ``C_nb`` at the start of each row's interval.
+    """
+    c = np.empty(9)
+    th_p = np.empty(3)
+    dv_p = np.empty(3)
+    th = np.empty(3)
+    dv = np.empty(3)
+    bg, ba, sg, sa = sensors[0:3], sensors[3:6], sensors[6:9], sensors[9:12]
+    for k in range(k0, k1):
+        dt = time[k] - time[k - 1]
+        dt_p = time[k - 1] - time[k - 2] if k >= 2 else dt
+        _compensate(dtheta_b, k - 1, bg, sg, dt_p, th_p)
+        _compensate(dvel_b, k - 1, ba, sa, dt_p, dv_p)
+        _compensate(dtheta_b, k, bg, sg, dt, th)
+        _compensate(dvel_b, k, ba, sa, dt, dv)
+        qx, qy, qz, qw = state[6], state[7], state[8], state[9]
+        c[0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+        c[1] = 2.0 * (qx * qy - qz * qw)
+        c[2] = 2.0 * (qx * qz + qy * qw)
+        c[3] = 2.0 * (qx * qy + qz * qw)
+        c[4] = 1.0 - 2.0 * (qx * qx + qz * qz)
+        c[5] = 2.0 * (qy * qz - qx * qw)
+        c[6] = 2.0 * (qx * qz - qy * qw)
+        c[7] = 2.0 * (qy * qz + qx * qw)
+        c[8] = 1.0 - 2.0 * (qx * qx + qy * qy)
+        for i in range(3):
+            for j in range(3):
+                cij = c[3 * i + j]
+                acc[i, j] += cij * dt
+                acc[3 + i, j] += cij * th[j]
+                acc[6 + i, j] += cij * dv[j]
+                acc[9, i] += cij * dv[j]
+        _kernels._step(state, c, th_p, dv_p, th, dv, dt)
+        for i in range(_kernels.N_STATE):
+            out[k - k0, i] = state[i]
+
+
+@nb.njit(cache=True, inline="always")
+def _correct(s, dn, de, dd, dvn, dve, dvd, px, py, pz):
+    """Remove a navigation error (estimate minus truth: NED m, m/s, phi rad) from ``s``."""
+    rm, rn = earth._radii(s[0])
+    s[0] -= dn / (rm + s[2])
+    s[1] -= de / ((rn + s[2]) * math.cos(s[0]))
+    s[2] += dd
+    s[3] -= dvn
+    s[4] -= dve
+    s[5] -= dvd
+    # C_true = Rot(phi) C_est: q <- q(phi) * q
+    ax, ay, az, aw = _kernels._rotvec_to_quat(px, py, pz)
+    qx, qy, qz, qw = _kernels._quat_mul(ax, ay, az, aw, s[6], s[7], s[8], s[9])
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if qw < 0.0:
+        norm = -norm
+    s[6], s[7], s[8], s[9] = qx / norm, qy / norm, qz / norm, qw / norm
+
+
+@nb.njit(cache=True)
+def correct_state(s, d):
+    """Apply the navigation part ``d[0:9]`` of an error state to one state, in place."""
+    _correct(s, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8])
+
+
+@nb.njit(cache=True)
+def correct_between_nodes(traj, time, node_rows, x_after, x_before):
+    """Apply interpolated corrections to every row of ``traj`` in place.
+
+    Row ``node_rows[j]`` gets ``x_after[j]``; a row strictly between nodes ``j`` and
+    ``j + 1`` gets the linear interpolation in time of ``x_after[j]`` and
+    ``x_before[j + 1]`` (the error just before the update at node ``j + 1``).
+    """
+    d = np.empty(9)
+    for j in range(len(node_rows)):
+        r = node_rows[j]
+        correct_state(traj[r], x_after[j, :9])
+        if j + 1 < len(node_rows):
+            r1 = node_rows[j + 1]
+            t0 = time[r]
+            span = time[r1] - t0
+            for row in range(r + 1, r1):
+                w = (time[row] - t0) / span
+                for i in range(9):
+                    d[i] = (1.0 - w) * x_after[j, i] + w * x_before[j + 1, i]
+                correct_state(traj[row], d)

@@ -1,0 +1,160 @@
+"""``ins process``: GNSS/INS post-processing (forward filter + RTS smoother)."""
+import argparse
+import os
+import sys
+import time as wallclock
+
+import numpy as np
+
+from .errors import InputError
+
+EPILOG = """\
+inputs:
+  FLIGHT_DIR        a flight folder of 'ins simulate' (manifest.toml names the files,
+                    lever arms, IMU errors, stationary segment); --config overrides keys
+  --imu/--gnss      KF-GINS text files as they are: IMU 'time dtheta_xyz[rad]
+                    dvel_xyz[m/s]' (FRD, increment over (t[k-1], t[k]] stamped at its end);
+                    GNSS 'time lat lon[deg] h[m] std_n std_e std_d[m]' of the ANTENNA,
+                    optionally 'vn ve vd std_vn std_ve std_vd [m/s]'
+  --mount           mount log 'time roll pitch yaw [deg]' (C_ap = Rz(yaw) Ry(pitch) Rx(roll))
+  --config F.toml   initial state and sigma, IMU noise (deg/sqrt(h), m/s/sqrt(h), deg/h,
+                    mGal, ppm, h), lever arm (m, body FRD), alignment; see
+                    data/configs/kfgins_like.toml
+
+frames and units:
+  n = north-east-down, b = forward-right-down; lever arm from the IMU to the antenna in
+  b (m); with a mount l_b(t) = l_bp + C_pa(t) l_ap.
+
+outputs (in -o OUT_DIR):
+  solution.nav      smoothed trajectory, KF-GINS .nav: week t lat lon[deg] h[m]
+                    vN vE vD[m/s] roll pitch yaw[deg]
+  forward.nav       forward-filter trajectory (same layout)
+  solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
+                    roll pitch yaw [deg]
+  imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
+  *.png             plots (errors against the truth when there is one, sigma, biases)
+
+example:
+  ins process --imu imu.txt --gnss gnss.txt --config data/configs/kfgins_like.toml -o out
+  ins process flight_dir -o out
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "process", help="GNSS/INS post-processing: forward Kalman filter + RTS smoother",
+        description="Loosely coupled GNSS/INS post-processing: 21-state error-state Kalman "
+                    "filter with closed-loop feedback (fixed or mount-varying lever arm), "
+                    "then a backward Rauch-Tung-Striebel pass.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
+                   help="flight folder with manifest.toml")
+    p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
+    p.add_argument("--gnss", metavar="F", help="GNSS log of the antenna (KF-GINS text)")
+    p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
+    p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
+    p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
+    p.add_argument("--no-smooth", action="store_true", help="forward filter only")
+    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p.add_argument("--week", type=int, default=0, help="GPS week in the .nav (default 0)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR", help="output folder")
+    p.set_defaults(func=_cmd_process)
+
+
+def _config(args):
+    from .process import config_from_manifest, load_config
+    if args.flight_dir:
+        if args.imu or args.gnss:
+            raise InputError("give either FLIGHT_DIR or --imu/--gnss, not both")
+        if not os.path.isdir(args.flight_dir):
+            raise InputError(f"FLIGHT_DIR {args.flight_dir}: not a folder")
+        cfg = config_from_manifest(args.flight_dir, overrides=args.config)
+    else:
+        if not args.config:
+            raise InputError("--config F.toml is required without FLIGHT_DIR")
+        if not os.path.isfile(args.config):
+            raise InputError(f"--config {args.config}: no such file")
+        cfg = _from_args(args, load_config, args.config)
+    if args.mount:
+        cfg.mount = args.mount
+    if args.truth:
+        cfg.truth = args.truth
+    if args.no_smooth:
+        cfg.smooth = False
+    return cfg
+
+
+def _from_args(args, load_config, path):
+    import tomllib
+    with open(path, "rb") as f:
+        try:
+            has_files = "files" in tomllib.load(f)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"not valid TOML: {exc}", path=path) from None
+    if not has_files and not (args.imu and args.gnss):
+        raise InputError("--imu and --gnss are required (the config has no [files])")
+    if has_files:
+        cfg = load_config(path)
+    else:
+        import tempfile
+        with tempfile.TemporaryDirectory() as tmp:     # a [files] table around the config
+            stub = os.path.join(tmp, "c.toml")
+            with open(stub, "w") as f, open(path) as src:
+                f.write(f'[files]\nimu = "{_esc(args.imu)}"\ngnss = "{_esc(args.gnss)}"\n')
+                f.write(src.read())
+            cfg = load_config(stub, base=os.getcwd())
+    if args.imu:
+        cfg.imu = args.imu
+    if args.gnss:
+        cfg.gnss = args.gnss
+    return cfg
+
+
+def _esc(path):
+    return os.path.abspath(path).replace("\\", "\\\\").replace('"', '\\"')
+
+
+def _cmd_process(args):
+    from .cli import _Progress
+    from .process import process, write_outputs
+    t0 = wallclock.perf_counter()
+    cfg = _config(args)
+    progress = _Progress("process", not args.quiet)
+    progress.note(f"reading {cfg.imu} ...")
+    result = process(cfg, progress=progress)
+    t1 = wallclock.perf_counter()
+    paths = write_outputs(result, args.output, week=args.week)
+    if not args.no_plots:
+        from .plots import write_plots
+        paths += write_plots(result, args.output)
+    t2 = wallclock.perf_counter()
+    if not args.quiet:
+        _summary(result, cfg, paths, t1 - t0, t2 - t1)
+    return 0
+
+
+def _summary(result, cfg, paths, t_proc, t_write):
+    c = result.counts
+    out = sys.stdout
+    print(f"{c['imu_epochs']} IMU epochs, {c['gnss_records']} GNSS records: {c['updates']} "
+          f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
+          f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
+          file=out)
+    if result.alignment is not None:
+        al = result.alignment
+        rpy = np.rad2deg(result.forward.rpy()[0])
+        print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
+              f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
+              f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
+    print(f"processed in {t_proc:.2f} s, wrote {len(paths)} files in {t_write:.2f} s", file=out)
+    if result.errors_smoothed is not None:
+        print(f"{'RMS vs truth':<14}{'N mm':>9}{'E mm':>9}{'D mm':>9}{'tiltN as':>9}"
+              f"{'tiltE as':>9}{'head as':>9}", file=out)
+        for name, e in (("forward", result.errors_forward),
+                        ("smoothed", result.errors_smoothed)):
+            p = 1e3 * np.sqrt(np.mean(e.pos_n ** 2, axis=0))
+            a = np.sqrt(np.mean(e.att_n ** 2, axis=0)) * 180 / np.pi * 3600
+            print(f"{name:<14}" + "".join(f"{v:>9.2f}" for v in (*p, *a)), file=out)
+    for p in paths:
+        print(f"  {p}", file=out)

@@ -1,0 +1,232 @@
+"""Error-state model of the GNSS/INS filter: state layout, F, G, Q and their discretization.
+
+State layout (21 states, SI units inside)
+-----------------------------------------
+======  ==========  =====================================================  ========
+index   name        meaning                                                unit
+======  ==========  =====================================================  ========
+0-2     ``POS``     position error N, E, D, estimate minus truth            m
+3-5     ``VEL``     velocity error N, E, D, estimate minus truth            m/s
+6-8     ``ATT``     attitude error phi (phi-angle, n frame):                rad
+                    ``C_nb_est = (I - [phi x]) C_nb_true``
+9-11    ``BG``      gyro bias error, truth minus estimate                   rad/s
+12-14   ``BA``      accelerometer bias error, truth minus estimate          m/s^2
+15-17   ``SG``      gyro scale-factor error, truth minus estimate           1
+18-20   ``SA``      accelerometer scale-factor error, truth minus estimate  1
+======  ==========  =====================================================  ========
+
+The sign rules are those of KF-GINS (Shin's thesis): the navigation errors are removed
+(``r -= D^-1 dr``, ``v -= dv``, ``C_nb <- Rot(phi) C_nb``) and the sensor errors added to
+the estimates (``b += db``).  The IMU model is ``w_meas = (1 + s_g) w + b_g + noise``,
+compensated as ``w = (w_meas - b_g) / (1 + s_g)``; the same for the accelerometers.
+Biases and scale factors are first-order Gauss-Markov processes
+``x' = -x / T + w`` with ``E[w w] = 2 sigma^2 / T``.
+
+Continuous model ``x' = F x + G w`` with ``w = [gyro white noise (ARW), accel white
+noise (VRW), bias and scale driving noises]`` (18 inputs); the navigation rows follow
+Shin (2001) / KF-GINS: position ``F_rr``, ``F_rv = I``; velocity ``F_vr``, ``F_vv``,
+``F_vphi = [f_n x]``, ``F_v,ba = C_nb``, ``F_v,sa = C_nb diag(f_b)``; attitude
+``F_phir``, ``F_phiv``, ``F_phiphi = -[w_in_n x]``, ``F_phi,bg = -C_nb``,
+``F_phi,sg = -C_nb diag(w_ib_b)``.
+
+Discretization over a node interval ``dt`` (the covariance runs at the node rate, not
+at the IMU rate): with the IMU-rate integrals ``S_C = int C_nb dt``,
+``S_Cw = int C_nb diag(w_ib_b) dt``, ``S_Cf = int C_nb diag(f_b) dt`` and the mean
+specific force ``f_n`` accumulated by the mechanization between the nodes,
+``A = int F dt`` (navigation blocks at the mid-interval state) and
+
+    Phi = I + A + A^2 / 2 + A^3 / 6,
+    Q_d = (Phi G Q G^T Phi^T + G Q G^T) dt / 2      (trapezoidal rule).
+
+The cubic term carries a gyro bias into position within one interval (bias -> tilt ->
+velocity -> position); without it a 1 s step misses ``g b_g dt^3 / 6``.
+Since ``C_nb`` is orthogonal and the white noises are isotropic, ``G Q G^T`` does not
+depend on the attitude.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import earth
+from .rotation import skew
+
+N_STATES = 21
+POS, VEL, ATT = slice(0, 3), slice(3, 6), slice(6, 9)
+BG, BA, SG, SA = slice(9, 12), slice(12, 15), slice(15, 18), slice(18, 21)
+STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), ("att", "NED"),
+                                               ("gyro_bias", "xyz"), ("accel_bias", "xyz"),
+                                               ("gyro_scale", "xyz"), ("accel_scale", "xyz"))
+                    for a in axes)
+
+#: Unit conversions from the edge units to SI.
+DEG = np.pi / 180.0
+DPH = DEG / 3600.0             # deg/h -> rad/s
+DEG_SQRTH = DEG / 60.0         # deg/sqrt(h) -> rad/sqrt(s)
+MPS_SQRTH = 1.0 / 60.0         # m/s/sqrt(h) -> m/s/sqrt(s)
+MGAL = 1e-5                    # mGal -> m/s^2
+PPM = 1e-6
+HOUR = 3600.0
+
+
+def _triple(value, name):
+    v = np.broadcast_to(np.asarray(value, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(v)) or np.any(v < 0):
+        raise ValueError(f"{name} must be finite and >= 0 (one value or three), got {value}")
+    return v
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """IMU noise and error statistics, in the KF-GINS units (one value or x, y, z).
+
+    Parameters
+    ----------
+    arw_deg_sqrth : angle random walk, deg/sqrt(h)
+    vrw_mps_sqrth : velocity random walk, m/s/sqrt(h)
+    gyro_bias_std_dph : gyro bias (Gauss-Markov) standard deviation, deg/h
+    accel_bias_std_mgal : accelerometer bias standard deviation, mGal
+    gyro_scale_std_ppm, accel_scale_std_ppm : scale-factor standard deviations, ppm
+    corr_time_h : correlation time of the Gauss-Markov processes, h
+    """
+
+    arw_deg_sqrth: object = 0.003
+    vrw_mps_sqrth: object = 0.03
+    gyro_bias_std_dph: object = 0.5
+    accel_bias_std_mgal: object = 50.0
+    gyro_scale_std_ppm: object = 1.0
+    accel_scale_std_ppm: object = 1.0
+    corr_time_h: float = 4.0
+
+    def __post_init__(self):
+        for name in ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph",
+                     "accel_bias_std_mgal", "gyro_scale_std_ppm", "accel_scale_std_ppm"):
+            object.__setattr__(self, name, _triple(getattr(self, name), name))
+        if not (np.isfinite(self.corr_time_h) and self.corr_time_h > 0):
+            raise ValueError(f"corr_time_h must be > 0, got {self.corr_time_h}")
+
+    @property
+    def sensor_std(self):
+        """Standard deviations of the 12 sensor states (bg, ba, sg, sa), SI."""
+        return np.concatenate([self.gyro_bias_std_dph * DPH, self.accel_bias_std_mgal * MGAL,
+                               self.gyro_scale_std_ppm * PPM, self.accel_scale_std_ppm * PPM])
+
+    @property
+    def corr_time_s(self):
+        return float(self.corr_time_h) * HOUR
+
+    def q_continuous(self):
+        """Spectral densities of the 18 noise inputs (diagonal of Q), SI."""
+        tau = self.corr_time_s
+        return np.concatenate([(self.arw_deg_sqrth * DEG_SQRTH) ** 2,
+                               (self.vrw_mps_sqrth * MPS_SQRTH) ** 2,
+                               2.0 * self.sensor_std ** 2 / tau])
+
+
+def noise_matrix(noise):
+    """``G Q G^T`` (21 x 21), attitude independent (see the module notes)."""
+    q = noise.q_continuous()
+    GQG = np.zeros((N_STATES, N_STATES))
+    idx = np.arange(3)
+    GQG[VEL.start + idx, VEL.start + idx] = q[3:6]
+    GQG[ATT.start + idx, ATT.start + idx] = q[0:3]
+    sensors = np.arange(9, 21)
+    GQG[sensors, sensors] = q[6:18]
+    return GQG
+
+
+def navigation_matrix(lat, h, v_n, f_n):
+    """Navigation block of F (9 x 9: position, velocity, attitude errors).
+
+    Parameters
+    ----------
+    lat, h : float
+        Latitude (rad), ellipsoidal height (m).
+    v_n : array_like, shape (3,)
+        Velocity NED, m/s.
+    f_n : array_like, shape (3,)
+        Specific force in n, m/s^2.
+    """
+    vn, ve, vd = v_n
+    rm, rn = earth.radii(lat)
+    rmh, rnh = rm + h, rn + h
+    w = earth.OMEGA_IE
+    s, c = np.sin(lat), np.cos(lat)
+    t = s / c
+    sec2 = 1.0 / (c * c)
+    g = float(earth.normal_gravity(lat, h))
+    F = np.zeros((9, 9))
+    F[0:3, 0:3] = [[-vd / rmh, 0.0, vn / rmh],
+                   [ve * t / rnh, -(vd + vn * t) / rnh, ve / rnh],
+                   [0.0, 0.0, 0.0]]
+    F[0:3, 3:6] = np.eye(3)
+    F[3:6, 0:3] = [
+        [-2 * ve * w * c / rmh - ve * ve * sec2 / (rmh * rnh), 0.0,
+         vn * vd / rmh ** 2 - ve * ve * t / rnh ** 2],
+        [2 * w * (vn * c - vd * s) / rmh + vn * ve * sec2 / (rmh * rnh), 0.0,
+         (ve * vd + vn * ve * t) / rnh ** 2],
+        [2 * w * ve * s / rmh, 0.0,
+         -ve * ve / rnh ** 2 - vn * vn / rmh ** 2 + 2 * g / (np.sqrt(rm * rn) + h)]]
+    F[3:6, 3:6] = [[vd / rmh, -2 * (w * s + ve * t / rnh), vn / rmh],
+                   [2 * w * s + ve * t / rnh, (vd + vn * t) / rnh, 2 * w * c + ve / rnh],
+                   [-2 * vn / rmh, -2 * (w * c + ve / rnh), 0.0]]
+    F[3:6, 6:9] = skew(np.asarray(f_n, dtype=float))
+    F[6:9, 0:3] = [[-w * s / rmh, 0.0, ve / rnh ** 2],
+                   [0.0, 0.0, -vn / rmh ** 2],
+                   [-w * c / rmh - ve * sec2 / (rmh * rnh), 0.0, -ve * t / rnh ** 2]]
+    F[6:9, 3:6] = [[0.0, 1.0 / rnh, 0.0], [-1.0 / rmh, 0.0, 0.0], [0.0, -t / rnh, 0.0]]
+    w_in = earth.earth_rate_n(lat) + earth.transport_rate_n(lat, h, v_n)
+    F[6:9, 6:9] = -skew(w_in)
+    return F
+
+
+def system_matrix(lat, h, v_n, f_n, C_nb, f_b, w_ib_b, corr_time_s):
+    """Continuous F (21 x 21) at one state (the IMU-rate form, for tests and reference).
+
+    Parameters
+    ----------
+    C_nb : ndarray, shape (3, 3)
+    f_b, w_ib_b : array_like, shape (3,)
+        Specific force (m/s^2) and angular rate (rad/s) in b.
+    corr_time_s : float
+        Gauss-Markov correlation time, s.
+    """
+    integrals = (np.asarray(C_nb), np.asarray(C_nb) * np.asarray(w_ib_b)[None, :],
+                 np.asarray(C_nb) * np.asarray(f_b)[None, :])
+    return interval_matrix(lat, h, v_n, f_n, integrals, 1.0, corr_time_s)
+
+
+def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s):
+    """``A = int F dt`` over a node interval (21 x 21).
+
+    Parameters
+    ----------
+    lat, h, v_n, f_n :
+        Mid-interval navigation state and mean specific force in n (see
+        :func:`navigation_matrix`).
+    integrals : tuple of three (3, 3) arrays
+        ``S_C = int C_nb dt``, ``S_Cw = int C_nb diag(w_ib_b) dt`` and
+        ``S_Cf = int C_nb diag(f_b) dt`` (s, rad, m/s).
+    dt : float
+        Interval length, s.
+    corr_time_s : float
+        Gauss-Markov correlation time, s.
+    """
+    S_C, S_Cw, S_Cf = integrals
+    A = np.zeros((N_STATES, N_STATES))
+    A[0:9, 0:9] = navigation_matrix(lat, h, v_n, f_n) * dt
+    A[VEL, BA] = S_C
+    A[VEL, SA] = S_Cf
+    A[ATT, BG] = -S_C
+    A[ATT, SG] = -S_Cw
+    idx = np.arange(9, 21)
+    A[idx, idx] = -dt / corr_time_s
+    return A
+
+
+def discretize(A, GQG, dt):
+    """Transition and process noise of an interval: ``Phi = I + A + A^2/2 + A^3/6``,
+    ``Q_d = (Phi GQG Phi^T + GQG) dt / 2``."""
+    A2 = A @ A
+    Phi = np.eye(N_STATES) + A + 0.5 * A2 + (A2 @ A) / 6.0
+    Qd = 0.5 * dt * (Phi @ GQG @ Phi.T + GQG)
+    return Phi, Qd

@@ -1,0 +1,97 @@
+"""Mount-angle log of a gyro-stabilized mount: reader and interpolation.
+
+Layout (``docs/interfaces.md``): an optional header comment, then one epoch a line::
+
+    # time_s roll_deg pitch_deg yaw_deg  (platform p relative to aircraft a:
+    #                                      C_ap = Rz(yaw) Ry(pitch) Rx(roll))
+
+Time in s on the IMU's time scale; angles in deg.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _textio
+from .errors import InputError
+from .rotation import euler_to_dcm
+
+_HINT = "mount log: time_s roll_deg pitch_deg yaw_deg"
+
+
+@dataclass(frozen=True)
+class MountLog:
+    """Mount angles over time.
+
+    Attributes
+    ----------
+    time : ndarray, shape (n,)
+        s, strictly increasing.
+    rpy : ndarray, shape (n, 3)
+        Roll, pitch, yaw of the platform relative to the aircraft, rad
+        (``C_ap = Rz(yaw) Ry(pitch) Rx(roll)``).
+    max_gap_s : float
+        Interpolation is refused (``valid`` False) across an interval longer than this.
+    """
+
+    time: np.ndarray
+    rpy: np.ndarray
+    max_gap_s: float = None
+
+    def __post_init__(self):
+        if self.max_gap_s is None:
+            d = np.diff(self.time)
+            gap = 3.0 * float(np.median(d)) if d.size else 1.0
+            object.__setattr__(self, "max_gap_s", gap)
+
+    def __len__(self):
+        return len(self.time)
+
+    def angles(self, t):
+        """Interpolated angles at ``t`` (rad, shape (m, 3)) and a validity mask.
+
+        ``valid`` is False outside the log and inside gaps longer than ``max_gap_s``; the
+        angles there are zero (mount at its reference position).
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.searchsorted(self.time, t, side="right")
+        inside = (k > 0) & (k < len(self.time)) | (t == self.time[-1])
+        k = np.clip(k, 1, len(self.time) - 1)
+        gap = self.time[k] - self.time[k - 1]
+        valid = inside & (gap <= self.max_gap_s)
+        w = np.clip((t - self.time[k - 1]) / gap, 0.0, 1.0)[:, None]
+        rpy = (1.0 - w) * self.rpy[k - 1] + w * self.rpy[k]
+        rpy[~valid] = 0.0
+        return rpy, valid
+
+    def C_ap(self, t):
+        """``C_ap(t)`` (shape (m, 3, 3)) and the validity mask of :meth:`angles`."""
+        rpy, valid = self.angles(t)
+        return euler_to_dcm(rpy), valid
+
+
+def read_mount(path):
+    """Read a mount-angle log (4 columns: time_s roll_deg pitch_deg yaw_deg).
+
+    Raises
+    ------
+    InputError
+        Naming the file and line: column count, text or non-finite value, time not
+        strictly increasing, an angle beyond +-180 deg.
+    """
+    path_s = str(path)
+    rows, row_line = _textio.read_table(path, ncols_min=4, ncols_max=4, hint=_HINT)
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+    if bad.size:
+        raise InputError("non-finite value", path=path_s, line=int(row_line[bad[0]]))
+    back = np.flatnonzero(np.diff(rows[:, 0]) <= 0)
+    if back.size:
+        k = back[0] + 1
+        raise InputError(f"time not increasing: t = {float(rows[k, 0])!r} s after {float(rows[k - 1, 0])!r} s",
+                         path=path_s, line=int(row_line[k]))
+    big = np.flatnonzero(np.any(np.abs(rows[:, 1:]) > 180.0, axis=1))
+    if big.size:
+        raise InputError("mount angle beyond +-180 deg (expected deg)", path=path_s,
+                         line=int(row_line[big[0]]))
+    if len(rows) < 2:
+        raise InputError("a mount log needs at least 2 epochs", path=path_s)
+    return MountLog(rows[:, 0].copy(), np.deg2rad(rows[:, 1:4]))

@@ -1,0 +1,102 @@
+"""Alignment: static coarse alignment on simulated stationary data (accuracy within the
+stated error budget), in-air start from the GNSS track, bad windows."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ins import earth
+from ins.alignment import (align_gnss_heading, align_static, static_accuracy,
+                           static_attitude)
+from ins.error_model import DEG_SQRTH, DPH, MGAL, ImuNoise
+from ins.errors import InputError
+from ins.gnss import GnssLog
+from ins.imu import ImuLog
+
+LAT = np.deg2rad(30.5)
+
+
+def static_imu(rpy_deg, gyro_bias_dph, accel_bias_mgal, arw_deg_sqrth, duration=300.0, seed=0):
+    """Increments of a stationary IMU (exact: f_b = -C_bn g_n, w_b = C_bn w_ie_n) with
+    constant biases and white angle noise."""
+    dt = 0.005
+    n = int(duration / dt) + 1
+    C_nb = Rotation.from_euler("ZYX", np.asarray(rpy_deg)[::-1], degrees=True).as_matrix()
+    g = float(earth.normal_gravity(LAT, 100.0))
+    f_b = C_nb.T @ np.array([0.0, 0.0, -g]) + np.asarray(accel_bias_mgal) * MGAL
+    w_b = C_nb.T @ earth.earth_rate_n(LAT) + np.asarray(gyro_bias_dph) * DPH
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(0.0, arw_deg_sqrth * DEG_SQRTH * np.sqrt(dt), (n, 3))
+    return ImuLog(np.arange(n) * dt, np.tile(w_b * dt, (n, 1)) + noise,
+                  np.tile(f_b * dt, (n, 1))), C_nb
+
+
+def test_static_attitude_is_exact_without_errors():
+    for rpy in ([1.0, -2.0, 30.0], [-3.0, 4.0, 200.0 - 360.0], [0.5, 0.2, -95.0]):
+        imu, C_nb = static_imu(rpy, [0, 0, 0], [0, 0, 0], 0.0, duration=10.0)
+        lla = np.array([LAT, 0.3, 100.0])
+        al = align_static(imu, 0.0, 10.0, lla)
+        got = Rotation.from_quat(al.state.q_nb).as_euler("ZYX", degrees=True)[::-1]
+        np.testing.assert_allclose(got, rpy, atol=1e-7)
+        assert al.method == "static" and not al.state.v_n.any()
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_static_accuracy_matches_the_error_budget(seed):
+    """Biases and noise give errors within the stated budget (tilt = b_a / g, heading =
+    b_g,east / (W cos lat) with the ARW term), and of that size (not far below)."""
+    rpy = [2.0, -1.0, 60.0]
+    gb, ab, arw = [0.01, -0.008, 0.006], [25.0, -20.0, 30.0], 0.003
+    imu, C_nb = static_imu(rpy, gb, ab, arw, duration=300.0, seed=seed)
+    noise = ImuNoise(arw_deg_sqrth=arw, gyro_bias_std_dph=0.01, accel_bias_std_mgal=30.0)
+    al = align_static(imu, 0.0, 300.0, np.array([LAT, 0.3, 100.0]), noise)
+    C_est = Rotation.from_quat(al.state.q_nb).as_matrix()
+    err = Rotation.from_matrix(C_est @ C_nb.T).as_rotvec()          # n-frame error
+    assert np.all(np.abs(err[:2]) < 3 * np.deg2rad(al.att_std_deg[:2]))
+    assert abs(err[2]) < 3 * np.deg2rad(al.att_std_deg[2])
+    # predicted heading error from the east gyro bias alone (bias in n, then east)
+    b_n = C_nb @ (np.array(gb) * DPH)
+    predicted = b_n[1] / (earth.OMEGA_IE * np.cos(LAT))
+    assert abs(abs(err[2]) - abs(predicted)) < 0.3 * abs(predicted) + \
+        3 * arw * DEG_SQRTH / np.sqrt(300.0) / (earth.OMEGA_IE * np.cos(LAT))
+    # stated accuracy: a few arcsec of tilt, a few arcmin of heading
+    acc = np.rad2deg(static_accuracy(LAT, 300.0, 30 * MGAL, 0.01 * DPH, arw * DEG_SQRTH))
+    np.testing.assert_allclose(al.att_std_deg, acc)
+    assert acc[0] * 3600 < 10 and 60 < acc[2] * 3600 < 600
+
+
+def test_static_window_must_be_stationary():
+    imu, _ = static_imu([0, 0, 0], [0, 0, 0], [0, 0, 0], 0.0, duration=10.0)
+    moving = ImuLog(imu.time, imu.dtheta_b, imu.dvel_b * 1.3)
+    with pytest.raises(InputError, match="not stationary"):
+        align_static(moving, 0.0, 10.0, np.array([LAT, 0.0, 100.0]))
+    with pytest.raises(InputError, match="IMU epochs"):
+        align_static(imu, 20.0, 30.0, np.array([LAT, 0.0, 100.0]))
+
+
+def test_static_attitude_levelling_formula():
+    # body pitched up 10 deg: gravity reaction has a forward component g sin(10 deg)
+    g = 9.8
+    th = np.deg2rad(10.0)
+    rpy = static_attitude([g * np.sin(th), 0.0, -g * np.cos(th)],
+                          [earth.OMEGA_IE * np.cos(LAT) * np.cos(th), 0.0, 0.0])
+    np.testing.assert_allclose(rpy[:2], [0.0, th], atol=1e-12)
+
+
+def test_gnss_heading_start_from_track():
+    heading = np.deg2rad(35.0)
+    lla0 = np.array([LAT, 2.0, 1000.0])
+    rm, rn = earth.radii(LAT)
+    t = np.arange(5.0)
+    d = 60.0 * t
+    lla = np.column_stack([LAT + d * np.cos(heading) / (rm + 1000.0),
+                           2.0 + d * np.sin(heading) / ((rn + 1000.0) * np.cos(LAT)),
+                           np.full(5, 1000.0)])
+    al = align_gnss_heading(GnssLog(t, lla, np.full((5, 3), 0.02)))
+    yaw = Rotation.from_quat(al.state.q_nb).as_euler("ZYX")[0]
+    assert abs(yaw - heading) < 1e-4
+    np.testing.assert_allclose(al.state.v_n[:2], [60 * np.cos(heading), 60 * np.sin(heading)],
+                               atol=1e-3)
+    np.testing.assert_array_equal(al.state.lla, lla0 * 0 + lla[0])
+    slow = GnssLog(t, np.tile(lla[0], (5, 1)), np.full((5, 3), 0.02))
+    with pytest.raises(InputError, match="too low"):
+        align_gnss_heading(slow)
