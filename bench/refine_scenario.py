@@ -75,7 +75,7 @@ def block_table(seeds, n_strips=5, n_per_strip=10):
     print(f"\n{n_strips * n_per_strip}-image blocks ({n_strips} strips flown back and forth), "
           "known-base, datum none: INS assessment")
     print(f"{'seed':>4} {'noise est/real (phi omega kappa)':>36} {'boresight err / sigma':>26} "
-          f"{'sigma0':>7} {'s':>6}")
+          f"{'sigma0':>7} {'lambda':>6} {'s':>6}")
     for seed in seeds:
         B = sc.make_block(n_strips, n_per_strip, seed=seed)
         t = time.perf_counter()
@@ -87,7 +87,8 @@ def block_table(seeds, n_strips=5, n_per_strip=10):
         ratio = a.ins_noise / B["ins_noise"].std(axis=0, ddof=1)
         z = (a.boresight - B["boresight"]) / a.boresight_sigma
         print(f"{seed:>4} {' '.join(f'{r:6.3f}' for r in ratio):>36} "
-              f"{' '.join(f'{v:+6.2f}' for v in z):>26} {res.sigma0:7.3f} {dt:6.2f}")
+              f"{' '.join(f'{v:+6.2f}' for v in z):>26} {res.sigma0:7.3f} "
+              f"{a.cov_factor:6.2f} {dt:6.2f}")
 
 
 def flight(folder, eo_path=None, boresight_deg=(0.1, -0.15, 0.2), ins_sigma_deg=0.005,

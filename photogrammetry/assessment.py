@@ -3,17 +3,26 @@
 Per image ``i`` the INS-minus-adjusted angle differences ``d_i`` (rad, system order).
 With the INS attitude ``R_ins = R_true @ B^T`` (``B = Rx(rx) Ry(ry) Rz(rz)`` the boresight
 misalignment of the camera file, ``C_bc = axes @ B``) plus white noise, to first order
-``d_i = -J_i beta + e_i`` with ``beta = (rx, ry, rz)`` and ``J_i = M_i^-1 R_i`` (``M_i``
-the model-frame axes of the angles): the boresight is the least-squares fit of that
-model over the images (for a single-heading block it reduces to the mean of ``d``; for
-strips flown back and forth the mean of phi and omega cancels, the fit does not).
-The INS angle noise is ``sqrt(mean(e^2) - sigma_adj^2)``: the scatter of the
-differences after the boresight, with the adjustment's own variance removed.
+
+    d = -J beta + e_ins + e_adj,   cov(e_adj) = C_adj,   cov(e_ins) = S = diag(s_a^2)
+
+with ``beta = (rx, ry, rz)``, ``J_i = M_i^-1 R_i`` (``M_i`` the model-frame axes of the
+angles), ``C_adj`` the adjustment's FULL covariance of the compared images (the adjusted
+angles of a strip are strongly correlated: the relative orientations chain along it) and
+``s_a`` the INS noise of angle ``a`` (one variance component per angle).  The boresight
+is the generalized least-squares estimate ``(A^T W A)^-1 A^T W d`` with
+``W = (C_adj + S)^-1`` and covariance ``(A^T W A)^-1``; the variance components are
+estimated by REML (Fisher scoring, equivalent to iterated Helmert/MINQUE), which is the
+correlated-data form of ``sqrt(mean(d^2) - sigma_adj^2)``.  For a single-heading block
+``beta`` is essentially the (GLS) mean of ``d``; for strips flown back and forth the
+mean of phi and omega cancels, the fit does not.
 
 The boresight is only observable when the block's orientation does not come from the
 INS (``known-base`` with GNSS bases); with datum ``first`` or ``ins`` it is absorbed by
 the datum and the report says so; the fit then also takes out a common model-frame
 rotation of the block (the datum's own INS error), so the noise estimate stays valid.
+(With datum ``ins`` the adjusted angles depend on the INS angles themselves; the
+dependence is mostly the common rotation, which the fit removes; the rest is neglected.)
 """
 from dataclasses import dataclass
 
@@ -24,7 +33,7 @@ from ins.rotation import rotvec_to_dcm, wrap_to_pi
 from . import _coplanarity_kernels as K
 from .rotation import matrix_to_angles
 
-__all__ = ["Assessment", "assess"]
+__all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL"]
 
 
 @dataclass
@@ -39,18 +48,28 @@ class Assessment:
         Images compared (adjusted, not the datum image).
     diff : ndarray (m, 3)
         INS minus adjusted angles (0 where not used).
-    mean, mean_sigma, rms : ndarray (3,)
-        Per angle over the used images.
+    mean, mean_sigma : ndarray (3,)
+        Arithmetic mean of ``d`` per angle over the used images, and its sigma
+        ``sqrt(1^T (C_adj + S) 1) / k`` with the full covariance.
+    gls_mean, gls_mean_sigma : ndarray (3,)
+        Generalized least-squares (best linear unbiased) common offset per angle.
+    rms : ndarray (3,)
     boresight : ndarray (3,)
         Estimated misalignment (rx, ry, rz), rad, as ``boresight_deg`` of the camera file.
     boresight_sigma : ndarray (3,)
     boresight_observable : bool
-    ins_noise : ndarray (3,)
-        Per-angle INS noise with the adjustment's own uncertainty removed (0 if negative).
+    ins_noise, ins_noise_sigma : ndarray (3,)
+        Per-angle INS noise (REML variance component, the adjustment's own covariance
+        removed; 0 if not positive) and its sigma (from the REML Fisher information).
     residual_rms : ndarray (3,)
-        RMS of the differences after removing the boresight.
+        RMS of the differences after removing the boresight (and datum rotation).
     adj_sigma_rms : ndarray (3,)
         RMS of the adjustment's own per-angle sigma over the used images.
+    chi2, dof : float, int
+        ``r^T V^-1 r`` of the GLS residuals and its degrees of freedom.
+    cov_factor, cov_factor_sigma : float
+        REML factor ``lambda`` of the adjustment's covariance in ``V = lambda C_adj + S``
+        (1 when the data cannot tell it: relative sigma above :data:`LAMBDA_MAX_REL`).
     correlations : ndarray (m, 3, 3)
         Correlation of each image's three adjusted angles.
     """
@@ -59,13 +78,20 @@ class Assessment:
     diff: np.ndarray
     mean: np.ndarray
     mean_sigma: np.ndarray
+    gls_mean: np.ndarray
+    gls_mean_sigma: np.ndarray
     rms: np.ndarray
     boresight: np.ndarray
     boresight_sigma: np.ndarray
     boresight_observable: bool
     ins_noise: np.ndarray
+    ins_noise_sigma: np.ndarray
     residual_rms: np.ndarray
     adj_sigma_rms: np.ndarray
+    chi2: float
+    dof: int
+    cov_factor: float
+    cov_factor_sigma: float
     correlations: np.ndarray
 
 
@@ -74,6 +100,102 @@ def _image_correlations(cov, m):
     s = np.sqrt(np.einsum("mii->mi", blocks))
     inv = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 0.0)
     return blocks * inv[:, :, None] * inv[:, None, :]
+
+
+def _inv_spd(V):
+    L = np.linalg.cholesky(V)
+    Li = np.linalg.solve(L, np.eye(len(V)))
+    return Li.T @ Li
+
+
+def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
+    """Generalized least squares with REML variance components.
+
+    Model ``y = A x + e``, ``cov(e) = V = sum_a theta_a G_a`` (``theta_a >= 0``).  Fisher
+    scoring of the restricted likelihood: ``theta <- I^-1 u`` with
+    ``I_ab = tr(P G_a P G_b) / 2``, ``u_a = y^T P G_a P y / 2`` and
+    ``P = V^-1 - V^-1 A (A^T V^-1 A)^-1 A^T V^-1`` (iterated Helmert / MINQUE).
+
+    Parameters
+    ----------
+    y : ndarray (n,)
+    A : ndarray (n, p)
+        Design matrix (full column rank).
+    G : sequence of q ndarrays (n, n)
+        Covariance structures (symmetric, positive semi-definite).
+    fixed : sequence of q floats or None, optional
+        Components held at the given value (None: estimated).
+
+    Returns
+    -------
+    x : ndarray (p,)
+    cov_x : ndarray (p, p)
+        ``(A^T V^-1 A)^-1`` at the estimated components.
+    theta : ndarray (q,)
+    sigma_theta : ndarray (q,)
+        From the inverse Fisher information of the estimated components (0 if fixed).
+    residual : ndarray (n,)
+    chi2 : float
+        ``r^T V^-1 r``.
+    """
+    q, n = len(G), len(y)
+    fixed = [None] * q if fixed is None else list(fixed)
+    est = np.array([f is None for f in fixed])
+    theta = np.array([1.0 if f is None else f for f in fixed])
+    floor = 1e-12 * max(np.trace(g) / n for g in G)
+
+    def terms(theta):
+        V = sum(t * g for t, g in zip(theta, G)) + floor * np.eye(n)
+        Vi = _inv_spd(V)
+        ViA = Vi @ A
+        cov_x = np.linalg.inv(A.T @ ViA)
+        return Vi, cov_x, Vi - ViA @ cov_x @ ViA.T
+
+    for _ in range(max_iter):
+        _, _, P = terms(theta)
+        PG = [P @ g for g in G]
+        Py = P @ y
+        info = np.array([[0.5 * np.sum(a * b.T) for b in PG] for a in PG])
+        u = np.array([0.5 * Py @ g @ Py for g in G])
+        rhs = u[est] - info[np.ix_(est, ~est)] @ theta[~est]
+        new = theta.copy()
+        new[est] = np.maximum(np.linalg.solve(info[np.ix_(est, est)], rhs), 0.0)
+        done = np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new), 1e-3 * np.max(new)))
+        theta = new
+        if done:
+            break
+    Vi, cov_x, P = terms(theta)
+    PG = [P @ g for g in G]
+    info = np.array([[0.5 * np.sum(a * b.T) for b in PG] for a in PG])
+    sig = np.zeros(q)
+    sig[est] = np.sqrt(np.maximum(np.diag(np.linalg.inv(info[np.ix_(est, est)])), 0.0))
+    x = cov_x @ (A.T @ Vi @ y)
+    r = y - A @ x
+    return x, cov_x, theta, sig, r, float(r @ Vi @ r)
+
+#: The factor of the adjustment covariance is estimated only when its relative sigma is
+#: below this (else held at 1: the INS noise dominates and the factor does not matter).
+LAMBDA_MAX_REL = 0.3
+
+
+def _fit(y, A, C, groups):
+    """GLS + REML of ``y = A x + e``, ``V = lambda C + diag(s^2[groups])``.
+
+    The block adjustment neglects the correlation between the coplanarity conditions of a
+    point seen in three or more images, so its covariance ``C`` is somewhat optimistic
+    (about 1.2x in sigma in the scenario of ``_scenario.make_block``); ``lambda`` takes it
+    up when the data can tell it from the INS noise.
+    """
+    n = len(y)
+    scale = max(np.trace(C) / n, float(np.mean(y ** 2)), 1e-30)
+    D = [np.diag((groups == a) * scale) for a in range(3)]
+    out = gls_variance_components(y, A, [C] + D)
+    lam, lam_sigma = out[2][0], out[3][0]
+    if not (lam > 0 and lam_sigma < LAMBDA_MAX_REL * lam):
+        out = gls_variance_components(y, A, [C] + D, fixed=[1.0, None, None, None])
+        lam, lam_sigma = 1.0, 0.0
+    x, cov_x, theta, sig, r, chi2 = out
+    return x, cov_x, lam, lam_sigma, theta[1:] * scale, sig[1:] * scale, r, chi2
 
 
 def assess(result, angles_ins, system, datum, method):
@@ -98,30 +220,44 @@ def assess(result, angles_ins, system, datum, method):
     diff = np.where(used[:, None], wrap_to_pi(ins - result.angles), 0.0)
     d = diff[used]
     k = len(d)
-    mean = d.mean(axis=0) if k else np.zeros(3)
-    spread = d.std(axis=0, ddof=1) if k > 1 else np.zeros(3)
-    mean_sigma = spread / np.sqrt(max(k, 1))
-    rms = np.sqrt(np.mean(d ** 2, axis=0)) if k else np.zeros(3)
-    R, M = K.rotation_and_axes(result.angles[used], system)
-    J = np.linalg.solve(M, R)                   # d_angles = J @ camera-frame rotation
+    idx = (3 * np.flatnonzero(used)[:, None] + np.arange(3)).ravel()
+    C = result.cov[np.ix_(idx, idx)]
+    groups = np.tile(np.arange(3), k)
+    ones = np.zeros((3 * k, 3))
+    ones[np.arange(3 * k), groups] = 1.0
+    z3 = np.zeros(3)
     observable = method == "known-base" and datum != "first"
-    beta, beta_sigma, e = np.zeros(3), np.zeros(3), d - mean
+    mean, mean_sigma, gls_mean, gls_mean_sigma = d.mean(axis=0) if k else z3, z3, z3, z3
+    rms = np.sqrt(np.mean(d ** 2, axis=0)) if k else z3
+    beta, beta_sigma, e = z3, z3, d - mean
+    theta, theta_sigma, chi2, dof, lam, lam_sigma = z3, z3, 0.0, 0, 1.0, 0.0
     if k > 6:
+        R, M = K.rotation_and_axes(result.angles[used], system)
+        J = np.linalg.solve(M, R)               # d_angles = J @ camera-frame rotation
         # regressors: the camera-frame boresight, and (when the datum comes from the INS)
         # a common model-frame rotation of the whole block as well
         X = -J if observable else np.concatenate([-J, np.linalg.inv(M)], axis=2)
         A = X.reshape(3 * k, -1)
-        v, *_ = np.linalg.lstsq(A, d.ravel(), rcond=1e-10)
-        e = d - (A @ v).reshape(k, 3)
+        v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2 = _fit(d.ravel(), A, C, groups)
+        dof = 3 * k - A.shape[1]
+        e = r.reshape(k, 3)
+        V = lam * C + np.diag(theta[groups])
+        mean_sigma = np.sqrt(np.einsum("na,nm,ma->a", ones, V, ones)) / k
+        Vi = _inv_spd(V + 1e-12 * np.trace(V) / len(V) * np.eye(len(V)))
+        cov_mean = np.linalg.inv(ones.T @ Vi @ ones)
+        gls_mean = cov_mean @ (ones.T @ Vi @ d.ravel())
+        gls_mean_sigma = np.sqrt(np.diag(cov_mean))
         if observable:
-            s2 = np.sum(e ** 2) / max(3 * k - 3, 1)
-            beta_sigma = np.sqrt(s2 * np.diag(np.linalg.inv(A.T @ A)))
+            beta_sigma = np.sqrt(np.diag(cov_v))
             beta = matrix_to_angles(rotvec_to_dcm(v), "omega-phi-kappa")   # Rx Ry Rz angles
-    adj_var = np.mean(result.sigma[used] ** 2, axis=0) if k else np.zeros(3)
-    n_fit = 3 if observable else 6
-    res_ms = np.sum(e ** 2, axis=0) / max(k - n_fit / 3.0, 1)
-    ins_noise = np.sqrt(np.maximum(res_ms - adj_var, 0.0))
+    ins_noise = np.sqrt(theta)
+    # sigma of s from that of s^2 (delta method; the bound's half-width at s = 0)
+    ins_noise_sigma = np.where(ins_noise > 0, theta_sigma / (2 * np.where(ins_noise > 0,
+                                                                           ins_noise, 1)),
+                               np.sqrt(theta_sigma))
+    adj_var = np.mean(result.sigma[used] ** 2, axis=0) if k else z3
     names = tuple(system.split("-"))
-    return Assessment(names, used, diff, mean, mean_sigma, rms, beta, beta_sigma, observable,
-                      ins_noise, np.sqrt(res_ms), np.sqrt(adj_var),
-                      _image_correlations(result.cov, m))
+    return Assessment(names, used, diff, mean, mean_sigma, gls_mean, gls_mean_sigma, rms,
+                      beta, beta_sigma, observable, ins_noise, ins_noise_sigma,
+                      np.sqrt(np.mean(e ** 2, axis=0)) if k else z3, np.sqrt(adj_var),
+                      chi2, dof, lam, lam_sigma, _image_correlations(result.cov, m))

@@ -44,7 +44,8 @@ class RefineResult:
 
 
 def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
-           sigma_mm=None, prior_sigma_rad=None, snooping=True, progress=None):
+           sigma_mm=None, prior_sigma_rad=None, position_sigma_m=None, snooping=True,
+           progress=None):
     """Refine the angles of one block.
 
     Parameters
@@ -62,6 +63,9 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
         Photo-coordinate sigma, mm (default: the tie-point file's header, else 0.5 px).
     prior_sigma_rad : float or array_like (3,), optional
         INS angle sigma for datum "ins" (default: the EO file's sigmas, else 0.005 rad).
+    position_sigma_m : float, optional
+        Sigma of the EO positions, m, per coordinate (known-base: propagated into the
+        angles' covariance; default: the EO file's position sigmas, else exact bases).
 
     Returns
     -------
@@ -76,6 +80,8 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
         sigma_mm = tiepoints.sigma_mm or 0.5 * camera.pixel_size_mm
     if prior_sigma_rad is None:
         prior_sigma_rad = eo.sigma_angles if eo.sigma_angles is not None else 0.005
+    if position_sigma_m is None and eo.sigma_position is not None:
+        position_sigma_m = eo.sigma_position
     min_common = 3 if method == "known-base" else 5
     pairs, points, _ = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
     if len(pairs) == 0:
@@ -83,13 +89,17 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                          path=tiepoints.path)
     block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
                          datum, positions=eo.position, prior_sigma=prior_sigma_rad,
-                         sigma_mm=sigma_mm, snooping=snooping, progress=progress)
+                         sigma_mm=sigma_mm, position_sigma=position_sigma_m, snooping=snooping,
+                         progress=progress)
     result_eo = replace(eo, angles=block.angles, sigma_angles=block.sigma,
                         sigma_position=(eo.sigma_position if eo.sigma_position is not None
                                         else np.zeros((len(eo), 3))))
     settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,
                 "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
-                "snooping": snooping, "n_images": len(eo), "n_pairs": len(pairs),
+                "snooping": snooping, "position_sigma_m": (
+                    0.0 if position_sigma_m is None
+                    else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
+                "n_images": len(eo), "n_pairs": len(pairs),
                 "n_observations": len(tiepoints)}
     return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method),
                         pairs, points, settings)

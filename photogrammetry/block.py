@@ -127,9 +127,36 @@ def _pair_normals(u_i, u_j, mask, R_i, M_i, R_j, M_j, b, mode, sigma_mm):
     return H, grad, vtpv, b, HbbInv_Hba, g * np.sqrt(w)
 
 
+def _position_propagation(u_i, u_j, mask, R_i, M_i, R_j, M_j, b, sigma_mm, pairs, use, idx,
+                          n_unk, position_sigma):
+    """Covariance of the angles due to the errors of the EO positions (known-base).
+
+    The estimate solves ``grad(theta, X) = 0``; to first order
+    ``d theta = -H^-1 H_tX dX`` with ``H_tX = sum w J^T dg/dX`` and ``dg/dX_j = N = -dg/dX_i``
+    (``g = (X_j - X_i) . N``), so the added covariance is ``H^-1 H_tX S_X H_Xt H^-1``.
+    Returns ``H_tX S_X H_Xt`` (n_unk, n_unk), to be sandwiched by ``H^-1``.
+    """
+    r_i = np.einsum("pab,pnb->pna", R_i, u_i)
+    r_j = np.einsum("pab,pnb->pna", R_j, u_j)
+    _, var, N, A_j = K.condition_terms(r_i, r_j, b, R_i, R_j, sigma_mm)
+    A_i = np.cross(r_i, np.cross(r_j, b[:, None, :]))
+    w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
+    J = np.concatenate([np.einsum("pna,pak->pnk", A_i, M_i),
+                        np.einsum("pna,pak->pnk", A_j, M_j)], axis=2)
+    H_tX = np.einsum("pn,pna,pnb->pab", w, J, N)          # (P, 6, 3): d grad / d X_j
+    m = len(position_sigma)
+    T = np.zeros((n_unk, 3 * m))
+    for k in range(len(pairs)):
+        sel = use[k]
+        ii = idx[k][sel]
+        for sign, img in ((-1.0, pairs[k, 0]), (1.0, pairs[k, 1])):
+            T[ii, 3 * img:3 * img + 3] += sign * H_tX[k][sel]
+    return (T * (position_sigma.ravel() ** 2)[None, :]) @ T.T
+
+
 def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-free",
                  datum="first", positions=None, prior_sigma=None, sigma_mm=0.005,
-                 snooping=True, max_iter=30, tol=1e-11, progress=None):
+                 position_sigma=None, snooping=True, max_iter=30, tol=1e-11, progress=None):
     """Adjust the angles of all images of a block together.
 
     Parameters
@@ -151,6 +178,9 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         Sigma of the INS angles, rad (datum "ins"; default 0.005 rad).
     sigma_mm : float
         A-priori sigma of one photo coordinate, mm.
+    position_sigma : array_like (m, 3) or (3,) or float, optional
+        Sigma of the EO positions, m (known-base): the bases are still taken as given,
+        but their errors are propagated into the angles' covariance (default: exact).
     progress : callable(done, total), optional
         Called after each iteration.
 
@@ -278,7 +308,15 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     cov = np.zeros((3 * m, 3 * m))
     if n_unk:
         fidx = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
-        cov[np.ix_(fidx, fidx)] = sigma0 ** 2 * np.linalg.inv(H)
+        Hi = np.linalg.inv(H)
+        cov[np.ix_(fidx, fidx)] = sigma0 ** 2 * Hi
+        if mode == "known" and position_sigma is not None and np.any(position_sigma):
+            ps = np.broadcast_to(np.asarray(position_sigma, float), (m, 3))
+            R, M = K.rotation_and_axes(angles, system)
+            S = _position_propagation(u_i, u_j, mask, R[pairs[:, 0]], M[pairs[:, 0]],
+                                      R[pairs[:, 1]], M[pairs[:, 1]], b, sigma_mm, pairs,
+                                      use & good[:, None], idx, n_unk, ps)
+            cov[np.ix_(fidx, fidx)] += Hi @ S @ Hi
     for i in np.flatnonzero(~adjusted):
         cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(prior_sigma[i] ** 2)
     if not converged:

@@ -18,7 +18,9 @@ frames and units:
   and distortion (removed before the adjustment).
 
 methods:
-  known-base  det[b, R1 u1, R2 u2] = 0 with the base b from the EO positions (GNSS)
+  known-base  det[b, R1 u1, R2 u2] = 0 with the base b from the EO positions (GNSS);
+              their sigmas (EO file or --position-sigma-m, m) are propagated into the
+              angles' covariance
   relative    the same with each pair's base direction adjusted (5-parameter RO)
   base-free   the base eliminated (pencil of epipolar planes; no base needed)
 datum:
@@ -62,6 +64,10 @@ def add_parser(sub):
                         "else 0.5)")
     p.add_argument("--prior-sigma-deg", type=float, metavar="DEG",
                    help="INS angle sigma for --datum ins (default: EO sigmas, else 0.2865 deg)")
+    p.add_argument("--position-sigma-m", type=float, metavar="M",
+                   help="sigma of each EO position, m per coordinate (known-base: the base "
+                        "errors are propagated into the angle covariance and the INS "
+                        "assessment; default: the EO sigmas, else exact bases)")
     p.add_argument("--no-snooping", action="store_true", help="no outlier rejection")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, metavar="N", help="local Dask workers (several folders)")
@@ -85,10 +91,13 @@ def _task(args, eo_path, tp_path, cam_path):
     if args.sigma_px is not None and not args.sigma_px > 0:
         raise InputError(f"--sigma-px must be > 0 px, got {args.sigma_px}")
     sigma_mm = None if args.sigma_px is None else args.sigma_px * camera.pixel_size_mm
+    if args.position_sigma_m is not None and not args.position_sigma_m >= 0:
+        raise InputError(f"--position-sigma-m must be >= 0 m, got {args.position_sigma_m}")
     prior = None if args.prior_sigma_deg is None else np.deg2rad(args.prior_sigma_deg)
     return {"eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
             "method": args.method, "datum": args.datum, "sigma_mm": sigma_mm,
-            "prior_sigma_rad": prior, "snooping": not args.no_snooping}
+            "prior_sigma_rad": prior, "position_sigma_m": args.position_sigma_m,
+            "snooping": not args.no_snooping}
 
 
 def _jobs(args):

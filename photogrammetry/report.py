@@ -94,14 +94,29 @@ def report_text(result, plots=()):
     lines += ["## INS assessment (INS minus adjusted, arcsec)", "",
               "| | " + " | ".join(names) + " |", "|---|" + "---:|" * 3,
               "| mean | " + _fmt3(a.mean) + " |",
-              "| sigma of the mean | " + _fmt3(a.mean_sigma) + " |",
+              "| sigma of the mean (full covariance) | " + _fmt3(a.mean_sigma) + " |",
+              "| GLS mean | " + _fmt3(a.gls_mean) + " |",
+              "| sigma of the GLS mean | " + _fmt3(a.gls_mean_sigma) + " |",
               "| RMS | " + _fmt3(a.rms) + " |",
               "| RMS after boresight/datum | " + _fmt3(a.residual_rms) + " |",
               "| adjustment sigma (RMS) | " + _fmt3(a.adj_sigma_rms) + " |",
-              "| **INS noise** sqrt(mean d^2 - sigma_adj^2) | " + _fmt3(a.ins_noise) + " |", ""]
+              "| **INS noise** (REML variance component) | " + _fmt3(a.ins_noise) + " |",
+              "| sigma of the INS noise | " + _fmt3(a.ins_noise_sigma) + " |", "",
+              "The differences are correlated (the adjusted angles of a strip chain through "
+              "the relative orientations): the sigma of the mean is sqrt(1' V 1)/k and the "
+              "GLS mean, the boresight and the INS noise are estimated with the full "
+              "covariance V = lambda C_adj + diag(s^2) (generalized least squares; s and "
+              f"lambda by REML; lambda = {a.cov_factor:.2f}"
+              + (f" +- {a.cov_factor_sigma:.2f}" if a.cov_factor_sigma > 0 else
+                 " held: not separable from the INS noise")
+              + f"; chi2 {a.chi2:.1f} for {a.dof} degrees of freedom)."
+              + (f" EO position sigma {s['position_sigma_m']:.3g} m propagated into C_adj."
+                 if s.get("position_sigma_m") else
+                 (" The bases are taken as exact (no EO position sigmas; "
+                  "--position-sigma-m)." if s["method"] == "known-base" else "")), ""]
     if a.boresight_observable:
         lines += ["**Boresight misalignment** (rx, ry, rz of the camera file, "
-                  "`C_bc = axes Rx Ry Rz`): "
+                  "`C_bc = axes Rx Ry Rz`, GLS): "
                   + ", ".join(f"{v * 180 / np.pi:.5f} +- {e * 180 / np.pi:.5f} deg"
                               for v, e in zip(a.boresight, a.boresight_sigma)), ""]
     else:

@@ -55,3 +55,46 @@ def test_datum_first_hides_the_boresight_but_not_the_noise(block50):
                                                            "image_id": [str(i) for i in range(50)],
                                                            "angles": res.angles})()})())
     assert "not observable" in text and "nan" not in text.lower()
+
+
+def _z_and_noise(seeds, ins_sigma, position_sigma=0.0):
+    z, noise = [], []
+    for seed in seeds:
+        B = sc.make_block(3, 8, seed=seed, ins_sigma_rad=ins_sigma, points_per_image=40)
+        pos = B["positions"] + np.random.default_rng(seed).normal(0, position_sigma,
+                                                                   B["positions"].shape)
+        res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                           "known-base", "none", positions=pos, sigma_mm=B["sigma_mm"],
+                           position_sigma=position_sigma or None)
+        a = assess(res, B["prior"], B["system"], "none", "known-base")
+        z.append((a.boresight - B["boresight"]) / a.boresight_sigma)
+        noise.append(a.ins_noise)
+    return np.array(z), np.array(noise)
+
+
+def test_boresight_coverage_with_correlated_adjustment_errors():
+    """INS noise (4 arcsec) below the adjustment's own per-image sigma (~10-15 arcsec,
+    strongly correlated along the strips): the GLS sigmas must still cover the errors."""
+    from scipy.stats import chi2
+    z, noise = _z_and_noise(range(100, 124), 2e-5)
+    n = z.size                                                  # 72 normalized errors
+    lo, hi = chi2.ppf([0.0005, 0.9995], n) / n
+    assert lo < np.mean(z ** 2) < hi, np.mean(z ** 2)
+    assert abs(np.mean(noise) / 2e-5 - 1) < 0.15
+
+
+def test_position_sigma_is_propagated_into_the_boresight_sigma():
+    """Bases from noisy positions (3 cm over ~320 m, about 27 arcsec of direction): with
+    the position sigma given, the angles' covariance matches their errors."""
+    z, _ = _z_and_noise(range(300, 306), 5e-5, position_sigma=0.03)
+    assert np.mean(z ** 2) < 3.0
+    B = sc.make_block(3, 8, seed=301, ins_sigma_rad=5e-5, points_per_image=40)
+    pos = B["positions"] + np.random.default_rng(1).normal(0, 0.03, B["positions"].shape)
+    chi = []
+    for ps in (None, 0.03):
+        res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                           "known-base", "none", positions=pos, sigma_mm=B["sigma_mm"],
+                           position_sigma=ps)
+        e = ((res.angles - B["angles"] + np.pi) % (2 * np.pi) - np.pi).ravel()
+        chi.append(e @ np.linalg.solve(res.cov, e) / e.size)
+    assert chi[0] > 2.5 and 0.5 < chi[1] < 1.6, chi
