@@ -1,6 +1,7 @@
 """Simulator benchmark: 1 h at 200 Hz of a 4-strip block (truth, error-free increments,
 sensor errors), peak RSS; pyins's generate_imu on the same truth; the mechanization round
-trip of a 30-min flight with turns.
+trip of a 30-min flight with take-off, climb, strips and turns; the strip placement on
+the geodetic path; the mount on the strips and in the turns (demo plan).
 
 Run: .venv/bin/python bench/bench_simulate.py
 """
@@ -15,8 +16,8 @@ import numpy as np
 from ins.accuracy import compare
 from ins.mechanization import NavState, mechanize
 from ins.rotation import quat_to_euler
-from ins.simulate.imu_synth import synthesize_imu
-from ins.simulate.plan import parse_plan
+from ins.simulate.imu_synth import GL_NODES, synthesize_imu
+from ins.simulate.plan import load_plan, parse_plan
 from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
 from ins.simulate.truth import build_truth
 from ins.trajectory import Trajectory
@@ -28,12 +29,18 @@ def peak_rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def main():
+def demo_variant(**changes):
     with open(DEMO, "rb") as f:
-        d = tomllib.load(f)
-    d = copy.deepcopy(d)
-    d["block"]["strip_length_m"] = 15000.0          # 4 strips, > 1 h in all
-    plan = parse_plan(d, "demo.toml (15 km strips)")
+        d = copy.deepcopy(tomllib.load(f))
+    for key, value in changes.items():
+        section, name = key.split("__")
+        d[section][name] = value
+    return parse_plan(d, "demo.toml (" + ", ".join(f"{k.split('__')[1]}={v}" for k, v in
+                                                   changes.items()) + ")")
+
+
+def speed():
+    plan = demo_variant(block__n_strips=4, block__strip_length_m=50000.0)
     t = time.perf_counter()
     truth = build_truth(plan)
     t_truth = time.perf_counter() - t
@@ -44,15 +51,18 @@ def main():
     t = time.perf_counter()
     noisy = apply_errors(log, ImuErrorModel.preset("tactical"), seed=1)
     t_err = time.perf_counter() - t
-    print(f"flight {truth.t_end - truth.t_start:.0f} s, {len(truth.strips)} strips; "
-          f"simulated 3600 s at 200 Hz = {len(log)} epochs")
+    print(f"{plan.source}: flight {truth.t_end - truth.t_start:.0f} s, {len(truth.strips)} "
+          f"strips; simulated 3600 s at 200 Hz = {len(log)} epochs")
     print(f"  truth build        {t_truth:8.2f} s")
-    print(f"  increments (GL4)   {t_synth:8.2f} s")
+    print(f"  increments (GL{GL_NODES})   {t_synth:8.2f} s")
     print(f"  sensor errors      {t_err:8.2f} s")
-    print(f"  total              {t_truth + t_synth + t_err:8.2f} s, peak RSS {peak_rss_mb():.0f} MB")
+    print(f"  total              {t_truth + t_synth + t_err:8.2f} s, peak RSS "
+          f"{peak_rss_mb():.0f} MB")
     del noisy
+    return truth, log
 
-    # pyins on the same truth (sampled at 200 Hz)
+
+def pyins_same_truth(truth, log):
     t = time.perf_counter()
     s = truth.evaluate(log.time)
     rph = np.degrees(quat_to_euler(s.q_nb))
@@ -70,22 +80,61 @@ def main():
     print(f"  max |dtheta - pyins| {np.abs(g - log.dtheta_b[1:]).max():.3g} rad, "
           f"max |dvel - pyins| {np.abs(a - log.dvel_b[1:]).max():.3g} m/s "
           f"(gravity models differ)")
-    del imu, s, g, a
 
-    # round trip: 30 min from the ground start (static, take-off, climb, strip, turn)
+
+def round_trip():
+    plan = demo_variant(flight__start="ground", block__n_strips=4,
+                        block__strip_length_m=20000.0)
+    truth = build_truth(plan)
     t_end = truth.t_start + 1800.0
-    sub = log.slice_time(None, t_end)
-    s0 = truth.evaluate(sub.time[0])
-    nav = mechanize(sub, NavState(s0.lla[0], s0.v_n[0], s0.q_nb[0]))
-    s = truth.evaluate(sub.time)
-    e = compare(nav, Trajectory(time=s.time, lla=s.lla, v_n=s.v_n, q_nb=s.q_nb)).summary()
-    print("mechanization of the error-free increments, 30 min with take-off, climb, "
-          "strips and turns:")
-    print(f"  max horizontal {1e3 * e['horizontal_m']['max']:.3f} mm, max down "
-          f"{1e3 * abs(e['down_m']['max']):.4f} mm, max velocity {1e3 * e['vel_3d_mps']['max']:.2e} mm/s")
-    print("  max attitude " + ", ".join(f"{k} {abs(e[k]['max']):.2e}" for k in
-                                        ("tilt_n_arcsec", "tilt_e_arcsec", "heading_arcsec"))
-          + " arcsec")
+    n_turns = sum(st.t_end < t_end for st in truth.strips[:-1])
+    for nodes in sorted({GL_NODES, 4}):
+        log = synthesize_imu(truth, 200.0, truth.t_start, t_end, nodes=nodes)
+        s0 = truth.evaluate(log.time[0])
+        nav = mechanize(log, NavState(s0.lla[0], s0.v_n[0], s0.q_nb[0]))
+        s = truth.evaluate(log.time)
+        e = compare(nav, Trajectory(time=s.time, lla=s.lla, v_n=s.v_n, q_nb=s.q_nb)).summary()
+        print(f"mechanization of the error-free increments (GL{nodes}), 30 min: static "
+              f"minute, take-off, climb, {n_turns} turns of 25 deg bank:")
+        print(f"  max horizontal {1e3 * e['horizontal_m']['max']:.3f} mm, max down "
+              f"{1e3 * abs(e['down_m']['max']):.4f} mm, max velocity "
+              f"{1e3 * e['vel_3d_mps']['max']:.2e} mm/s")
+        print("  max attitude " + ", ".join(
+            f"{k} {abs(e[k]['max']):.2e}" for k in ("tilt_n_arcsec", "tilt_e_arcsec",
+                                                     "heading_arcsec")) + " arcsec")
+
+
+def demo_figures():
+    plan = load_plan(DEMO)
+    t = time.perf_counter()
+    truth = build_truth(plan)
+    t_build = time.perf_counter() - t
+    print(f"demo plan: {truth.t_end - truth.t_start:.0f} s, {len(truth.strips)} strips, "
+          f"spacing {plan.strip_spacing_m:.0f} m, truth built in {t_build:.2f} s")
+    err = np.hypot(*truth.strip_start_error_m.T)
+    print(f"  strip starts vs planned points (local level at the origin): max "
+          f"{1e3 * err.max():.2f} mm")
+    on = np.concatenate([np.linspace(st.t_start, st.t_end, 2000) for st in truth.strips])
+    s = truth.evaluate(on)
+    tilt = np.degrees(np.abs(quat_to_euler(s.q_nb)[:, :2]).max())
+    print("  on the strips: max |mount| roll/pitch/yaw "
+          + "/".join(f"{x:.2f}" for x in np.degrees(np.abs(s.mount_rpy).max(0)))
+          + f" deg (knee 80 % of 5/5/30), platform tilt max {tilt:.3f} deg")
+    s = truth.evaluate(np.linspace(truth.t_start, truth.t_end, 20000))
+    roll_a = np.degrees(np.abs(quat_to_euler(s.q_na)[:, 0]).max())
+    roll_b = np.degrees(np.abs(quat_to_euler(s.q_nb)[:, 0]).max())
+    print(f"  whole flight: aircraft roll max {roll_a:.1f} deg, mount roll max "
+          f"{np.degrees(np.abs(s.mount_rpy[:, 0]).max()):.3f} deg (saturated), platform "
+          f"roll max {roll_b:.1f} deg; mount rate max "
+          + "/".join(f"{x:.1f}" for x in np.degrees(np.abs(s.mount_rate).max(0))) + " deg/s")
+
+
+def main():
+    truth, log = speed()
+    pyins_same_truth(truth, log)
+    del truth, log
+    round_trip()
+    demo_figures()
 
 
 if __name__ == "__main__":

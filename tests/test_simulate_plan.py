@@ -59,8 +59,12 @@ def test_explicit_spacing_and_interval(demo_dict):
     ("flight", "height_agl_m", -100.0, "[flight] height_agl_m"),
     ("block", "side_overlap_percent", 100.0, "[block] side_overlap_percent"),
     ("block", "forward_overlap_percent", 120.0, "[block] forward_overlap_percent"),
-    ("flight", "bank_deg", 20.0, "[flight] bank_deg"),           # mount level limit 5 deg
+    ("flight", "bank_deg", 40.0, "[flight] bank_deg"),           # max_bank_deg 30
     ("wind", "speed_mps", 35.0, "azimuth limit"),                 # crab > 30 deg
+    ("wind", "speed_mps", 30.0, "the mount cannot follow"),      # crab 25 deg > 80 % of 30
+    ("turbulence", "roll_amp_deg", [3.0, 1.5], "[turbulence] roll_amp_deg: the mount cannot"),
+    ("turbulence", "pitch_amp_deg", [4.5, 0.1], "[turbulence] pitch_amp_deg"),
+    ("flight", "run_in_m", 5.0, "[flight] run_in_m"),            # < 3 servo lags
     ("flight", "colour", "red", "[flight] colour: unknown key"),
     ("turbulence", "roll_freq_hz", [0.1], "[turbulence] roll_freq_hz"),
     ("imu", "grade", "consumer", "[imu] grade"),
@@ -80,9 +84,25 @@ def test_impossible_values_name_the_key(tmp_path, demo_dict, section, key, value
     assert words in str(exc.value)
 
 
+def test_turns_beyond_the_level_limit_are_accepted_up_to_the_max_bank(demo_dict):
+    """In the turns the mount saturates: any bank up to [flight] max_bank_deg is fine."""
+    d = copy.deepcopy(demo_dict)
+    assert d["flight"]["bank_deg"] > d["mount"]["level_limit_deg"]
+    del d["flight"]["bank_deg"]
+    d["flight"]["turn_rate_deg_s"] = 3.0          # bank atan(60 * 0.0524 / g) = 17.8 deg
+    plan = parse_plan(d)
+    assert math.degrees(plan.flight.bank) == pytest.approx(
+        math.degrees(math.atan(60.0 * math.radians(3.0) / 9.80665)))
+    d["flight"]["turn_rate_deg_s"] = 8.0          # 40 deg
+    with pytest.raises(InputError, match=r"\[flight\] turn_rate_deg_s: .*max_bank_deg"):
+        parse_plan(d)
+    d["flight"]["max_bank_deg"] = 45.0
+    parse_plan(d)
+
+
 def test_crab_within_limit_is_accepted_and_unknown_section_refused(demo_dict):
     d = copy.deepcopy(demo_dict)
-    d["wind"]["speed_mps"] = 25.0          # crab up to asin(25/60)~24.6 deg + yaw turbulence
+    d["wind"]["speed_mps"] = 20.0          # crab ~17 deg on the strips: below 80 % of 30 deg
     parse_plan(d)
     d["weather"] = {"rain": True}
     with pytest.raises(InputError, match=r"\[weather\]: unknown section"):

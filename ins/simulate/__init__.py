@@ -17,5 +17,11 @@ sensor_errors
     :class:`~ins.simulate.sensor_errors.ImuErrorModel`, the presets and
     :func:`~ins.simulate.sensor_errors.apply_errors`.
 
+Figures (``bench/bench_simulate.py``): 1 h at 200 Hz of a 4-strip block in ~2.5 s of
+increments (+ ~1 s truth build, ~1.3 s sensor errors, peak RSS ~280 MB); mechanizing
+the error-free increments of a 30-min flight (take-off, climb, 25-deg-bank turns with
+the mount saturating) reproduces the truth within 0.8 mm horizontally and 1e-4 arcsec;
+strip starts within a few mm of their planned points.
+
 The submodules are imported on demand (``from ins.simulate.truth import build_truth``).
 """

@@ -74,37 +74,98 @@ def _zyx(C, r, p, y):
 
 @nb.njit(cache=True, inline="always")
 def _soft_limit(x, dx, limit, knee):
-    """C2 saturation: identity below ``knee * limit``, then a tanh knee to the limit."""
+    """C4 saturation: identity below ``k = knee * limit``, then ``k + span g(u)``,
+    ``u = (|x| - k) / span``, ``span = limit - k``, ``g(u) = tanh(u + u^3 / 3) = u + O(u^5)``
+    (g'(0) = 1, its 2nd, 3rd and 4th derivatives vanish at the knee: the angular rate
+    through the knee is C3, which 2-node Gauss-Legendre increments integrate well; with
+    a plain tanh knee (C2) the jerk jumps there and GL2 leaves ~2e-9 rad per crossing)."""
     k = knee * limit
     ax = abs(x)
     if ax <= k:
         return x, dx
     span = limit - k
     u = (ax - k) / span
-    return math.copysign(k + span * math.tanh(u), x), dx / math.cosh(u) ** 2
+    v = u + u * u * u / 3.0
+    return math.copysign(k + span * math.tanh(v), x), dx * (1.0 + u * u) / math.cosh(v) ** 2
 
 
 @nb.njit(cache=True)
-def platform_state(psi, psi_dot, ac, ac_dot, lag, lag_dot, lat, h, v_n, a_n, limits, knee,
-                   enabled, C_na, C_nb, mount, mount_rate, w_ib_b, f_b):
+def sum_of_sines(t, amp, omega, phase, lag_cos, lag_sin, out):
+    """``sum A sin(w t + phase)``: value, first and second derivative, and the response
+    of a first-order lag ``A g sin(w t + phase - phi)`` (``lag_cos = g cos phi``,
+    ``lag_sin = g sin phi``) with its derivative; ``out`` (n, 5) filled in place."""
+    for k in range(t.shape[0]):
+        v = dv = ddv = lv = dlv = 0.0
+        for j in range(amp.shape[0]):
+            a, w = amp[j], omega[j]
+            s, c = math.sin(w * t[k] + phase[j]), math.cos(w * t[k] + phase[j])
+            v += a * s
+            dv += a * w * c
+            ddv -= a * w * w * s
+            lv += a * (s * lag_cos[j] - c * lag_sin[j])
+            dlv += a * w * (c * lag_cos[j] + s * lag_sin[j])
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = v, dv, ddv, lv, dlv
+
+
+@nb.njit(cache=True, inline="always")
+def _aircraft(prof, turb, k, wind_n, wind_e, g):
+    """Aircraft roll, pitch, d = yaw - track and their rates at sample k.
+
+    ``prof[k]`` = psi, psi_dot, psi_ddot, V, V_dot, up, up_dot, s, s_dot (airborne weight);
+    ``turb[k]`` = roll, d roll, pitch, d pitch, yaw, d yaw of the turbulence.  Roll
+    ``atan(V psi_dot / g) + s roll_t`` (coordinated turn), pitch ``atan2(up, V) + s
+    pitch_t`` (flight-path angle), ``d = s (crab + yaw_t)`` with the crab of the wind
+    triangle ``atan2(B, A)``, ``A = V - w.along``, ``B = -w.right``.
+    """
+    psi, psi_dot, psi_ddot, V, V_dot = prof[k, 0], prof[k, 1], prof[k, 2], prof[k, 3], \
+        prof[k, 4]
+    up, up_dot, s, ds = prof[k, 5], prof[k, 6], prof[k, 7], prof[k, 8]
+    x = V * psi_dot / g
+    dx = (V_dot * psi_dot + V * psi_ddot) / g
+    roll = math.atan(x) + s * turb[k, 0]
+    droll = dx / (1.0 + x * x) + ds * turb[k, 0] + s * turb[k, 1]
+    den = V * V + up * up
+    pitch = math.atan2(up, V) + s * turb[k, 2]
+    dpitch = ds * turb[k, 2] + s * turb[k, 3]
+    if den > 0.0:
+        dpitch += (V * up_dot - up * V_dot) / den
+    sp, cp = math.sin(psi), math.cos(psi)
+    A = V - (wind_n * cp + wind_e * sp)
+    B = wind_n * sp - wind_e * cp
+    crab = dcrab = 0.0
+    if wind_n != 0.0 or wind_e != 0.0:
+        den = A * A + B * B
+        crab = math.atan2(B, A)
+        # d/dt: dA = (wind_n sp - wind_e cp) psi_dot + V_dot, dB = (wind_n cp + wind_e sp) psi_dot
+        dcrab = (A * (wind_n * cp + wind_e * sp) * psi_dot
+                 - B * (B * psi_dot + V_dot)) / den
+    d = s * (crab + turb[k, 4])
+    dd = ds * (crab + turb[k, 4]) + s * (dcrab + turb[k, 5])
+    return roll, pitch, d, droll, dpitch, dd
+
+
+@nb.njit(cache=True)
+def platform_state(prof, prof_lag, turb, turb_lag, wind_n, wind_e, g, lat, h, v_n, a_n,
+                   limits, knee, enabled, C_na, C_nb, mount, mount_rate, w_ib_b, f_b):
     """Aircraft and platform attitude, mount angles and the IMU's rates, per sample.
 
-    ``ac = (roll, pitch, d)`` of the aircraft (yaw ``= psi + d``), ``lag`` the same angles
-    as the mount's servos follow them (lagged).  The mount command ``C_ap* = Rx(-roll)
-    Ry(-pitch) Rz(-d)`` (of the lagged angles) levels the platform along the track;
-    its ZYX angles are soft-limited.  Outputs (filled in place): ``C_na``, ``C_nb``
-    (n, 3, 3), ``mount``, ``mount_rate``, ``w_ib_b``, ``f_b`` (n, 3).
+    The aircraft angles (:func:`_aircraft`) from ``prof``/``turb`` at t; the angles the
+    mount's servos follow from ``prof_lag`` (at t - tau) and ``turb_lag`` (the lag's
+    response).  The mount command ``C_ap* = Rx(-roll) Ry(-pitch) Rz(-d)`` (of the lagged
+    angles) levels the platform along the track; its ZYX angles are soft-limited.
+    Outputs (filled in place): ``C_na``, ``C_nb`` (n, 3, 3), ``mount``, ``mount_rate``,
+    ``w_ib_b``, ``f_b`` (n, 3).
     """
     Cm = np.empty((3, 3))
     Ca = np.empty((3, 3))
-    for k in range(psi.shape[0]):
-        r, p, d = ac[k, 0], ac[k, 1], ac[k, 2]
-        _zyx(Ca, r, p, psi[k] + d)
-        wa = euler_rates_to_body(r, p, ac_dot[k, 0], ac_dot[k, 1], psi_dot[k] + ac_dot[k, 2])
+    for k in range(prof.shape[0]):
+        r, p, d, dr, dp, dd = _aircraft(prof, turb, k, wind_n, wind_e, g)
+        _zyx(Ca, r, p, prof[k, 0] + d)
+        wa = euler_rates_to_body(r, p, dr, dp, prof[k, 1] + dd)
         if enabled:
             # command: C = Rx(a) Ry(b) Rz(c), a, b, c = -lagged (roll, pitch, d)
-            a, b, c = -lag[k, 0], -lag[k, 1], -lag[k, 2]
-            da, db, dc = -lag_dot[k, 0], -lag_dot[k, 1], -lag_dot[k, 2]
+            a, b, c, da, db, dc = _aircraft(prof_lag, turb_lag, k, wind_n, wind_e, g)
+            a, b, c, da, db, dc = -a, -b, -c, -da, -db, -dc
             sa, ca, sb, cb, sc, cc = math.sin(a), math.cos(a), math.sin(b), math.cos(b), \
                 math.sin(c), math.cos(c)
             c00, c10 = cb * cc, ca * sc + sa * sb * cc      # column 0 and row 2 of C

@@ -20,7 +20,8 @@ Turns are coordinated turns at ``turn_rate`` with roll-in/roll-out ramps of
 turn 90 deg; for a spacing smaller than the turn diameter it is a "bulb" turn: away from
 the next strip by beta, then toward it by 180 deg + beta (beta solved so that the
 lateral offset equals the spacing).  The manoeuvres are designed in the plane (flat
-Earth); the geodetic trajectory integrates the same track and speed exactly.
+Earth); :mod:`~ins.simulate.truth` corrects each turn's lateral offset and run-in
+(``corrections``) so that the strips start at their planned points on the geodetic path.
 """
 from dataclasses import dataclass
 
@@ -162,8 +163,13 @@ class FlightPath:
     duration: float
 
 
-def build_path(plan):
-    """Build the :class:`FlightPath` of a :class:`~ins.simulate.plan.FlightPlan`."""
+def build_path(plan, corrections=None):
+    """Build the :class:`FlightPath` of a :class:`~ins.simulate.plan.FlightPlan`.
+
+    ``corrections`` (n_strips - 1, 2), m: per turn, added to its lateral offset (the
+    strip spacing it is designed for) and to the run-in after it; used by
+    :mod:`~ins.simulate.truth` to place the strips on the geodetic path.
+    """
     f, b = plan.flight, plan.block
     V = f.ground_speed
     ground = f.start == "ground"
@@ -185,7 +191,9 @@ def build_path(plan):
     strips = []
     t_strip0 = tl.t
     spacing = plan.strip_spacing_m
-    turn = design_manoeuvre(V, f.turn_rate, spacing) if b.n_strips > 1 else None
+    if corrections is None:
+        corrections = np.zeros((max(b.n_strips - 1, 0), 2))
+    designs = {}
     for i in range(b.n_strips):
         t0 = tl.t
         tl.straight(b.strip_length)
@@ -193,7 +201,10 @@ def build_path(plan):
         if i == b.n_strips - 1:
             tl.straight(f.run_in)
             break
-        man, (along, _) = turn
+        c_lat, c_along = (float(x) for x in corrections[i])
+        if c_lat not in designs:
+            designs[c_lat] = design_manoeuvre(V, f.turn_rate, spacing + c_lat)
+        man, (along, _) = designs[c_lat]
         sign = 1.0 if i % 2 == 0 else -1.0
         run_out = max(f.run_in, f.run_in - along)
         tl.straight(run_out)
@@ -202,7 +213,7 @@ def build_path(plan):
             end_rate = man.coeffs["psi_dot"][k][5] + sum(man.coeffs["psi_dot"][k][:5]
                                                           * T ** np.arange(5, 0, -1))
             tl.add(T, psi_dot=sign * end_rate)
-        tl.straight(run_out + along)
+        tl.straight(run_out + along + c_along)
     return FlightPath(psi_dot=tl.ppoly("psi_dot"), speed=tl.ppoly("speed"),
                       v_down=tl.ppoly("v_down"), air=tl.ppoly("air"),
                       psi0=b.strip_azimuth, h0=h0, strips=strips, stationary=stationary,

@@ -22,6 +22,16 @@ camera x axis (image columns, ``width_px``) is along track and the image rows
     footprint_across = height_agl * n_px_across * pixel_size / focal_length
     exposure_interval = (1 - forward_overlap) * footprint_along / ground_speed
     strip_spacing     = (1 - side_overlap) * footprint_across
+
+Feasibility
+-----------
+The turns are coordinated turns at ``turn_rate_deg_s`` or ``bank_deg`` (typically 15-25
+deg bank), up to ``[flight] max_bank_deg`` (default 30).  In the turns the stabilized
+mount runs into its level limit and saturates smoothly (normal in a survey); on the
+strips it must follow: the crab of the wind plus the yaw turbulence, and the roll and
+pitch turbulence, must stay below :data:`MOUNT_KNEE` (80 %) of the azimuth and level
+limits ("the mount cannot follow" otherwise), and ``run_in_m`` must give the servos 3
+lags to recover from the turn.
 """
 import math
 import tomllib
@@ -35,11 +45,14 @@ from .sensor_errors import MANIFEST_KEYS, PRESETS
 
 __all__ = ["FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
            "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "load_plan",
-           "parse_plan", "G_TURN"]
+           "parse_plan", "G_TURN", "MOUNT_KNEE"]
 
 D2R = math.pi / 180.0
 #: Gravity used to relate bank and turn rate of a coordinated turn, m/s^2.
 G_TURN = 9.80665
+#: The mount's soft limit is the identity up to this fraction of each limit (then a
+#: tanh knee); on the strips the mount must stay below it (it follows exactly there).
+MOUNT_KNEE = 0.8
 _NADIR_AXES = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
 
 
@@ -64,6 +77,7 @@ class Flight:
     height_agl: float
     ground_speed: float
     turn_rate: float                    # rad/s of the coordinated turns
+    max_bank: float                     # rad, largest bank the aircraft may fly
     climb_rate: float                   # m/s (0: no climb; start in the air at height)
     start: str                          # "ground" or "air"
     stationary: float                   # s
@@ -331,16 +345,18 @@ def _block(sec):
 def _flight(sec):
     _either(sec, "turn_rate_deg_s", "bank_deg")
     speed = sec.number("ground_speed_mps", 60.0, "m/s > 5", 5.0, 400.0)
+    max_bank = sec.number("max_bank_deg", 30.0, "deg in (0, 60]", 0.0, 60.0,
+                          lo_open=True) * D2R
     if sec.has("bank_deg"):
         bank = sec.number("bank_deg", 0.0, "deg in (0, 60]", 0.0, 60.0, lo_open=True) * D2R
         rate = G_TURN * math.tan(bank) / speed
     else:
-        rate = sec.number("turn_rate_deg_s", 1.0, "deg/s in (0, 10]", 0.0, 10.0,
+        rate = sec.number("turn_rate_deg_s", 3.0, "deg/s in (0, 10]", 0.0, 10.0,
                           lo_open=True) * D2R
     start = sec.choice("start", "air", ("ground", "air"))
     return Flight(
         height_agl=sec.number("height_agl_m", 1000.0, "m > 0", 0.0, 20000.0, lo_open=True),
-        ground_speed=speed, turn_rate=rate,
+        ground_speed=speed, turn_rate=rate, max_bank=max_bank,
         climb_rate=sec.number("climb_rate_mps", 5.0, "m/s >= 0", 0.0, 30.0),
         start=start,
         stationary=sec.number("stationary_s", 60.0, "s >= 0", 0.0, 86400.0),
@@ -518,36 +534,63 @@ def load_plan(path):
 
 
 def _check_feasible(plan, data):
-    """Cross-checks between sections: the mount limits and the wind."""
+    """Cross-checks between sections: the bank of the turns, the wind and the mount.
+
+    In the turns the mount runs into its level limit and saturates (smoothly): that is
+    normal.  On the strips it must follow: the crab (both flight directions) plus the
+    yaw turbulence, and the roll and pitch turbulence, must stay below the start of the
+    soft limit (:data:`MOUNT_KNEE` of the azimuth and level limits), and the run-in must
+    leave the servos time (3 servo lags) to recover from the turn.
+    """
     src = plan.source
     f, m, tb = plan.flight, plan.mount, plan.turbulence
     air = plan.wind.speed
     if air >= 0.8 * f.ground_speed:
         raise InputError(f"[wind] speed_mps: {air:g} m/s is too strong for the ground speed "
                          f"{f.ground_speed:g} m/s (expected below 80 % of it)", path=src)
-    if m.enabled:
-        max_crab = max_crab_angle(f.ground_speed, plan.wind)
-        yaw_turb = sum(tb.yaw_amp)
-        if max_crab + yaw_turb >= m.azimuth_limit:
+    if f.bank > f.max_bank:
+        key = "bank_deg" if "bank_deg" in data.get("flight", {}) else "turn_rate_deg_s"
+        raise InputError(
+            f"[flight] {key}: the turns bank {math.degrees(f.bank):.2f} deg = atan(V "
+            f"turn_rate / g), more than the aircraft's maximum {math.degrees(f.max_bank):g} "
+            f"deg ([flight] max_bank_deg; expected a gentler turn)", path=src)
+    if not m.enabled:
+        return
+    knee = 100 * MOUNT_KNEE
+    az = plan.block.strip_azimuth
+    crab = max(abs(crab_angle(f.ground_speed, plan.wind, a)) for a in (az, az + math.pi))
+    yaw_turb = sum(tb.yaw_amp)
+    if crab + yaw_turb >= MOUNT_KNEE * m.azimuth_limit:
+        raise InputError(
+            f"[wind] speed_mps: the mount cannot follow: on the strips the crab angle "
+            f"{math.degrees(crab):.2f} deg (+ yaw turbulence {math.degrees(yaw_turb):.2f} "
+            f"deg) exceeds {knee:g} % of the mount's azimuth limit "
+            f"{math.degrees(m.azimuth_limit):g} deg ([mount] azimuth_limit_deg)", path=src)
+    for name in ("roll", "pitch"):
+        amp = sum(getattr(tb, f"{name}_amp"))
+        if amp >= MOUNT_KNEE * m.level_limit:
             raise InputError(
-                f"[wind] speed_mps: crab angle up to {math.degrees(max_crab):.2f} deg "
-                f"(+ yaw turbulence {math.degrees(yaw_turb):.2f} deg) exceeds the mount's "
-                f"azimuth limit {math.degrees(m.azimuth_limit):g} deg ([mount] "
-                f"azimuth_limit_deg)", path=src)
-        roll_demand = f.bank + sum(tb.roll_amp)
-        if roll_demand >= m.level_limit:
-            key = "bank_deg" if "bank_deg" in data.get("flight", {}) else "turn_rate_deg_s"
-            raise InputError(
-                f"[flight] {key}: the turns bank {math.degrees(f.bank):.2f} deg (+ roll "
-                f"turbulence {math.degrees(sum(tb.roll_amp)):.2f} deg), more than the mount's "
-                f"level limit {math.degrees(m.level_limit):g} deg can follow ([mount] "
-                f"level_limit_deg; expected bank = atan(V turn_rate / g) below it)", path=src)
+                f"[turbulence] {name}_amp_deg: the mount cannot follow: the {name} "
+                f"turbulence sums to {math.degrees(amp):.2f} deg, beyond {knee:g} % of the "
+                f"mount's level limit {math.degrees(m.level_limit):g} deg ([mount] "
+                f"level_limit_deg)", path=src)
+    if plan.block.n_strips > 1 and f.run_in < 3 * m.servo_lag * f.ground_speed:
+        raise InputError(
+            f"[flight] run_in_m: {f.run_in:g} m leaves the mount less than 3 servo lags "
+            f"({3 * m.servo_lag:g} s at {f.ground_speed:g} m/s) to recover from the turn "
+            f"before the strip (expected >= {3 * m.servo_lag * f.ground_speed:g} m)",
+            path=src)
+
+
+def crab_angle(ground_speed, wind, track):
+    """Crab angle (rad, heading minus track) flying ``track`` (rad) at ``ground_speed``."""
+    wn, we = wind.w_n
+    along = ground_speed - (wn * np.cos(track) + we * np.sin(track))
+    right = wn * np.sin(track) - we * np.cos(track)
+    return np.arctan2(right, along)
 
 
 def max_crab_angle(ground_speed, wind, n=3600):
     """Largest |crab angle| (rad) over all tracks at a constant ground speed."""
-    psi = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    wn, we = wind.w_n
-    along = ground_speed - (wn * np.cos(psi) + we * np.sin(psi))
-    right = -(-wn * np.sin(psi) + we * np.cos(psi))
-    return float(np.max(np.abs(np.arctan2(right, along))))
+    track = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    return float(np.max(np.abs(crab_angle(ground_speed, wind, track))))

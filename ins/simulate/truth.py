@@ -9,33 +9,57 @@ climb ``v_climb``, airborne weight ``s``) and the turbulence:
   ``d(lat, lon)/dt = D^-1 v_n`` (:func:`ins.earth.lla_rate`) integrated by DOP853
   (rtol 1e-12) piece by piece between the breakpoints of the profiles, forward and
   backward from the start of strip 0, which is the block origin, with dense output;
+* strip placement: the turns are designed in the plane (:mod:`~ins.simulate.path`); the
+  lateral offset and the run-in of every turn are then corrected on the integrated
+  geodetic path (a fixed-point iteration, :data:`GEOMETRY_TOL`) so that each strip starts
+  at its planned point: ``i * spacing`` to the right of the origin (and ``strip_length``
+  along the azimuth for the odd, returning strips) in the local level frame at the block
+  origin (ENU/NED at the origin, the mapping frame).  The strips are lines of constant
+  azimuth (rhumb lines); over a strip of length L they leave the tangent-plane straight
+  line by about ``L^2 tan(lat) |sin az| / (2 R)`` (0.3 m for 2.5 km at 30 deg);
 * aircraft attitude ``a`` (ZYX Euler): roll ``atan(V psi_dot / g) + s roll_turb``
   (coordinated turn), pitch = flight-path angle of the climb ``+ s pitch_turb``, yaw
-  ``= psi + s (crab(psi) + yaw_turb)``, crab from the wind triangle at ground speed V;
-* the stabilized mount (when enabled): the command ``C_ap* = C_na^T Rz(psi)`` keeps the
-  platform level and along the flight line; the platform follows it with the servo lag
-  as a dead time (``m(t) = sat(m*(t - tau))``, exact and smooth; a first-order servo of
-  time constant tau has the same delay for slow motion) and a smooth saturation at the
-  limits (identity up to 80 % of the limit, then a tanh knee: C2).  The IMU body is the
-  platform: ``C_nb = C_na C_ap``;
+  ``= psi + d``, ``d = s (crab(psi, V) + yaw_turb)``, crab from the wind triangle;
+* the stabilized mount (when enabled): the command ``C_ap* = C_na^T Rz(psi) = Rx(-roll)
+  Ry(-pitch) Rz(-d)`` keeps the platform level and along the flight line.  The servos
+  follow the aircraft's angles with a first-order lag of time constant ``tau``
+  (``servo_lag_s``): the turbulence, a sum of sinusoids, through its exact steady-state
+  response (gain ``1/sqrt(1 + (w tau)^2)``, phase ``-atan(w tau)``; the transient is
+  dropped: the turbulence has always been there, or fades in with the slow airborne
+  weight); the slow parts (bank of the turns, climb pitch, crab, airborne weight)
+  through a dead time ``tau``, ``x(t - tau)``, which is the lag's response up to
+  ``O((w tau)^2)`` for motions of bandwidth ``w`` (0.5 % for the 5-s roll-in at
+  tau = 0.1 s) and keeps the truth analytic and C2 (an exact convolution of the
+  arctan bank would need a numerical filter state).  The ZYX angles of the lagged
+  command are soft-limited (identity up to :data:`KNEE` of the limit, then a tanh knee:
+  C2): in the turns, whose bank exceeds the level limit, the mount saturates smoothly
+  and the platform banks with the aircraft; on the strips the plan validation keeps it
+  inside the knee.  The IMU body is the platform: ``C_nb = C_na C_ap``;
 * ``w_ib_b = w_nb_b + C_bn (w_ie_n + w_en_n)`` with ``w_nb_b`` from the Euler-angle
   rates, and ``f_b = C_bn (a_n - g_n + (2 w_ie_n + w_en_n) x v_n)`` (normal gravity of
-  :mod:`ins.earth`), all analytic.
+  :mod:`ins.earth`), all analytic, evaluated per sample by a numba kernel
+  (:func:`ins.simulate._kernels.platform_state`).
 """
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.interpolate import PPoly
 
 from .. import earth
-from ..rotation import dcm_to_euler, dcm_to_quat, euler_to_dcm, quat_to_dcm
+from ..rotation import dcm_to_quat
+from . import _kernels
 from .path import build_path
-from .plan import G_TURN
+from .plan import G_TURN, MOUNT_KNEE
 
 __all__ = ["FlightTruth", "TruthSample", "Strip", "build_truth", "euler_rates_to_body",
-           "body_to_euler_rates"]
+           "body_to_euler_rates", "GEOMETRY_TOL", "KNEE"]
 
-_KNEE = 0.8
+#: The mount's soft limit is the identity up to this fraction of the limit.
+KNEE = MOUNT_KNEE
+#: Strip starts are placed on the geodetic path to this horizontal tolerance, m.
+GEOMETRY_TOL = 0.005
+_GEOMETRY_ITER = 8
 
 
 @dataclass(frozen=True)
@@ -71,45 +95,36 @@ class TruthSample:
 
 def euler_rates_to_body(rpy, rpy_dot):
     """Body angular rate (rad/s) of ``C = Rz(yaw) Ry(pitch) Rx(roll)`` from Euler rates."""
-    r, p = rpy[..., 0], rpy[..., 1]
-    dr, dp, dy = rpy_dot[..., 0], rpy_dot[..., 1], rpy_dot[..., 2]
-    return np.stack([dr - dy * np.sin(p),
-                     dp * np.cos(r) + dy * np.sin(r) * np.cos(p),
-                     -dp * np.sin(r) + dy * np.cos(r) * np.cos(p)], axis=-1)
+    rpy, d = np.asarray(rpy, float), np.asarray(rpy_dot, float)
+    return np.stack(_kernels.euler_rates_to_body(rpy[..., 0], rpy[..., 1], d[..., 0],
+                                                 d[..., 1], d[..., 2]), axis=-1)
 
 
 def body_to_euler_rates(rpy, w):
     """Euler rates (rad/s) from the body angular rate; the inverse of
     :func:`euler_rates_to_body` (singular at pitch +-90 deg)."""
-    r, p = rpy[..., 0], rpy[..., 1]
-    a = w[..., 1] * np.sin(r) + w[..., 2] * np.cos(r)
-    return np.stack([w[..., 0] + a * np.tan(p),
-                     w[..., 1] * np.cos(r) - w[..., 2] * np.sin(r),
-                     a / np.cos(p)], axis=-1)
+    rpy, w = np.asarray(rpy, float), np.asarray(w, float)
+    return np.stack(_kernels.body_to_euler_rates(rpy[..., 0], rpy[..., 1], w[..., 0],
+                                                 w[..., 1], w[..., 2]), axis=-1)
 
 
-def _soft_limit(x, dx, limit):
-    """C2 saturation: x below ``0.8 limit``, then a tanh knee toward the limit."""
-    k = _KNEE * limit
-    span = limit - k
-    over = np.abs(x) > k
-    u = np.where(over, (np.abs(x) - k) / span, 0.0)
-    y = np.where(over, np.sign(x) * (k + span * np.tanh(u)), x)
-    dy = np.where(over, dx / np.cosh(u) ** 2, dx)
-    return y, dy
+class _Sines:
+    """A sum of sinusoids ``sum A sin(w t + phase)`` and its first-order-lag response."""
 
+    def __init__(self, amps, freqs, phases, tau):
+        self.a = np.asarray(amps, float)
+        self.w = 2 * np.pi * np.asarray(freqs, float)
+        self.ph = np.asarray(phases, float)
+        gain = 1.0 / np.sqrt(1.0 + (self.w * tau) ** 2)
+        lag = np.arctan(self.w * tau)
+        self.cos_l, self.sin_l = gain * np.cos(lag), gain * np.sin(lag)
 
-def _sines(t, amps, freqs, phases, order):
-    """Sum of sinusoids A sin(2 pi f t + phase) and its derivatives up to ``order``."""
-    out = [np.zeros_like(t) for _ in range(order + 1)]
-    for a, f, ph in zip(amps, freqs, phases):
-        w = 2 * np.pi * f
-        arg = w * t + ph
-        s, c = np.sin(arg), np.cos(arg)
-        terms = (a * s, a * w * c, -a * w * w * s)
-        for i in range(order + 1):
-            out[i] += terms[i]
-    return out
+    def __call__(self, t):
+        """(n, 5): value, first and second derivative, lag response and its derivative
+        (``A g sin(w t + phase - atan(w tau))``, ``g = 1 / sqrt(1 + (w tau)^2)``)."""
+        out = np.empty((len(t), 5))
+        _kernels.sum_of_sines(t, self.a, self.w, self.ph, self.cos_l, self.sin_l, out)
+        return out
 
 
 class FlightTruth:
@@ -125,31 +140,71 @@ class FlightTruth:
         Stationary segments, GPS s (on the ground: static; in the air: straight level
         flight).
     path : ins.simulate.path.FlightPath
+    strip_start_error_m : ndarray, shape (n_strips, 2)
+        Planned minus flown start of each strip, north and east at the origin, m.
     """
 
     def __init__(self, plan):
         self.plan = plan
-        self.path = p = build_path(plan)
         self.t0 = t0 = plan.flight.start_time
+        tb = plan.turbulence
+        m = plan.mount
+        self._tau = m.servo_lag if m.enabled else 0.0
+        rng = np.random.default_rng(tb.seed)
+        self._turb = {name: _Sines(getattr(tb, f"{name}_amp"), getattr(tb, f"{name}_freq"),
+                                   rng.uniform(0, 2 * np.pi, len(getattr(tb, f"{name}_amp"))),
+                                   self._tau)
+                      for name in ("roll", "pitch", "yaw", "heave")}
+        self._wind = plan.wind.w_n
+        self._limits = np.array([m.level_limit, m.level_limit, m.azimuth_limit])
+        self._place_strips()
+        p = self.path
         self.t_start, self.t_end = t0, t0 + p.duration
         self.strips = [Strip(i, float(t0 + a), float(t0 + b), float(az))
                        for i, (a, b, az) in enumerate(p.strips)]
         self.stationary = [(float(t0 + a), float(t0 + b)) for a, b in p.stationary]
-        self._psi = p.psi_dot.antiderivative()
-        self._psi_ddot = p.psi_dot.derivative()
-        self._climb = p.v_down.antiderivative()
-        self._v_down_dot = p.v_down.derivative()
-        self._speed_dot = p.speed.derivative()
-        self._air_d = p.air.derivative()
-        self._air_dd = p.air.derivative(2)
-        tb = plan.turbulence
-        rng = np.random.default_rng(tb.seed)
-        self._turb = {name: (getattr(tb, f"{name}_amp"), getattr(tb, f"{name}_freq"),
-                             rng.uniform(0, 2 * np.pi, len(getattr(tb, f"{name}_amp"))))
-                      for name in ("roll", "pitch", "yaw", "heave")}
-        self._wind = plan.wind.w_n
+
+    # ---- construction
+    def _set_path(self, path):
+        """Adopt a path; all profiles and their derivatives as the columns of one PPoly
+        (the profiles share their breakpoints: one interval search per evaluation)."""
+        self.path = p = path
+        cols = [p.psi_dot.antiderivative(), p.psi_dot, p.psi_dot.derivative(), p.speed,
+                p.speed.derivative(), p.v_down.antiderivative(), p.v_down,
+                p.v_down.derivative(), p.air, p.air.derivative(), p.air.derivative(2)]
+        k = max(c.c.shape[0] for c in cols)
+        c = np.zeros((k, len(p.psi_dot.x) - 1, len(cols)))
+        for j, pp in enumerate(cols):
+            c[k - pp.c.shape[0]:, :, j] = pp.c
+        self._pp = PPoly(c, p.psi_dot.x)
+
+    def _place_strips(self):
+        """Build the path and correct each turn until the strips start at their planned
+        points on the geodetic path (see the module docstring)."""
+        plan = self.plan
         b = plan.block
-        self._solve_lat_lon([b.origin_lat, b.origin_lon])
+        n = b.n_strips
+        az = b.strip_azimuth
+        along = np.array([np.cos(az), np.sin(az)])
+        right = np.array([-np.sin(az), np.cos(az)])
+        i = np.arange(n)
+        planned = (i * plan.strip_spacing_m)[:, None] * right \
+            + ((i % 2) * b.strip_length)[:, None] * along
+        direction = np.where(i % 2 == 0, 1.0, -1.0)[:, None] * along
+        origin = np.array([b.origin_lat, b.origin_lon, plan.flying_height_m])
+        corr = np.zeros((max(n - 1, 0), 2))
+        for _ in range(_GEOMETRY_ITER):
+            self._set_path(build_path(plan, corr))
+            self._solve_lat_lon(origin[:2])
+            t = np.array([a for a, _, _ in self.path.strips])
+            lla = np.column_stack([self._lat_lon(t), np.full(n, origin[2])])
+            err = planned - earth.ned_offset(origin, lla)[:, :2]
+            self.strip_start_error_m = err
+            if n < 2 or np.abs(err).max() < GEOMETRY_TOL:
+                break
+            d = np.diff(err, axis=0)
+            corr[:, 0] += d @ right
+            corr[:, 1] += np.sum(d * direction[1:], axis=1)
 
     def _solve_lat_lon(self, lat_lon0):
         """Integrate (lat, lon) piece by piece between the profile breakpoints, forward
@@ -172,24 +227,32 @@ class FlightTruth:
         self._piece_sol = [x[1] for x in pieces]
 
     # ---- profiles (t relative to the flight start, s)
-    def _horizontal(self, t):
-        p = self.path
-        psi = p.psi0 + self._psi(t)
-        return psi, p.psi_dot(t), self._psi_ddot(t), p.speed(t), self._speed_dot(t)
+    def _profiles(self, t):
+        """(n, 9): psi, psi_dot, psi_ddot (rad, /s, /s^2), V, V_dot (m/s, m/s^2), up,
+        up_dot (climb up-speed, m/s, m/s^2), s, s_dot (airborne weight); and (n, 2): the
+        climb (m, upward) and s_ddot."""
+        v = self._pp(t)
+        prof = v[:, [0, 1, 2, 3, 4, 6, 7, 8, 9]]
+        prof[:, 0] += self.path.psi0
+        prof[:, 5:7] *= -1.0
+        return prof, v[:, [5, 10]]
 
-    def _vertical(self, t):
+    def _vertical(self, t, prof=None):
         """h (m), v_down (m/s), a_down (m/s^2) with the heave weighted by ``air``."""
-        p = self.path
-        s, ds, dds = p.air(t), self._air_d(t), self._air_dd(t)
-        hv, dhv, ddhv = _sines(t, *self._turb["heave"], 2)
-        h = p.h0 - self._climb(t) + s * hv
-        vd = p.v_down(t) - (ds * hv + s * dhv)
-        ad = self._v_down_dot(t) - (dds * hv + 2 * ds * dhv + s * ddhv)
+        prof, extra = prof or self._profiles(t)
+        up, up_dot, s, ds = prof[:, 5], prof[:, 6], prof[:, 7], prof[:, 8]
+        climb, dds = extra[:, 0], extra[:, 1]
+        hv = self._turb["heave"](t)
+        h = self.path.h0 - climb + s * hv[:, 0]
+        vd = -up - (ds * hv[:, 0] + s * hv[:, 1])
+        ad = -up_dot - (dds * hv[:, 0] + 2 * ds * hv[:, 1] + s * hv[:, 2])
         return h, vd, ad
 
     def _rhs(self, t, y):
-        psi, _, _, V, _ = self._horizontal(t)
-        h = self._vertical(t)[0]
+        t = np.array([t])
+        prof = self._profiles(t)
+        psi, V = prof[0][0, 0], prof[0][0, 3]
+        h = self._vertical(t, prof)[0][0]
         rm, rn = earth.radii(y[0])
         return [V * np.cos(psi) / (rm + h), V * np.sin(psi) / ((rn + h) * np.cos(y[0]))]
 
@@ -202,61 +265,42 @@ class FlightTruth:
             out[sel] = self._piece_sol[i](t[sel]).T
         return out
 
-    def _crab(self, psi, V):
-        """Crab angle (rad) and d crab / d psi from the wind triangle."""
-        wn, we = self._wind
+    def _state(self, t_abs):
+        """Everything at ``t_abs`` (GPS s): lla, v_n, a_n and the kernel's outputs."""
+        t_abs = np.atleast_1d(np.asarray(t_abs, dtype=float))
+        if np.any(t_abs < self.t_start - 1e-9) or np.any(t_abs > self.t_end + 1e-9):
+            raise ValueError(f"time outside the flight [{self.t_start}, {self.t_end}] s")
+        t = t_abs - self.t0
+        prof_all = self._profiles(t)
+        prof = prof_all[0]
+        psi, psi_dot, V, V_dot = prof[:, 0], prof[:, 1], prof[:, 3], prof[:, 4]
+        h, vd, ad = self._vertical(t, prof_all)
+        lla = np.column_stack([self._lat_lon(t), h])
         c, s = np.cos(psi), np.sin(psi)
-        A = V - (wn * c + we * s)              # air velocity along track
-        B = wn * s - we * c                    # air velocity to the right of track
-        dA, dB = -(-wn * s + we * c), wn * c + we * s
-        den = A * A + B * B
-        if wn == 0.0 and we == 0.0:
-            return np.zeros_like(psi), np.zeros_like(psi)
-        return np.arctan2(B, A), (A * dB - B * dA) / np.where(den > 0, den, 1.0)
+        v_n = np.column_stack([V * c, V * s, vd])
+        a_n = np.column_stack([V_dot * c - V * psi_dot * s, V_dot * s + V * psi_dot * c, ad])
+        turb = np.empty((len(t), 6))
+        turb_lag = np.empty((len(t), 6))
+        for j, name in enumerate(("roll", "pitch", "yaw")):
+            v = self._turb[name](t)
+            turb[:, 2 * j:2 * j + 2] = v[:, :2]
+            turb_lag[:, 2 * j:2 * j + 2] = v[:, 3:]
+        enabled = self.plan.mount.enabled
+        # the servos: slow parts delayed by tau, turbulence through the exact lag response
+        prof_lag = self._profiles(t - self._tau)[0] if enabled and self._tau > 0 else prof
+        n = len(t)
+        out = dict(C_na=np.empty((n, 3, 3)), C_nb=np.empty((n, 3, 3)),
+                   mount=np.empty((n, 3)), mount_rate=np.empty((n, 3)),
+                   w_ib_b=np.empty((n, 3)), f_b=np.empty((n, 3)))
+        _kernels.platform_state(prof, prof_lag, turb, turb_lag, *self._wind, G_TURN,
+                                lla[:, 0].copy(), h, v_n, a_n, self._limits, KNEE, enabled,
+                                **out)
+        return t_abs, lla, v_n, a_n, out
 
-    def _aircraft(self, t, psi, psi_dot, psi_ddot, V, V_dot):
-        """Aircraft Euler angles (n, 3) and their rates (rad, rad/s)."""
-        p = self.path
-        s, ds = p.air(t), self._air_d(t)
-        roll_t, droll_t = _sines(t, *self._turb["roll"], 1)
-        pitch_t, dpitch_t = _sines(t, *self._turb["pitch"], 1)
-        yaw_t, dyaw_t = _sines(t, *self._turb["yaw"], 1)
-        x = V * psi_dot / G_TURN
-        dx = (V_dot * psi_dot + V * psi_ddot) / G_TURN
-        roll = np.arctan(x) + s * roll_t
-        droll = dx / (1 + x * x) + ds * roll_t + s * droll_t
-        up, dup = -p.v_down(t), -self._v_down_dot(t)
-        den = V * V + up * up
-        safe = np.where(den > 0, den, 1.0)
-        pitch = np.arctan2(up, V) + s * pitch_t
-        dpitch = np.where(den > 0, (V * dup - up * V_dot) / safe, 0.0) + ds * pitch_t + s * dpitch_t
-        crab, dcrab = self._crab(psi, V)
-        yaw = psi + s * (crab + yaw_t)
-        dyaw = psi_dot + ds * (crab + yaw_t) + s * (dcrab * psi_dot + dyaw_t)
-        return np.stack([roll, pitch, yaw], -1), np.stack([droll, dpitch, dyaw], -1)
-
-    def _mount_command(self, t):
-        """Mount angles that level the platform along the track, and their rates."""
-        psi, psi_dot, psi_ddot, V, V_dot = self._horizontal(t)
-        rpy_a, drpy_a = self._aircraft(t, psi, psi_dot, psi_ddot, V, V_dot)
-        C_na = euler_to_dcm(rpy_a)
-        C_np = euler_to_dcm(np.stack([0 * psi, 0 * psi, psi], -1))
-        C_ap = np.einsum("nji,njk->nik", C_na, C_np)
-        cmd = dcm_to_euler(C_ap)
-        w_na_a = euler_rates_to_body(rpy_a, drpy_a)
-        w_np_p = np.stack([0 * psi, 0 * psi, psi_dot], -1)
-        w_ap_p = w_np_p - np.einsum("nji,nj->ni", C_ap, w_na_a)
-        return cmd, body_to_euler_rates(cmd, w_ap_p)
-
-    def _mount(self, t):
-        m = self.plan.mount
-        if not m.enabled:
-            z = np.zeros((len(t), 3))
-            return z, z.copy()
-        cmd, dcmd = self._mount_command(t - m.servo_lag)
-        limits = (m.level_limit, m.level_limit, m.azimuth_limit)
-        out = [_soft_limit(cmd[:, i], dcmd[:, i], limits[i]) for i in range(3)]
-        return (np.stack([o[0] for o in out], -1), np.stack([o[1] for o in out], -1))
+    def rates(self, time):
+        """``w_ib_b`` (rad/s) and ``f_b`` (m/s^2), shape (n, 3), at ``time`` (GPS s)."""
+        out = self._state(time)[-1]
+        return out["w_ib_b"], out["f_b"]
 
     def evaluate(self, time):
         """True state at ``time`` (GPS s, scalar or array within [t_start, t_end]).
@@ -265,34 +309,15 @@ class FlightTruth:
         -------
         TruthSample
         """
-        t_abs = np.atleast_1d(np.asarray(time, dtype=float))
-        if np.any(t_abs < self.t_start - 1e-9) or np.any(t_abs > self.t_end + 1e-9):
-            raise ValueError(f"time outside the flight [{self.t_start}, {self.t_end}] s")
-        t = t_abs - self.t0
-        psi, psi_dot, psi_ddot, V, V_dot = self._horizontal(t)
-        h, vd, ad = self._vertical(t)
-        lla = np.column_stack([self._lat_lon(t), h])
-        c, s = np.cos(psi), np.sin(psi)
-        v_n = np.column_stack([V * c, V * s, vd])
-        a_n = np.column_stack([V_dot * c - V * psi_dot * s, V_dot * s + V * psi_dot * c, ad])
-        rpy_a, drpy_a = self._aircraft(t, psi, psi_dot, psi_ddot, V, V_dot)
-        mount, dmount = self._mount(t)
-        C_na, C_ap = euler_to_dcm(rpy_a), euler_to_dcm(mount)
-        C_nb = C_na @ C_ap
-        w_na_a = euler_rates_to_body(rpy_a, drpy_a)
-        w_nb_b = np.einsum("nji,nj->ni", C_ap, w_na_a) + euler_rates_to_body(mount, dmount)
-        w_ie_n = earth.earth_rate_n(lla[:, 0])
-        w_en_n = earth.transport_rate_n(lla[:, 0], h, v_n)
-        w_ib_b = w_nb_b + np.einsum("nji,nj->ni", C_nb, w_ie_n + w_en_n)
-        f_n = a_n - earth.gravity_n(lla[:, 0], h) + np.cross(2 * w_ie_n + w_en_n, v_n)
-        f_b = np.einsum("nji,nj->ni", C_nb, f_n)
-        return TruthSample(time=t_abs, lla=lla, v_n=v_n, a_n=a_n, q_nb=dcm_to_quat(C_nb),
-                           w_ib_b=w_ib_b, f_b=f_b, q_na=dcm_to_quat(C_na), mount_rpy=mount,
-                           mount_rate=dmount)
+        t_abs, lla, v_n, a_n, out = self._state(time)
+        return TruthSample(time=t_abs, lla=lla, v_n=v_n, a_n=a_n,
+                           q_nb=dcm_to_quat(out["C_nb"]), w_ib_b=out["w_ib_b"],
+                           f_b=out["f_b"], q_na=dcm_to_quat(out["C_na"]),
+                           mount_rpy=out["mount"], mount_rate=out["mount_rate"])
 
     def C_nb(self, time):
         """``C_nb`` (n, 3, 3) at ``time`` (GPS s)."""
-        return quat_to_dcm(self.evaluate(time).q_nb)
+        return self._state(time)[-1]["C_nb"]
 
 
 def build_truth(plan):
