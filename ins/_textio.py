@@ -47,7 +47,7 @@ from .errors import InputError
 
 __all__ = [
     "ParsedTable", "parse_table", "file_buffer", "read_table", "table_error_message",
-    "is_number",
+    "is_number", "read_text", "read_toml", "iter_table",
     "format_fixed", "format_table", "roundtrip_decimals",
     "OK", "NO_DATA", "TOO_FEW_COLUMNS", "TOO_MANY_COLUMNS", "COLUMN_COUNT", "BAD_NUMBER",
     "EMPTY_FIELD",
@@ -314,7 +314,7 @@ def _parse_line(buf, i, n, out, off, cap, end, base, p10hi, p10lo):
         # otherwise blanks were skipped and a new field starts at i
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)   # releases the GIL: reader/writer threads
 def _parse_kernel(buf, ncols_min, ncols_max, skip_header_lines, p10hi, p10lo):
     """numba kernel of :func:`parse_table`; ``buf`` ends with a NUL byte."""
     n = buf.size - 1
@@ -596,13 +596,76 @@ def file_buffer(path):
     return buf
 
 
-def _field_text(buf, pos, limit=40):
+def read_text(path, expected="text"):
+    """The whole text of a (small) text file, decoded as UTF-8 (a BOM is dropped).
+
+    For the line-oriented readers of CSV and TOML files, which would otherwise stop
+    with a ``UnicodeDecodeError`` on a binary file.  Line ends are left as they are.
+
+    Parameters
+    ----------
+    expected : str
+        What the file should hold, for the message (e.g. ``"a TOML camera file"``).
+
+    Raises
+    ------
+    InputError
+        When the bytes are not UTF-8 or hold a NUL byte (binary data), naming the file
+        and the line of the first bad byte.
+    """
+    path_s = os.fspath(path)
+    with open(path_s, "rb") as f:
+        data = f.read()
+    try:
+        text = data.decode("utf-8-sig")
+        bad = text.find("\x00")
+        if bad >= 0:
+            raise UnicodeDecodeError("utf-8", data, bad, bad + 1, "NUL byte")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise InputError(f"binary data, not UTF-8 text (byte 0x{data[exc.start]:02x} at "
+                         f"offset {exc.start}); expected {expected}", path=path_s,
+                         line=line) from None
+    return text
+
+
+def read_toml(path, expected="a TOML file"):
+    """A TOML file as a dict; :class:`InputError` naming the file for binary data or
+    invalid TOML (the TOML parser's message gives the line and column)."""
+    import tomllib
+    text = read_text(path, expected)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}; expected {expected}",
+                         path=os.fspath(path)) from None
+
+
+def _field_bytes(buf, pos, limit=40):
     stop = pos
     n = buf.size - 1
     while stop < n and stop - pos < limit and buf[stop] not in (_SP, _TAB, _CR, _NL, _COMMA):
         stop += 1
-    text = bytes(buf[pos:stop]).decode("utf-8", errors="replace")
-    return text + ("..." if stop - pos >= limit else "")
+    return bytes(buf[pos:stop]), stop - pos >= limit
+
+
+def _binary_byte(raw):
+    """The first byte of ``raw`` that no text file holds (a control character or a
+    byte that is not UTF-8), or None."""
+    for b in raw:
+        if b < 0x20 and b not in (0x09, 0x0D) or b == 0x7F:
+            return b
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.reason != "unexpected end of data":        # cut inside a character
+            return raw[exc.start]
+    return None
+
+
+def _field_text(buf, pos, limit=40):
+    raw, cut = _field_bytes(buf, pos, limit)
+    return raw.decode("utf-8", errors="replace") + ("..." if cut else "")
 
 
 def table_error_message(res, buf, ncols_min, ncols_max, column_names=None):
@@ -631,6 +694,10 @@ def table_error_message(res, buf, ncols_min, ncols_max, column_names=None):
         return (f"{res.err_col} columns, expected {res.width} "
                 f"as on the first data line (line {res.first_line})")
     if s == BAD_NUMBER:
+        bad = _binary_byte(_field_bytes(buf, res.err_pos)[0])
+        if bad is not None:
+            return (f"binary data, not a text table ({name(res.err_col)} holds byte "
+                    f"0x{bad:02x})")
         text = _field_text(buf, res.err_pos)
         if text == "":
             return f"{name(res.err_col)} is not a number (unexpected byte)"
@@ -694,13 +761,48 @@ def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column
     max_rows = _count_lines(path, block_bytes)
     table = row_lines = None
     nrows = 0
+    for values, lines in iter_table(path, ncols_min, ncols_max, column_names, hint,
+                                    block_bytes, skip_header_lines):
+        if table is None:
+            table = np.empty((max_rows, values.shape[1]))
+            row_lines = np.empty(max_rows, np.int64)
+        m = len(values)
+        if nrows + m > max_rows:                     # the file grew meanwhile
+            raise InputError("the file changed while being read", path=os.fspath(path))
+        table[nrows:nrows + m] = values
+        row_lines[nrows:nrows + m] = lines
+        nrows += m
+    if table is None:
+        raise InputError("no data lines (the file is empty or holds only blank and comment "
+                         "lines)", path=os.fspath(path))
+    if nrows < 0.8 * max_rows:
+        return table[:nrows].copy(), row_lines[:nrows].copy()
+    return table[:nrows], row_lines[:nrows]
+
+
+def iter_table(path, ncols_min=1, ncols_max=1 << 30, column_names=None, hint=None,
+               block_bytes=BLOCK_BYTES, skip_header_lines=0):
+    """Read a numeric text table block by block (bounded memory: one block of text).
+
+    Same rules and errors as :func:`read_table`, but the
+    rows are yielded as they are parsed, so a file of any length is read with the memory
+    of one block.  The parsing kernel releases the GIL (a reader thread can run beside
+    numerical work).
+
+    Yields
+    ------
+    values : ndarray, shape (nrows, width), float64
+        The rows of one block of whole lines (at least one row).
+    row_line : ndarray, shape (nrows,), int64
+        1-based line number of each row in the file.
+    """
     lo, hi = int(ncols_min), int(ncols_max)
-    line_offset = 0
+    line_offset = first_line = 0
     skip = int(skip_header_lines)
-    first_line = 0
-    buf = np.empty(max(int(block_bytes), 16) + 1, np.uint8)   # reused for every block
-    have = 0                                                 # carried bytes at buf[:have]
+    buf = np.empty(max(int(block_bytes), 16) + 1, np.uint8)
+    have = 0
     first_block = True
+    seen = False
     with open(path, "rb") as f:
         while True:
             if have == buf.size - 1:                         # a line longer than buf
@@ -711,13 +813,10 @@ def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column
             total = have + got
             if total == 0:
                 break
-            if got:
-                cut = _last_newline(buf, total) + 1
-                if cut == 0:                                 # no end of line yet
-                    have = total
-                    continue
-            else:
-                cut = total                                  # the last line, unterminated
+            cut = _last_newline(buf, total) + 1 if got else total
+            if got and cut == 0:
+                have = total
+                continue
             if first_block and cut >= 3 and buf[0] == 0xEF and buf[1] == 0xBB and buf[2] == 0xBF:
                 buf[:3] = _SP
             first_block = False
@@ -725,45 +824,34 @@ def read_table(path, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, column
             buf[cut] = 0
             block = buf[:cut + 1]
             res = parse_table(block, lo, hi, skip)
+            nl = int(np.count_nonzero(block[:cut] == _NL))
+            skip = max(0, skip - nl)
             if res.status == OK:
-                if table is None:
-                    table = np.empty((max_rows, res.width))
-                    row_lines = np.empty(max_rows, np.int64)
-                m = len(res.values)
-                if nrows + m > max_rows:                     # the file grew meanwhile
-                    raise InputError("the file changed while being read",
-                                     path=os.fspath(path))
-                table[nrows:nrows + m] = res.values
-                row_lines[nrows:nrows + m] = res.row_line + line_offset
-                nrows += m
-                if lo != hi or lo != res.width:
-                    lo = hi = res.width       # later blocks must keep the first width
+                if not seen:
                     first_line = res.first_line + line_offset
+                seen = True
+                lo = hi = res.width           # later blocks must keep the first width
+                yield res.values, res.row_line + line_offset
             elif res.status != NO_DATA:
                 msg = table_error_message(res, block, lo, hi, column_names)
-                if res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS) and table is not None:
+                if res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS) and seen:
                     msg = (f"{res.err_col} columns, expected {lo} as on the first data "
                            f"line (line {first_line})")
-                if hint and res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS, COLUMN_COUNT):
+                if hint and (res.status in (TOO_FEW_COLUMNS, TOO_MANY_COLUMNS, COLUMN_COUNT)
+                             or msg.startswith("binary data")):
                     msg += f" ({hint})"
                 raise InputError(msg, path=os.fspath(path),
                                  line=(res.err_line + line_offset) if res.err_line else None)
             buf[cut] = saved
-            nl = int(np.count_nonzero(block[:cut] == _NL))
-            skip = max(0, skip - nl)
             line_offset += nl
             have = total - cut
             if have:
                 buf[:have] = buf[cut:total].copy()
             if not got:
                 break
-    if table is None:
+    if not seen:
         raise InputError("no data lines (the file is empty or holds only blank and comment "
                          "lines)", path=os.fspath(path))
-    if nrows < 0.8 * max_rows:
-        return table[:nrows].copy(), row_lines[:nrows].copy()
-    return table[:nrows], row_lines[:nrows]
-
 
 # ---------------------------------------------------------------------------------------
 # formatting
@@ -853,7 +941,7 @@ def _put_digits(out, end, x, count, pairs):
         out[end - 1] = 48 + np.intp(u % np.uint64(10))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)   # releases the GIL: reader/writer threads
 def _format_kernel(values, bits, decimals, sep, p10hi, p10lo, pairs, pow10_int):
     """Text of ``values``: returns (uint8 text, status, bad row, bad column).
 

@@ -142,7 +142,8 @@ class _Progress:
 
 def _cmd_mechanize(args):
     from . import imu as imu_mod
-    from .mechanization import NavState, iter_mechanize
+    from .imu_blocks import iter_imu, prefetch
+    from .mechanization import NavState, iter_mechanize_blocks
     from .trajectory import write_nav
 
     t_start = wallclock.perf_counter()
@@ -151,36 +152,58 @@ def _cmd_mechanize(args):
     if os.path.abspath(args.output) == os.path.abspath(args.imu_file):
         raise InputError(f"--output {args.output} would overwrite the input file")
     size = os.path.getsize(args.imu_file) if os.path.isfile(args.imu_file) else 0
-    reading = _Progress("mechanize", not args.quiet and size > 10_000_000)
-    reading.note(f"reading {args.imu_file} ({size / 1e6:.0f} MB)...")
-    log = imu_mod.read_imu(args.imu_file, format=args.format, rates=args.rates, axes=args.axes)
-    t_read = wallclock.perf_counter()
-    log = imu_mod.compensate(
-        log,
-        gyro_bias=None if args.gyro_bias_dph is None else args.gyro_bias_dph * imu_mod.DPH,
-        accel_bias=None if args.accel_bias_mgal is None else args.accel_bias_mgal * imu_mod.MGAL,
-        gyro_scale=None if args.gyro_scale_ppm is None else args.gyro_scale_ppm * imu_mod.PPM,
-        accel_scale=None if args.accel_scale_ppm is None else args.accel_scale_ppm * imu_mod.PPM)
+    errors = {name: value * unit for name, value, unit in (
+        ("gyro_bias", args.gyro_bias_dph, imu_mod.DPH),
+        ("accel_bias", args.accel_bias_mgal, imu_mod.MGAL),
+        ("gyro_scale", args.gyro_scale_ppm, imu_mod.PPM),
+        ("accel_scale", args.accel_scale_ppm, imu_mod.PPM)) if value is not None}
     initial = NavState.from_degrees(*args.init_lla, args.init_vel, args.init_att)
-    progress = _Progress("mechanize", not args.quiet and len(log) > 100_000)
+    # the log is read block by block in a thread beside the integration: memory is a few
+    # blocks whatever its length; the epoch count of a text log is estimated from its size
+    binary = args.format == "kfgins-bin" or (args.format is None and os.path.splitext(
+        args.imu_file)[1].lower() in (".bin", ".imu"))
+    total = size // 56 if binary else size // 95
+    progress = _Progress("mechanize", not args.quiet and total > 100_000)
+    seen = {"n": 0, "t0": None, "t1": None, "dt": None}
     last = []
 
+    def blocks():
+        for log in prefetch(iter_imu(args.imu_file, format=args.format, rates=args.rates,
+                                     axes=args.axes)):
+            if seen["t0"] is None:
+                seen["t0"] = log.time[0]
+                seen["dt"] = log.nominal_dt if len(log) > 1 else None
+            seen["n"] += len(log)
+            seen["t1"] = log.time[-1]
+            yield log
+
     def pieces():
-        for piece in iter_mechanize(log, initial, start=args.start, end=args.end,
-                                    every=args.every, strict=args.strict, progress=progress):
+        for piece in iter_mechanize_blocks(blocks(), initial, start=args.start, end=args.end,
+                                           every=args.every, strict=args.strict,
+                                           errors=errors, progress=progress, total=total):
             last[:] = [piece]
             yield piece
 
-    n = write_nav(args.output, pieces(), week=args.week)
+    with warnings.catch_warnings(record=True) as caught:     # name the file in them
+        warnings.simplefilter("always", InputWarning)
+        try:
+            n = write_nav(args.output, pieces(), week=args.week)
+        except InputError as exc:
+            if exc.path is None:
+                raise InputError(exc.reason, path=args.imu_file, line=exc.line) from None
+            raise
+    for w in caught:
+        warnings.warn(f"{w.message} (in {args.imu_file})", w.category)
+    progress(seen["n"], seen["n"])
     t_end = wallclock.perf_counter()
     if not args.quiet:
         end = last[0]
         rpy = end.rpy(degrees=True)[-1]
         lat, lon, h = end.lla[-1]
-        print(f"{args.imu_file}: {len(log)} IMU epochs, {log.time[0]:.3f} .. {log.time[-1]:.3f} s "
-              f"(nominal dt {log.nominal_dt:.6g} s)")
-        print(f"wrote {n} epochs to {args.output} in {t_end - t_start:.2f} s "
-              f"(reading {t_read - t_start:.2f} s)")
+        dt = "" if seen["dt"] is None else f" (nominal dt {seen['dt']:.6g} s)"
+        print(f"{args.imu_file}: {seen['n']} IMU epochs read, {seen['t0']:.3f} .. "
+              f"{seen['t1']:.3f} s{dt}")
+        print(f"wrote {n} epochs to {args.output} in {t_end - t_start:.2f} s")
         print(f"final epoch t={end.time[-1]:.3f} s: lat {np.rad2deg(lat):.9f} deg, "
               f"lon {np.rad2deg(lon):.9f} deg, h {h:.3f} m, "
               f"v_NED {end.v_n[-1, 0]:.3f} {end.v_n[-1, 1]:.3f} {end.v_n[-1, 2]:.3f} m/s, "

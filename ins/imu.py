@@ -460,7 +460,7 @@ _RATES_HINT = "read them with rates=True (command line: --rates)"
 
 def _parse_error(path, buf, res, ncols_min, ncols_max, names, layout):
     msg = _textio.table_error_message(res, buf, ncols_min, ncols_max, names)
-    if res.status == _textio.TOO_FEW_COLUMNS:
+    if res.status == _textio.TOO_FEW_COLUMNS or msg.startswith("binary data"):
         msg += f" ({layout})"
     return InputError(msg, path=os.fspath(path), line=res.err_line or None)
 

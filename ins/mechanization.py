@@ -82,17 +82,6 @@ class NavState:
         return np.concatenate([self.lla, self.v_n, self.q_nb])
 
 
-def _epoch_range(time, start, end):
-    i0 = 0 if start is None else int(np.searchsorted(time, start - 1e-9, side="left"))
-    i1 = len(time) if end is None else int(np.searchsorted(time, end + 1e-9, side="right"))
-    if i0 >= len(time):
-        raise InputError(f"start time {start} s is after the last IMU epoch {time[-1]} s")
-    if i1 - i0 < 2:
-        raise InputError(f"fewer than 2 IMU epochs between start {start} and end {end} s "
-                         f"(log covers {time[0]} .. {time[-1]} s)")
-    return i0, i1
-
-
 def count_gaps(time, i0, i1, factor=1.5):
     """Number of intervals in ``time[i0:i1]`` longer than ``factor`` x the median."""
     d = np.diff(time[i0:i1])
@@ -126,36 +115,123 @@ def iter_mechanize(imu, initial, *, start=None, end=None, every=1, strict=False,
     Trajectory
         Consecutive pieces of the output, the first starting at ``t0``.
     """
+    time = imu.time
+    i0 = 0 if start is None else int(np.searchsorted(time, start - 1e-9, side="left"))
+    i1 = len(time) if end is None else int(np.searchsorted(time, end + 1e-9, side="right"))
+    total = max(i1 - i0 - 1, 0)
+    yield from iter_mechanize_blocks([imu], initial, start=start, end=end, every=every,
+                                     strict=strict, chunk_epochs=chunk_epochs,
+                                     progress=progress, total=total)
+
+
+def iter_mechanize_blocks(blocks, initial, *, start=None, end=None, every=1, strict=False,
+                          errors=None, chunk_epochs=CHUNK_EPOCHS, progress=None, total=None):
+    """Mechanize an IMU log given as consecutive pieces (e.g. read block by block with
+    :func:`ins.imu_blocks.iter_imu`): memory is one piece and one output chunk,
+    whatever the length of the log.  The result is the same as for the whole log.
+
+    Parameters
+    ----------
+    blocks : iterable of ins.imu.ImuLog
+        Consecutive pieces of one log (time increasing across pieces).
+    initial, start, end, every, strict, progress
+        As :func:`iter_mechanize`; the gap test uses the median interval of the first
+        piece.
+    errors : dict, optional
+        Keyword arguments of :func:`ins.imu.compensate` (SI), applied piece by piece with
+        the exact interval of each piece's first row.
+    total : int, optional
+        Expected number of epochs, for ``progress`` (an estimate is fine).
+
+    Yields
+    ------
+    Trajectory
+    """
+    from .imu import ImuLog, compensate
     every = int(every)
     if every < 1:
         raise ValueError(f"every must be a positive integer, got {every}")
-    time = imu.time
-    i0, i1 = _epoch_range(time, start, end)
-    gaps = count_gaps(time, i0, i1)
-    if gaps:
-        msg = (f"{gaps} gap(s) longer than 1.5 x the nominal interval "
-               f"{np.median(np.diff(time[i0:i1])):.6g} s between {time[i0]} and {time[i1 - 1]} s")
-        if strict:
-            raise InputError(msg + " (refused: strict mode)")
-        warnings.warn(msg + ": integrated across", InputWarning, stacklevel=2)
     state = initial.as_vector().copy()
-    total = i1 - i0 - 1
-    out = np.empty((min(chunk_epochs, total), _kernels.N_STATE))
-    yield _trajectory(time[i0:i0 + 1], state[None, :].copy())
-    k = i0 + 1
-    while k < i1:
-        k1 = min(k + chunk_epochs, i1)
-        _kernels.mechanize_rows(time, imu.dtheta_b, imu.dvel_b, k, k1, state, out)
+    out = np.empty((chunk_epochs, _kernels.N_STATE))
+    prev_raw = prev = None           # last raw / compensated row of the previous piece
+    t_first = t_last = None
+    counter = gaps = done = 0        # epochs after t0, gaps, epochs integrated
+    nominal = None
+    for raw in blocks:
+        if len(raw) == 0:
+            continue
+        t_first = raw.time[0] if t_first is None else t_first
+        t_last = raw.time[-1]
+        log = raw
+        if errors:
+            if prev_raw is None:
+                log = compensate(raw, **errors)
+            else:
+                ext = ImuLog._adopt(np.concatenate([prev_raw.time, raw.time]),
+                                    np.concatenate([prev_raw.dtheta_b, raw.dtheta_b]),
+                                    np.concatenate([prev_raw.dvel_b, raw.dvel_b]))
+                c = compensate(ext, **errors)
+                log = ImuLog._adopt(c.time[1:], c.dtheta_b[1:], c.dvel_b[1:])
+        prev_raw = ImuLog._adopt(raw.time[-1:], raw.dtheta_b[-1:], raw.dvel_b[-1:])
+        time, dth, dv = log.time, log.dtheta_b, log.dvel_b
+        stop = len(time) if end is None else int(np.searchsorted(time, end + 1e-9,
+                                                                   side="right"))
+        if prev is None:                                      # t0 not reached yet
+            i0 = 0 if start is None else int(np.searchsorted(time, start - 1e-9, side="left"))
+            if i0 >= stop:
+                if stop < len(time):
+                    break
+                continue
+            yield _trajectory(time[i0:i0 + 1], state[None, :].copy())
+            time, dth, dv = time[i0:stop], dth[i0:stop], dv[i0:stop]
+        else:
+            time = np.concatenate([prev[0], time[:stop]])
+            dth = np.concatenate([prev[1], dth[:stop]])
+            dv = np.concatenate([prev[2], dv[:stop]])
+        prev = (time[-1:], dth[-1:], dv[-1:])
+        if len(time) > 1:
+            d = np.diff(time)
+            nominal = np.median(d) if nominal is None else nominal
+            n_gaps = int(np.count_nonzero(d > 1.5 * nominal))
+            if n_gaps and strict:
+                k = int(np.flatnonzero(d > 1.5 * nominal)[0])
+                raise InputError(f"{n_gaps} gap(s) longer than 1.5 x the nominal interval "
+                                 f"{nominal:.6g} s, the first of {d[k]:.6g} s between "
+                                 f"{time[k]} and {time[k + 1]} s (refused: strict mode)")
+            gaps += n_gaps
+        for piece in _integrate(time, dth, dv, state, out, counter, every):
+            yield piece
+        counter += len(time) - 1
+        done += len(time) - 1
+        if progress is not None:
+            progress(done, max(total or 0, done))
+        if stop < len(log.time):
+            break
+    if prev is None and start is not None and t_last is not None and start > t_last:
+        raise InputError(f"start time {start} s is after the last IMU epoch {t_last} s")
+    if prev is None or counter == 0:
+        span = "an empty log" if t_first is None else f"log covers {t_first} .. {t_last} s"
+        raise InputError(f"fewer than 2 IMU epochs between start {start} and end {end} s "
+                         f"({span})")
+    if gaps:
+        warnings.warn(f"{gaps} gap(s) longer than 1.5 x the nominal interval {nominal:.6g} s: "
+                      "integrated across", InputWarning, stacklevel=2)
+
+
+def _integrate(time, dth, dv, state, out, counter, every):
+    """Rows 1.. of (time, dth, dv) from ``state`` (row 0 = the previous sample), in
+    chunks of ``len(out)``; yields the selected epochs (``every``, counted by ``counter``)."""
+    k, n = 1, len(time)
+    while k < n:
+        k1 = min(k + len(out), n)
+        _kernels.mechanize_rows(time, dth, dv, k, k1, state, out)
         if not np.all(np.isfinite(state)):
             bad = int(np.flatnonzero(~np.all(np.isfinite(out[:k1 - k]), axis=1))[0])
             raise InputError(f"the solution became non-finite at t = {float(time[k + bad])!r} s "
                              f"(over a pole, or implausible increments or initial state)")
-        keep = np.arange(k, k1)
-        sel = (keep - i0) % every == 0
+        sel = (np.arange(k, k1) + counter) % every == 0
         if np.any(sel):
             yield _trajectory(time[k:k1][sel], out[:k1 - k][sel].copy())
-        if progress is not None:
-            progress(k1 - i0 - 1, total)
         k = k1
 
 

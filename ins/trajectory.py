@@ -118,10 +118,11 @@ def read_nav(path):
     if back.size:
         k = back[0] + 1
         what = "duplicated epoch" if rows[k, 1] == rows[k - 1, 1] else "time not increasing"
-        raise InputError(f"{what}: t = {rows[k, 1]!r} s after {rows[k - 1, 1]!r} s",
+        raise InputError(f"{what}: t = {float(rows[k, 1])!r} s after {float(rows[k - 1, 1])!r} s",
                          path=str(path), line=int(row_line[k]))
     if np.any(np.abs(rows[:, 2]) > 90.0):
         k = int(np.flatnonzero(np.abs(rows[:, 2]) > 90.0)[0])
-        raise InputError(f"latitude {rows[k, 2]!r} deg outside +-90 deg", path=str(path),
+        raise InputError(f"latitude {float(rows[k, 2])!r} deg outside +-90 deg (expected "
+                         f"week t lat lon ..., deg)", path=str(path),
                          line=int(row_line[k]))
     return Trajectory.from_nav_rows(rows)

@@ -15,12 +15,12 @@ Distortion (Brown), ideal ``(x, y)`` to observed, ``r^2 = x^2 + y^2`` (mm)::
 The fisheye model of the lunar camera lives in ``photogrammetry.lunar``.
 """
 import math
-import tomllib
 from dataclasses import dataclass, field
 
 import numpy as np
 import tomli_w
 
+from ins import _textio
 from ins.errors import InputError
 from ins.fileio import atomic_open
 
@@ -263,11 +263,7 @@ def read_camera(path):
     ``[mounting]`` is optional (nadir axes, zero lever arm and boresight).
     """
     path = str(path)
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", path=path) from None
+    doc = _textio.read_toml(path, "a TOML camera file with [camera] and [mounting]")
     cam = doc.get("camera")
     if not isinstance(cam, dict):
         raise InputError("missing table [camera]", path=path)

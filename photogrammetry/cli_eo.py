@@ -1,12 +1,12 @@
 """``photogrammetry eo``: exterior orientation per exposure from an INS trajectory."""
 import argparse
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from ins.cli import _Progress, _triplet
+from ins import _textio
 from ins.errors import InputError
 
 EPILOG = """\
@@ -81,11 +81,7 @@ def _flight_inputs(folder):
     manifest = folder / "manifest.toml"
     if not manifest.is_file():
         raise InputError(f"{folder} has no manifest.toml (not a flight folder)")
-    try:
-        with open(manifest, "rb") as f:
-            doc = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", path=str(manifest)) from None
+    doc = _textio.read_toml(manifest, "a flight manifest (TOML)")
     files = doc.get("files", {})
     out = {}
     for key in ("truth", "events", "camera"):
@@ -136,6 +132,12 @@ def run(args):
     progress.note(f"reading {traj_path}...")
     traj = read_nav(traj_path)
     sigma = read_solution_std(args.sigma) if args.sigma else None
+    outside = np.flatnonzero((times < traj.time[0]) | (times > traj.time[-1]))
+    if outside.size:                 # the events file is at fault: name it, not the .nav
+        k = int(outside[0])
+        raise InputError(f"event {ids[k]} at t = {float(times[k])!r} s is outside the "
+                         f"trajectory {traj_path} ({float(traj.time[0])!r} .. "
+                         f"{float(traj.time[-1])!r} s; {outside.size} such)", path=events_path)
     if origin is None:
         from ins.interpolation import interpolate_trajectory
         first = interpolate_trajectory(traj, times[:1], names=ids[:1], path=traj_path)

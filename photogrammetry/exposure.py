@@ -210,35 +210,35 @@ def read_events(path):
     """Read an events file ``image_id,time_s`` (header line required): ids, times (s)."""
     path = str(path)
     ids, times, seen = [], [], {}
-    with open(path, newline="") as f:
-        rows = csv.reader(line for line in f)
-        header = None
-        for row in rows:
-            line = rows.line_num
-            if not row or row[0].lstrip().startswith("#"):
-                continue
-            row = [c.strip() for c in row]
-            if header is None:
-                header = row
-                if header[:2] != ["image_id", "time_s"]:
-                    raise InputError(f"header must start with image_id,time_s, got "
-                                     f"{','.join(header)!r}", path=path, line=line)
-                continue
-            if len(row) < 2:
-                raise InputError("expected image_id,time_s", path=path, line=line)
-            try:
-                t = float(row[1])
-            except ValueError:
-                raise InputError(f"time_s {row[1]!r} is not a number (s)", path=path,
-                                 line=line) from None
-            if not np.isfinite(t):
-                raise InputError(f"time_s {row[1]!r} is not finite", path=path, line=line)
-            if row[0] in seen:
-                raise InputError(f"image_id {row[0]!r} repeats line {seen[row[0]]}",
-                                 path=path, line=line)
-            seen[row[0]] = line
-            ids.append(row[0])
-            times.append(t)
+    text = _textio.read_text(path, "a CSV file image_id,time_s")
+    rows = csv.reader(io.StringIO(text, newline=""))
+    header = None
+    for row in rows:
+        line = rows.line_num
+        if not row or row[0].lstrip().startswith("#"):
+            continue
+        row = [c.strip() for c in row]
+        if header is None:
+            header = row
+            if header[:2] != ["image_id", "time_s"]:
+                raise InputError(f"header must start with image_id,time_s, got "
+                                 f"{','.join(header)!r}", path=path, line=line)
+            continue
+        if len(row) < 2:
+            raise InputError("expected image_id,time_s", path=path, line=line)
+        try:
+            t = float(row[1])
+        except ValueError:
+            raise InputError(f"time_s {row[1]!r} is not a number (s)", path=path,
+                             line=line) from None
+        if not np.isfinite(t):
+            raise InputError(f"time_s {row[1]!r} is not finite", path=path, line=line)
+        if row[0] in seen:
+            raise InputError(f"image_id {row[0]!r} repeats line {seen[row[0]]}",
+                             path=path, line=line)
+        seen[row[0]] = line
+        ids.append(row[0])
+        times.append(t)
     if header is None or not ids:
         raise InputError("no events (expected a header image_id,time_s and rows)", path=path)
     return ids, np.array(times)
@@ -331,8 +331,7 @@ def read_eo_csv(path):
     columns), the frame from ``# frame =``.  Errors name the file and line.
     """
     path = str(path)
-    with open(path, newline="") as f:
-        text = f.read().splitlines()
+    text = _textio.read_text(path, "an EO CSV file (image_id,time_s,X_m,...)").splitlines()
     comments, k = [], 0
     while k < len(text) and (text[k].startswith("#") or not text[k].strip()):
         comments.append(text[k]) if text[k].startswith("#") else None
@@ -347,8 +346,13 @@ def read_eo_csv(path):
         for s in SYSTEMS:
             if header[5:8] == [f"{a}_deg" for a in angle_names(s)]:
                 system = s
+    if system is None:
+        raise InputError("angle system not stated: no '# system = ...' comment and the "
+                         f"angle columns {','.join(header[5:8])} name none; expected "
+                         "'# system = phi-omega-kappa' or 'omega-phi-kappa'", path=path,
+                         line=header_line)
     if system not in SYSTEMS:
-        raise InputError(f"angle system {system!r} not stated or unknown; expected "
+        raise InputError(f"unknown angle system {system!r}; expected "
                          "'# system = phi-omega-kappa' or 'omega-phi-kappa'", path=path)
     names = angle_names(system)
     base = ["image_id", "time_s", "X_m", "Y_m", "Z_m"] + [f"{a}_deg" for a in names]
@@ -401,11 +405,10 @@ def write_eo_applanix(path, eo):
 
 
 def _data_lines(path):
-    with open(path) as f:
-        for n, line in enumerate(f, 1):
-            s = line.strip()
-            if s and not s.startswith("#"):
-                yield n, s.split()
+    for n, line in enumerate(_textio.read_text(path, "an EO text file").splitlines(), 1):
+        s = line.strip()
+        if s and not s.startswith("#"):
+            yield n, s.split()
 
 
 def _numbers(parts, path, line, count):
@@ -421,8 +424,8 @@ def _numbers(parts, path, line, count):
 
 
 def _frame_of(path):
-    with open(path) as f:
-        meta = _header_values([ln for ln in f if ln.startswith("#")], path)
+    lines = _textio.read_text(path, "an EO text file").splitlines()
+    meta = _header_values([ln for ln in lines if ln.startswith("#")], path)
     return meta.get("frame", "unknown")
 
 

@@ -33,7 +33,7 @@ COLMAP) convention is reached only through :func:`to_cv_rotation`/:func:`from_cv
 import numpy as np
 
 from ins.earth import dcm_en
-from ins.rotation import rot_x, rot_y, rot_z
+from ins.rotation import _as_stack, rot_x, rot_y, rot_z
 
 __all__ = ["SYSTEMS", "angles_to_matrix", "matrix_to_angles", "check_system",
            "convert_angles", "dcm_mn_enu", "boresight_matrix", "camera_attitude",
@@ -56,17 +56,6 @@ def check_system(system):
         raise ValueError(f"unknown angle system {system!r}; accepted: "
                          + ", ".join(repr(s) for s in SYSTEMS))
     return system
-
-
-def _as_stack(x, name, tail):
-    a = np.asarray(x, dtype=float)
-    if a.shape == tail:
-        return a[np.newaxis], True
-    if a.ndim == len(tail) + 1 and a.shape[1:] == tail:
-        return a, False
-    one = "(" + ", ".join(map(str, tail)) + ("," if len(tail) == 1 else "") + ")"
-    many = "(n, " + ", ".join(map(str, tail)) + ")"
-    raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
 
 
 def _pm_pi(a):

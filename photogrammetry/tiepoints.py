@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ins import _textio
 from ins.errors import InputError
 
 __all__ = ["TiePoints", "read_tiepoints"]
@@ -132,8 +133,8 @@ def read_tiepoints(path, camera=None):
         file without camera; the message names the file and line.
     """
     path = str(path)
-    with open(path, newline="") as f:
-        text = f.read().splitlines()
+    text = _textio.read_text(path, "a tie-point CSV file (image_id,point_id,x_mm,y_mm)"
+                             ).splitlines()
     comments, k = [], 0
     while k < len(text) and (text[k].startswith("#") or not text[k].strip()):
         comments.append(text[k])

@@ -1,0 +1,314 @@
+"""Property-based tests (hypothesis) of the file readers (issue 8, hardening).
+
+1. On arbitrary bytes, arbitrary text and mutated tables, the IMU, GNSS, mount, nav, EO,
+   tie-point, event and lunar readers return or raise ``InputError`` -- never anything
+   else (no IndexError, UnicodeDecodeError, csv.Error ...), and the error names the file.
+2. Written tables read back exactly: IMU logs bit for bit (text, CSV, binary); GNSS,
+   nav, EO files to the exact value of each printed field (the independent truth is
+   Python's ``float()`` of the text), and writing what was read gives the same text.
+"""
+import math
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, example, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from ins.errors import InputError
+from ins.gnss import GnssLog, read_gnss, write_gnss
+from ins.imu import (ImuLog, read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
+                     write_kfgins_binary, write_kfgins_text)
+from ins.mount import read_mount
+from ins.rotation import euler_to_quat
+from ins.trajectory import Trajectory, read_nav, write_nav
+from photogrammetry.camera import FrameCamera
+from photogrammetry.exposure import ExposureOrientation, read_eo_csv, read_events, write_eo_csv
+from photogrammetry.lunar.io import read_centres, read_times
+from photogrammetry.tiepoints import read_tiepoints
+
+SETTINGS = settings(max_examples=40, deadline=None, database=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                           HealthCheck.too_slow])
+CAMERA = FrameCamera(focal_length_mm=50.0, pixel_size_mm=0.005, width_px=4000,
+                     height_px=3000, principal_point_px=(1999.5, 1499.5),
+                     radial_k=(-2e-6, 1e-10, 0.0), tangential_p=(3e-6, -2e-6))
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory):
+    return tmp_path_factory.mktemp("prop")
+
+
+def _write(folder, name, data):
+    path = os.path.join(folder, name)
+    with open(path, "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode("utf-8"))
+    return path
+
+
+READERS = {
+    "imu.txt": read_kfgins_text,
+    "imu.csv": read_csv,
+    "imu.bin": read_kfgins_binary,
+    "gnss.txt": read_gnss,
+    "mount.txt": read_mount,
+    "traj.nav": read_nav,
+    "eo.csv": read_eo_csv,
+    "tiepoints.csv": read_tiepoints,
+    "tiepoints_px.csv": lambda p: read_tiepoints(p, CAMERA),
+    "events.csv": read_events,
+    "times.csv": read_times,
+    "centres.csv": read_centres,
+}
+
+
+def _only_input_error(name, path):
+    """Call the reader; any exception but InputError (naming the file) fails."""
+    try:
+        READERS[name](path)
+    except InputError as exc:
+        assert os.path.basename(path) in str(exc), str(exc)
+        assert "\n" not in str(exc)
+
+
+# ---------------------------------------------------------------------------------------
+# 1. fuzzing: only InputError
+
+TABLE_ALPHABET = "0123456789.eE+-, \t\n#%nainf,xr_:;\r"
+number_text = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.integers(-10 ** 20, 10 ** 20).map(str),
+    st.sampled_from(["nan", "inf", "-inf", "1e", ".", "1.2.3", "", "+", "0x1p3", "1,,2"]))
+# a table line: 0 .. 14 number-like fields joined by a separator
+table_line = st.tuples(st.lists(number_text, max_size=14),
+                       st.sampled_from([" ", ",", "\t", ", ", "  "])).map(
+    lambda t: t[1].join(t[0]))
+table_text = st.lists(st.one_of(table_line, st.sampled_from(["", "# c", "% c"])),
+                      max_size=30).map("\n".join)
+
+
+@pytest.mark.parametrize("name", sorted(READERS))
+@SETTINGS
+@given(data=st.binary(max_size=400))
+def test_arbitrary_bytes(scratch, name, data):
+    _only_input_error(name, _write(scratch, name, data))
+
+
+@pytest.mark.parametrize("name", sorted(READERS))
+@SETTINGS
+@given(text=st.text(alphabet=st.characters(codec="utf-8"), max_size=300))
+def test_arbitrary_text(scratch, name, text):
+    _only_input_error(name, _write(scratch, name, text))
+
+
+@pytest.mark.parametrize("name", ["imu.txt", "gnss.txt", "mount.txt", "traj.nav"])
+@SETTINGS
+@given(text=st.one_of(table_text, st.text(alphabet=TABLE_ALPHABET, max_size=400)))
+def test_numeric_tables(scratch, name, text):
+    _only_input_error(name, _write(scratch, name, text))
+
+
+HEADERS = {
+    "imu.csv": "time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dvel_x_mps,dvel_y_mps,dvel_z_mps",
+    "eo.csv": "# system = phi-omega-kappa\nimage_id,time_s,X_m,Y_m,Z_m,phi_deg,omega_deg,kappa_deg",
+    "tiepoints.csv": "image_id,point_id,x_mm,y_mm",
+    "tiepoints_px.csv": "image_id,point_id,u_px,v_px",
+    "events.csv": "image_id,time_s",
+    "times.csv": "image_id,gps_week,gps_time_s",
+    "centres.csv": "image_id,u_px,v_px,sigma_px",
+}
+csv_field = st.one_of(number_text, st.text(alphabet="abS01_ \"'#,", max_size=6))
+csv_line = st.lists(csv_field, max_size=10).map(",".join)
+
+
+@pytest.mark.parametrize("name", sorted(HEADERS))
+@SETTINGS
+@given(lines=st.lists(st.one_of(csv_line, st.just("")), max_size=12))
+@example(lines=["0.0,15251,0.0"])            # found by hypothesis: ns overflow of GPS week
+def test_csv_after_a_valid_header(scratch, name, lines):
+    _only_input_error(name, _write(scratch, name, "\n".join([HEADERS[name]] + lines) + "\n"))
+
+
+@pytest.mark.parametrize("utc", ["NaT", "3000-01-01T00:00:00Z", "-1", "", "2017-13-01"])
+def test_times_out_of_range_are_refused(scratch, utc):
+    """np.datetime64(text, "ns") wraps year 3000 to 1830 and reads 'NaT' / '' as NaT."""
+    path = _write(scratch, "times_utc.csv", f"image_id,utc\na,2017-05-02T14:00:00Z\nb,{utc}\n")
+    with pytest.raises(InputError, match=r"times_utc.csv:3: utc: expected ISO 8601"):
+        read_times(path)
+
+
+# ---------------------------------------------------------------------------------------
+# 2. round trips
+
+@st.composite
+def imu_logs(draw):
+    n = draw(st.integers(2, 40))
+    t0 = draw(st.floats(-1e6, 1e6, allow_nan=False))
+    dt = draw(st.sampled_from([0.005, 0.01, 1 / 300, 0.0025, 0.1]))
+    jitter = draw(hnp.arrays(np.float64, n, elements=st.floats(0.0, 0.3 * dt)))
+    time = t0 + dt * np.arange(n) + jitter
+    assume(np.all(np.diff(time) > 0))
+    # increments a real IMU gives: |w| < 20 rad/s, |f| < 100 m/s^2 (the readers' limits)
+    finite = dict(allow_nan=False, allow_infinity=False, allow_subnormal=True)
+    dtheta = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-0.5 * dt, 0.5 * dt,
+                                                                      **finite)))
+    dvel = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-30 * dt, 30 * dt,
+                                                                    **finite)))
+    return ImuLog(time, dtheta, dvel)
+
+
+@pytest.mark.parametrize("ext, write, read", [
+    ("txt", write_kfgins_text, read_kfgins_text), ("csv", write_csv, read_csv),
+    ("bin", write_kfgins_binary, read_kfgins_binary)])
+@SETTINGS
+@given(log=imu_logs())
+def test_imu_round_trip_is_bit_exact(scratch, ext, write, read, log):
+    path = os.path.join(scratch, f"rt.{ext}")
+    assert write(path, log) == len(log)
+    back = read(path)
+    for name in ("time", "dtheta_b", "dvel_b"):
+        a, b = getattr(log, name), getattr(back, name)
+        assert np.array_equal(a.view(np.int64), b.view(np.int64)) or np.array_equal(a, b), name
+
+
+def _fields(path):
+    """The numbers of a whitespace/comma text table as Python floats (the truth)."""
+    with open(path) as f:
+        return [[float(x) for x in line.replace(",", " ").split()]
+                for line in f if line.strip() and not line.startswith("#")]
+
+
+finite_floats = dict(allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def gnss_logs(draw):
+    n = draw(st.integers(1, 20))
+    time = 1e5 + np.cumsum(draw(hnp.arrays(np.float64, n, elements=st.floats(0.001, 10))))
+    assume(np.all(np.diff(np.round(time, 6)) > 0))
+    lat = draw(hnp.arrays(np.float64, n, elements=st.floats(-math.pi / 2, math.pi / 2)))
+    lon = draw(hnp.arrays(np.float64, n, elements=st.floats(-math.pi, math.pi)))
+    h = draw(hnp.arrays(np.float64, n, elements=st.floats(-500, 1e5)))
+    std = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(0.001, 100)))
+    vel = None
+    if draw(st.booleans()):
+        vel = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-500, 500)))
+    return GnssLog(time, np.column_stack([lat, lon, h]), std, vel,
+                   None if vel is None else std / 10)
+
+
+@SETTINGS
+@given(log=gnss_logs())
+def test_gnss_round_trip(scratch, log):
+    path = os.path.join(scratch, "rt_gnss.txt")
+    write_gnss(path, log)
+    rows = np.array(_fields(path))
+    back = read_gnss(path)
+    assert back.time.tolist() == rows[:, 0].tolist()
+    assert back.lla[:, 0].tolist() == np.deg2rad(rows[:, 1]).tolist()
+    assert back.lla[:, 2].tolist() == rows[:, 3].tolist()
+    assert back.std_ned.tolist() == rows[:, 4:7].tolist()
+    assert back.has_velocity == log.has_velocity
+    if log.has_velocity:
+        assert back.vel_n.tolist() == rows[:, 7:10].tolist()
+    # the written values are the given ones to the printed decimals
+    np.testing.assert_allclose(back.time, log.time, atol=5e-7, rtol=0)
+    np.testing.assert_allclose(np.rad2deg(back.lla[:, :2]), np.rad2deg(log.lla[:, :2]),
+                               atol=6e-13, rtol=0)    # 0.5e-12 printed + deg<->rad ulps
+    again = os.path.join(scratch, "rt_gnss2.txt")
+    write_gnss(again, back)
+    assert open(again).read() == open(path).read()
+
+
+@st.composite
+def trajectories(draw):
+    n = draw(st.integers(1, 20))
+    time = 1e5 + np.cumsum(draw(hnp.arrays(np.float64, n, elements=st.floats(0.001, 10))))
+    assume(np.all(np.diff(np.round(time, 6)) > 0))
+    lat = draw(hnp.arrays(np.float64, n, elements=st.floats(-1.5, 1.5)))
+    lon = draw(hnp.arrays(np.float64, n, elements=st.floats(-math.pi, math.pi)))
+    h = draw(hnp.arrays(np.float64, n, elements=st.floats(-500, 1e5)))
+    v = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-500, 500)))
+    rpy = np.column_stack([
+        draw(hnp.arrays(np.float64, n, elements=st.floats(-179, 179))),
+        draw(hnp.arrays(np.float64, n, elements=st.floats(-85, 85))),
+        draw(hnp.arrays(np.float64, n, elements=st.floats(-180, 180)))])
+    return Trajectory(time, np.column_stack([lat, lon, h]), v,
+                      euler_to_quat(rpy, degrees=True))
+
+
+@SETTINGS
+@given(traj=trajectories())
+def test_nav_round_trip(scratch, traj):
+    path = os.path.join(scratch, "rt.nav")
+    assert write_nav(path, traj, week=2300) == len(traj)
+    rows = np.array(_fields(path))
+    back = read_nav(path)
+    assert back.time.tolist() == rows[:, 1].tolist()
+    assert back.lla[:, 0].tolist() == np.deg2rad(rows[:, 2]).tolist()
+    assert back.lla[:, 2].tolist() == rows[:, 4].tolist()
+    assert back.v_n.tolist() == rows[:, 5:8].tolist()
+    # attitude: through the quaternion, within 1e-9 deg of the printed angles
+    d = back.rpy(degrees=True) - rows[:, 8:11]
+    d[:, 2] = (d[:, 2] + 180.0) % 360.0 - 180.0
+    assert np.max(np.abs(d)) < 1e-9
+    again = os.path.join(scratch, "rt2.nav")
+    write_nav(again, back, week=2300)
+    cols = [line.split()[:8] for line in open(again)]
+    assert cols == [line.split()[:8] for line in open(path)]
+
+
+ids = st.text(alphabet="ABCSxyz0123456789_-.", min_size=1, max_size=8)
+
+
+@st.composite
+def exterior_orientations(draw):
+    names = draw(st.lists(ids, min_size=1, max_size=12, unique=True))
+    n = len(names)
+    system = draw(st.sampled_from(["phi-omega-kappa", "omega-phi-kappa"]))
+    time = draw(hnp.arrays(np.float64, n, elements=st.floats(0, 604800)))
+    pos = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-1e6, 1e6)))
+    ang = draw(hnp.arrays(np.float64, (n, 3), elements=st.floats(-math.pi, math.pi)))
+    sig = None
+    if draw(st.booleans()):
+        sig = draw(hnp.arrays(np.float64, (n, 6), elements=st.floats(0, 10)))
+    return ExposureOrientation(names, time, pos, ang, system, "enu; origin_lat_deg = 30.5",
+                               None if sig is None else sig[:, :3],
+                               None if sig is None else np.deg2rad(sig[:, 3:]))
+
+
+@SETTINGS
+@given(eo=exterior_orientations())
+def test_eo_round_trip(scratch, eo):
+    path = os.path.join(scratch, "rt_eo.csv")
+    write_eo_csv(path, eo)
+    back = read_eo_csv(path)
+    assert back.image_id == eo.image_id and back.system == eo.system
+    assert back.frame == eo.frame and back.has_sigmas == eo.has_sigmas
+    with open(path) as f:
+        rows = [line.rstrip("\n").split(",") for line in f if not line.startswith("#")][1:]
+    assert back.time.tolist() == [float(r[1]) for r in rows]
+    assert back.position.tolist() == [[float(x) for x in r[2:5]] for r in rows]
+    assert back.angles.tolist() == np.deg2rad([[float(x) for x in r[5:8]] for r in rows]).tolist()
+    np.testing.assert_allclose(back.angles, eo.angles, atol=1e-12, rtol=0)
+    again = os.path.join(scratch, "rt_eo2.csv")
+    write_eo_csv(again, back)
+    assert open(again).read() == open(path).read()
+
+
+@SETTINGS
+@given(obs=st.lists(st.tuples(ids, ids, st.floats(-30, 30, **finite_floats),
+                              st.floats(-30, 30, **finite_floats)),
+                    min_size=1, max_size=20, unique_by=lambda o: (o[0], o[1])))
+def test_tiepoints_round_trip(scratch, obs):
+    path = os.path.join(scratch, "rt_tp.csv")
+    text = "# sigma_px = 0.5\nimage_id,point_id,x_mm,y_mm\n" + "".join(
+        f"{i},{p},{x!r},{y!r}\n" for i, p, x, y in obs)
+    _write(scratch, "rt_tp.csv", text)
+    tp = read_tiepoints(path)
+    assert list(tp.image_id) == [o[0] for o in obs]
+    assert list(tp.point_id) == [o[1] for o in obs]
+    assert tp.xy_mm.tolist() == [[o[2], o[3]] for o in obs]
+    assert tp.line.tolist() == list(range(3, 3 + len(obs)))
