@@ -60,7 +60,12 @@ def _crop(img, uv, half):
 
 def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=None,
                         **sky_options):
-    """Heading from Moon images: two passes (lit side from the image, then from the Sun).
+    """Heading from Moon images in two passes.
+
+    Pass 1: limb circle with the lit side taken from the image; first solution.  Pass 2:
+    the Sun's direction in the camera from it; limb circle on the lit limb, then the
+    blurred phased disk fitted to the lit limb's pixels (`moon_centre.fit_lit_limb`);
+    final solution.
 
     Parameters
     ----------
@@ -102,7 +107,7 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     sun_c = sky.sun_h @ sol.C_hc
     for k, (crop, off) in enumerate(crops):
         ang = sun_direction_in_image(camera, uv[k], sun_c[k])
-        m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off))
+        m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c[k])
         uv[k], cov[k] = m.uv + off, m.cov_uv
         if progress:
             progress(n + k + 1, 2 * n)

@@ -16,11 +16,11 @@ azimuth ``A = atan2(y, x)`` sees the unit direction
 the viewing direction and its eq. (3) quadrant cases, which are ``atan2``) is not used:
 the heading is defined on the x axis of this frame (see ``solve``).
 """
-import tomllib
 from dataclasses import dataclass
 
 import numpy as np
 
+from ins import _textio
 from ins.errors import InputError
 
 __all__ = ["FisheyeCamera", "read_camera"]
@@ -132,11 +132,7 @@ def read_camera(path):
     InputError
         Naming the file and the key, for a missing or malformed value.
     """
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not a valid TOML file: {exc}", path) from None
+    doc = _textio.read_toml(path, "a TOML fisheye camera file with [camera]")
     cam = doc.get("camera")
     if not isinstance(cam, dict):
         raise InputError("missing table [camera]", path)

@@ -17,6 +17,7 @@ import os
 
 import numpy as np
 
+from ins import _textio
 from ins.errors import InputError
 
 __all__ = ["read_times", "read_centres", "load_image", "find_images", "GPS_EPOCH",
@@ -25,13 +26,17 @@ __all__ = ["read_times", "read_centres", "load_image", "find_images", "GPS_EPOCH
 GPS_EPOCH = np.datetime64("1980-01-06T00:00:00", "ns")
 GPS_MINUS_UTC_S = 18          # leap seconds since 2017-01-01 (conventions.md)
 IMAGE_EXTENSIONS = (".png", ".tif", ".tiff", ".fits", ".fit")
+#: Accepted span of exposure times (UTC) and the last accepted GPS week (year 2200).
+_FIRST_UTC = np.datetime64("1980-01-06")
+_LAST_UTC = np.datetime64("2200-01-01")
+MAX_GPS_WEEK = 11427
 
 
 def _rows(path):
     """(header, [(line number, fields)]) of a CSV file with ``#`` comments."""
-    with open(path, newline="") as f:
-        lines = [(k + 1, line) for k, line in enumerate(f)
-                 if line.strip() and not line.lstrip().startswith("#")]
+    text = _textio.read_text(path, "a CSV file with a header line")
+    lines = [(k + 1, line) for k, line in enumerate(text.splitlines())
+             if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise InputError("empty file (expected a header line and rows)", path)
     rows = list(csv.reader([line for _, line in lines], skipinitialspace=True))
@@ -77,13 +82,24 @@ def read_times(path):
         if "utc" in row:
             text = row["utc"].rstrip("Z").replace(" ", "T")
             try:
-                t = np.datetime64(text, "ns")
+                t = np.datetime64(text)          # its own unit: no silent ns overflow
             except ValueError:
-                raise InputError(f"utc: expected ISO 8601 UTC (2017-05-12T15:00:00.25Z), "
-                                 f"got {row['utc']!r}", path, line) from None
+                t = None
+            if t is None or np.isnat(t) or not _FIRST_UTC <= t < _LAST_UTC:
+                raise InputError(f"utc: expected ISO 8601 UTC between 1980 and 2200 "
+                                 f"(2017-05-12T15:00:00.25Z), got {row['utc']!r}",
+                                 path, line)
+            t = t.astype("datetime64[ns]")
         else:
             week = _number(row["gps_week"], path, line, "gps_week")
             sec = _number(row["gps_time_s"], path, line, "gps_time_s")
+            if week != int(week) or not 0 <= week <= MAX_GPS_WEEK:
+                raise InputError(f"gps_week: expected an integer week 0 .. {MAX_GPS_WEEK} "
+                                 f"(continuous, since 1980-01-06), got {row['gps_week']!r}",
+                                 path, line)
+            if not 0 <= sec <= 604800:
+                raise InputError(f"gps_time_s: expected seconds of the week 0 .. 604800, "
+                                 f"got {row['gps_time_s']!r}", path, line)
             ns = int(round((week * 604800 + sec - GPS_MINUS_UTC_S) * 1e9))
             t = GPS_EPOCH + np.timedelta64(ns, "ns")
         if ids and t <= times[-1]:

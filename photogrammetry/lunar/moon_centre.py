@@ -22,7 +22,9 @@ from scipy.optimize import least_squares
 
 from ins.errors import InputError
 
-__all__ = ["MoonCentre", "MoonNotFoundError", "extract_centre", "lit_centroid",
+from . import _limb_model
+
+__all__ = ["MoonCentre", "MoonNotFoundError", "extract_centre", "fit_lit_limb", "lit_centroid",
            "sun_direction_in_image"]
 
 
@@ -208,7 +210,8 @@ def _fit(pts, c0, r0, camera):
     return centre(res.x), J @ cov_p @ J.T, float(res.x[2]), float(np.sqrt(s2)), keep
 
 
-def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_rays=None):
+def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_rays=None,
+                   phase_angle=None, sun_c=None):
     """Centre of the Moon from the lit limb of one grayscale image.
 
     Parameters
@@ -226,6 +229,14 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         from the horns).
     n_rays : int, optional
         Rays over the full circle (default: about 2 per px of circumference, at least 96).
+    phase_angle : float, optional
+        Sun-Moon-observer angle, rad (flat images, with ``sun_angle``).
+    sun_c : array_like, shape (3,), optional
+        Direction to the Sun in the camera frame (with ``camera``).  With the Sun known
+        (``sun_angle`` and ``phase_angle``, or ``camera`` and ``sun_c``) the limb circle
+        is the initial value of a least-squares fit of the blurred phased disk to the
+        pixels of the lit limb (`_limb_model`), which removes the rim's bias along the
+        Sun's direction; otherwise the limb circle is the result.
 
     Returns
     -------
@@ -265,9 +276,60 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     # neighbouring rays share pixels: about one independent point per px of limb arc
     arc_px = radius * (np.ptp(ang) if sun_angle is not None else 2 * np.pi)
     inflate = max(1.0, keep.sum() / max(arc_px, 1.0))
-    return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov * inflate, radius_px=rad,
-                      n_points=int(keep.sum()), rms_px=rms, centroid_uv=c0 + off,
+    n_used, cov = int(keep.sum()), cov * inflate
+    if sun_angle is not None and ((camera is None and phase_angle is not None)
+                                  or (camera is not None and sun_c is not None)):
+        fit = fit_lit_limb(img, uv, rad, sun_angle, phase_angle, camera, sun_c, half_width_deg)
+        uv, cov, rad, rms, n_used = fit.uv, fit.cov_uv, fit.radius_px, fit.rms_px, fit.n_points
+    return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov, radius_px=rad,
+                      n_points=n_used, rms_px=rms, centroid_uv=c0 + off,
                       sun_angle=float("nan") if sun_angle is None else sun_angle)
+
+
+def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None, sun_c=None,
+                 half_width_deg=70.0):
+    """Centre from a least-squares fit of the blurred, phased disk to the lit limb's pixels.
+
+    Parameters
+    ----------
+    image : array_like, shape (rows, cols)
+        Grayscale image.
+    uv : array_like, shape (2,)
+        Initial centre, px (within about 1 px; e.g. the limb circle of `extract_centre`).
+    radius_px : float
+        Initial radius, px (with a camera: semidiameter times the focal length).
+    sun_angle : float
+        Direction of the Sun on the image at the Moon, rad from +u towards +v.
+    phase_angle : float, optional
+        Sun-Moon-observer angle, rad (required without a camera).
+    camera : FisheyeCamera, optional
+        Fit the cone of the semidiameter around the Moon's direction.
+    sun_c : array_like, shape (3,), optional
+        Direction to the Sun in the camera frame (required with a camera).
+    half_width_deg : float
+        The limb band spans this angle either side of the Sun's direction, deg.
+
+    Returns
+    -------
+    MoonCentre
+        ``rms_px`` is the RMS pixel residual (counts); ``n_points`` the pixels fitted.
+    """
+    img = np.asarray(image, dtype=float)
+    uv = np.asarray(uv, float)
+    half = int(np.ceil(radius_px + _limb_model.BAND_PX + _limb_model.MARGIN_PX + 3))
+    u0, v0 = max(int(round(uv[0])) - half, 0), max(int(round(uv[1])) - half, 0)
+    crop = img[v0:int(round(uv[1])) + half + 1, u0:int(round(uv[0])) + half + 1]
+    off = np.array([u0, v0], float)
+    cam = None if camera is None else _Offset(camera, off)
+    sun3 = None
+    if camera is None:
+        a = phase_angle
+        sun3 = (np.sin(a) * np.cos(sun_angle), np.sin(a) * np.sin(sun_angle), np.cos(a))
+    model = _limb_model.LimbModel(crop, uv - off, radius_px, sun3=sun3, camera=cam, sun_c=sun_c,
+                                  sun_angle=sun_angle, half_width=np.deg2rad(half_width_deg))
+    c, cov, rad, _, rms, n_pix = _limb_model.fit_limb_model(model, uv - off, radius_px)
+    return MoonCentre(uv=c + off, cov_uv=cov, radius_px=rad, n_points=n_pix, rms_px=rms,
+                      centroid_uv=np.full(2, np.nan), sun_angle=float(sun_angle))
 
 
 class _Offset:
@@ -282,3 +344,6 @@ class _Offset:
 
     def direction_to_image(self, d):
         return self.camera.direction_to_image(d) - self.offset
+
+    def direction_jacobian(self, uv):
+        return self.camera.direction_jacobian(np.asarray(uv, float) + self.offset)

@@ -3,14 +3,16 @@
 Photometry: Lommel-Seeliger, ``I = mu0 / (mu0 + mu)`` on the lit part of the visible
 hemisphere (``mu0``, ``mu`` the cosines of incidence and emission): the lit limb stays
 bright, the terminator fades to zero, as on the real Moon.  The disk is supersampled,
-blurred by a Gaussian point-spread function and given Gaussian read noise.
+blurred by a point-spread function (Gaussian on the pixel grid, or a Moffat profile
+convolved on the supersampled grid: a PSF form the centre fit does not assume, so that
+tests of the fit are not circular) and given Gaussian read noise.
 
 Two geometries share the shading: a flat disk of given centre and radius in pixels
 (``render_moon``), and the Moon seen through a fisheye camera, where the disk is the cone
 of the apparent semidiameter around the Moon's direction (``render_moon_fisheye``).
 """
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, signal
 
 __all__ = ["render_moon", "render_moon_fisheye", "shade"]
 
@@ -39,10 +41,37 @@ def shade(X, Y, sun3):
     return np.where(lit, mu0 / np.where(lit, mu0 + mu, 1.0), 0.0)
 
 
-def _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype):
+MOFFAT_BETA = 3.0
+
+
+def _moffat_kernel(sigma_px, n):
+    """Moffat PSF (beta 3) of the FWHM of a Gaussian of ``sigma_px``, sampled n per px."""
+    fwhm = 2 * np.sqrt(2 * np.log(2)) * sigma_px
+    alpha = fwhm / (2 * np.sqrt(2 ** (1 / MOFFAT_BETA) - 1))
+    half = int(np.ceil(5 * fwhm * n))
+    x = (np.arange(-half, half + 1)) / n
+    k = (1 + (x[:, None] ** 2 + x[None, :] ** 2) / alpha ** 2) ** -MOFFAT_BETA
+    return k / k.sum()
+
+
+def _blur_sub(flux_sub, psf, psf_sigma_px, n):
+    """Blur on the supersampled grid (Moffat), or pass through (Gaussian: after binning)."""
+    if psf == "gaussian" or psf_sigma_px <= 0:
+        return flux_sub
+    if psf != "moffat":
+        raise ValueError(f"psf must be 'gaussian' or 'moffat', not {psf!r}")
+    return signal.fftconvolve(flux_sub, _moffat_kernel(psf_sigma_px, n), mode="same")
+
+
+def _margin(psf, psf_sigma_px):
+    return (12.0 if psf == "moffat" else 4.0) * psf_sigma_px + 3
+
+
+def _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
+            psf="gaussian"):
     img = np.full(shape, float(background))
     r0, r1, c0, c1 = box
-    if psf_sigma_px > 0:
+    if psf == "gaussian" and psf_sigma_px > 0:
         flux = ndimage.gaussian_filter(flux, psf_sigma_px, mode="constant")
     img[r0:r1, c0:c1] += peak * flux
     if noise_sigma > 0:
@@ -78,7 +107,7 @@ def _bin(a, n):
 
 def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, peak=3000.0,
                 background=100.0, psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
-                dtype=np.uint16):
+                dtype=np.uint16, psf="gaussian"):
     """A Moon disk of known centre on a flat image.
 
     Parameters
@@ -96,7 +125,9 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
     peak, background, noise_sigma : float
         Brightness of a fully lit limb, sky level and read noise, in counts.
     psf_sigma_px : float
-        Gaussian blur, px.
+        Blur, px: the Gaussian's sigma (for "moffat": a Moffat of the same FWHM).
+    psf : {"gaussian", "moffat"}
+        PSF form; "moffat" (beta 3, wider wings) is applied on the supersampled grid.
     supersample : int
         Sub-samples per pixel and axis.
     rng : int or numpy.random.Generator, optional
@@ -109,16 +140,17 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
     """
     a, b = np.deg2rad(phase_angle_deg), np.deg2rad(sun_angle_deg)
     sun3 = (np.sin(a) * np.cos(b), np.sin(a) * np.sin(b), np.cos(a))
-    box = _box(shape, centre_uv, radius_px + 4 * psf_sigma_px + 3)
+    box = _box(shape, centre_uv, radius_px + _margin(psf, psf_sigma_px))
     u, v = _subpixels(box, supersample)
-    flux = _bin(shade((u - centre_uv[0]) / radius_px, (v - centre_uv[1]) / radius_px, sun3),
-                supersample)
-    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype)
+    flux = shade((u - centre_uv[0]) / radius_px, (v - centre_uv[1]) / radius_px, sun3)
+    flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
+    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
+                   psf)
 
 
 def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, background=100.0,
                         psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
-                        dtype=np.uint16):
+                        dtype=np.uint16, psf="gaussian"):
     """The Moon imaged by a fisheye camera (the disk follows the lens distortion).
 
     Parameters
@@ -145,10 +177,12 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
     sun3 = np.array([s @ e1, s @ e2, -(s @ m)])
     shape = (camera.height_px, camera.width_px)
     centre = camera.direction_to_image(m)
-    half = 1.5 * 2 * camera.focal_length_px * semidiameter + 4 * psf_sigma_px + 3
+    half = 1.5 * 2 * camera.focal_length_px * semidiameter + _margin(psf, psf_sigma_px)
     box = _box(shape, centre, half)
     u, v = _subpixels(box, supersample)
     p = camera.image_to_direction(np.stack([u, v], axis=-1))
     sin_rho = np.sin(semidiameter)
-    flux = _bin(shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3) * (p @ m > 0), supersample)
-    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype)
+    flux = shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3) * (p @ m > 0)
+    flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
+    return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
+                   psf)
