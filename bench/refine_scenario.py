@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from ins.rotation import wrap_to_pi
 from photogrammetry import _scenario as sc
 from photogrammetry.assessment import assess
 from photogrammetry.block import adjust_block
@@ -71,24 +72,37 @@ def pair_table(n_pairs, sizes, seed=0):
     return rows
 
 
+def chi2_per_angle(res, B):
+    """Chi-square per angle of the true angle errors against the full covariance."""
+    e = wrap_to_pi(res.angles - B["angles"]).ravel()
+    k = np.diag(res.cov) > 0
+    return e[k] @ np.linalg.solve(res.cov[np.ix_(k, k)], e[k]) / k.sum()
+
+
 def block_table(seeds, n_strips=5, n_per_strip=10):
     print(f"\n{n_strips * n_per_strip}-image blocks ({n_strips} strips flown back and forth), "
           "known-base, datum none: INS assessment")
+    print("chi2 = true angle errors against the block's full covariance, per angle (~1; "
+          "'indep': the conditions of a point in 3+ images weighted one by one, as before)")
     print(f"{'seed':>4} {'noise est/real (phi omega kappa)':>36} {'boresight err / sigma':>26} "
-          f"{'sigma0':>7} {'lambda':>6} {'s':>6}")
+          f"{'sigma0':>7} {'lambda':>6} {'chi2':>5} {'indep':>5} {'s':>6}")
     for seed in seeds:
         B = sc.make_block(n_strips, n_per_strip, seed=seed)
         t = time.perf_counter()
         res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
                            "known-base", "none", positions=B["positions"],
-                           sigma_mm=B["sigma_mm"])
+                           sigma_mm=B["sigma_mm"], point_ids=B["point_ids"])
         a = assess(res, B["prior"], B["system"], "none", "known-base")
         dt = time.perf_counter() - t
+        indep = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                             "known-base", "none", positions=B["positions"],
+                             sigma_mm=B["sigma_mm"])
         ratio = a.ins_noise / B["ins_noise"].std(axis=0, ddof=1)
         z = (a.boresight - B["boresight"]) / a.boresight_sigma
         print(f"{seed:>4} {' '.join(f'{r:6.3f}' for r in ratio):>36} "
               f"{' '.join(f'{v:+6.2f}' for v in z):>26} {res.sigma0:7.3f} "
-              f"{a.cov_factor:6.2f} {dt:6.2f}")
+              f"{a.cov_factor:6.2f} {chi2_per_angle(res, B):5.2f} {chi2_per_angle(indep, B):5.2f} "
+              f"{dt:6.2f}")
 
 
 def flight(folder, eo_path=None, boresight_deg=(0.1, -0.15, 0.2), ins_sigma_deg=0.005,

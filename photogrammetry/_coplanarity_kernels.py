@@ -72,13 +72,19 @@ def condition_terms(r1, r2, b, R1, R2, sigma_xy):
     """
     N = np.cross(r1, r2)
     g = np.einsum("pni,pi->pn", N, b)
+    d_u1, d_u2 = obs_derivatives(r1, r2, b, R1, R2)
+    var = sigma_xy ** 2 * (np.sum(d_u1 ** 2, axis=2) + np.sum(d_u2 ** 2, axis=2))
+    A = np.cross(r2, np.cross(b[:, None, :], r1))
+    return g, var, N, A
+
+
+def obs_derivatives(r1, r2, b, R1, R2):
+    """Derivatives of ``g = b . (r1 x r2)`` by the photo coordinates (x, y) of the point in
+    image 1 and in image 2: ``R1^T (r2 x b)`` and ``R2^T (b x r1)``, two arrays (P, n, 2)."""
     bb = b[:, None, :]
     d_u1 = np.einsum("pji,pnj->pni", R1, np.cross(r2, bb))[..., :2]
-    b_x_r1 = np.cross(bb, r1)
-    d_u2 = np.einsum("pji,pnj->pni", R2, b_x_r1)[..., :2]
-    var = sigma_xy ** 2 * (np.sum(d_u1 ** 2, axis=2) + np.sum(d_u2 ** 2, axis=2))
-    A = np.cross(r2, b_x_r1)
-    return g, var, N, A
+    d_u2 = np.einsum("pji,pnj->pni", R2, np.cross(bb, r1))[..., :2]
+    return d_u1, d_u2
 
 
 def smallest_direction(N, w):

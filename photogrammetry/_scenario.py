@@ -144,7 +144,8 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
     Returns
     -------
     dict with ``angles`` (m, 3) true, ``prior`` (m, 3) INS, ``positions`` (m, 3),
-    ``pairs`` (P, 2), ``pair_points`` [(xy_i, xy_j)], ``ins_noise`` (m, 3) injected,
+    ``pairs`` (P, 2), ``pair_points`` [(xy_i, xy_j)], ``point_ids`` [ground-point index
+    of each pair's points], ``ins_noise`` (m, 3) injected,
     ``boresight`` (3,), ``f_mm``, ``sigma_mm``, ``system``, ``obs`` {image: (ids, xy)}.
     """
     from .rotation import boresight_matrix, matrix_to_angles
@@ -176,19 +177,21 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
     seen = np.all(np.abs(xy) < half, axis=2)
     sigma_mm = noise_px * pixel_mm
     xy_obs = xy + rng.normal(0, sigma_mm, xy.shape)
-    pairs, pair_points = [], []
+    pairs, pair_points, point_ids = [], [], []
     for i in range(m):
         for j in range(i + 1, m):
             common = seen[i] & seen[j]
             if common.sum() >= min_common:
                 pairs.append((i, j))
                 pair_points.append((xy_obs[i, common], xy_obs[j, common]))
+                point_ids.append(np.flatnonzero(common))
     bs = np.asarray(boresight_rad, dtype=float)
     noise = rng.normal(0, ins_sigma_rad, (m, 3))
     prior = matrix_to_angles(R @ boresight_matrix(bs).T, system) + noise
     obs = {i: (np.flatnonzero(seen[i]), xy_obs[i, seen[i]]) for i in range(m)}
     return {"angles": ang, "prior": prior, "positions": pos, "pairs": np.array(pairs),
-            "pair_points": pair_points, "ins_noise": noise, "boresight": bs, "f_mm": f_mm,
+            "pair_points": pair_points, "point_ids": point_ids,
+            "ins_noise": noise, "boresight": bs, "f_mm": f_mm,
             "sigma_mm": sigma_mm, "pixel_mm": pixel_mm, "system": system, "obs": obs,
             "X": X}
 

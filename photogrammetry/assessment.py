@@ -181,10 +181,9 @@ LAMBDA_MAX_REL = 0.3
 def _fit(y, A, C, groups):
     """GLS + REML of ``y = A x + e``, ``V = lambda C + diag(s^2[groups])``.
 
-    The block adjustment neglects the correlation between the coplanarity conditions of a
-    point seen in three or more images, so its covariance ``C`` is somewhat optimistic
-    (about 1.2x in sigma in the scenario of ``_scenario.make_block``); ``lambda`` takes it
-    up when the data can tell it from the INS noise.
+    ``lambda`` checks the block's covariance ``C`` (about 1 when the conditions of points
+    seen in three or more images are weighted jointly, i.e. with tie-point ids; about 1.4
+    without them) and takes up a misfit when the data can tell it from the INS noise.
     """
     n = len(y)
     scale = max(np.trace(C) / n, float(np.mean(y ** 2)), 1e-30)

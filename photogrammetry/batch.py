@@ -83,14 +83,14 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
     if position_sigma_m is None and eo.sigma_position is not None:
         position_sigma_m = eo.sigma_position
     min_common = 3 if method == "known-base" else 5
-    pairs, points, _ = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
+    pairs, points, point_ids = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
     if len(pairs) == 0:
         raise InputError(f"no pair of images shares {min_common} or more tie points",
                          path=tiepoints.path)
     block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
                          datum, positions=eo.position, prior_sigma=prior_sigma_rad,
-                         sigma_mm=sigma_mm, position_sigma=position_sigma_m, snooping=snooping,
-                         progress=progress)
+                         sigma_mm=sigma_mm, position_sigma=position_sigma_m, point_ids=point_ids,
+                         snooping=snooping, progress=progress)
     result_eo = replace(eo, angles=block.angles, sigma_angles=block.sigma,
                         sigma_position=(eo.sigma_position if eo.sigma_position is not None
                                         else np.zeros((len(eo), 3))))

@@ -2,10 +2,27 @@
 
 Unknowns: the three angles of every image (rad, in the named system; ``R = C_mc``), and,
 for the ``relative``/``base-free`` methods, the base direction of every pair (two
-nuisance parameters each, eliminated pair by pair).  One condition per tie point and
-pair, ``det[b, R_i u_i, R_j u_j] = 0``, weighted by its variance propagated from the
-four photo coordinates.  Points seen in three or more images enter several pairs; the
-correlation between those conditions is neglected.
+nuisance parameters each, eliminated by the Schur complement; the two methods give the
+same estimate in a block).  One condition per tie point and pair,
+``det[b, R_i u_i, R_j u_j] = 0``.
+
+Weights: a point seen in k >= 3 images enters k(k-1)/2 pairs whose conditions share its
+photo coordinates, so they are correlated; along a strip the centres are nearly in line
+and the conditions of (i, j), (j, k), (i, k) nearly repeat each other (three epipolar
+planes through one line of centres coincide).  With the tie-point ids the conditions of
+one point are weighted together by the pseudo-inverse of their joint covariance,
+propagated from the shared photo coordinates (``sigma_mm`` each); combinations of them
+that the observations hardly move (eigenvalue of the correlation matrix below
+:data:`RANK_TOL` times the largest) are dropped as repetitions and the redundancy counts
+the independent conditions.  This keeps all pairs (no choice of k - 1 pairs per point,
+which would leave the pairs (i, i+2) of a strip without conditions) and is consistent
+for any threshold (``W Sigma W = W``, so the covariance ``(J^T W J)^-1`` is that of the
+estimate); the threshold (per method, see :data:`RANK_TOL`) trades efficiency for
+robustness against the nonlinear, geometry-made combinations.  The bases of the relative
+methods start from each pair's screening (image i at its INS angles): the iterations
+weight the conditions one by one until the steps are small, then jointly.  Without ids
+each condition is weighted on its own (the covariance is then optimistic by about 1.2x
+in sigma on the blocks of ``_scenario.make_block``: chi-square per angle 1.3-1.6).
 
 Datum (the coplanarity conditions fix the angles only up to a common rotation unless the
 bases are known): ``"first"`` holds the first image's angles at their prior (the paper's
@@ -18,6 +35,8 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import splu
 
 from ins.errors import InputError, InputWarning
 
@@ -28,6 +47,14 @@ from .rotation import check_system
 __all__ = ["BlockResult", "adjust_block", "pad_pairs", "DATUMS"]
 
 DATUMS = ("first", "ins", "none")
+#: Relative eigenvalue (of a tie point's condition correlation matrix) below which a
+#: combination of its conditions counts as a repetition and is dropped, per method.  With
+#: known bases the nearly repeated combination of a strip triple is the transfer of scale
+#: along the strip: weak in the observations and in the angles alike (the centres' offset
+#: from a line, squared, ~1e-4 here), informative (pitch) and well behaved down to ~1e-8;
+#: 1e-4 keeps most of it.  With a base-direction nuisance per pair it ties the nuisances
+#: of the triple together at full strength: nonlinear, Gauss-Newton diverges below ~1e-4.
+RANK_TOL = {"known": 1e-4, "relative": 1e-2, "free": 1e-2}
 
 
 @dataclass
@@ -97,66 +124,142 @@ def pad_pairs(pair_points):
     return xy_i, xy_j, mask
 
 
-def _pair_normals(u_i, u_j, mask, R_i, M_i, R_j, M_j, b, mode, sigma_mm):
-    """Per pair: reduced normal matrix (6, 6) and gradient (6,) for (theta_i, theta_j)."""
-    r_i = np.einsum("pab,pnb->pna", R_i, u_i)
-    r_j = np.einsum("pab,pnb->pna", R_j, u_j)
-    if mode == "free":
-        g, var, N, _ = K.condition_terms(r_i, r_j, b, R_i, R_j, sigma_mm)
-        b = K.smallest_direction(N, np.where(mask, 1.0 / np.where(var > 0, var, 1), 0))
-    g, var, N, A_j = K.condition_terms(r_i, r_j, b, R_i, R_j, sigma_mm)
-    A_i = np.cross(r_i, np.cross(r_j, b[:, None, :]))
-    w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
-    J = np.concatenate([np.einsum("pna,pak->pnk", A_i, M_i),
-                        np.einsum("pna,pak->pnk", A_j, M_j)], axis=2)
-    E = None
-    if mode != "known":
-        E = K.tangent_basis(b)
-        J = np.concatenate([J, np.einsum("pna,pak->pnk", N, E)], axis=2)
-    H = np.einsum("pn,pna,pnb->pab", w, J, J)
-    grad = np.einsum("pn,pna,pn->pa", w, J, g)
-    HbbInv_Hba = None
-    if mode != "known":          # eliminate the base direction of each pair
-        Hbb = H[:, 6:, 6:] + 1e-30 * np.eye(2)
-        HbbInv_Hba = np.linalg.solve(Hbb, H[:, 6:, :6])
-        HbbInv_gb = np.linalg.solve(Hbb, grad[:, 6:, None])[..., 0]
-        grad = grad[:, :6] - np.einsum("pba,pb->pa", H[:, 6:, :6], HbbInv_gb)
-        H = H[:, :6, :6] - H[:, :6, 6:] @ HbbInv_Hba
-        HbbInv_Hba = (HbbInv_Hba, HbbInv_gb, E)
-    vtpv = np.einsum("pn,pn,pn->p", w, g, g)
-    return H, grad, vtpv, b, HbbInv_Hba, g * np.sqrt(w)
+def _condition_index(pairs, mask, point_ids, m):
+    """The conditions (used tie points of the good pairs) grouped by tie point.
 
-
-def _position_propagation(u_i, u_j, mask, R_i, M_i, R_j, M_j, b, sigma_mm, pairs, use, idx,
-                          n_unk, position_sigma):
-    """Covariance of the angles due to the errors of the EO positions (known-base).
-
-    The estimate solves ``grad(theta, X) = 0``; to first order
-    ``d theta = -H^-1 H_tX dX`` with ``H_tX = sum w J^T dg/dX`` and ``dg/dX_j = N = -dg/dX_i``
-    (``g = (X_j - X_i) . N``), so the added covariance is ``H^-1 H_tX S_X H_Xt H^-1``.
-    Returns ``H_tX S_X H_Xt`` (n_unk, n_unk), to be sandwiched by ``H^-1``.
+    Returns
+    -------
+    p, s : ndarray of int (C,)
+        Pair and slot (point index in the pair) of every condition.
+    obs : ndarray of int (C, 2)
+        Ids of the two observations (image, point) of every condition; equal ids are the
+        same photo coordinates (shared by the conditions of a point seen in 3+ images).
+    buckets : list of ndarray of int (T, c)
+        Condition indices, one row per tie point with c conditions (one array per c).
     """
-    r_i = np.einsum("pab,pnb->pna", R_i, u_i)
-    r_j = np.einsum("pab,pnb->pna", R_j, u_j)
-    _, var, N, A_j = K.condition_terms(r_i, r_j, b, R_i, R_j, sigma_mm)
-    A_i = np.cross(r_i, np.cross(r_j, b[:, None, :]))
-    w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
-    J = np.concatenate([np.einsum("pna,pak->pnk", A_i, M_i),
-                        np.einsum("pna,pak->pnk", A_j, M_j)], axis=2)
-    H_tX = np.einsum("pn,pna,pnb->pab", w, J, N)          # (P, 6, 3): d grad / d X_j
-    m = len(position_sigma)
-    T = np.zeros((n_unk, 3 * m))
-    for k in range(len(pairs)):
-        sel = use[k]
-        ii = idx[k][sel]
-        for sign, img in ((-1.0, pairs[k, 0]), (1.0, pairs[k, 1])):
-            T[ii, 3 * img:3 * img + 3] += sign * H_tX[k][sel]
+    p, s = np.nonzero(mask)
+    C = len(p)
+    if point_ids is None:                     # every condition on its own (no ids given)
+        group, obs = np.arange(C), np.arange(2 * C).reshape(C, 2)
+    else:
+        codes = {}
+        group = np.fromiter((codes.setdefault(point_ids[a][b], len(codes))
+                             for a, b in zip(p, s)), dtype=np.int64, count=C)
+        obs = group[:, None] * m + pairs[p]
+    order = np.argsort(group, kind="stable")
+    _, start, size = np.unique(group[order], return_index=True, return_counts=True)
+    buckets = [order[start[size == c][:, None] + np.arange(c)] for c in np.unique(size)]
+    return p, s, obs, buckets
+
+
+def _joint_weights(buckets, obs, d, s2, n_cond, tol):
+    """Weight matrix of the conditions: per tie point the pseudo-inverse of the joint
+    covariance of its conditions.
+
+    ``Sigma_ab = s2 * sum over the observations o shared by conditions a and b of
+    d_a,o . d_b,o``; the pseudo-inverse is taken of the correlation matrix (scale-free),
+    dropping eigenvalues below `tol` times the largest (combinations of the conditions
+    that the observations do not move: repeated conditions).
+
+    Parameters
+    ----------
+    d : ndarray (C, 2, 2)
+        Derivative of every condition by the (x, y) of its two observations.
+    s2 : float
+        Variance of one photo coordinate, mm^2.
+
+    Returns
+    -------
+    W : scipy.sparse.csr_matrix (C, C); rank : int (independent conditions);
+    var : ndarray (C,) variance of each condition.
+    """
+    var = s2 * np.einsum("cij,cij->c", d, d)
+    rows, cols, vals, rank = [], [], [], 0
+    for idx in buckets:
+        c = idx.shape[1]
+        o, D = obs[idx], d[idx]                                   # (T, c, 2), (T, c, 2, 2)
+        same = o[:, :, None, :, None] == o[:, None, :, None, :]
+        S = s2 * np.einsum("tabsr,tasx,tbrx->tab", same, D, D)
+        sd = np.sqrt(np.einsum("taa->ta", S))
+        inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
+        lam, U = np.linalg.eigh(S * inv[:, :, None] * inv[:, None, :])
+        keep = lam > tol * lam[:, -1:]
+        rank += int(keep.sum())
+        Wt = np.einsum("tak,tk,tbk->tab", U, np.where(keep, 1.0 / np.where(keep, lam, 1.0),
+                                                      0.0), U)
+        vals.append((Wt * inv[:, :, None] * inv[:, None, :]).ravel())
+        rows.append(np.repeat(idx, c, axis=1).ravel())
+        cols.append(np.tile(idx, (1, c)).ravel())
+    W = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(n_cond, n_cond))
+    return W, rank, var
+
+
+def _condition_terms(U, img, bp, R, M, b):
+    """Per condition: misclosure g (C,), d (C, 2, 2) by the photo coordinates, the
+    Jacobian rows by the angles of the two images (C, 6) and ``N`` (C, 3) = dg/db."""
+    R_i, R_j = R[img[:, 0]], R[img[:, 1]]
+    r_i = np.einsum("cab,cb->ca", R_i, U[:, 0])[:, None]
+    r_j = np.einsum("cab,cb->ca", R_j, U[:, 1])[:, None]
+    g, _, N, A_j = K.condition_terms(r_i, r_j, b[bp], R_i, R_j, 1.0)
+    d_i, d_j = K.obs_derivatives(r_i, r_j, b[bp], R_i, R_j)
+    A_i = np.cross(r_i, np.cross(r_j, b[bp][:, None, :]))[:, 0]
+    J = np.concatenate([np.einsum("ca,cak->ck", A_i, M[img[:, 0]]),
+                        np.einsum("ca,cak->ck", A_j[:, 0], M[img[:, 1]])], axis=1)
+    return g[:, 0], np.stack([d_i[:, 0], d_j[:, 0]], axis=1), J, N[:, 0]
+
+
+def _jacobian(J_ang, NE, img, bp, col, n_ang, n_cols):
+    """Sparse Jacobian (C, n_cols): angles of the free images, then 2 base parameters
+    per pair (``NE``, or none for known-base)."""
+    C = len(img)
+    cols = (3 * col[img][:, :, None] + np.arange(3)).reshape(C, 6)
+    ok = np.repeat(col[img] >= 0, 3, axis=1)
+    data = J_ang
+    if NE is not None:
+        cols = np.concatenate([cols, n_ang + 2 * bp[:, None] + np.arange(2)], axis=1)
+        ok = np.concatenate([ok, np.ones((C, 2), bool)], axis=1)
+        data = np.concatenate([J_ang, NE], axis=1)
+    rows = np.broadcast_to(np.arange(C)[:, None], cols.shape)
+    return sparse.csr_matrix((data[ok], (rows[ok], cols[ok])), shape=(C, n_cols))
+
+
+def _reduced_normals(H, grad, n_ang):
+    """Eliminate the base parameters (Schur complement): returns the angles' normal
+    matrix S (dense), right-hand side and the back-substitution ``(X, y)`` with
+    ``d_b = -(y + X d_a)`` (None for known-base)."""
+    H_aa = H[:n_ang, :n_ang].toarray()
+    if H.shape[0] == n_ang:
+        return H_aa, -grad, None
+    try:
+        lu = splu(H[n_ang:, n_ang:].tocsc())
+    except RuntimeError:
+        raise InputError("block normal equations are singular: a pair's base direction is "
+                         "not determined") from None
+    H_ab = H[:n_ang, n_ang:].toarray()
+    X = lu.solve(np.ascontiguousarray(H_ab.T))
+    y = lu.solve(grad[n_ang:])
+    return H_aa - H_ab @ X, -(grad[:n_ang] - H_ab @ y), (X, y)
+
+
+def _position_cov(WJ, N, img, m, n_ang, position_sigma):
+    """Angle-covariance term of the EO position errors (known-base), to be sandwiched by
+    ``H^-1``: the estimate solves ``J^T W g(theta, X) = 0``, so to first order
+    ``d theta = -H^-1 J^T W G_X dX`` with ``G_X = dg/dX`` (``g = (X_j - X_i) . N``:
+    ``+N`` for image j, ``-N`` for image i).  Returns ``T S_X T^T``, ``T = J^T W G_X``."""
+    C = len(img)
+    cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
+    data = np.concatenate([-N, N], axis=1)
+    G = sparse.csr_matrix((data.ravel(), (np.repeat(np.arange(C), 6), cols.ravel())),
+                          shape=(C, 3 * m))
+    T = (WJ[:, :n_ang].T @ G).toarray()
     return (T * (position_sigma.ravel() ** 2)[None, :]) @ T.T
 
 
 def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-free",
                  datum="first", positions=None, prior_sigma=None, sigma_mm=0.005,
-                 position_sigma=None, snooping=True, max_iter=30, tol=1e-11, progress=None):
+                 position_sigma=None, point_ids=None, snooping=True, max_iter=30, tol=1e-11,
+                 progress=None):
     """Adjust the angles of all images of a block together.
 
     Parameters
@@ -181,6 +284,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     position_sigma : array_like (m, 3) or (3,) or float, optional
         Sigma of the EO positions, m (known-base): the bases are still taken as given,
         but their errors are propagated into the angles' covariance (default: exact).
+    point_ids : sequence of P sequences of hashables, optional
+        Tie-point id of every point of `pair_points` (as from
+        :meth:`photogrammetry.tiepoints.TiePoints.pairs`).  With them the conditions of a
+        point seen in three or more images are weighted jointly (their correlation
+        through the shared photo coordinates); without, each condition on its own
+        (optimistic covariance when points are seen in 3+ images).
     progress : callable(done, total), optional
         Called after each iteration.
 
@@ -212,6 +321,8 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     if mode == "known" and positions is None:
         raise InputError("known-base needs the exposure positions (X_m, Y_m, Z_m)")
     xy_i, xy_j, mask = pad_pairs(pair_points)
+    if point_ids is not None and [len(q) for q in point_ids] != [len(a) for a, _ in pair_points]:
+        raise ValueError("point_ids must give one id per point of every pair")
     base = None if positions is None else (np.asarray(positions, float)[pairs[:, 1]]
                                            - np.asarray(positions, float)[pairs[:, 0]])
     # pair-wise screening: outliers and failed pairs (image i held at its prior)
@@ -244,40 +355,46 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     prior_sigma = np.broadcast_to(np.asarray(prior_sigma, float), (m, 3))
     col = -np.ones(m, dtype=int)
     col[free] = np.arange(free.sum())
-    n_unk = 3 * int(free.sum())
+    n_ang = 3 * int(free.sum())
+    n_base = 0 if mode == "known" else 2 * int(good.sum())
     angles = prior.copy()
-    b = screen["base"].copy() if base is None or mode != "known" else base
-    u_i = np.concatenate([xy_i, np.full(xy_i.shape[:2] + (1,), -f_mm)], axis=2)
-    u_j = np.concatenate([xy_j, np.full(xy_j.shape[:2] + (1,), -f_mm)], axis=2)
-    converged = False
-    iterations = 0
-    idx = (3 * col[pairs][:, :, None] + np.arange(3)).reshape(-1, 6)       # (P, 6)
-    use = (col[pairs] >= 0).repeat(3, axis=1) & good[:, None]
+    # base per pair: the GNSS base (known-base), else the screening's unit direction
+    b = base.copy() if mode == "known" else screen["base"].copy()
+    b[~good] = (1.0, 0.0, 0.0)                       # not used
+    bslot = np.cumsum(good) - 1                      # base parameters of the good pairs
+    p_c, s_c, obs, buckets = _condition_index(pairs, mask, point_ids, m)
+    # the base directions (relative, base-free) start from each pair's own screening, in
+    # frames of different INS errors: converge first with the conditions weighted one by
+    # one, then jointly (the joint weights depend on the bases through the near-repeated
+    # combinations)
+    joint = mode == "known" or point_ids is None
+    obs_1, buckets_1 = _condition_index(pairs, mask, None, m)[2:]
+    img = pairs[p_c]
+    U = np.stack([np.concatenate([xy[p_c, s_c], np.full((len(p_c), 1), -f_mm)], axis=1)
+                  for xy in (xy_i, xy_j)], axis=1)   # (C, 2, 3) rays in the two images
+    prior_w = np.where(datum == "ins", 1.0 / prior_sigma[free].ravel() ** 2, 0.0)
+    converged, iterations = False, 0
     for it in range(max_iter + 1):
         R, M = K.rotation_and_axes(angles, system)
-        H_p, g_p, vtpv, b_new, elim, res = _pair_normals(
-            u_i, u_j, mask, R[pairs[:, 0]], M[pairs[:, 0]], R[pairs[:, 1]], M[pairs[:, 1]],
-            b, mode, sigma_mm)
-        if mode == "free":
-            b = b_new
-        H = np.zeros((n_unk, n_unk))
-        grad = np.zeros(n_unk)
-        for k in np.flatnonzero(good):          # assemble (P small blocks, cheap)
-            sel = use[k]
-            ii = idx[k][sel]
-            H[np.ix_(ii, ii)] += H_p[k][np.ix_(sel, sel)]
-            grad[ii] += g_p[k][sel]
-        vtpv_total = vtpv[good].sum()
-        if datum == "ins":
-            wgt = 1.0 / prior_sigma[free].ravel() ** 2
-            dl = (angles[free] - prior[free]).ravel()
-            H[np.diag_indices(n_unk)] += wgt
-            grad += wgt * dl
-            vtpv_total += np.sum(wgt * dl ** 2)
-        if n_unk == 0:
+        g, d, J_ang, N = _condition_terms(U, img, p_c, R, M, b)
+        W, rank, var = _joint_weights(buckets if joint else buckets_1, obs if joint else obs_1,
+                                      d, sigma_mm ** 2, len(g), RANK_TOL[mode])
+        E = None if mode == "known" else K.tangent_basis(b)
+        NE = None if E is None else np.einsum("ca,cak->ck", N, E[p_c])
+        J = _jacobian(J_ang, NE, img, bslot[p_c], col, n_ang, n_ang + n_base)
+        WJ = W @ J
+        Wg = W @ g
+        H = (J.T @ WJ).tocsr()
+        grad = J.T @ Wg
+        dl = (angles[free] - prior[free]).ravel()
+        vtpv_total = float(g @ Wg + np.sum(prior_w * dl ** 2))
+        grad[:n_ang] += prior_w * dl
+        if n_ang == 0:
             converged = True
             break
-        step, ok = K._solve(H[None], -grad[None])
+        H = H + sparse.diags(np.concatenate([prior_w, np.zeros(n_base)]))
+        S, rhs, back = _reduced_normals(H.tocsr(), grad, n_ang)
+        step, ok = K._solve(S[None], rhs[None])
         if not ok[0]:
             raise InputError("block normal equations are singular: part of the block is not "
                              "connected to the datum image, or the geometry is degenerate "
@@ -286,42 +403,41 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         if it == max_iter:
             break
         angles[free] += step.reshape(-1, 3)
-        if mode == "relative":                  # back-substitute the base directions
-            HbbInv_Hba, HbbInv_gb, E = elim
-            d_ang = np.append(step, 0.0)[np.where(use, idx, n_unk)]
-            d_b = -HbbInv_gb - np.einsum("pab,pb->pa", HbbInv_Hba, d_ang)
-            b = b + np.einsum("pab,pb->pa", E, d_b)
+        big = np.max(np.abs(step))
+        if back is not None:                    # back-substitute the base directions
+            d_b = -(back[1] + back[0] @ step)
+            b[good] = b[good] + np.einsum("pab,pb->pa", E[good], d_b.reshape(-1, 2))
             b /= np.linalg.norm(b, axis=1, keepdims=True)
+            big = max(big, np.max(np.abs(d_b)))
         iterations = it + 1
         if progress is not None:
             progress(iterations, max_iter)
-        if np.max(np.abs(step)) < tol:
+        if big < tol and joint:
             converged = True
             break
-    n_cond = int(mask.sum())
-    n_prior = 3 * int(free.sum()) if datum == "ins" else 0
-    redundancy = n_cond + n_prior - n_unk - (0 if mode == "known" else 2 * int(good.sum()))
+        joint = joint or big < 1e-6
+    n_prior = n_ang if datum == "ins" else 0
+    redundancy = rank + n_prior - n_ang - n_base
     if redundancy <= 0:
-        raise InputError(f"block has no redundancy ({n_cond} conditions for "
-                         f"{n_unk} angles and the base directions)")
+        raise InputError(f"block has no redundancy ({rank} independent conditions for "
+                         f"{n_ang} angles and {n_base} base-direction parameters)")
     sigma0 = float(np.sqrt(vtpv_total / redundancy))
     cov = np.zeros((3 * m, 3 * m))
-    if n_unk:
+    if n_ang:
         fidx = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
-        Hi = np.linalg.inv(H)
+        Hi = np.linalg.inv(S)
         cov[np.ix_(fidx, fidx)] = sigma0 ** 2 * Hi
         if mode == "known" and position_sigma is not None and np.any(position_sigma):
             ps = np.broadcast_to(np.asarray(position_sigma, float), (m, 3))
-            R, M = K.rotation_and_axes(angles, system)
-            S = _position_propagation(u_i, u_j, mask, R[pairs[:, 0]], M[pairs[:, 0]],
-                                      R[pairs[:, 1]], M[pairs[:, 1]], b, sigma_mm, pairs,
-                                      use & good[:, None], idx, n_unk, ps)
-            cov[np.ix_(fidx, fidx)] += Hi @ S @ Hi
+            Sx = _position_cov(WJ, N, img, m, n_ang, ps)
+            cov[np.ix_(fidx, fidx)] += Hi @ Sx @ Hi
     for i in np.flatnonzero(~adjusted):
         cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(prior_sigma[i] ** 2)
     if not converged:
         warnings.warn(f"block adjustment did not converge in {max_iter} iterations",
                       InputWarning, stacklevel=2)
     sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
+    res = np.zeros(mask.shape)
+    res[p_c, s_c] = g / np.sqrt(np.where(var > 0, var, np.inf))
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
-                       adjusted, status, screen["rejected"], res * mask, mask)
+                       adjusted, status, screen["rejected"], res, mask)

@@ -19,8 +19,16 @@ def block():
 
 
 def _run(B, method, datum, **kw):
+    kw.setdefault("point_ids", B["point_ids"])
     return adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
                         method, datum, positions=B["positions"], sigma_mm=B["sigma_mm"], **kw)
+
+
+def _chi2_per_angle(B, res):
+    """Chi-square per angle of the true angle errors against the full covariance."""
+    e = ((res.angles - B["angles"] + np.pi) % (2 * np.pi) - np.pi).ravel()
+    k = np.diag(res.cov) > 0
+    return e[k] @ np.linalg.solve(res.cov[np.ix_(k, k)], e[k]) / k.sum(), k.sum()
 
 
 def _errors(B, res, align=False):
@@ -84,6 +92,7 @@ def test_image_without_tie_points_and_disconnected_block(block):
     keep = [k for k, (i, j) in enumerate(B["pairs"]) if 5 not in (i, j)]
     B["pairs"] = B["pairs"][keep]
     B["pair_points"] = [B["pair_points"][k] for k in keep]
+    B["point_ids"] = [B["point_ids"][k] for k in keep]
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         res = _run(B, "base-free", "first")
@@ -92,9 +101,32 @@ def test_image_without_tie_points_and_disconnected_block(block):
     assert np.all(np.isfinite(res.cov)) and res.sigma[5, 0] == pytest.approx(0.005)
     # two separate pieces: with datum "first" the second piece has no datum
     cut = [k for k, (i, j) in enumerate(block["pairs"]) if (i < 8) == (j < 8)]
-    C = dict(block, pairs=block["pairs"][cut], pair_points=[block["pair_points"][k] for k in cut])
+    C = dict(block, pairs=block["pairs"][cut], pair_points=[block["pair_points"][k] for k in cut],
+             point_ids=[block["point_ids"][k] for k in cut])
     with pytest.raises(InputError, match="singular"):
         _run(C, "base-free", "first")
     assert np.all(np.isfinite(_run(C, "base-free", "ins").angles))
     with pytest.raises(InputError, match="known-base"):
         _run(block, "base-free", "none")
+
+
+def test_joint_weights_of_points_in_three_or_more_images():
+    """Points seen in 3+ images: the conditions of one point weighted jointly (pseudo-
+    inverse of their covariance from the shared photo coordinates) make the covariance
+    match the true errors (chi-square per angle ~ 1); weighted one by one the covariance
+    is optimistic (about 1.2x in sigma; chi2 ~ 1.4 on larger blocks)."""
+    from scipy.stats import chi2
+    chi_joint, n, ratio = 0.0, 0, []
+    for seed in (40, 41):
+        B = sc.make_block(n_strips=3, n_per_strip=10, seed=seed)
+        B["prior"][0] = B["angles"][0]                 # the datum image at its true angles
+        for method, datum in (("known-base", "none"), ("relative", "first")):
+            joint, single = _run(B, method, datum), _run(B, method, datum, point_ids=None)
+            c, k = _chi2_per_angle(B, joint)
+            chi_joint += c * k
+            n += k
+            assert abs(joint.sigma0 - 1) < 0.05 and joint.redundancy < single.redundancy
+            ratio.append(np.sqrt(np.trace(joint.cov) / np.trace(single.cov)))
+    lo, hi = chi2.ppf([0.001, 0.999], n) / n
+    assert lo < chi_joint / n < hi, chi_joint / n
+    assert 1.05 < np.mean(ratio) < 1.4, ratio
