@@ -156,10 +156,12 @@ def speed(args, data):
           f"{KFGINS['wall']} s; target <= {KFGINS['wall'] / 2:.2f} s)")
     cfg_path = ROOT / "data" / "configs" / "kfgins_like.toml"
     with tempfile.TemporaryDirectory() as tmp:
-        for extra, label in ((["--no-plots"], "ins process (writes 2 x .nav + sigma + "
+        for extra, label in ((["--no-plots"], "ins process (writes solution.nav + sigma + "
                                               "biases, no plots)"),
+                             (["--no-plots", "--forward"], "ins process --forward (also "
+                                                           "forward.nav, no plots)"),
                              ([], "ins process with PNG plots")):
-            walls, rss = [], []
+            walls, rss, cpu = [], [], []
             for _ in range(args.repeat):
                 cmd = [sys.executable, "-c", _CHILD, "--imu", str(data / "imu_noisy.txt"),
                        "--gnss", str(data / "gnss.txt"), "--config", str(cfg_path), "-q",
@@ -170,9 +172,13 @@ def speed(args, data):
                 if proc.returncode != 0:
                     print(proc.stderr)
                     raise SystemExit("ins process failed")
-                rss.append(int(proc.stderr.strip().splitlines()[-1]))
+                last = proc.stderr.strip().splitlines()[-1].split()
+                rss.append(int(last[0]))
+                cpu.append(float(last[1]))
             print(f"{label}: wall median {np.median(walls):.2f} s (min {min(walls):.2f}), "
-                  f"peak RSS {max(rss) / 1024:.0f} MB")
+                  f"CPU (user + sys, all threads) median {np.median(cpu):.2f} s, "
+                  f"peak RSS {max(rss) / 1024:.0f} MB, load average "
+                  f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 
 
 # The child runs the CLI and reports its own peak RSS (VmHWM, kB) on the last stderr line.
@@ -180,9 +186,11 @@ _CHILD = """
 import sys
 from ins.cli import main
 code = main(['process'] + sys.argv[1:])
+import os
+t = os.times()
 for line in open('/proc/self/status'):
     if line.startswith('VmHWM'):
-        sys.stderr.write(line.split()[1] + '\\n')
+        sys.stderr.write(line.split()[1] + ' ' + str(t.user + t.system) + '\\n')
 sys.exit(code)
 """
 

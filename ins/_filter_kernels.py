@@ -91,24 +91,27 @@ def correct_state(s, d):
     _correct(s, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8])
 
 
-@nb.njit(cache=True)
-def correct_between_nodes(traj, time, node_rows, x_after, x_before):
-    """Apply interpolated corrections to every row of ``traj`` in place.
+@nb.njit(cache=True, nogil=True)
+def correct_rows(traj, time, row0, node_rows, node_time, x_after, x_before):
+    """Apply interpolated corrections to the rows ``row0 ..`` of a trajectory piece.
 
-    Row ``node_rows[j]`` gets ``x_after[j]``; a row strictly between nodes ``j`` and
-    ``j + 1`` gets the linear interpolation in time of ``x_after[j]`` and
+    ``traj[i]`` (at ``time[i]``) is row ``row0 + i`` of the whole trajectory.  Node row
+    ``node_rows[j]`` gets ``x_after[j]``; a row strictly between nodes ``j`` and ``j + 1``
+    the linear interpolation in time (``node_time``) of ``x_after[j]`` and
     ``x_before[j + 1]`` (the error just before the update at node ``j + 1``).
     """
     d = np.empty(9)
-    for j in range(len(node_rows)):
-        r = node_rows[j]
-        correct_state(traj[r], x_after[j, :9])
-        if j + 1 < len(node_rows):
-            r1 = node_rows[j + 1]
-            t0 = time[r]
-            span = time[r1] - t0
-            for row in range(r + 1, r1):
-                w = (time[row] - t0) / span
-                for i in range(9):
-                    d[i] = (1.0 - w) * x_after[j, i] + w * x_before[j + 1, i]
-                correct_state(traj[row], d)
+    m = len(node_rows)
+    j = max(np.searchsorted(node_rows, row0, side="right") - 1, 0)
+    for i in range(len(traj)):
+        row = row0 + i
+        while j + 1 < m and node_rows[j + 1] <= row:
+            j += 1
+        if row == node_rows[j] or j + 1 >= m:
+            correct_state(traj[i], x_after[j, :9])
+            continue
+        t0 = node_time[j]
+        w = (time[i] - t0) / (node_time[j + 1] - t0)
+        for k in range(9):
+            d[k] = (1.0 - w) * x_after[j, k] + w * x_before[j + 1, k]
+        correct_state(traj[i], d)

@@ -20,8 +20,24 @@ simulated data.
 In-air start
 ------------
 From two GNSS epochs (or the GNSS velocity columns): velocity NED, heading = track
-``atan2(vE, vN)`` (crab angle unknown: a heading sigma of a few deg), pitch = flight
-path angle, roll 0; the position is the antenna's (the lever arm is within its sigma).
+``atan2(vE, vN)``; the position is the antenna's (the lever arm is within its sigma).
+The stated accuracy is what the start really knows, because the filter needs it: in
+straight level flight the heading is observable only through the Earth-rate coupling
+(a heading error ``psi`` tilts the platform at ``W_ie cos(lat) psi``, which the filter
+cannot tell from an east gyro bias) and the small lever-arm motion, so the forward
+filter shares the observed east tilt rate between the gyro bias and the heading in
+the ratio of their prior variances.  A heading sigma of 5 deg against a 1 deg/h gyro
+bias (its equivalent: 1.1 deg/h) sends a correct heading several degrees off before the
+first turn (the demo flight: 4 deg after 90 s; see :func:`align_gnss_heading`).
+
+- IMU on the aircraft: heading = track + crab angle (unknown: up to ``asin(wind /
+  speed)``, 8 deg at 8 m/s and 60 m/s), pitch = flight path angle (the angle of attack
+  unknown), roll 0: sigmas 3, 3, 5 deg.
+- IMU on a stabilized mount (``stabilized=True``): the mount keeps the platform level
+  and turned to the flight line (drift compensation), so roll = pitch = 0 and heading =
+  track within the mount's levelling and azimuth-tracking accuracy
+  (:data:`MOUNT_LEVEL_STD_DEG`, :data:`MOUNT_AZIMUTH_STD_DEG`), to which the track's
+  own noise (GNSS position noise over the 1-epoch baseline) is added.
 """
 from dataclasses import dataclass
 
@@ -127,28 +143,119 @@ def align_static(imu, t_start, t_end, lla, noise=None):
                      np.full(3, 0.01), "static")
 
 
-def align_gnss_heading(gnss, t_start=None):
-    """In-air start from the first two GNSS epochs at or after ``t_start``.
+#: Largest gyrocompassing heading error (deg, 1 sigma) a static alignment accepts.
+MAX_STATIC_HEADING_DEG = 2.0
 
-    Uses the GNSS velocity columns when present, else the position difference of the
-    two epochs (velocity at their mid time, assigned to the first).
+
+def check_static_heading(noise, lat, duration_s, gnss=None):
+    """Refuse gyrocompassing with gyros too poor to find north.
+
+    The heading error of :func:`static_attitude` is ``b_g / (W_ie cos lat)``: 1 deg/h of
+    gyro bias (a tactical-grade IMU) gives about 4.4 deg at 30 deg latitude.  When the
+    stated gyro bias (``noise.gyro_bias_std_dph``) makes it worse than
+    :data:`MAX_STATIC_HEADING_DEG`, an :class:`~ins.errors.InputWarning` names the grade
+    and the in-air GNSS-heading alignment is to be used instead; ``InputError`` when
+    there is no GNSS log to fall back on.
+
+    Returns
+    -------
+    bool
+        True when gyrocompassing is accurate enough.
     """
-    k = 0 if t_start is None else int(np.searchsorted(gnss.time, t_start - 1e-9))
-    if k + 1 >= len(gnss):
-        raise InputError("an in-air (gnss-heading) alignment needs two GNSS epochs after "
-                         f"the start {t_start} s")
-    lla = gnss.lla[k]
+    import warnings
+
+    from .error_model import DEG_SQRTH, DPH
+    from .errors import InputWarning
+    b_dph = float(np.max(noise.gyro_bias_std_dph))
+    head = np.rad2deg(static_accuracy(lat, max(duration_s, 1.0), 0.0, b_dph * DPH,
+                                      float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH)[2])
+    if head <= MAX_STATIC_HEADING_DEG:
+        return True
+    grade = "tactical" if b_dph < 10 else "consumer/MEMS"
+    msg = (f"static alignment refused: with a gyro bias of {b_dph:g} deg/h ({grade} grade) "
+           f"gyrocompassing gives a heading error of {head:.1f} deg (more than "
+           f"{MAX_STATIC_HEADING_DEG:g} deg)")
+    if gnss is None:
+        raise InputError(msg + "; give the initial heading ([alignment] method = 'given')")
+    warnings.warn(msg + "; the heading is taken from the GNSS track once the vehicle moves "
+                  "(method 'gnss-heading')", InputWarning, stacklevel=3)
+    return False
+
+
+def _gnss_velocity(gnss, k):
     if gnss.has_velocity:
-        v_n = gnss.vel_n[k]
+        return np.asarray(gnss.vel_n[k], dtype=float)
+    dt = gnss.time[k + 1] - gnss.time[k]
+    return earth.ned_offset(gnss.lla[k], gnss.lla[k + 1]) / dt
+
+
+#: Levelling and azimuth-tracking accuracy of a stabilized mount (deg, 1 sigma) assumed by
+#: the in-air start: a servo lag of 0.1 s against 1 deg of roll turbulence at 0.1-0.6 Hz
+#: leaves 0.05-0.4 deg of tilt; the drift (crab) compensation follows the flight line
+#: to a few tenths of a degree.  Conservative: the demo flight's start is within 0.07 deg.
+MOUNT_LEVEL_STD_DEG = 0.5
+MOUNT_AZIMUTH_STD_DEG = 0.5
+#: Without a mount: roll/pitch (unknown bank and angle of attack) and heading (unknown
+#: crab angle) sigmas, deg.
+AIRCRAFT_LEVEL_STD_DEG = 3.0
+AIRCRAFT_HEADING_STD_DEG = 5.0
+
+
+def _track_std(gnss, k, speed):
+    """1-sigma noise (rad) of the track angle at epoch ``k`` from the GNSS noise: the
+    cross-track velocity noise over the ground speed."""
+    if gnss.has_velocity:
+        sv = float(np.hypot(gnss.std_vel_n[k, 0], gnss.std_vel_n[k, 1])) / np.sqrt(2.0)
     else:
         dt = gnss.time[k + 1] - gnss.time[k]
-        v_n = earth.ned_offset(gnss.lla[k], gnss.lla[k + 1]) / dt
-    speed = np.hypot(v_n[0], v_n[1])
-    if speed < 5.0:
-        raise InputError(f"ground speed {speed:.2f} m/s at t = {gnss.time[k]} s is too low "
-                         f"for a heading from the GNSS track (at least 5 m/s)")
-    rpy = np.array([0.0, np.arctan2(-v_n[2], speed), np.arctan2(v_n[1], v_n[0])])
-    state = NavState(lla.copy(), np.asarray(v_n, dtype=float),
-                     euler_to_quat(rpy))
-    return Alignment(state, float(gnss.time[k]), np.array([3.0, 3.0, 5.0]),
+        sv = float(np.hypot(np.hypot(*gnss.std_ned[k, :2]),
+                            np.hypot(*gnss.std_ned[k + 1, :2]))) / np.sqrt(2.0) / dt
+    return sv / speed
+
+
+def align_gnss_heading(gnss, t_start=None, min_speed_mps=5.0, stabilized=False):
+    """In-air start at the first GNSS epoch at or after ``t_start`` where the ground
+    speed reaches ``min_speed_mps``.
+
+    Uses the GNSS velocity columns when present, else the position difference of two
+    epochs (velocity at their mid time, assigned to the first).  The heading is the
+    track: right for a platform (stabilized mount) turned to the flight line, off by the
+    crab angle otherwise (module notes).
+
+    Parameters
+    ----------
+    gnss : ins.gnss.GnssLog
+    t_start : float, optional
+        s.
+    min_speed_mps : float
+        m/s.
+    stabilized : bool
+        The IMU sits on a stabilized mount that levels the platform and turns it to the
+        flight line: roll = pitch = 0, stated sigmas :data:`MOUNT_LEVEL_STD_DEG` and
+        :data:`MOUNT_AZIMUTH_STD_DEG` (plus the track noise); otherwise pitch = flight
+        path angle, sigmas 3, 3, 5 deg.
+    """
+    k = 0 if t_start is None else int(np.searchsorted(gnss.time, t_start - 1e-9))
+    speed = 0.0
+    while k + 1 < len(gnss):
+        v_n = _gnss_velocity(gnss, k)
+        speed = np.hypot(v_n[0], v_n[1])
+        if speed >= min_speed_mps:
+            break
+        k += 1
+    else:
+        raise InputError(f"ground speed too low for an in-air (gnss-heading) alignment: it "
+                         f"needs two GNSS epochs with at least {min_speed_mps} m/s after "
+                         f"the start {t_start} s (the last: {speed:.2f} m/s)")
+    track_deg = np.rad2deg(_track_std(gnss, k, speed))
+    if stabilized:
+        rpy = np.array([0.0, 0.0, np.arctan2(v_n[1], v_n[0])])
+        std = [MOUNT_LEVEL_STD_DEG, MOUNT_LEVEL_STD_DEG,
+               np.hypot(MOUNT_AZIMUTH_STD_DEG, track_deg)]
+    else:
+        rpy = np.array([0.0, np.arctan2(-v_n[2], speed), np.arctan2(v_n[1], v_n[0])])
+        std = [AIRCRAFT_LEVEL_STD_DEG, AIRCRAFT_LEVEL_STD_DEG,
+               np.hypot(AIRCRAFT_HEADING_STD_DEG, track_deg)]
+    state = NavState(gnss.lla[k].copy(), v_n, euler_to_quat(rpy))
+    return Alignment(state, float(gnss.time[k]), np.array(std, dtype=float),
                      np.full(3, 3.0), np.full(3, 1.0), "gnss-heading")

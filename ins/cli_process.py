@@ -2,6 +2,7 @@
 import argparse
 import os
 import sys
+import tempfile
 import time as wallclock
 
 import numpy as np
@@ -28,7 +29,8 @@ frames and units:
 outputs (in -o OUT_DIR):
   solution.nav      smoothed trajectory, KF-GINS .nav: week t lat lon[deg] h[m]
                     vN vE vD[m/s] roll pitch yaw[deg]
-  forward.nav       forward-filter trajectory (same layout)
+  forward.nav       with --forward: the forward-filter trajectory (same layout; a
+                    diagnostic, not written by default: solution.nav is the product)
   solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
                     roll pitch yaw [deg]
   imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
@@ -55,6 +57,8 @@ def add_parser(sub):
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
+    p.add_argument("--forward", action="store_true",
+                   help="also write forward.nav (the forward filter's trajectory)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
     p.add_argument("--week", type=int, default=0, help="GPS week in the .nav (default 0)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
@@ -122,15 +126,29 @@ def _cmd_process(args):
     cfg = _config(args)
     progress = _Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
-    result = process(cfg, progress=progress)
-    t1 = wallclock.perf_counter()
-    paths = write_outputs(result, args.output, week=args.week)
-    if not args.no_plots:
-        from .plots import write_plots
-        paths += write_plots(result, args.output)
-    t2 = wallclock.perf_counter()
-    if not args.quiet:
-        _summary(result, cfg, paths, t1 - t0, t2 - t1)
+    created = not os.path.isdir(args.output)
+    os.makedirs(args.output, exist_ok=True)
+    try:
+        return _run(args, cfg, progress, t0, process, write_outputs)
+    except BaseException:
+        if created and not os.listdir(args.output):
+            os.rmdir(args.output)             # no output folder left on failure
+        raise
+
+
+def _run(args, cfg, progress, t0, process, write_outputs):
+    # the forward trajectory and the node matrices are spilled to temporary files in the
+    # output folder (memory bounded whatever the length of the log), removed at the end
+    with tempfile.TemporaryDirectory(dir=args.output, prefix=".process-") as work:
+        result = process(cfg, progress=progress, workdir=work)
+        t1 = wallclock.perf_counter()
+        paths = write_outputs(result, args.output, week=args.week, forward=args.forward)
+        if not args.no_plots:
+            from .plots import write_plots
+            paths += write_plots(result, args.output)
+        t2 = wallclock.perf_counter()
+        if not args.quiet:
+            _summary(result, cfg, paths, t1 - t0, t2 - t1)
     return 0
 
 
@@ -143,7 +161,8 @@ def _summary(result, cfg, paths, t_proc, t_write):
           file=out)
     if result.alignment is not None:
         al = result.alignment
-        rpy = np.rad2deg(result.forward.rpy()[0])
+        from .rotation import quat_to_euler
+        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, 6:10]))
         print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
               f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)

@@ -7,8 +7,8 @@ more than ``node_interval_s`` apart (GNSS outages).  Between two nodes the IMU r
 mechanized at the full IMU rate in a numba loop (:mod:`ins._filter_kernels`), with the
 current bias and scale estimates removed, while the integrals that the covariance step
 needs are accumulated; the 21-state covariance is then propagated once per node interval
-(:func:`ins.error_model.discretize`: ``Phi = I + A + A^2/2`` with ``A = int F dt``).  On
-the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
+(:func:`ins.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``).
+On the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
 position RMS by less than 0.1 mm and the heading RMS by 0.02 arcsec, at 2.6 times the
 cost (``bench/bench_process.py``, "Covariance step").
 
@@ -25,17 +25,18 @@ is corrected (:mod:`ins.error_model` sign rules), the sensor estimates updated, 
 the error state reset to zero.
 
 filterpy carries the covariance algebra: :func:`filterpy.kalman.predict` and
-:func:`filterpy.kalman.update` (Joseph form).  Its ``KalmanFilter`` object is not
+:func:`filterpy.kalman.update` (Joseph form).  filterpy is imported when a filter
+starts (:func:`filterpy_functions`), not with this module: its package imports
+``scipy.stats`` (0.6 s), which the command line overlaps with reading the IMU log.  Its ``KalmanFilter`` object is not
 used: the transition and noise change at every node and the state is reset after each
 update, so the object would only hold what the functions are given.
 """
+import os
+import tempfile
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from filterpy.kalman import predict as kf_predict
-from filterpy.kalman import update as kf_update
-from scipy.stats import chi2
 
 from . import _filter_kernels, earth
 from .error_model import (ATT, N_STATES, POS, VEL, ImuNoise, discretize, interval_matrix,
@@ -43,7 +44,6 @@ from .error_model import (ATT, N_STATES, POS, VEL, ImuNoise, discretize, interva
 from .errors import InputError, InputWarning
 from .lever_arm import (LeverArm, antenna_lla, antenna_velocity, position_jacobian,
                         velocity_jacobian)
-from .mechanization import _epoch_range
 from .rotation import quat_to_dcm
 
 DEG = np.pi / 180.0
@@ -93,25 +93,112 @@ class FilterSettings:
         return np.diag(std ** 2)
 
 
-@dataclass
+class NodeStore:
+    """``P_prior``, ``P_post`` and ``Phi`` (21 x 21 each) of every node, kept for the RTS pass.
+
+    In memory, or, with ``workdir``, appended to an anonymous temporary file there (10.6
+    kB a node: 380 MB for a 10 h flight at 1 Hz, on disk, not in memory) and read back
+    backwards in blocks.  They stay float64: after long GNSS tracking ``P_prior`` has
+    correlations close to 1 and a condition number near 1e12, which the 1e-7 rounding of
+    float32 would turn indefinite (the smoother's Cholesky step then fails).
+    """
+
+    def __init__(self, workdir=None):
+        self.count = 0
+        self.post_std = []                 # sqrt(diag(P_post)) of every node (small)
+        self._mem = [] if workdir is None else None
+        self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
+
+    def append(self, P_prior, P_post, Phi):
+        self.post_std.append(np.sqrt(np.maximum(np.diag(P_post), 0.0)))
+        rec = np.stack([P_prior, P_post, Phi])
+        if self._mem is not None:
+            self._mem.append(rec)
+        else:
+            self._file.write(rec.tobytes())
+        self.count += 1
+
+    def block(self, j0, j1):
+        """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, 21, 21) of P_prior, P_post, Phi."""
+        if self._mem is not None:
+            return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, N_STATES, N_STATES)
+        rec = 3 * N_STATES * N_STATES
+        self._file.flush()
+        self._file.seek(j0 * rec * 8)
+        data = np.fromfile(self._file, dtype=np.float64, count=(j1 - j0) * rec)
+        self._file.seek(0, os.SEEK_END)
+        return data.reshape(j1 - j0, 3, N_STATES, N_STATES)
+
+    def blocks_reversed(self, size=512):
+        """``(j0, block)`` from the last nodes to the first."""
+        j1 = self.count
+        while j1 > 0:
+            j0 = max(0, j1 - size)
+            yield j0, self.block(j0, j1)
+            j1 = j0
+
+
+class TrajectoryStore:
+    """The forward trajectory (time and ``ins._kernels`` states) in memory or spilled to
+    an anonymous temporary file in ``workdir``; read back chunk by chunk in time order."""
+
+    def __init__(self, workdir=None):
+        self._mem = [] if workdir is None else None
+        self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
+        self._sizes = []
+
+    def append(self, time, states):
+        rows = np.column_stack([time, states])
+        if self._mem is not None:
+            self._mem.append(rows)
+        else:
+            self._file.write(rows.tobytes())
+        self._sizes.append(len(rows))
+
+    def __len__(self):
+        return int(sum(self._sizes))
+
+    def chunks(self, rows=1 << 16):
+        """``(row0, time, states)`` pieces in time order (copies; at most ~``rows`` rows)."""
+        if self._mem is not None:
+            row0 = 0
+            for rows_ in self._mem:
+                yield row0, rows_[:, 0].copy(), rows_[:, 1:].copy()
+                row0 += len(rows_)
+            return
+        self._file.flush()
+        self._file.seek(0)
+        total, row0 = len(self), 0
+        while row0 < total:
+            k = min(rows, total - row0)
+            data = np.fromfile(self._file, dtype=np.float64, count=11 * k).reshape(k, 11)
+            yield row0, data[:, 0].copy(), data[:, 1:].copy()
+            row0 += k
+
+    def whole(self):
+        """``(time, states)`` of the whole trajectory (in memory)."""
+        parts = [(t, x) for _, t, x in self.chunks()]
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+
+
 class ForwardResult:
     """What the forward pass leaves for the smoother and the outputs.
 
     Attributes
     ----------
-    time : ndarray, shape (n,)
-        IMU epochs of the solution, s.
-    states : ndarray, shape (n, 10)
-        Forward (filtered) navigation states, ``ins._kernels`` layout; node rows hold the
-        state after the update.
+    trajectory : TrajectoryStore
+        Forward (filtered) states at every IMU epoch (node rows: after the update);
+        :attr:`time` and :attr:`states` give them as arrays (in memory).
+    nodes : NodeStore
+        ``P_prior``, ``P_post`` (covariance before and after the node's updates) and
+        ``Phi`` (from node ``j - 1`` to node ``j``; ``Phi[0] = I``); :attr:`P_prior`,
+        :attr:`P_post`, :attr:`Phi` give them as (m, 21, 21) arrays.
     node_rows : ndarray, shape (m,) of int
-        Row of each node in ``states`` (first 0, last n - 1).
+        Row of each node in the trajectory (first 0, last n - 1).
+    node_time : ndarray, shape (m,)
+        Time of each node, s.
     dx : ndarray, shape (m, 21)
         Correction fed back at each node (sum over the node's updates).
-    P_prior, P_post : ndarray, shape (m, 21, 21)
-        Covariance before and after the node's updates.
-    Phi : ndarray, shape (m, 21, 21)
-        ``Phi[j]`` takes the error state from node ``j - 1`` to node ``j`` (``Phi[0] = I``).
     sensors : ndarray, shape (m, 12)
         Sensor estimates after the node's updates: gyro bias rad/s, accel bias m/s^2,
         gyro scale, accel scale.
@@ -120,38 +207,76 @@ class ForwardResult:
         outside the IMU time span, processed with the static arm for lack of mount data.
     nis : ndarray
         Normalized innovation squared of every tested position record.
+    node_states : ndarray, shape (m, 10)
+        Forward states at the nodes (after the update).
     """
 
-    time: np.ndarray
-    states: np.ndarray
-    node_rows: np.ndarray
-    dx: np.ndarray
-    P_prior: np.ndarray
-    P_post: np.ndarray
-    Phi: np.ndarray
-    sensors: np.ndarray
-    n_updates: int = 0
-    n_rejected: int = 0
-    n_outside: int = 0
-    n_mount_fallback: int = 0
-    nis: np.ndarray = None
+    def __init__(self, trajectory, nodes, node_rows, node_time, dx, sensors):
+        self.trajectory, self.nodes = trajectory, nodes
+        self.node_rows, self.node_time, self.dx, self.sensors = node_rows, node_time, dx, sensors
+        self.n_updates = self.n_rejected = self.n_outside = self.n_mount_fallback = 0
+        self.nis = None
+        self._whole = None
+
+    def _arrays(self):
+        if self._whole is None:
+            self._whole = self.trajectory.whole()
+        return self._whole
+
+    time = property(lambda self: self._arrays()[0])
+    states = property(lambda self: self._arrays()[1])
+    P_prior = property(lambda self: self.nodes.block(0, self.nodes.count)[:, 0])
+    P_post = property(lambda self: self.nodes.block(0, self.nodes.count)[:, 1])
+    Phi = property(lambda self: self.nodes.block(0, self.nodes.count)[:, 2])
+
+
+def _next_node(time, cur, t_node, t_gnss, stop, last, interval):
+    """Row of the next node after row ``cur`` among rows ``< stop`` of ``time``, or -1.
+
+    Candidates: the row of the next GNSS record (the last epoch at or before it, known
+    once a later epoch is in ``time``), the last epoch at most ``interval`` after the
+    previous node (at least ``cur + 1``), and the last row when ``last``.
+    """
+    best = stop - 1 if last else -1
+    if t_gnss is not None and _row_known(t_gnss, time, stop - 1):
+        rg = int(np.searchsorted(time, t_gnss + 1e-9, side="right")) - 1
+        best = rg if best < 0 else min(best, rg)
+    rf = max(int(np.searchsorted(time, t_node + interval * (1 + 1e-9), side="right")) - 1,
+             cur + 1)
+    if rf < stop:
+        best = rf if best < 0 else min(best, rf)
+    return best
+
+
+def _row_known(t_gnss, time, r):
+    """True when the GNSS record at ``t_gnss`` belongs to a row ``<= r`` of ``time``
+    (the last epoch at or before it): a later epoch is past it, or, at the end of the
+    log, it is not after the last epoch."""
+    return t_gnss + 1e-9 < time[r + 1] if r + 1 < len(time) else t_gnss <= time[-1]
 
 
 def schedule_nodes(time, gnss_time, node_interval_s):
-    """Node rows: 0, the last row, the row of every GNSS record (last IMU epoch at or
-    before it) and fill-in rows so that nodes are at most ``node_interval_s`` apart."""
-    rows = np.searchsorted(time, gnss_time + 1e-9, side="right") - 1
-    base = np.unique(np.concatenate([[0, len(time) - 1], rows]))
-    gaps = np.diff(time[base])
-    extra = []
-    for a, b, gap in zip(base[:-1], base[1:], gaps):
-        if gap > node_interval_s * (1 + 1e-9):
-            n = int(np.ceil(gap / node_interval_s))
-            targets = time[a] + gap * np.arange(1, n) / n
-            extra.append(np.searchsorted(time, targets))
-    if extra:
-        base = np.unique(np.concatenate([base] + extra))
-    return base[(base >= 0) & (base < len(time))]
+    """Node rows over a whole time axis (the rule of :func:`run_forward`): 0, the last
+    row, the row of every GNSS record (last IMU epoch at or before it) and fill-in rows
+    so that nodes are at most ``node_interval_s`` apart."""
+    g = np.sort(gnss_time[(gnss_time >= time[0]) & (gnss_time <= time[-1])])
+    rows, cur, gj = [0], 0, 0
+    while gj < len(g) and _row_known(g[gj], time, 0):
+        gj += 1
+    while cur < len(time) - 1:
+        cur = _next_node(time, cur, time[cur], g[gj] if gj < len(g) else None, len(time),
+                         True, node_interval_s)
+        rows.append(cur)
+        while gj < len(g) and _row_known(g[gj], time, cur):
+            gj += 1
+    return np.array(rows)
+
+
+def filterpy_functions():
+    """filterpy's ``predict`` and ``update`` and scipy's ``chi2`` (imported on first use)."""
+    from filterpy.kalman import predict, update
+    from scipy.stats import chi2
+    return predict, update, chi2
 
 
 class _Updater:
@@ -160,8 +285,9 @@ class _Updater:
     def __init__(self, settings, gnss):
         self.s = settings
         self.gnss = gnss
+        self.kf_predict, self.kf_update, chi2 = filterpy_functions()
         self.threshold = float(chi2.ppf(1.0 - settings.reject_probability, 3))
-        self.n_updates = self.n_rejected = self.n_fallback = 0
+        self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
         self.nis = []
 
     def _apply(self, state, sensors, P, z, R, H):
@@ -170,7 +296,7 @@ class _Updater:
         if nis > self.threshold:
             self.n_rejected += 1
             return P, None, nis
-        x, P = kf_update(np.zeros(N_STATES), P, z, R, H)
+        x, P = self.kf_update(np.zeros(N_STATES), P, z, R, H)
         _filter_kernels.correct_state(state, x)
         sensors += x[9:21]
         self.n_updates += 1
@@ -206,98 +332,173 @@ class _Updater:
         return P, dx
 
 
-def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=None):
-    """Forward filter over an IMU log with GNSS updates.
+def _pieces(imu, start, end):
+    """``(time, dtheta_b, dvel_b, last)`` blocks of the rows within [start, end] (s),
+    preceded by up to two earlier rows (the two-sample corrections' previous samples)."""
+    from .imu import ImuLog
+    blocks = iter([imu] if isinstance(imu, ImuLog) else imu)
+    lo = -np.inf if start is None else start - 1e-9
+    hi = np.inf if end is None else end + 1e-9
+    before = None
+    nxt = next(blocks, None)
+    while nxt is not None:
+        cur, nxt = nxt, next(blocks, None)
+        t = cur.time
+        k0 = int(np.searchsorted(t, lo, side="left"))
+        k1 = int(np.searchsorted(t, hi, side="right"))
+        if k0 == len(t):                    # all before the start: keep the last two rows
+            before = (t[-2:], cur.dtheta_b[-2:], cur.dvel_b[-2:])
+            continue
+        last = nxt is None or k1 < len(t)
+        yield t[:k1], cur.dtheta_b[:k1], cur.dvel_b[:k1], k0, before, last
+        before = None
+        if last:
+            return
+
+
+def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=None,
+                workdir=None):
+    """Forward filter over an IMU log with GNSS updates, streaming the log.
 
     Parameters
     ----------
-    imu : ins.imu.ImuLog
-        Raw increments (body FRD); the filter removes its own bias and scale estimates.
+    imu : ins.imu.ImuLog or iterable of ImuLog
+        Raw increments (body FRD), whole or as consecutive pieces
+        (:func:`ins.imu_blocks.iter_imu`); the filter removes its own bias and scale
+        estimates.  Memory: one piece at a time.
     gnss : ins.gnss.GnssLog
         Antenna positions (velocities).
     initial : ins.mechanization.NavState
         State at the first IMU epoch >= ``start``.
     settings : FilterSettings
     progress : callable, optional
-        ``progress(done_epochs, total_epochs)``.
+        ``progress(done_epochs, total_epochs)``; the total is estimated from the GNSS
+        time span and the IMU interval until the last block.
+    workdir : str, optional
+        Folder for the temporary files holding the forward trajectory and the node
+        matrices (bounded memory for long logs); ``None``: in memory.
 
     Returns
     -------
     ForwardResult
     """
-    i0, i1 = _epoch_range(imu.time, start, end)
-    time = imu.time[i0:i1]
-    n = len(time)
-    inside = (gnss.time >= time[0]) & (gnss.time <= time[-1])
-    node_rows = schedule_nodes(time, gnss.time[inside], settings.node_interval_s)
-    g_idx = np.flatnonzero(inside)
-    g_rows = np.searchsorted(time, gnss.time[g_idx] + 1e-9, side="right") - 1
-    m = len(node_rows)
-
-    states = np.empty((n, 10))
-    states[0] = initial.as_vector()
+    GQG = noise_matrix(settings.noise)
+    tau = settings.noise.corr_time_s
+    interval = settings.node_interval_s
     sensors = (np.zeros(12) if settings.initial_sensors is None
                else np.array(settings.initial_sensors, dtype=float).reshape(12))
     P = settings.initial_covariance()
-    GQG = noise_matrix(settings.noise)
-    tau = settings.noise.corr_time_s
-    out = ForwardResult(time=time, states=states, node_rows=node_rows,
-                        dx=np.zeros((m, N_STATES)), P_prior=np.empty((m, N_STATES, N_STATES)),
-                        P_post=np.empty((m, N_STATES, N_STATES)),
-                        Phi=np.empty((m, N_STATES, N_STATES)), sensors=np.empty((m, 12)),
-                        n_outside=int(np.count_nonzero(~inside)))
-    out.P_prior[0] = out.P_post[0] = P
-    out.Phi[0] = np.eye(N_STATES)
-    out.sensors[0] = sensors
+    traj, nodes = TrajectoryStore(workdir), NodeStore(workdir)
+    node_rows, node_time, dxs, sens, node_states = [], [], [], [], []
     updater = _Updater(settings, gnss)
+    g_time = gnss.time
     acc = np.zeros((10, 3))
-    state = states[0].copy()
-    gj = 0
-    while gj < len(g_rows) and g_rows[gj] == 0:      # records at the first epoch
-        P, dx = updater.update(g_idx[gj], time[0], state, sensors, P, np.zeros(3))
-        gj += 1
-    states[0] = state
-    out.P_post[0] = P
-    out.sensors[0] = sensors
-    last_report = 0
-    for j in range(1, m):
-        ra, rb = node_rows[j - 1], node_rows[j]
-        acc[:] = 0.0
-        _filter_kernels.propagate_rows(imu.time, imu.dtheta_b, imu.dvel_b, i0 + ra + 1,
-                                       i0 + rb + 1, state, sensors, states[ra + 1:rb + 1], acc)
-        if not np.all(np.isfinite(state)):
-            raise InputError(f"the solution became non-finite before t = {time[rb]!r} s "
-                             f"(implausible increments, initial state or GNSS)")
-        dt = time[rb] - time[ra]
-        mid = 0.5 * (states[ra] + states[rb])
-        A = interval_matrix(mid[0], mid[2], mid[3:6], acc[9] / dt,
-                            (acc[0:3], acc[3:6], acc[6:9]), dt, tau)
-        Phi, Qd = discretize(A, GQG, dt)
-        _, P = kf_predict(np.zeros(N_STATES), P, Phi, Qd)
-        out.P_prior[j] = P
-        out.Phi[j] = Phi
-        k_imu = i0 + rb
-        dt_row = imu.time[k_imu] - imu.time[k_imu - 1]
-        w_ib_b = (imu.dtheta_b[k_imu] / dt_row - sensors[0:3]) / (1.0 + sensors[6:9])
-        while gj < len(g_rows) and g_rows[gj] == rb:
-            P, dx = updater.update(g_idx[gj], time[rb], state, sensors, P, w_ib_b)
-            out.dx[j] += dx
-            gj += 1
-        P = 0.5 * (P + P.T)
-        states[rb] = state
-        out.P_post[j] = P
-        out.sensors[j] = sensors
-        if progress is not None and (rb - last_report > 20000 or j == m - 1):
-            progress(int(rb), n - 1)
-            last_report = rb
+    state = state_a = None
+    gj = row_base = n_rows = 0
+    t_a = None
+    carry = None
+    for t, th, dv, k0, before, last in _pieces(imu, start, end):
+        if carry is not None:                      # rows held back from the last block
+            t, th, dv = (np.concatenate([c, x]) for c, x in zip(carry, (t, th, dv)))
+            cur = carry_cur                        # the current state's row
+        else:
+            if before is not None:
+                t, th, dv = (np.concatenate([c, x]) for c, x in zip(before, (t, th, dv)))
+                k0 += len(before[0])
+            cut = max(k0 - 2, 0)
+            t, th, dv, k0 = t[cut:], th[cut:], dv[cut:], k0 - cut
+            cur = k0
+            if k0 + 1 >= len(t) and last:
+                raise InputError(f"fewer than 2 IMU epochs between start {start} and end "
+                                 f"{end} s")
+            state = initial.as_vector().copy()
+            P0 = P
+            updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
+            gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
+            while gj < len(g_time) and _row_known(g_time[gj], t, k0):
+                P, _ = updater.update(gj, t[k0], state, sensors, P, np.zeros(3))
+                gj += 1
+            nodes.append(P0, P, np.eye(N_STATES))
+            node_rows.append(0), node_time.append(t[k0]), dxs.append(np.zeros(N_STATES))
+            sens.append(sensors.copy())
+            traj.append(t[k0:k0 + 1], state[None, :])
+            node_states.append(state.copy())
+            state_a, t_a, row_base, n_rows = state.copy(), t[k0], -k0, 1
+            t_first = t[k0]
+            t_total = max((g_time[-1] if len(g_time) else t[-1]) - t_first, 1e-9)
+        p, stop = cur + 1, len(t) if last else len(t) - 1
+        out = np.empty((max(stop - p, 0), 10))
+        while cur < stop - 1:
+            r = _next_node(t, cur, t_a, g_time[gj] if gj < len(g_time) else None, stop, last,
+                           interval)
+            hi = stop if r < 0 else r + 1
+            _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, state, sensors,
+                                           out[cur + 1 - p:hi - p], acc)
+            if not np.all(np.isfinite(state)):
+                raise InputError(f"the solution became non-finite before t = {t[hi - 1]!r} s "
+                                 f"(implausible increments, initial state or GNSS)")
+            cur = hi - 1
+            if r < 0:
+                break
+            P = _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes,
+                      updater, gj, dxs, lambda k: _row_known(g_time[k], t, r))
+            while gj < len(g_time) and _row_known(g_time[gj], t, r):
+                gj += 1
+            out[r - p] = state
+            node_states.append(state.copy())
+            node_rows.append(r + row_base), node_time.append(t[r])
+            sens.append(sensors.copy())
+            state_a, t_a = state.copy(), t[r]
+            acc[:] = 0.0
+        traj.append(t[p:stop], out)
+        n_rows += stop - p
+        keep = max(cur - 1, 0)                     # the next block starts here
+        carry, carry_cur = (t[keep:], th[keep:], dv[keep:]), cur - keep
+        row_base += keep
+        if progress is not None:
+            total = int(round(t_total / max(float(np.median(np.diff(t[-64:]))), 1e-9))) + 1
+            progress(n_rows, max(total, n_rows) if not last else n_rows)
+    if state is None:
+        raise InputError(f"start time {start} s is after the last IMU epoch")
+    if n_rows < 2:
+        raise InputError(f"fewer than 2 IMU epochs between start {start} and end {end} s")
+    out = ForwardResult(traj, nodes, np.array(node_rows), np.array(node_time),
+                        np.array(dxs), np.array(sens))
+    out.node_states = np.array(node_states)
     out.n_updates = updater.n_updates
     out.n_rejected = updater.n_rejected
+    out.n_outside = updater.n_outside + (len(g_time) - gj)
     out.n_mount_fallback = updater.n_fallback
     out.nis = np.array(updater.nis)
     if updater.n_fallback:
         warnings.warn(f"{updater.n_fallback} GNSS record(s) without mount data: the static "
                       f"lever arm l_bp + l_ap was used", InputWarning, stacklevel=2)
     return out
+
+
+def _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes, updater, gj,
+          dxs, at_node):
+    """Covariance step from the previous node to row ``r``, then the GNSS updates of the
+    records from ``gj`` on whose row is ``r``; stores the node.  Returns P."""
+    dt = t[r] - t_a
+    mid = 0.5 * (state_a + state)
+    A = interval_matrix(mid[0], mid[2], mid[3:6], acc[9] / dt,
+                        (acc[0:3], acc[3:6], acc[6:9]), dt, tau)
+    Phi, Qd = discretize(A, GQG, dt)
+    _, P = updater.kf_predict(np.zeros(N_STATES), P, Phi, Qd)
+    P_prior = P
+    dt_row = t[r] - t[r - 1]
+    w_ib_b = (th[r] / dt_row - sensors[0:3]) / (1.0 + sensors[6:9])
+    dx = np.zeros(N_STATES)
+    g_time = updater.gnss.time
+    while gj < len(g_time) and at_node(gj):
+        P, d = updater.update(gj, t[r], state, sensors, P, w_ib_b)
+        dx += d
+        gj += 1
+    P = 0.5 * (P + P.T)
+    nodes.append(P_prior, P, Phi)
+    dxs.append(dx)
+    return P
 
 
 def std_of(P):

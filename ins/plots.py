@@ -26,7 +26,7 @@ def plot_errors(result, path):
     with the smoothed 3-sigma envelope."""
     plt = _pyplot()
     fig, axes = plt.subplots(6, 1, figsize=(10, 13), sharex=True)
-    t0 = result.smoothed.time[0]
+    t0 = result.node_time[0]
     labels = ["north m", "east m", "down m", "tilt N arcsec", "tilt E arcsec", "heading arcsec"]
     for i, ax in enumerate(axes):
         scale = 1.0 if i < 3 else 1.0 / ARCSEC

@@ -21,22 +21,26 @@ and the stationary segment; the manifest's true initial state is NOT used (it wo
 cheating): the alignment is static when there is a stationary segment, else in-air.
 Library code: nothing is printed; progress goes to ``progress(done, total)``.
 """
+import itertools
 import os
 import tomllib
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
-from . import imu as imu_mod
-from .alignment import align_gnss_heading, align_static
+from . import _filter_kernels
+from .alignment import align_gnss_heading, align_static, check_static_heading
 from .error_model import ImuNoise
 from .errors import InputError
-from .filter import FilterSettings, run_forward, std_of
+from .filter import FilterSettings, filterpy_functions, run_forward
+from .imu import ImuLog
+from .imu_blocks import iter_imu, prefetch
 from .gnss import read_gnss
 from .lever_arm import LeverArm
 from .mechanization import NavState
 from .mount import read_mount
-from .smoother import smooth
+from .smoother import iter_smoothed, rts_errors
 from .trajectory import Trajectory
 
 _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
@@ -228,11 +232,12 @@ def config_from_manifest(flight_dir, overrides=None):
     stationary = man.get("stationary", {})
     segments = stationary.get("segments_s", stationary.get("segments")) \
         if isinstance(stationary, dict) else stationary
+    at_rest = bool(stationary.get("static", True)) if isinstance(stationary, dict) else True
     if isinstance(segments, list) and segments and len(segments[0]) == 2:
-        cfg.method = "static"
         cfg.static_window_s = (float(segments[0][0]), float(segments[0][1]))
-    else:
-        cfg.method = "gnss-heading"
+    # at rest: levelling + gyrocompassing on the segment; in the air (static = false, the
+    # segment is a straight level line): heading from the GNSS track at its start
+    cfg.method = "static" if at_rest and cfg.static_window_s is not None else "gnss-heading"
     if overrides is not None:
         data = _read_toml(overrides)
         _fill(cfg, data, lambda sec, key="": f"{overrides}: [{sec}]" + (f" {key}" if key else ""))
@@ -260,15 +265,18 @@ def _manifest_noise(imu, where):
 class ProcessResult:
     """Results of :func:`process` (SI units).
 
-    ``forward`` and ``smoothed`` are trajectories at every IMU epoch; ``node_time`` the
-    filter nodes with ``forward_std``/``smoothed_std`` (m, 21) and ``forward_sensors``/
+    The trajectories at every IMU epoch are streamed: :meth:`iter_forward` and
+    :meth:`iter_smoothed` yield :class:`~ins.trajectory.Trajectory` pieces in time order
+    (from the forward pass's store, in memory or a temporary file); :attr:`forward` and
+    :attr:`smoothed` give them whole (in memory).  ``node_time`` holds the filter nodes
+    with ``forward_std``/``smoothed_std`` (m, 21) and ``forward_sensors``/
     ``smoothed_sensors`` (m, 12: gyro bias rad/s, accel bias m/s^2, scales);
     ``errors_forward``/``errors_smoothed`` (:class:`ins.accuracy.TrajectoryErrors`) when
     a truth file was given.
     """
 
-    forward: Trajectory
-    smoothed: Trajectory
+    fwd: object
+    xs: object
     node_time: np.ndarray
     forward_std: np.ndarray
     smoothed_std: np.ndarray
@@ -279,8 +287,43 @@ class ProcessResult:
     errors_forward: object = None
     errors_smoothed: object = None
 
+    def iter_forward(self):
+        for _, time, states in self.fwd.trajectory.chunks():
+            yield _trajectory(time, states)
+
+    def iter_smoothed(self):
+        if self.xs is None:
+            yield from self.iter_forward()
+            return
+        for time, states in iter_smoothed(self.fwd, self.xs):
+            yield _trajectory(time, states)
+
+    @cached_property
+    def forward(self):
+        return Trajectory.concatenate(self.iter_forward())
+
+    @cached_property
+    def smoothed(self):
+        return Trajectory.concatenate(self.iter_smoothed())
+
+    def node_attitude(self):
+        """Smoothed attitude quaternions at the nodes, shape (m, 4)."""
+        states = self.fwd.node_states.copy()
+        if self.xs is not None:
+            for j in range(len(states)):
+                _filter_kernels.correct_state(states[j], self.xs[j, :9])
+        return states[:, 6:10]
+
 
 def _initial(cfg, imu, gnss):
+    """Initial state, its time and the alignment (``None`` for a given state) for a
+    whole :class:`~ins.imu.ImuLog`."""
+    return _start(cfg, [imu], gnss)[:3]
+
+
+def _start(cfg, blocks, gnss):
+    """Initial state, its time and the alignment; returns them with the IMU blocks to
+    process (those read for a static window are given back)."""
     init = cfg.initial
     if cfg.method == "given":
         need = ("lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg")
@@ -290,33 +333,72 @@ def _initial(cfg, imu, gnss):
                              f"'given'")
         state = NavState.from_degrees(init["lat_deg"], init["lon_deg"], init["h_m"],
                                       init["vel_ned_mps"], init["rpy_deg"])
-        return state, init.get("time_s", cfg.start_s), None
+        return state, init.get("time_s", cfg.start_s), None, blocks
     if cfg.method == "static":
         if cfg.static_window_s is None:
             raise InputError("[alignment] static_window_s: needed with method 'static'")
         t_a, t_b = cfg.static_window_s
-        if "lat_deg" in init:
-            lla = np.array([np.deg2rad(init["lat_deg"]), np.deg2rad(init["lon_deg"]),
-                            init.get("h_m", 0.0)])
-        else:
-            k = int(np.searchsorted(gnss.time, t_a))
-            if k >= len(gnss) or gnss.time[k] > t_b:
-                raise InputError(f"no GNSS epoch in the stationary window {t_a} .. {t_b} s "
-                                 f"to position the static alignment")
-            lla = gnss.lla[k]
-        al = align_static(imu, t_a, t_b, lla, cfg.noise)
-        return al.state, al.time, al
-    al = align_gnss_heading(gnss, cfg.start_s if cfg.start_s is not None else imu.time[0])
-    return al.state, al.time, al
+        if not check_static_heading(cfg.noise, _window_lat(cfg, gnss, t_a, t_b), t_b - t_a,
+                                    gnss):
+            al = align_gnss_heading(gnss, t_b, stabilized=cfg.mount is not None)
+            return al.state, al.time, al, blocks
+        head, blocks = _read_until(blocks, t_b)
+        imu = ImuLog._adopt(*(np.concatenate([getattr(b, k) for b in head])
+                              for k in ("time", "dtheta_b", "dvel_b")))
+        al = align_static(imu, t_a, t_b, _window_lla(cfg, gnss, t_a, t_b), cfg.noise)
+        return al.state, al.time, al, itertools.chain(head, blocks)
+    t_start = cfg.start_s
+    if t_start is None and cfg.static_window_s is not None:
+        t_start = cfg.static_window_s[0]
+    al = align_gnss_heading(gnss, t_start, stabilized=cfg.mount is not None)
+    return al.state, al.time, al, blocks
 
 
-def process(cfg, progress=None):
-    """Run the whole post-processing described by ``cfg`` (a :class:`ProcessConfig`)."""
-    imu = imu_mod.read_imu(cfg.imu, format=cfg.imu_format, rates=cfg.imu_rates,
-                           axes=cfg.imu_axes)
+def _window_lla(cfg, gnss, t_a, t_b):
+    init = cfg.initial
+    if "lat_deg" in init:
+        return np.array([np.deg2rad(init["lat_deg"]), np.deg2rad(init["lon_deg"]),
+                         init.get("h_m", 0.0)])
+    k = int(np.searchsorted(gnss.time, t_a))
+    if k >= len(gnss) or gnss.time[k] > t_b:
+        raise InputError(f"no GNSS epoch in the stationary window {t_a} .. {t_b} s "
+                         f"to position the static alignment")
+    return gnss.lla[k]
+
+
+def _window_lat(cfg, gnss, t_a, t_b):
+    return float(_window_lla(cfg, gnss, t_a, t_b)[0])
+
+
+def _read_until(blocks, t_end):
+    """The IMU blocks up to the one holding ``t_end``, and the iterator of the rest."""
+    blocks = iter(blocks)
+    head = []
+    for b in blocks:
+        head.append(b)
+        if b.time[-1] >= t_end:
+            break
+    if not head:
+        raise InputError("the IMU log is empty")
+    return head, blocks
+
+
+def process(cfg, progress=None, workdir=None):
+    """Run the whole post-processing described by ``cfg`` (a :class:`ProcessConfig`).
+
+    The IMU log is read block by block (in a reader thread) and streamed through the
+    forward filter.  With ``workdir`` (a folder), the forward trajectory and the node
+    matrices go to temporary files there, so that memory does not grow with the length
+    of the log; the result's trajectories are then read back piece by piece (the folder
+    must live as long as the result).  ``progress(done_s, total_s)`` is called as the
+    forward pass advances.
+    """
+    blocks = prefetch(iter_imu(cfg.imu, format=cfg.imu_format, rates=cfg.imu_rates,
+                               axes=cfg.imu_axes))
+    filterpy_functions()           # the imports overlap the reader thread's parsing
     gnss = read_gnss(cfg.gnss)
     mount = read_mount(cfg.mount) if cfg.mount else None
-    state, t0, al = _initial(cfg, imu, gnss)
+    state, t0, al, blocks = _start(cfg, blocks, gnss)
     std = {"pos_std_ned_m": (0.05, 0.05, 0.05), "vel_std_ned_mps": (0.02, 0.02, 0.02),
            "att_std_deg": (0.01, 0.01, 0.1)}
     if al is not None:
@@ -328,35 +410,49 @@ def process(cfg, progress=None):
                               reject_probability=cfg.reject_probability,
                               node_interval_s=cfg.node_interval_s, **std)
     start = t0 if t0 is not None else cfg.start_s
-    fwd = run_forward(imu, gnss, state, settings, start=start, end=cfg.end_s, progress=progress)
-    del imu
-    forward = _trajectory(fwd.time, fwd.states.copy() if cfg.smooth else fwd.states)
-    node_time = fwd.time[fwd.node_rows]
+    fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
+                      progress=progress, workdir=workdir)
+    f_std = np.array(fwd.nodes.post_std)
     if cfg.smooth:
-        sm = smooth(fwd, in_place=True)
-        smoothed, s_std, s_sens = _trajectory(sm.time, sm.states), std_of(sm.P), sm.sensors
+        xs, s_std = rts_errors(fwd, full=False)
+        s_sens = fwd.sensors + xs[:, 9:21]
     else:
-        smoothed, s_std, s_sens = forward, std_of(fwd.P_post), fwd.sensors
-    counts = {"imu_epochs": len(fwd.time), "gnss_records": len(gnss), "nodes": len(node_time),
-              "updates": fwd.n_updates, "rejected": fwd.n_rejected,
-              "outside_imu_span": fwd.n_outside, "mount_fallback": fwd.n_mount_fallback}
-    result = ProcessResult(forward, smoothed, node_time, std_of(fwd.P_post), s_std,
-                           fwd.sensors.copy(), s_sens, al, counts)
+        xs, s_std, s_sens = None, f_std, fwd.sensors
+    counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
+              "nodes": len(fwd.node_time), "updates": fwd.n_updates,
+              "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
+              "mount_fallback": fwd.n_mount_fallback}
+    result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
+                           al, counts)
     if cfg.truth:
         result = with_truth(result, cfg.truth)
     return result
 
 
 def with_truth(result, truth_path):
-    """``result`` with its errors against a truth ``.nav`` file."""
-    from .accuracy import compare
+    """``result`` with its errors against a truth ``.nav`` file (piece by piece)."""
+    from .accuracy import TrajectoryErrors, compare
     from .trajectory import read_nav
     truth = read_nav(truth_path)
-    try:
-        ef, es = compare(result.forward, truth), compare(result.smoothed, truth)
-    except ValueError as exc:
-        raise InputError(f"{truth_path}: {exc}") from None
-    return replace(result, errors_forward=ef, errors_smoothed=es)
+
+    def errors(pieces):
+        parts = []
+        for piece in pieces:
+            lo, hi = np.searchsorted(truth.time, [piece.time[0] - 1e-6, piece.time[-1] + 1e-6])
+            if hi > lo:
+                ref = Trajectory(truth.time[lo:hi], truth.lla[lo:hi], truth.v_n[lo:hi],
+                                 truth.q_nb[lo:hi])
+                try:
+                    parts.append(compare(piece, ref))
+                except ValueError:
+                    continue
+        if not parts:
+            raise InputError(f"{truth_path}: the trajectories share no epoch (times must "
+                             f"match within 1 us)")
+        return TrajectoryErrors(*(np.concatenate([getattr(p, f) for p in parts])
+                                  for f in ("time", "pos_n", "vel_n", "att_n")))
+    return replace(result, errors_forward=errors(result.iter_forward()),
+                   errors_smoothed=errors(result.iter_smoothed()))
 
 
 def _trajectory(time, states):
@@ -382,10 +478,12 @@ def euler_std_deg(q_nb, P_att):
     return np.rad2deg(np.sqrt(np.maximum(np.einsum("mii->mi", cov), 0.0)))
 
 
-def write_outputs(result, out_dir, week=0):
-    """Write solution.nav (smoothed), forward.nav, solution_std.txt, imu_errors.txt.
+def write_outputs(result, out_dir, week=0, forward=False):
+    """Write solution.nav (smoothed), solution_std.txt, imu_errors.txt and, with
+    ``forward=True``, forward.nav (the forward filter's trajectory, a diagnostic).
 
-    Returns the list of written paths.  Every file is written atomically.
+    The .nav files are written piece by piece as the trajectory is streamed (bounded
+    memory).  Returns the list of written paths.  Every file is written atomically.
     """
     from . import _textio
     from .error_model import DPH, MGAL, PPM
@@ -393,19 +491,21 @@ def write_outputs(result, out_dir, week=0):
     from .trajectory import write_nav
     os.makedirs(out_dir, exist_ok=True)
     paths = [os.path.join(out_dir, n) for n in
-             ("solution.nav", "forward.nav", "solution_std.txt", "imu_errors.txt")]
-    write_nav(paths[0], result.smoothed, week=week)
-    write_nav(paths[1], result.forward, week=week)
-    rows = np.searchsorted(result.smoothed.time, result.node_time)
+             ("solution.nav", "solution_std.txt", "imu_errors.txt")]
+    write_nav(paths[0], result.iter_smoothed(), week=week)
+    if forward:
+        paths.append(os.path.join(out_dir, "forward.nav"))
+        write_nav(paths[-1], result.iter_forward(), week=week)
+    rows = np.arange(len(result.node_time))
     # attitude sigma from the smoothed covariance diagonal (phi-angle block)
     P_att = np.zeros((len(rows), 3, 3))
     idx = np.arange(3)
     P_att[:, idx, idx] = result.smoothed_std[:, 6:9] ** 2
-    att = euler_std_deg(result.smoothed.q_nb[rows], P_att)
+    att = euler_std_deg(result.node_attitude(), P_att)
     table = np.column_stack([result.node_time, result.smoothed_std[:, 0:6], att])
     header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
               "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
-    _write_table(paths[2], header, table, [6] + [6] * 6 + [8] * 3, _textio, atomic_open)
+    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, _textio, atomic_open)
     s = result.smoothed_sensors
     table = np.column_stack([result.node_time, s[:, 0:3] / DPH, s[:, 3:6] / MGAL,
                              s[:, 6:9] / PPM, s[:, 9:12] / PPM])
@@ -413,7 +513,7 @@ def write_outputs(result, out_dir, week=0):
               "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
               "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
               "(smoothed estimates)\n")
-    _write_table(paths[3], header, table, [6] + [5] * 12, _textio, atomic_open)
+    _write_table(paths[2], header, table, [6] + [5] * 12, _textio, atomic_open)
     return paths
 
 

@@ -100,3 +100,80 @@ def test_gnss_heading_start_from_track():
     slow = GnssLog(t, np.tile(lla[0], (5, 1)), np.full((5, 3), 0.02))
     with pytest.raises(InputError, match="too low"):
         align_gnss_heading(slow)
+
+
+def test_stabilized_gnss_heading_is_level_and_states_track_noise():
+    heading = np.deg2rad(35.0)
+    rm, rn = earth.radii(LAT)
+    t = np.arange(5.0)
+    d = 60.0 * t
+    lla = np.column_stack([LAT + d * np.cos(heading) / (rm + 1000.0),
+                           2.0 + d * np.sin(heading) / ((rn + 1000.0) * np.cos(LAT)),
+                           1000.0 + 3.0 * t])                # climbing at 3 m/s
+    for sigma in (0.02, 3.0):
+        gnss = GnssLog(t, lla, np.full((5, 3), sigma))
+        al = align_gnss_heading(gnss, stabilized=True)
+        rpy = Rotation.from_quat(al.state.q_nb).as_euler("ZYX")[::-1]
+        np.testing.assert_allclose(rpy, [0.0, 0.0, heading], atol=1e-5)   # platform level
+        # track noise: cross-track velocity sigma (two fixes, 1 s apart) over the speed
+        track = np.rad2deg(np.hypot(sigma, sigma) / 60.0)
+        np.testing.assert_allclose(al.att_std_deg[2], np.hypot(0.5, track), rtol=1e-6)
+        free = align_gnss_heading(gnss)
+        assert np.rad2deg(Rotation.from_quat(free.state.q_nb).as_euler("ZYX")[1]) == \
+            pytest.approx(np.rad2deg(np.arctan2(3.0, 60.0)), abs=1e-3)
+        assert free.att_std_deg[2] > al.att_std_deg[2]
+
+
+# In-air start (straight level flight first) with a stabilized mount and a tactical IMU:
+# the flight of test_filter's PLAN started in the air with 90 s of straight flight.
+def _in_air_plan():
+    from test_filter import PLAN
+    plan = (PLAN.replace('start = "ground"', 'start = "air"')
+            .replace("stationary_s = 60.0", "stationary_s = 90.0")
+            .replace("n_strips = 2", "n_strips = 1")
+            .replace('grade = "navigation"', 'grade = "tactical"')
+            .replace("outages = [[400.0, 30.0]]", "outages = []"))
+    assert plan.count('"air"') == 1 and "tactical" in plan
+    return plan
+
+
+def test_in_air_start_heading_does_not_run_away_in_straight_flight():
+    """Regression (demo flight: the forward heading ran 4 deg away in the first 90 s of
+    straight flight).  Heading is weakly observable there (Earth-rate coupling, lever-arm
+    motion): the forward filter must keep it within 3 sigma of the truth, the alignment's
+    stated sigma must cover the real error, and the attitude NEES stay in its band."""
+    import tomllib
+    import warnings
+
+    from scipy.stats import chi2
+    from test_filter import short_flight
+
+    from ins.process import config_from_manifest, process
+    folder = short_flight(seed=5, plan=_in_air_plan())
+    man = tomllib.loads((folder / "manifest.toml").read_text())
+    t_a, t_b = man["stationary"]["segments_s"][0]
+    cfg = config_from_manifest(str(folder))
+    assert cfg.method == "gnss-heading" and cfg.mount is not None
+    cfg.smooth = False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = process(cfg)
+    al, e = res.alignment, res.errors_forward
+    # a stabilized platform turned to the flight line: heading = track within a
+    # fraction of a degree (5 deg, the aircraft's crab allowance, let it run away)
+    assert al.att_std_deg[2] < 1.0
+    rows = np.searchsorted(e.time, res.node_time)
+    straight = (res.node_time >= al.time) & (res.node_time <= t_b)
+    assert straight.sum() > 60
+    head = e.att_n[rows[straight], 2]
+    sig_f = res.forward_std[straight, 8]
+    assert abs(head[0]) < 3 * np.deg2rad(al.att_std_deg[2])
+    assert np.all(np.abs(head) < 3 * np.deg2rad(al.att_std_deg[2]))
+    assert np.all(np.abs(head) < 3 * sig_f + np.deg2rad(1 / 3600))
+    # attitude NEES (3 dof; compare() gives -phi) over the straight segment after 10 s;
+    # the errors are strongly correlated there: the band of a single window
+    P = res.fwd.P_post[straight][:, 6:9, 6:9]
+    att = -e.att_n[rows[straight]]
+    n = np.einsum("mi,mij,mj->m", att, np.linalg.inv(P), att)
+    late = res.node_time[straight] > al.time + 10.0
+    assert chi2.ppf(0.001, 3) < n[late].mean() < chi2.ppf(0.999, 3), n[late].mean()

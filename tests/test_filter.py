@@ -110,18 +110,19 @@ sigma_px = 0.5
 """
 
 
-def short_flight(seed=3):
-    """The ~15 min flight of ``PLAN``, simulated once (~5 s) and cached on disk."""
+def short_flight(seed=3, plan=PLAN):
+    """The ~15 min flight of ``PLAN`` (or another plan's flight), simulated once (~5 s)
+    and cached on disk."""
     from ins.errors import InputError
     from ins.simulate.folder import simulate_flight
-    key = hashlib.sha1(f"{PLAN}|{seed}".encode()).hexdigest()[:12]
+    key = hashlib.sha1(f"{plan}|{seed}".encode()).hexdigest()[:12]
     folder = FLIGHT_CACHE / f"short-{key}"
     if not (folder / "manifest.toml").exists():
         FLIGHT_CACHE.mkdir(parents=True, exist_ok=True)
-        plan = FLIGHT_CACHE / f"short-{key}.toml"
-        plan.write_text(PLAN)
+        path = FLIGHT_CACHE / f"short-{key}.toml"
+        path.write_text(plan)
         try:
-            simulate_flight(plan, folder, seed=seed, force=True)
+            simulate_flight(path, folder, seed=seed, force=True)
         except InputError as exc:         # the simulator's plan format moved on
             pytest.skip(f"test flight plan refused by the simulator: {exc}")
     return folder

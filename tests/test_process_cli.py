@@ -23,8 +23,10 @@ def test_flight_folder_run(flight, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["process", str(flight), "-o", str(out), "-q"]) == 0
     names = {p.name for p in out.iterdir()}
-    assert {"solution.nav", "forward.nav", "solution_std.txt", "imu_errors.txt",
+    assert {"solution.nav", "solution_std.txt", "imu_errors.txt",
             "sigma.png", "biases.png", "errors.png"} <= names
+    assert "forward.nav" not in names                 # only with --forward
+    assert not [n for n in names if n.startswith(".process-")]   # temporary files gone
     from ins.accuracy import compare
     truth = read_nav(flight / "truth.nav")
     sol = read_nav(out / "solution.nav")
@@ -68,7 +70,8 @@ platform_centre_to_antenna_a_m = {arm['platform_centre_to_antenna_a_m']}
     out = tmp_path / "o"
     code = main(["process", "--imu", str(flight / "imu.txt"), "--gnss", str(flight / "gnss.txt"),
                  "--mount", str(flight / "mount.txt"), "--config", str(cfg),
-                 "--truth", str(flight / "truth.nav"), "--no-plots", "-o", str(out)])
+                 "--truth", str(flight / "truth.nav"), "--no-plots", "--forward",
+                 "-o", str(out)])
     assert code == 0
     text = capsys.readouterr().out
     assert "0 rejected" in text and "smoothed" in text
