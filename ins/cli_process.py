@@ -90,33 +90,11 @@ def _config(args):
 
 
 def _from_args(args, load_config, path):
-    import tomllib
-    with open(path, "rb") as f:
-        try:
-            has_files = "files" in tomllib.load(f)
-        except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"not valid TOML: {exc}", path=path) from None
+    from ._textio import read_toml
+    has_files = "files" in read_toml(path, "a processing config (TOML)")
     if not has_files and not (args.imu and args.gnss):
         raise InputError("--imu and --gnss are required (the config has no [files])")
-    if has_files:
-        cfg = load_config(path)
-    else:
-        import tempfile
-        with tempfile.TemporaryDirectory() as tmp:     # a [files] table around the config
-            stub = os.path.join(tmp, "c.toml")
-            with open(stub, "w") as f, open(path) as src:
-                f.write(f'[files]\nimu = "{_esc(args.imu)}"\ngnss = "{_esc(args.gnss)}"\n')
-                f.write(src.read())
-            cfg = load_config(stub, base=os.getcwd())
-    if args.imu:
-        cfg.imu = args.imu
-    if args.gnss:
-        cfg.gnss = args.gnss
-    return cfg
-
-
-def _esc(path):
-    return os.path.abspath(path).replace("\\", "\\\\").replace('"', '\\"')
+    return load_config(path, files={"imu": args.imu, "gnss": args.gnss})
 
 
 def _cmd_process(args):

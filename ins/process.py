@@ -23,7 +23,6 @@ Library code: nothing is printed; progress goes to ``progress(done, total)``.
 """
 import itertools
 import os
-import tomllib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -105,12 +104,9 @@ def _number(value, where, positive=False):
     return float(value)
 
 
-def _read_toml(path):
-    try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", path=str(path)) from None
+def _read_toml(path, expected="a processing config (TOML)"):
+    from ._textio import read_toml
+    return read_toml(path, expected)
 
 
 def _noise(section, where):
@@ -124,8 +120,9 @@ def _noise(section, where):
     return ImuNoise(**kw)
 
 
-def load_config(path, base=None):
-    """Read a processing config (TOML).  Paths in ``[files]`` are relative to the file.
+def load_config(path, base=None, files=None):
+    """Read a processing config (TOML).  Paths in ``[files]`` are relative to the file;
+    ``files`` (e.g. ``{"imu": ..., "gnss": ...}`` from the command line) replaces them.
 
     Raises
     ------
@@ -144,11 +141,12 @@ def load_config(path, base=None):
             raise InputError(f"{where(sec)}: unknown key(s) {', '.join(sorted(unknown))} "
                              f"(known: {', '.join(sorted(_SECTIONS[sec]))})")
     base = os.path.dirname(os.path.abspath(path)) if base is None else base
-    files = data.get("files", {})
+    rel = {k: os.path.join(base, v) for k, v in data.get("files", {}).items()}
+    rel.update({k: v for k, v in (files or {}).items() if v is not None})
     for key in ("imu", "gnss"):
-        if key not in files:
-            raise InputError(f"{where('files', key)}: missing (path of the {key} log)")
-    rel = {k: os.path.join(base, v) for k, v in files.items()}
+        if key not in rel:
+            raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
+                             f"or give --{key})")
     return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
                                truth=rel.get("truth")), data, where)
 

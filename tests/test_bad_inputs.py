@@ -250,12 +250,6 @@ TOML_GARBAGE = [("empty.txt", None, ()), ("garbage.bin", None, ())]
 
 
 # failures in modules another helper is finishing (ins/process.py, ins/cli_process.py)
-XFAIL_TOML_BINARY = ("ins/process.py _read_toml and ins/cli_process.py _from_args open TOML "
-                     "with tomllib.load: binary data -> UnicodeDecodeError traceback (use "
-                     "ins._textio.read_toml)")
-XFAIL_CONFIG_STUB = ("ins/cli_process.py _from_args loads a temporary stub c.toml: the "
-                     "message names /tmp/.../c.toml, not the user's --config file")
-
 
 def _cases():
     cases = []
@@ -282,16 +276,13 @@ def _cases():
                        "mount.txt") for f, ln, w in MOUNT_CASES]
     cases += [Case("process-dir", "manifest", "manifest_missing_files.toml", None, ("gnss",),
                    names="manifest.toml"),
-              Case("process-dir", "manifest", "garbage.bin", None, (), names="manifest.toml",
-                   xfail=XFAIL_TOML_BINARY),
+              Case("process-dir", "manifest", "garbage.bin", None, (), names="manifest.toml"),
               Case("process-dir", "manifest", "empty.txt", None, (), names="manifest.toml"),
-              Case("process-files", "config", "config_unknown_key.toml", None, ("arw_dph",),
-                   xfail=XFAIL_CONFIG_STUB),
+              Case("process-files", "config", "config_unknown_key.toml", None, ("arw_dph",)),
               Case("process-files", "config", "config_negative_noise.toml", None,
-                   ("arw_deg_sqrth", ">= 0"), xfail=XFAIL_CONFIG_STUB),
+                   ("arw_deg_sqrth", ">= 0")),
               Case("process-files", "config", "config_truncated.toml", None, ("toml",)),
-              Case("process-files", "config", "garbage.bin", None, (),
-                   xfail=XFAIL_TOML_BINARY)]
+              Case("process-files", "config", "garbage.bin", None, ())]
     cases += [Case("eo", "trajectory", f, ln, w) for f, ln, w in NAV_CASES]
     cases += [Case("eo", "events", "events_no_header.csv", 1, ("image_id,time_s",)),
               Case("eo", "events", "events_text_time.csv", 3, ("number",)),

@@ -1,0 +1,252 @@
+"""The whole chain on the embedded flight plan, as a user would run it, and how close
+each stage comes to the simulator's truth.
+
+    simulate -> process (filter + smoother, varying lever arm) -> EO -> refine
+
+Each stage is the real command line (printed before it runs); the summary table and
+``OUT/report.md`` (with PNG plots) compare every stage with the truth the simulator
+wrote.  The camera file given to ``photogrammetry eo`` is the simulator's with the
+boresight set to zero: the boresight is unknown to the user, and the coplanarity
+adjustment estimates it.
+
+Run by ``make demo``; ``python tools/demo.py --help`` for the options.
+"""
+import argparse
+import os
+import shlex
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+ARCSEC = np.pi / 180 / 3600
+
+
+def run(cmd):
+    """Run one command of the chain; stop the demo with its exit code if it fails."""
+    shown = " ".join(shlex.quote(str(c)) for c in cmd)
+    print(f"\n$ {shown}", flush=True)
+    t0 = time.perf_counter()
+    code = subprocess.call([str(c) for c in cmd])
+    if code:
+        sys.exit(f"demo: the command above failed (exit code {code})")
+    return time.perf_counter() - t0
+
+
+def uncalibrated_camera(flight, out_path):
+    """The flight's camera file with the boresight set to zero (what a user knows)."""
+    from photogrammetry.camera import read_camera, write_camera
+    camera, mounting = read_camera(flight / "camera.toml")
+    write_camera(out_path, camera, replace(mounting, boresight_rad=np.zeros(3)))
+    return camera, mounting
+
+
+def rms(x, axis=0):
+    return np.sqrt(np.mean(np.square(x), axis=axis))
+
+
+def angle_errors(eo, truth):
+    """Per-image angle errors (rad) of ``eo`` against ``truth`` as a rotation vector of
+    ``C_mc_eo C_mc_true^T`` in the mapping frame, and the per-angle differences."""
+    from ins.rotation import dcm_to_rotvec, wrap_to_pi
+    idx = [truth.image_id.index(i) for i in eo.image_id]
+    t = truth.in_system(eo.system)
+    R_true = t.matrices()[idx]
+    rotvec = dcm_to_rotvec(np.einsum("nij,nkj->nik", eo.matrices(), R_true))
+    return rotvec, wrap_to_pi(eo.angles - t.angles[idx]), idx
+
+
+def trajectory_figures(nav, truth_nav):
+    from ins.accuracy import compare
+    from ins.trajectory import read_nav
+    err = compare(read_nav(nav), truth_nav)
+    return {"pos_cm": rms(err.pos_n) * 100, "att_as": rms(err.att_n) / ARCSEC, "err": err}
+
+
+def refine_figures(out, flight, camera, eo_ins, method, datum):
+    """The assessment of the refinement (the same computation as the CLI's report)."""
+    from photogrammetry.batch import refine
+    from photogrammetry.tiepoints import read_tiepoints
+    tie = read_tiepoints(flight / "tiepoints.csv", camera=camera)
+    with warnings.catch_warnings():      # the command above has already shown them
+        warnings.simplefilter("ignore")
+        return refine(eo_ins, tie, camera=camera, method=method, datum=datum)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--plan", default=ROOT / "data" / "flights" / "demo.toml", type=Path)
+    p.add_argument("--out", default=ROOT / "demo-output", type=Path)
+    p.add_argument("--seed", default=1, type=int)
+    p.add_argument("--method", default="known-base",
+                   choices=["known-base", "relative", "base-free"])
+    p.add_argument("--datum", default="none", choices=["none", "first", "ins"])
+    args = p.parse_args(argv)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    flight, proc = out / "flight", out / "process"
+    ins, pg = BIN / "ins", BIN / "photogrammetry"
+    t_start = time.perf_counter()
+    times = {}
+
+    print("== 1. simulate the survey flight: truth, IMU with sensor errors, GNSS antenna, "
+          "mount angles, exposures, tie points")
+    times["simulate"] = run([ins, "simulate", args.plan, "-o", flight, "--seed", args.seed,
+                             "--force"])
+    print("\n== 2. GNSS/INS post-processing: forward filter + RTS smoother, varying lever arm")
+    times["process"] = run([ins, "process", flight, "-o", proc, "--forward"])
+
+    print("\n== 3. exterior orientation per exposure from the smoothed trajectory "
+          "(camera file without the boresight, which is unknown)")
+    cam_file = out / "camera_uncalibrated.toml"
+    camera, mounting = uncalibrated_camera(flight, cam_file)
+    eo_ins_file = out / "eo_ins.csv"
+    times["eo"] = run([pg, "eo", flight, "--trajectory", proc / "solution.nav",
+                       "--sigma", proc / "solution_std.txt", "--camera", cam_file,
+                       "-o", eo_ins_file])
+
+    print("\n== 4. coplanarity refinement of the angles, INS assessment, boresight")
+    refined_file = out / "eo_refined.csv"
+    times["refine"] = run([pg, "refine", eo_ins_file, flight / "tiepoints.csv", "--camera",
+                           cam_file, "--method", args.method, "--datum", args.datum,
+                           "-o", refined_file, "--report", out / "refine_report.md"])
+
+    print("\n== 5. every stage against the simulator's truth")
+    summary, figures = summarize(out, flight, proc, camera, mounting, eo_ins_file,
+                                 refined_file, args.method, args.datum)
+    total = time.perf_counter() - t_start
+    timing = ", ".join(f"{k} {v:.1f} s" for k, v in times.items())
+    summary.append("")
+    summary.append(f"Wall time {total:.1f} s ({timing}).")
+    text = "\n".join(summary)
+    print(text)
+    write_report(out, text)
+    print(f"\nreport: {out / 'report.md'}")
+    return figures
+
+
+def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, method, datum):
+    from ins.trajectory import read_nav
+    from photogrammetry.exposure import read_eo_csv
+    from photogrammetry.rotation import matrix_to_angles
+    truth_nav = read_nav(flight / "truth.nav")
+    fwd = trajectory_figures(proc / "forward.nav", truth_nav)
+    smo = trajectory_figures(proc / "solution.nav", truth_nav)
+    eo_true = read_eo_csv(flight / "eo_true.csv")
+    eo_ins = read_eo_csv(eo_ins_file)
+    eo_ref = read_eo_csv(refined_file)
+    _, d_ins, idx = angle_errors(eo_ins, eo_true)
+    _, d_ref, _ = angle_errors(eo_ref, eo_true)
+    dpos = eo_ins.position - eo_true.position[idx]
+    res = refine_figures(out, flight, camera, eo_ins, method, datum)
+    a = res.assessment
+    names = eo_ins.system.split("-")
+    b_true = np.asarray(mounting.boresight_rad)
+    # What any boresight calibration sees: the rotation that takes the INS camera attitude
+    # (no boresight) onto the true one, per exposure, as rx, ry, rz of the camera file.
+    # It is the simulated boresight plus the INS attitude error expressed in the camera
+    # frame; its body-fixed part (e.g. from the IMU's uncalibrated axis misalignment,
+    # which levels the platform wrongly) cannot be told from a boresight by any method.
+    t_idx = eo_true.in_system(eo_ins.system)
+    C_rel = np.einsum("nji,njk->nik", eo_ins.matrices(), t_idx.matrices()[idx])
+    apparent = matrix_to_angles(C_rel, "omega-phi-kappa")          # Rx Ry Rz angles
+    b_apparent = apparent.mean(axis=0)
+    # the truth of the INS-noise estimate: the scatter of that error about its mean, in
+    # the order of the angle system (phi ~ about camera y, omega ~ about camera x)
+    order = [1, 0, 2] if eo_ins.system == "phi-omega-kappa" else [0, 1, 2]
+    noise_true = apparent.std(axis=0, ddof=1)[order]
+
+    def row(label, values, unit, fmt="{:9.1f}"):
+        return f"| {label} | " + " | ".join(fmt.format(v) for v in values) + f" | {unit} |"
+
+    n = len(eo_ins)
+    lines = [
+        "| stage | 1 | 2 | 3 | unit |", "|---|---:|---:|---:|---|",
+        row("trajectory, forward filter: position RMS N/E/D", fwd["pos_cm"], "cm", "{:9.2f}"),
+        row("trajectory, forward filter: attitude RMS N/E/D (tilt, heading)", fwd["att_as"],
+            "arcsec"),
+        row("trajectory, smoothed: position RMS N/E/D", smo["pos_cm"], "cm", "{:9.2f}"),
+        row("trajectory, smoothed: attitude RMS N/E/D (tilt, heading)", smo["att_as"],
+            "arcsec"),
+        row(f"EO from the INS ({n} images): perspective centre RMS X/Y/Z",
+            rms(dpos) * 100, "cm", "{:9.2f}"),
+        row(f"EO from the INS: {'/'.join(names)} RMS (boresight unknown)",
+            rms(d_ins) / ARCSEC, "arcsec"),
+        row(f"EO refined ({method}, datum {datum}): {'/'.join(names)} RMS",
+            rms(d_ref) / ARCSEC, "arcsec"),
+        row("boresight rx/ry/rz: simulated", b_true / ARCSEC, "arcsec"),
+        row("boresight rx/ry/rz: simulated + INS attitude error in the camera frame "
+            "(mean; what a calibration can see)", b_apparent / ARCSEC, "arcsec"),
+        row("boresight rx/ry/rz: estimated by the refinement", a.boresight / ARCSEC,
+            "arcsec"),
+        row("boresight rx/ry/rz: sigma of the estimate", a.boresight_sigma / ARCSEC,
+            "arcsec"),
+        row(f"INS angle noise {'/'.join(names)}: estimated by the refinement",
+            a.ins_noise / ARCSEC, "arcsec"),
+        row(f"INS angle noise {'/'.join(names)}: true (scatter of the INS camera attitude "
+            "error)", noise_true / ARCSEC, "arcsec"),
+    ]
+    plot_angles(out, eo_ins, d_ins, d_ref, names)
+    figures = {"forward_pos_m": fwd["pos_cm"] / 100, "smoothed_pos_m": smo["pos_cm"] / 100,
+               "smoothed_att_rad": smo["att_as"] * ARCSEC, "eo_pos_m": rms(dpos),
+               "ins_angles_rad": rms(d_ins), "refined_angles_rad": rms(d_ref),
+               "boresight_true_rad": b_true, "boresight_apparent_rad": b_apparent,
+               "ins_noise_rad": a.ins_noise, "ins_noise_true_rad": noise_true,
+               "boresight_rad": a.boresight, "boresight_sigma_rad": a.boresight_sigma}
+    return lines, figures
+
+
+def plot_angles(out, eo, d_ins, d_ref, names):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    x = np.arange(len(eo))
+    for k, ax in enumerate(axes):
+        ax.plot(x, d_ins[:, k] / ARCSEC, "o-", ms=3, label="INS EO (no boresight)")
+        ax.plot(x, d_ref[:, k] / ARCSEC, "s-", ms=3, label="refined")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_ylabel(f"{names[k]} error (\")")
+    axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("image (flight order)")
+    fig.suptitle("Exposure angles against the truth, before and after refinement")
+    fig.tight_layout()
+    fig.savefig(out / "angles.png.part", dpi=110, format="png")
+    plt.close(fig)
+    os.replace(out / "angles.png.part", out / "angles.png")
+
+
+def write_report(out, table):
+    from ins.fileio import atomic_open
+    text = f"""# Demo: the whole chain against the simulator's truth
+
+Flight: `flight/` (`ins simulate`, plan `data/flights/demo.toml`); processing:
+`process/` (`ins process`); exterior orientation from the smoothed trajectory:
+`eo_ins.csv` (`photogrammetry eo`, camera file without the boresight); refinement:
+`eo_refined.csv` and `refine_report.md` (`photogrammetry refine`).
+
+Attitude errors of the trajectory are the rotation vector of `C_nb_est C_nb_true^T`
+in NED (north and east tilt, heading); angle errors of the EO are per angle in the
+named system (arcsec).
+
+{table}
+
+![trajectory errors](process/errors.png)
+
+![exposure angles before and after refinement](angles.png)
+
+![residuals in the image](refine_report_residuals.png)
+"""
+    with atomic_open(out / "report.md", "w") as f:
+        f.write(text)
+
+
+if __name__ == "__main__":
+    main()
