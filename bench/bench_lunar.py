@@ -13,12 +13,12 @@ import time
 
 import numpy as np
 from PIL import Image
+from scipy.stats import chi2
 
 from ins.rotation import euler_to_dcm
 from photogrammetry.lunar import centre_directions, heading_from_images
 from photogrammetry.lunar.ephemeris import moon_sun_directions
 from photogrammetry.lunar.fisheye import FisheyeCamera
-from photogrammetry.lunar.io import load_image
 from photogrammetry.lunar.render import render_moon_fisheye
 from photogrammetry.lunar.solve import solve_heading
 
@@ -80,31 +80,81 @@ def centre_bias(trials=16):
                   f"{np.sqrt(np.mean(a ** 2)):>7.4f}{np.mean(z2):>7.2f}{np.mean(cen):>10.3f}")
 
 
-def pipeline():
-    utc = np.datetime64("2017-05-02T14:00:00") + np.arange(72) * np.timedelta64(12500, "ms")
+def _window(utc, C):
+    """Sky, true centres (px) and a camera on a window of CAM's frame around the track."""
     sky = moon_sun_directions(utc, LAT, LON, H, pressure_hpa=1000.0)
+    truth = CAM.direction_to_image(sky.moon_h @ C)
+    lo = np.floor(truth.min(0)).astype(int) - 20
+    cam = FisheyeCamera(CAM.focal_length_px, int(np.ptp(truth[:, 0])) + 41,
+                        int(np.ptp(truth[:, 1])) + 41,
+                        tuple(np.array(CAM.principal_point_px) - lo), CAM.radial_k)
+    return sky, truth, lo, cam
+
+
+def _render(sky, C, cam, k, seed):
+    return render_moon_fisheye(cam, sky.moon_h[k] @ C, sky.sun_h[k] @ C, sky.semidiameter[k],
+                               noise_sigma=5, rng=seed)
+
+
+def pipeline(repeats=3):
+    """72 full-frame PNGs (the Moon rendered on a window, pasted into a noisy frame)."""
+    utc = np.datetime64("2017-05-02T14:00:00") + np.arange(72) * np.timedelta64(12500, "ms")
     C = euler_to_dcm([0.03, 0.02, np.deg2rad(123.4)])
+    sky, truth, lo, cam = _window(utc, C)
+    rng = np.random.default_rng(5)
     with tempfile.TemporaryDirectory() as tmp:
         paths = []
         for k in range(72):
-            img = render_moon_fisheye(CAM, sky.moon_h[k] @ C, sky.sun_h[k] @ C,
-                                      sky.semidiameter[k], noise_sigma=5, rng=k)
+            frame = np.clip(np.rint(rng.normal(100.0, 5.0, (CAM.height_px, CAM.width_px))),
+                            0, 65535).astype(np.uint16)
+            win = _render(sky, C, cam, k, k)
+            frame[lo[1]:lo[1] + win.shape[0], lo[0]:lo[0] + win.shape[1]] = win
             paths.append(os.path.join(tmp, f"m{k:03d}.png"))
-            Image.fromarray(img).save(paths[-1])
-        t0 = time.perf_counter()
-        res = heading_from_images(CAM, paths, utc, LAT, LON, H, load=load_image,
-                                  pressure_hpa=1000.0)
-        dt = time.perf_counter() - t0
+            Image.fromarray(frame).save(paths[-1])
+        heading_from_images(CAM, paths[:2], utc[:2], LAT, LON, H)        # numba compile
+        wall, cpu = [], []
+        for _ in range(repeats):
+            t0, c0 = time.perf_counter(), time.process_time()
+            res = heading_from_images(CAM, paths, utc, LAT, LON, H, pressure_hpa=1000.0)
+            wall.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
     s = res.solution
-    d = res.uv - CAM.direction_to_image(sky.moon_h @ C)
-    print(f"pipeline: 72 PNG images 1600x1600 (Moon {2 * 800 * sky.semidiameter[0]:.1f} px, "
-          f"phase angle {np.rad2deg(sky.phase_angle[0]):.0f} deg) -> heading in {dt:.2f} s")
+    d = res.uv - truth
+    print(f"pipeline: 72 PNG images 1600x1600 (Moon diameter {2 * 800 * sky.semidiameter[0]:.1f} "
+          f"px along the cone, phase angle {np.rad2deg(sky.phase_angle[0]):.0f} deg) -> heading "
+          f"in {np.median(wall):.2f} s (median of {repeats}; user CPU {np.median(cpu):.2f} s, "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f})")
     print(f"  heading error {(np.rad2deg(s.heading) - 123.4) * 3600:.1f} arcsec, sigma "
           f"{s.heading_sigma * ARCSEC:.1f} arcsec, variance factor {s.variance_factor:.2f}; "
           f"centre error mean {d.mean(0).round(3)} px, RMS {np.sqrt((d ** 2).mean(0)).round(3)} px")
+
+
+def pipeline_sigmas(trials=8):
+    """Honesty of the pipeline's sigmas over sessions starting 397 s apart."""
+    C = euler_to_dcm([0.03, 0.02, np.deg2rad(123.4)])
+    vf, z2, err, sig = [], [], [], []
+    for t in range(trials):
+        utc = (np.datetime64("2017-05-02T14:00:00") + np.timedelta64(397 * t, "s")
+               + np.arange(72) * np.timedelta64(12500, "ms"))
+        sky, truth, lo, cam = _window(utc, C)
+        imgs = [_render(sky, C, cam, k, 1000 * t + k) for k in range(72)]
+        res = heading_from_images(cam, imgs, utc, LAT, LON, H, pressure_hpa=1000.0)
+        d = res.uv - (truth - lo)
+        z2.append(np.mean([e @ np.linalg.solve(c, e) / 2 for e, c in zip(d, res.cov_uv)]))
+        vf.append(res.solution.variance_factor)
+        err.append((np.rad2deg(res.solution.heading) - 123.4) * 3600)
+        sig.append(res.solution.heading_sigma * ARCSEC)
+    err = np.array(err)
+    print(f"pipeline sigmas over {trials} sessions: variance factor mean {np.mean(vf):.2f} "
+          f"(range {min(vf):.2f}-{max(vf):.2f}; 99.8% band of one session "
+          f"{chi2.ppf(0.001, 141) / 141:.2f}-{chi2.ppf(0.999, 141) / 141:.2f}), centre z^2 per "
+          f"axis against the truth {np.mean(z2):.2f}; heading error mean {err.mean():.1f} "
+          f"+- {err.std() / np.sqrt(trials):.1f}, RMS {np.sqrt(np.mean(err ** 2)):.1f} arcsec, "
+          f"mean sigma {np.mean(sig):.1f} arcsec")
 
 
 if __name__ == "__main__":
     accuracy(int(sys.argv[1]) if len(sys.argv) > 1 else 1000)
     centre_bias()
     pipeline()
+    pipeline_sigmas()

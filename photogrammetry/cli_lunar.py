@@ -78,7 +78,7 @@ def run(args):
     from .lunar import heading_from_centres, heading_from_images
     from .lunar.ephemeris import standard_pressure_hpa
     from .lunar.fisheye import read_camera
-    from .lunar.io import find_images, load_image, read_centres, read_times
+    from .lunar.io import find_images, read_centres, read_times
     from .lunar.solve import convergence
 
     t0 = wallclock.perf_counter()
@@ -109,7 +109,7 @@ def run(args):
         sel = np.array([ids.index(k) for k in used])
         progress = _Progress("lunar-heading", not args.quiet)
         result = heading_from_images(camera, [files[k] for k in used], utc[sel], lat, lon, h,
-                                     load=load_image, progress=progress, **sky_options)
+                                     progress=progress, **sky_options)
     sol = result.solution
     arcsec = np.rad2deg(1.0) * 3600
     print(f"{len(used)} images, {str(utc[sel][0])[:23]} .. {str(utc[sel][-1])[:23]} UTC; "

@@ -7,6 +7,8 @@ frame NED (`ephemeris`), the rotation ``C_hc`` between them (`solve`) and the he
 
 `heading_from_centres` and `heading_from_images` chain the steps.
 """
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,10 +16,14 @@ import numpy as np
 from ins.errors import InputError
 
 from .ephemeris import moon_sun_directions
+from .io import load_image
 from .moon_centre import MoonNotFoundError, _Offset, extract_centre, sun_direction_in_image
 from .solve import solve_heading
 
 __all__ = ["LunarHeading", "heading_from_centres", "heading_from_images", "centre_directions"]
+
+#: Relative sigma of the Moon's image radius predicted from the ephemeris' semidiameter.
+RADIUS_SIGMA_REL = 2e-3
 
 
 @dataclass
@@ -55,17 +61,57 @@ def heading_from_centres(camera, uv, cov_uv, utc, lat, lon, h, **sky_options):
 def _crop(img, uv, half):
     c0 = max(int(uv[0] - half), 0)
     r0 = max(int(uv[1] - half), 0)
-    return img[r0:int(uv[1] + half) + 1, c0:int(uv[0] + half) + 1].copy(), np.array([c0, r0])
+    return (img[r0:int(uv[1] + half) + 1, c0:int(uv[0] + half) + 1].astype(float),
+            np.array([c0, r0]))
+
+
+def _first_pass(camera, item, k, load):
+    """Load one image, find the Moon, limb circle (lit side from the image); keep a crop."""
+    if load is not None:
+        img = load(item)
+    elif isinstance(item, (str, os.PathLike)):
+        img = load_image(item, dtype=None)
+    else:
+        img = np.asarray(item)
+    try:
+        m = extract_centre(img, camera=camera)
+    except MoonNotFoundError as exc:
+        raise InputError(exc.reason, item if isinstance(item, str) else f"image {k + 1}") \
+            from None
+    crop, off = _crop(img, m.uv, 3 * m.radius_px + 12)
+    return crop, off, m.uv, m.cov_uv
+
+
+def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px):
+    """Limb circle on the lit limb of a crop, then the blurred phased disk fitted to it."""
+    ang = sun_direction_in_image(camera, uv, sun_c)
+    m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c,
+                       radius_prior=(radius_px, radius_sigma_px))
+    return m.uv + off, m.cov_uv
+
+
+def _ordered(pool, fn, args, progress, done, total):
+    """``[fn(*a) for a in args]`` in the pool, reporting ``progress`` in order."""
+    out = []
+    for res in pool.map(lambda a: fn(*a), args):
+        out.append(res)
+        done += 1
+        if progress:
+            progress(done, total)
+    return out
 
 
 def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=None,
-                        **sky_options):
+                        workers=None, radius_sigma_rel=RADIUS_SIGMA_REL, **sky_options):
     """Heading from Moon images in two passes.
 
-    Pass 1: limb circle with the lit side taken from the image; first solution.  Pass 2:
-    the Sun's direction in the camera from it; limb circle on the lit limb, then the
-    blurred phased disk fitted to the lit limb's pixels (`moon_centre.fit_lit_limb`);
-    final solution.
+    Pass 1: limb circle (a cone with the camera) with the lit side taken from the image;
+    first solution.  Pass 2: the Sun's direction in the camera from it; limb circle on the
+    lit limb, then the blurred phased disk fitted to the lit limb's pixels
+    (`moon_centre.fit_lit_limb`) with the radius known from the ephemeris' semidiameter
+    (a prior: with one limb the radius and the centre along the Sun are nearly
+    degenerate); final solution.  Images are processed in a
+    thread pool (the image decoding and the numba kernels release the GIL).
 
     Parameters
     ----------
@@ -76,9 +122,15 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     lat, lon : float
         rad.  h : float, m.
     load : callable, optional
-        ``load(path) -> 2-D array`` (e.g. `io.load_image`).
+        ``load(path) -> 2-D array``; default `io.load_image` keeping the file's integer
+        type (only a crop around the Moon is converted to float).
     progress : callable, optional
         ``progress(done, total)`` over the 2 n extractions.
+    workers : int, optional
+        Threads (default: the CPU count, at most 4).
+    radius_sigma_rel : float
+        Relative sigma of the Moon's radius on the image predicted from the semidiameter
+        and the focal length (calibration of f, the refraction's flattening).
 
     Raises
     ------
@@ -89,27 +141,22 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     if n < 2:
         raise InputError(f"at least 2 usable images are needed, got {n}")
     sky = moon_sun_directions(utc, lat, lon, h, **sky_options)
-    crops, uv, cov = [], np.empty((n, 2)), np.empty((n, 2, 2))
-    for k, item in enumerate(images):
-        img = load(item) if load is not None else np.asarray(item, float)
-        try:
-            m = extract_centre(img, camera=camera)
-        except MoonNotFoundError as exc:
-            raise InputError(exc.reason, item if isinstance(item, str) else f"image {k + 1}") \
-                from None
-        crop, off = _crop(img, m.uv, 3 * m.radius_px + 12)
-        crops.append((crop, off))
-        uv[k], cov[k] = m.uv, m.cov_uv
-        if progress:
-            progress(k + 1, 2 * n)
-    S_c, cov_c = centre_directions(camera, uv, cov)
-    sol = solve_heading(sky.moon_h, S_c, cov_c)
-    sun_c = sky.sun_h @ sol.C_hc
-    for k, (crop, off) in enumerate(crops):
-        ang = sun_direction_in_image(camera, uv[k], sun_c[k])
-        m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c[k])
-        uv[k], cov[k] = m.uv + off, m.cov_uv
-        if progress:
-            progress(n + k + 1, 2 * n)
+    workers = workers or min(os.cpu_count() or 1, 4)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        first = _ordered(pool, _first_pass, [(camera, item, k, load)
+                                             for k, item in enumerate(images)],
+                         progress, 0, 2 * n)
+        uv = np.array([f[2] for f in first])
+        cov = np.array([f[3] for f in first])
+        S_c, cov_c = centre_directions(camera, uv, cov)
+        sol = solve_heading(sky.moon_h, S_c, cov_c)
+        sun_c = sky.sun_h @ sol.C_hc
+        radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
+        second = _ordered(pool, _second_pass,
+                          [(camera, f[0], f[1], f[2], sun_c[k], radius[k],
+                            radius_sigma_rel * radius[k]) for k, f in enumerate(first)],
+                          progress, n, 2 * n)
+    uv = np.array([s[0] for s in second])
+    cov = np.array([s[1] for s in second])
     S_c, cov_c = centre_directions(camera, uv, cov)
     return LunarHeading(solve_heading(sky.moon_h, S_c, cov_c), sky, uv, cov, S_c, cov_c)

@@ -11,10 +11,16 @@ Sun's direction: the terminator is left out) are fitted by the model
 
 binned to pixels, with the Sun's direction and the phase angle known (ephemeris) and
 centre, radius, blur ``sigma``, amplitudes ``A1, A2`` and sky ``B`` unknown
-(Gauss-Newton, forward-difference Jacobian for the non-linear parameters).  The disk is computed on a
-``SUPERSAMPLE``-times finer grid with an anti-aliased edge (linear coverage ramp one
-sub-pixel wide), so the model is smooth in the centre.  With a camera the disk is the
-cone of the semidiameter around the Moon's direction (exact off-axis in a fisheye).
+(Gauss-Newton with the analytic Jacobian of the discretized model, numba kernels in
+`_limb_kernels`).  The disk is computed on a ``SUPERSAMPLE``-times finer grid with an
+anti-aliased edge (linear coverage ramp one sub-pixel wide), so the model is smooth in
+the centre.  With a camera the disk is the cone of the semidiameter around the Moon's
+direction (exact off-axis in a fisheye).
+
+With one limb only, the centre along the Sun and the radius are nearly degenerate: a
+PSF-form mismatch moves both (0.04 px on a 3.7 px Moon).  The ephemeris knows the
+semidiameter; with a camera it enters as a prior on ``R`` (``radius_prior``), which
+removes that error and makes the centre's sigma honest.
 
 The PSF is a Gaussian core plus a Gaussian wing ``WING`` times wider, with free
 amplitudes: enough to follow a Moffat-like PSF (tests render with a Moffat, which this
@@ -23,15 +29,15 @@ the residual variance per pixel (white pixel noise), plus ``FLOOR_PX^2`` per axi
 the PSF-form mismatch and pixel phase (0.01-0.02 px RMS on Moffat-rendered Moons).
 """
 import numpy as np
-from scipy import ndimage
 
-from .render import shade
+from . import _limb_kernels as _k
 
 SUPERSAMPLE = 4
 BAND_PX = 3.0          # half width of the limb band beyond 2.5 blur sigmas, px
 WING = 3.0             # sigma of the PSF's wing component / core sigma
 FLOOR_PX = 0.012       # centre error of the PSF-form mismatch (Moffat vs the fit), px
 MARGIN_PX = 5          # model computed this far beyond the band, px (blur support)
+TRUNCATE = 3.5         # Gaussian kernels cut at this many sigmas
 
 
 def _grid(shape, n):
@@ -40,6 +46,27 @@ def _grid(shape, n):
     u = (np.arange(shape[1])[:, None] + off[None, :]).ravel()
     v = (np.arange(shape[0])[:, None] + off[None, :]).ravel()
     return np.meshgrid(u, v)
+
+
+def _gauss(sd):
+    """Normalized sampled Gaussian of sigma ``sd`` (samples), its derivative in ``sd``, half
+    length (as ``scipy.ndimage.gaussian_filter`` with ``truncate=TRUNCATE``)."""
+    h = int(TRUNCATE * sd + 0.5)
+    j2 = np.arange(-h, h + 1.0) ** 2
+    g = np.exp(-0.5 * j2 / sd ** 2)
+    g /= g.sum()
+    return g, g * (j2 - g @ j2) / sd ** 3, h
+
+
+def _blur(S, kern, dkern, n, off, shape):
+    """Separable blur of the stack ``S`` (a, H, W) by ``kern`` x ``kern`` with binning by
+    ``n``; returns (blurred stack, derivative of ``S[0]``'s blur via ``dkern``)."""
+    rows, cols = shape
+    T = _k.row_pass(S, kern, n, off, cols)
+    out = _k.col_pass(T, kern, n, off, rows)
+    d = (_k.col_pass(T[:1], dkern, n, off, rows)
+         + _k.col_pass(_k.row_pass(S[:1], dkern, n, off, cols), kern, n, off, rows))
+    return out, d[0]
 
 
 class LimbModel:
@@ -53,7 +80,7 @@ class LimbModel:
         Initial centre in crop pixels.
     radius0 : float
         Initial radius, px.
-    sun3 : callable or array_like
+    sun3 : array_like, optional
         Flat images: ``(sin a cos b, sin a sin b, cos a)`` for phase angle ``a`` and Sun
         position angle ``b`` on the image (basis +u, +v, towards the observer).
     camera : object, optional
@@ -84,60 +111,79 @@ class LimbModel:
         self.mask = mask[r0:r1, c0:c1]
         self.data = np.asarray(crop, float)[r0:r1, c0:c1][self.mask]
         u, v = _grid(self.shape, self.n)
-        u, v = u + c0, v + r0
+        u, v = u.ravel() + c0, v.ravel() + r0
         if camera is None:
-            self.u, self.v = u, v
+            self.P = np.stack([u, v, np.zeros_like(u)], axis=-1)
             self.sun3 = np.asarray(sun3, float)
             self.scale = 1.0
         else:
             f = camera.focal_length_px
             self.d0 = camera.image_to_direction(np.asarray(uv0, float))
             a = [1.0, 0.0, 0.0] if abs(self.d0[0]) < 0.9 else [0.0, 1.0, 0.0]
-            self.e1 = np.cross(self.d0, a)
+            self.e1 = _k.cross3(self.d0, np.array(a))
             self.e1 /= np.linalg.norm(self.e1)
-            self.e2 = np.cross(self.d0, self.e1)
-            self.P = camera.image_to_direction(np.stack([u, v], axis=-1))
+            self.e2 = _k.cross3(self.d0, self.e1)
+            self.P = np.ascontiguousarray(camera.image_to_direction(np.stack([u, v], axis=-1)))
             self.sun_c = np.asarray(sun_c, float) / np.linalg.norm(sun_c)
             J = camera.direction_jacobian(np.asarray(uv0, float))[0]
             # local px per rad over f: converts the angular edge distance to px
             self.scale = 1.0 / (f * abs(np.linalg.det(J.T @ J)) ** 0.25)
 
-    def _disk(self, c1, c2, R):
-        """Sub-pixel brightness of the unblurred disk (anti-aliased edge)."""
-        if self.camera is None:
-            X, Y = (self.u - c1) / R, (self.v - c2) / R
-            rho = np.hypot(X, Y)
-            d_sub = (1.0 - rho) * R * self.n                # signed distance, sub-pixels
-            sun3 = self.sun3
-        else:
-            f = self.camera.focal_length_px
-            m = self.d0 + (c1 / f) * self.e1 + (c2 / f) * self.e2
-            m /= np.linalg.norm(m)
-            e1 = self.e1 - (self.e1 @ m) * m
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(m, e1)
-            sin_r = np.sin(R / f)
-            X, Y = self.P @ e1 / sin_r, self.P @ e2 / sin_r
-            rho = np.hypot(X, Y)
-            d_sub = (1.0 - rho) * R * self.scale * self.n
-            s = self.sun_c
-            sun3 = np.array([s @ e1, s @ e2, -(s @ m)])
-        k = np.minimum(1.0, (1.0 - 1e-9) / np.maximum(rho, 1e-12))   # clip to the limb
-        cover = np.clip(0.5 + d_sub, 0.0, 1.0)
-        return shade(X * k, Y * k, sun3) * cover
+    def _frame(self, c1, c2):
+        """Camera case: (e1, e2, sun3) of the Moon direction offset by ``(c1, c2)`` px."""
+        f = self.camera.focal_length_px
+        m = self.d0 + (c1 / f) * self.e1 + (c2 / f) * self.e2
+        m /= np.linalg.norm(m)
+        e1 = self.e1 - (self.e1 @ m) * m
+        e1 /= np.linalg.norm(e1)
+        e2 = _k.cross3(m, e1)
+        s = self.sun_c
+        return e1, e2, np.array([s @ e1, s @ e2, -(s @ m)])
 
-    def flux(self, q):
+    def _disk(self, q):
+        """Disk (N,) at the sub-pixels and its derivatives (3, N) in ``(c1, c2, R)``."""
+        N = len(self.P)
+        D, dD = np.empty(N), np.empty((3, N))
+        z3, z23 = np.zeros(3), np.zeros((2, 3))
+        if self.camera is None:
+            _k.disk_jac(self.P, True, q[0], q[1], q[2], z3, z3, z23, z23, self.sun3, z23,
+                        1.0, 1.0, 1.0, 1.0, self.n, D, dD)
+            return D, dD
+        f, h = self.camera.focal_length_px, 1e-3
+        e1, e2, sun3 = self._frame(q[0], q[1])
+        d = [np.subtract(self._frame(q[0] + h * (k == 0), q[1] + h * (k == 1)),
+                         self._frame(q[0] - h * (k == 0), q[1] - h * (k == 1))) / (2 * h)
+             for k in range(2)]
+        de1, de2, ds = (np.array([d[0][j], d[1][j]]) for j in range(3))
+        _k.disk_jac(self.P, False, q[0], q[1], q[2], e1, e2, de1, de2, sun3, ds,
+                    np.sin(q[2] / f), np.cos(q[2] / f), f, self.scale, self.n, D, dD)
+        return D, dD
+
+    def flux(self, q, jacobian=False):
         """Unit-amplitude models of the masked pixels, shape (m, 2): the disk blurred by
         a Gaussian of sigma ``q[3]`` and by one of ``WING * q[3]`` (core and wings of the
-        PSF), for ``q = (c1, c2, R, sigma)``."""
-        disk = self._disk(q[0], q[1], q[2])
-        rows, cols = self.shape
-        core = ndimage.gaussian_filter(disk, abs(q[3]) * self.n, mode="constant", truncate=3.5)
-        core = core.reshape(rows, self.n, cols, self.n).mean(axis=(1, 3))
-        binned = disk.reshape(rows, self.n, cols, self.n).mean(axis=(1, 3))
+        PSF), for ``q = (c1, c2, R, sigma)``.  With ``jacobian``, also their derivatives
+        in ``q``, shape (m, 2, 4)."""
+        D, dD = self._disk(q)
+        S = np.concatenate([D[None], dD]).reshape(4, self.shape[0] * self.n, -1)
+        n, s = self.n, abs(q[3])
+        g, dg, h = _gauss(s * n)
+        box = np.full(n, 1.0 / n)
+        core, core_s = _blur(S, np.convolve(g, box), np.convolve(dg, box), n, h, self.shape)
+        binned = _k.col_pass(_k.row_pass(S, box, n, 0, self.shape[1]), box, n, 0, self.shape[0])
         # the wide wing is smooth on the pixel scale: blurred after binning
-        wing = ndimage.gaussian_filter(binned, WING * abs(q[3]), mode="constant", truncate=3.5)
-        return np.stack([core[self.mask], wing[self.mask]], axis=-1)
+        gw, dgw, hw = _gauss(WING * s)
+        wing, wing_s = _blur(binned, gw, dgw, 1, hw, self.shape)
+        m = self.mask
+        out = np.stack([core[0][m], wing[0][m]], axis=-1)
+        if not jacobian:
+            return out
+        jac = np.empty((len(out), 2, 4))
+        jac[:, 0, :3] = core[1:, m].T
+        jac[:, 1, :3] = wing[1:, m].T
+        jac[:, 0, 3] = n * core_s[m]
+        jac[:, 1, 3] = WING * wing_s[m]
+        return out, jac
 
     def centre(self, p):
         """Centre (u, v) in crop pixels of parameters ``p``."""
@@ -148,47 +194,59 @@ class LimbModel:
                                               + (p[1] / f) * self.e2)
 
 
-def _design(model, q, a, step=1e-3):
-    """Model (m,) for linear parameters ``a = (A1, A2, B)`` and the Jacobian (m, 7) with
-    respect to ``(q, a)`` (forward differences in ``q``)."""
-    m0 = model.flux(q)
-    cols = []
-    for k in range(len(q)):
-        dq = np.zeros(len(q))
-        dq[k] = step
-        cols.append((model.flux(q + dq) - m0) @ a[:2] / step)
-    J = np.column_stack(cols + [m0, np.ones(len(m0))])
+def _design(model, q, a):
+    """Model (m,) for linear parameters ``a = (A1, A2, B)`` and the analytic Jacobian
+    (m, 7) with respect to ``(q, a)``."""
+    m0, dm = model.flux(q, jacobian=True)
+    J = np.column_stack([np.einsum("mjk,j->mk", dm, a[:2]), m0, np.ones(len(m0))])
     return m0 @ a[:2] + a[2], J
 
 
-def fit_limb_model(model, uv0, radius0, blur0=0.8, iterations=10, tol_px=5e-4):
+def fit_limb_model(model, uv0, radius0, blur0=0.8, iterations=10, tol_px=5e-4,
+                   radius_prior=None):
     """Gauss-Newton fit; returns (centre uv, cov uv, radius, blur, rms, n_pixels).
 
     ``uv0`` is the initial centre (crop pixels); with a camera the centre parameters are
     offsets of the Moon's direction from it, scaled to px by the focal length.  The
     amplitudes of the two PSF components and the sky enter linearly and are solved with
-    the step.  ``blur`` is the core sigma, px.
+    the step.  ``blur`` is the core sigma, px.  ``radius_prior = (R, sigma)`` (px) adds
+    the known radius as an observation (weighted against the pixel residual variance).
     """
     c0 = np.zeros(2) if model.camera is not None else np.asarray(uv0, float)
     q = np.array([c0[0], c0[1], radius0, blur0])
     y = model.data
     m0 = model.flux(q)
     a = np.linalg.lstsq(np.column_stack([m0, np.ones(len(y))]), y, rcond=None)[0]
-    for _ in range(iterations):
+    s2 = float(np.var(y - m0 @ a[:2] - a[2]))
+
+    def system(q, a, s2):
         pred, J = _design(model, q, a)
-        dp = np.linalg.lstsq(J, y - pred, rcond=1e-10)[0]
+        r = y - pred
+        if radius_prior is None:
+            return r, J, r, J
+        w = np.sqrt(s2) / radius_prior[1]             # prior row in pixel-noise units
+        row = np.zeros((1, J.shape[1]))
+        row[0, 2] = w
+        return (np.append(r, w * (radius_prior[0] - q[2])), np.vstack([J, row]), r, J)
+
+    for _ in range(iterations):
+        rr, JJ, r, _ = system(q, a, s2)
+        dp = np.linalg.lstsq(JJ, rr, rcond=1e-10)[0]
         big = np.max(np.abs(dp[:3]))
         if big > 1.0:                              # keep the steps within the linear range
             dp = dp / big
         q, a = q + dp[:4], a + dp[4:]
         q[3] = np.clip(abs(q[3]), 0.05, 10.0)
+        s2 = max(float(r @ r) / max(len(r) - JJ.shape[1], 1), 1e-12)
         if big < tol_px:
             break
-    pred, J = _design(model, q, a)
-    r = y - pred
+    rr, JJ, r, J = system(q, a, s2)
     dof = max(len(r) - J.shape[1], 1)
     s2 = float(r @ r) / dof
-    cov_p = s2 * np.linalg.pinv(J.T @ J, rcond=1e-10)[:2, :2]
+    N = J.T @ J
+    if radius_prior is not None:
+        N[2, 2] += s2 / radius_prior[1] ** 2
+    cov_p = s2 * np.linalg.pinv(N, rcond=1e-10)[:2, :2]
     G = np.empty((2, 2))
     for k in range(2):                      # centre(q) Jacobian (identity for flat images)
         dq = np.zeros(4)

@@ -158,8 +158,12 @@ def find_images(folder):
     return out
 
 
-def load_image(path):
-    """A grayscale image as a float array (rows, columns); colour channels are averaged."""
+def load_image(path, dtype=float):
+    """A grayscale image as an array (rows, columns); colour channels are averaged.
+
+    ``dtype=None`` keeps the file's type for grayscale images (e.g. uint16 of a 16-bit
+    PNG: no float copy of the whole frame); otherwise the array is converted to ``dtype``.
+    """
     ext = os.path.splitext(path)[1].lower()
     if ext in (".fits", ".fit"):
         try:
@@ -171,19 +175,23 @@ def load_image(path):
             data = next((h.data for h in hdul if getattr(h, "data", None) is not None), None)
         if data is None:
             raise InputError("no image data in the FITS file", path)
-        img = np.asarray(data, dtype=float)
+        img = np.asarray(data)
     elif ext in (".tif", ".tiff"):
         import tifffile
-        img = np.asarray(tifffile.imread(path), dtype=float)
+        img = np.asarray(tifffile.imread(path))
     else:
         from PIL import Image
         try:
             with Image.open(path) as im:
-                img = np.asarray(im, dtype=float)
+                im.load()
+                if im.mode == "I;16":      # 16-bit grayscale: its bytes, without a copy
+                    img = np.frombuffer(im.tobytes(), "<u2").reshape(im.height, im.width)
+                else:
+                    img = np.asarray(im)
         except OSError as exc:
             raise InputError(f"cannot read the image: {exc}", path) from None
     if img.ndim == 3:
         img = img[..., :3].mean(axis=-1) if img.shape[-1] in (3, 4) else img[0]
     if img.ndim != 2:
         raise InputError(f"expected a grayscale image, got shape {img.shape}", path)
-    return img
+    return img if dtype is None else img.astype(dtype, copy=False)

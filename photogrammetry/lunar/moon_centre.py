@@ -6,8 +6,8 @@
    edge of the bright rim).  Only rays within ``half_width`` of the Sun's direction on the
    image are used: those end on the lit limb; the others end on the terminator, which is
    not on the Moon's circle and would pull the centre towards the Sun.
-3. Fit a circle to the limb points (robust loss, then a 3-sigma cut and a least-squares
-   refit).  With a camera the points become directions and the fit is a cone of the
+3. Fit a circle to the limb points (algebraic start, geometric Gauss-Newton, a 3-sigma
+   cut and a refit).  With a camera the points become directions and the fit is a cone of the
    apparent semidiameter around the Moon's direction (the fisheye draws the Moon as an
    ellipse off-axis; the cone is exact).  The centre's covariance comes from the fit,
    inflated for rays that sample the same pixels.
@@ -18,11 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
-from scipy.optimize import least_squares
 
 from ins.errors import InputError
 
-from . import _limb_model
+from . import _limb_kernels, _limb_model
 
 __all__ = ["MoonCentre", "MoonNotFoundError", "extract_centre", "fit_lit_limb", "lit_centroid",
            "sun_direction_in_image"]
@@ -77,20 +76,28 @@ def _blob(img, threshold):
 
 
 def _find(img):
-    """(centroid_uv, radius guess, sky, sky noise) of the Moon: the brightest blob."""
-    sample = img[::4, ::4] if img.size > 250_000 else img
+    """(centroid_uv, radius guess, sky, sky noise) of the Moon: the brightest blob.
+
+    Large images are searched on their 4 x 4 block maxima (one pass over the frame, in
+    its own type), then only a window around the blob is read at full resolution.
+    """
+    big = img.size > 250_000
+    if big:
+        step = 8 if img.size > 1_000_000 else 4
+        sample = img[::step, ::step]
+        coarse = _limb_kernels.block_max(img, 4)
+        top = float(coarse.max())
+    else:
+        sample = img
+        top = float(img.max())
     sky = float(np.median(sample))
     noise = 1.4826 * float(np.median(np.abs(sample - sky))) + 1e-12
-    top = float(img.max())
     if top - sky < 10 * noise or top - sky <= 0:
         raise MoonNotFoundError(f"no Moon found (peak {top - sky:.3g} counts above the sky, "
                                 f"sky noise {noise:.3g})")
     threshold = sky + max(5 * noise, 0.25 * (top - sky))
     r0 = c0 = 0
-    if img.size > 250_000:                 # locate on 4x4 block maxima, then refine
-        rows, cols = (img.shape[0] // 4) * 4, (img.shape[1] // 4) * 4
-        coarse = img[:rows, :cols].reshape(rows // 4, 4, cols).max(axis=1)
-        coarse = coarse.reshape(rows // 4, cols // 4, 4).max(axis=2)
+    if big:                                # locate on 4x4 block maxima, then refine
         rr, cc = _blob(coarse, threshold)
         r0, c0 = max(4 * rr.min() - 4, 0), max(4 * cc.min() - 4, 0)
         img = img[r0:4 * rr.max() + 8, c0:4 * cc.max() + 8]
@@ -155,63 +162,85 @@ def sun_direction_in_image(camera, moon_uv, sun_c):
     return float(np.arctan2(duv[1], duv[0]))
 
 
+def _tangent_basis(d0):
+    """Unit vectors ``e1, e2`` normal to the unit vector ``d0`` (right-handed with it)."""
+    e1 = _limb_kernels.cross3(d0, np.array([1.0, 0.0, 0.0] if abs(d0[0]) < 0.9
+                                           else [0.0, 1.0, 0.0]))
+    e1 /= np.linalg.norm(e1)
+    return e1, _limb_kernels.cross3(d0, e1)
+
+
+def _circle_gn(data, p, camera, f, keep, iterations=6):
+    """Gauss-Newton of the geometric circle (or cone) fit on the points ``keep``.
+
+    ``p``: flat ``(u, v, R)`` px; cone ``(axis (3,), R = f * half angle)``.  Returns
+    (p, residuals of all points (px), Jacobian (m, 3) of the kept ones in px per
+    (centre shift px, R))."""
+    for _ in range(iterations + 1):
+        if camera is None:
+            d = data - p[:2]
+            dist = np.hypot(d[:, 0], d[:, 1])
+            r = dist - p[2]
+            J = np.column_stack([-d / dist[:, None], -np.ones(len(d))])
+        else:
+            e1, e2 = _tangent_basis(p[0])
+            cosang = np.clip(data @ p[0], -1.0, 1.0)
+            t = data - cosang[:, None] * p[0]
+            sinang = np.linalg.norm(t, axis=1)
+            r = f * np.arctan2(sinang, cosang) - p[1]
+            t /= np.maximum(sinang, 1e-15)[:, None]
+            J = np.column_stack([-(t @ e1), -(t @ e2), -np.ones(len(t))])
+        Jk, rk = J[keep], r[keep]
+        step = np.linalg.lstsq(Jk, -rk, rcond=None)[0]
+        if _ == iterations or np.max(np.abs(step)) < 1e-7:
+            return p, r, Jk
+        if camera is None:
+            p = p + step
+        else:
+            a = p[0] + (step[0] / f) * e1 + (step[1] / f) * e2
+            p = (a / np.linalg.norm(a), p[1] + step[2])
+
+
 def _fit(pts, c0, r0, camera):
-    """Robust circle (or cone) fit; (centre uv, cov uv, radius px, rms px, inlier mask)."""
-    if camera is None:
-        def centre(p):
-            return c0 + p[:2]
+    """Circle (or cone) fit with a 3-sigma cut; (centre uv, cov uv, radius px, rms px,
+    inlier mask).
 
-        def resid(p, q):
-            return np.hypot(q[:, 0] - c0[0] - p[0], q[:, 1] - c0[1] - p[1]) - p[2]
-        data, x0 = pts, np.array([0.0, 0.0, r0])
+    Start: the algebraic fit, linear and exact for a circle (Kasa: ``u^2 + v^2 = 2 a u +
+    2 b v + c``) or a cone (directions ``d`` with ``d . w = 1``, ``w = axis / cos r``);
+    then Gauss-Newton on the geometric residuals (px; with a camera the angle to the axis
+    times ``f``), a cut at 3 MAD-sigmas (at least 0.02 px) and Gauss-Newton again.
+    """
+    if camera is None:
+        f, data = 1.0, np.asarray(pts, float)
+        A = np.column_stack([2 * (data - c0), np.ones(len(data))])
+        a = np.linalg.lstsq(A, ((data - c0) ** 2).sum(1), rcond=None)[0]
+        p = np.array([c0[0] + a[0], c0[1] + a[1], np.sqrt(max(a[2] + a[:2] @ a[:2], 1e-6))])
     else:
-        d0 = camera.image_to_direction(c0)
-        e1 = np.cross(d0, [1.0, 0.0, 0.0] if abs(d0[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(d0, e1)
-        f = camera.focal_length_px
-
-        def axis(p):
-            d = d0 + p[0] * e1 + p[1] * e2
-            return d / np.linalg.norm(d)
-
-        def centre(p):
-            return camera.direction_to_image(axis(p))
-
-        def resid(p, q):     # angle to the axis minus the semidiameter, in px at scale f
-            d = axis(p)
-            return f * (np.arctan2(np.linalg.norm(np.cross(q, d), axis=1), q @ d) - p[2] / f)
-        data, x0 = camera.image_to_direction(pts), np.array([0.0, 0.0, r0])
-        x0[2] = f * np.arccos(np.clip(data @ d0, -1, 1)).mean()
-        x0[:2] = 0.0
-        scale = 1.0 / f
-        x_scale = np.array([scale, scale, 1.0])
-    if camera is None:
-        x_scale = np.ones(3)
-    fun = (lambda p, q: resid(p, q))
-    res = least_squares(fun, x0, args=(data,), loss="soft_l1", f_scale=0.2, x_scale=x_scale)
-    r = fun(res.x, data)
+        f, data = camera.focal_length_px, camera.image_to_direction(pts)
+        w = np.linalg.lstsq(data, np.ones(len(data)), rcond=None)[0]
+        p = (w / np.linalg.norm(w), f * np.arccos(min(1.0 / np.linalg.norm(w), 1.0)))
+    keep = np.ones(len(data), bool)
+    p, r, _ = _circle_gn(data, p, camera, f, keep)
     mad = 1.4826 * np.median(np.abs(r - np.median(r))) + 1e-6
     keep = np.abs(r) < max(3 * mad, 0.02)
     if keep.sum() < 5:
         keep[:] = True
-    res = least_squares(fun, res.x, args=(data[keep],), x_scale=x_scale)
-    r = res.fun
-    dof = max(keep.sum() - 3, 1)
-    s2 = float(r @ r) / dof
-    cov_p = s2 * np.linalg.pinv(res.jac.T @ res.jac)[:2, :2]
-    # the centre's covariance in px through the Jacobian of centre(p)
-    J = np.empty((2, 2))
-    for k in range(2):
-        dp = np.zeros(3)
-        h = 1e-3 * x_scale[k]
-        dp[k] = h
-        J[:, k] = (centre(res.x + dp) - centre(res.x - dp)) / (2 * h)
-    return centre(res.x), J @ cov_p @ J.T, float(res.x[2]), float(np.sqrt(s2)), keep
+    p, r, J = _circle_gn(data, p, camera, f, keep)
+    rk = r[keep]
+    s2 = float(rk @ rk) / max(keep.sum() - 3, 1)
+    cov_p = s2 * np.linalg.pinv(J.T @ J)[:2, :2]
+    if camera is None:
+        return p[:2].copy(), cov_p, float(p[2]), float(np.sqrt(s2)), keep
+    # the centre's covariance in px through the Jacobian of the image of the axis
+    e1, e2 = _tangent_basis(p[0])
+    uv = camera.direction_to_image(p[0])
+    G = np.column_stack([(camera.direction_to_image(p[0] + 1e-6 * e) - uv) / (1e-6 * f)
+                         for e in (e1, e2)])
+    return uv, G @ cov_p @ G.T, float(p[1]), float(np.sqrt(s2)), keep
 
 
 def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_rays=None,
-                   phase_angle=None, sun_c=None):
+                   phase_angle=None, sun_c=None, radius_prior=None):
     """Centre of the Moon from the lit limb of one grayscale image.
 
     Parameters
@@ -237,6 +266,9 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         is the initial value of a least-squares fit of the blurred phased disk to the
         pixels of the lit limb (`_limb_model`), which removes the rim's bias along the
         Sun's direction; otherwise the limb circle is the result.
+    radius_prior : (float, float), optional
+        Known radius and its sigma, px (with a camera: the semidiameter times the focal
+        length), for the fit of the phased disk (see `fit_lit_limb`).
 
     Returns
     -------
@@ -247,13 +279,13 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     MoonNotFoundError
         When nothing bright enough is found or too few limb points remain.
     """
-    img = np.asarray(image, dtype=float)
+    img = np.asarray(image)
     if img.ndim != 2:
         raise InputError(f"expected a 2-D grayscale image, got shape {img.shape}")
     c0, radius, sky, _ = _find(img)
-    half = int(2 * radius + 12)           # work on a crop around the Moon
+    half = int(2 * radius + 12)           # work on a crop around the Moon (as float)
     u0, v0 = max(int(c0[0]) - half, 0), max(int(c0[1]) - half, 0)
-    img = img[v0:int(c0[1]) + half + 1, u0:int(c0[0]) + half + 1]
+    img = img[v0:int(c0[1]) + half + 1, u0:int(c0[0]) + half + 1].astype(float)
     off = np.array([u0, v0], float)
     c0 = c0 - off
     if camera is not None:
@@ -279,7 +311,11 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     n_used, cov = int(keep.sum()), cov * inflate
     if sun_angle is not None and ((camera is None and phase_angle is not None)
                                   or (camera is not None and sun_c is not None)):
-        fit = fit_lit_limb(img, uv, rad, sun_angle, phase_angle, camera, sun_c, half_width_deg)
+        r_sigma = None
+        if radius_prior is not None:
+            rad, r_sigma = radius_prior
+        fit = fit_lit_limb(img, uv, rad, sun_angle, phase_angle, camera, sun_c, half_width_deg,
+                           radius_sigma_px=r_sigma)
         uv, cov, rad, rms, n_used = fit.uv, fit.cov_uv, fit.radius_px, fit.rms_px, fit.n_points
     return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov, radius_px=rad,
                       n_points=n_used, rms_px=rms, centroid_uv=c0 + off,
@@ -287,7 +323,7 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
 
 
 def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None, sun_c=None,
-                 half_width_deg=70.0):
+                 half_width_deg=70.0, radius_sigma_px=None):
     """Centre from a least-squares fit of the blurred, phased disk to the lit limb's pixels.
 
     Parameters
@@ -308,17 +344,21 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
         Direction to the Sun in the camera frame (required with a camera).
     half_width_deg : float
         The limb band spans this angle either side of the Sun's direction, deg.
+    radius_sigma_px : float, optional
+        When given, ``radius_px`` is known (e.g. the ephemeris' semidiameter times the
+        focal length) with this sigma, px, and enters the fit as a prior: with one limb
+        the radius and the centre along the Sun are nearly degenerate.
 
     Returns
     -------
     MoonCentre
         ``rms_px`` is the RMS pixel residual (counts); ``n_points`` the pixels fitted.
     """
-    img = np.asarray(image, dtype=float)
+    img = np.asarray(image)
     uv = np.asarray(uv, float)
     half = int(np.ceil(radius_px + _limb_model.BAND_PX + _limb_model.MARGIN_PX + 3))
     u0, v0 = max(int(round(uv[0])) - half, 0), max(int(round(uv[1])) - half, 0)
-    crop = img[v0:int(round(uv[1])) + half + 1, u0:int(round(uv[0])) + half + 1]
+    crop = img[v0:int(round(uv[1])) + half + 1, u0:int(round(uv[0])) + half + 1].astype(float)
     off = np.array([u0, v0], float)
     cam = None if camera is None else _Offset(camera, off)
     sun3 = None
@@ -327,7 +367,9 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
         sun3 = (np.sin(a) * np.cos(sun_angle), np.sin(a) * np.sin(sun_angle), np.cos(a))
     model = _limb_model.LimbModel(crop, uv - off, radius_px, sun3=sun3, camera=cam, sun_c=sun_c,
                                   sun_angle=sun_angle, half_width=np.deg2rad(half_width_deg))
-    c, cov, rad, _, rms, n_pix = _limb_model.fit_limb_model(model, uv - off, radius_px)
+    prior = None if radius_sigma_px is None else (radius_px, radius_sigma_px)
+    c, cov, rad, _, rms, n_pix = _limb_model.fit_limb_model(model, uv - off, radius_px,
+                                                            radius_prior=prior)
     return MoonCentre(uv=c + off, cov_uv=cov, radius_px=rad, n_points=n_pix, rms_px=rms,
                       centroid_uv=np.full(2, np.nan), sun_angle=float(sun_angle))
 

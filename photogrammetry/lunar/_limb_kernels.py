@@ -1,0 +1,139 @@
+"""Numba kernels of the Moon-centre extraction: block maxima of a frame; the limb model's
+phased disk with its derivatives, blur and binning.
+
+Private to `moon_centre` and `_limb_model`.  All kernels release the GIL (``nogil``) so
+that images can be processed in a thread pool.
+"""
+import numpy as np
+from numba import njit
+
+EPS = 1e-9
+
+
+@njit(cache=True, nogil=True)
+def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f, scale, n,
+             D, dD):
+    """Anti-aliased Lommel-Seeliger disk ``D`` (N,) at sub-pixels and ``dD`` (3, N), its
+    derivatives with respect to ``(c1, c2, R)`` (analytic chain rule).
+
+    Flat images: ``P[:, :2]`` are the sub-pixels' ``(u, v)``; ``X = (u - c1) / R``.
+    Camera: ``P`` are their unit directions, ``X = P.e1 / sin r``, ``Y = P.e2 / sin r``
+    with ``r = R / f``; ``de1, de2, dsun3`` (2, 3) are the derivatives of the frame and of
+    the Sun vector with respect to ``c1, c2``.
+    """
+    s0, s1, s2 = sun3[0], sun3[1], sun3[2]
+    dX = np.empty(3)
+    dY = np.empty(3)
+    for i in range(P.shape[0]):
+        if flat:
+            X = (P[i, 0] - c1) / R
+            Y = (P[i, 1] - c2) / R
+            dX[0], dX[1], dX[2] = -1.0 / R, 0.0, -X / R
+            dY[0], dY[1], dY[2] = 0.0, -1.0 / R, -Y / R
+        else:
+            px, py, pz = P[i, 0], P[i, 1], P[i, 2]
+            X = (px * e1[0] + py * e1[1] + pz * e1[2]) / sin_r
+            Y = (px * e2[0] + py * e2[1] + pz * e2[2]) / sin_r
+            for k in range(2):
+                dX[k] = (px * de1[k, 0] + py * de1[k, 1] + pz * de1[k, 2]) / sin_r
+                dY[k] = (px * de2[k, 0] + py * de2[k, 1] + pz * de2[k, 2]) / sin_r
+            dX[2] = -X * cos_r / (f * sin_r)
+            dY[2] = -Y * cos_r / (f * sin_r)
+        rho = np.sqrt(X * X + Y * Y)
+        cover = 0.5 + (1.0 - rho) * R * scale * n
+        if cover <= 0.0:
+            D[i] = 0.0
+            for k in range(3):
+                dD[k, i] = 0.0
+            continue
+        full = cover >= 1.0
+        if full:
+            cover = 1.0
+        clip = rho >= 1.0 - EPS
+        sc = (1.0 - EPS) / rho if clip else 1.0
+        Xc, Yc = X * sc, Y * sc
+        mu = np.sqrt(max(1.0 - Xc * Xc - Yc * Yc, 0.0))
+        mu0 = Xc * s0 + Yc * s1 + mu * s2
+        I = mu0 / (mu0 + mu) if mu0 > 0.0 else 0.0
+        D[i] = I * cover
+        for k in range(3):
+            drho = (X * dX[k] + Y * dY[k]) / rho if rho > 1e-12 else 0.0
+            dcover = 0.0
+            if not full:
+                dcover = -drho * R * scale * n
+                if k == 2:
+                    dcover += (1.0 - rho) * scale * n
+            dI = 0.0
+            if mu0 > 0.0:
+                if clip:
+                    dXc = sc * (dX[k] - X * drho / rho)
+                    dYc = sc * (dY[k] - Y * drho / rho)
+                    dmu = 0.0
+                else:
+                    dXc, dYc = dX[k], dY[k]
+                    dmu = -(Xc * dXc + Yc * dYc) / mu if mu > 0.0 else 0.0
+                dmu0 = dXc * s0 + dYc * s1 + dmu * s2
+                if k < 2:
+                    dmu0 += Xc * dsun3[k, 0] + Yc * dsun3[k, 1] + mu * dsun3[k, 2]
+                dI = (mu * dmu0 - mu0 * dmu) / (mu0 + mu) ** 2
+            dD[k, i] = dI * cover + I * dcover
+
+
+@njit(cache=True, nogil=True)
+def row_pass(S, kern, n, off, cols_out):
+    """``T[a, y, X] = sum_i kern[i] S[a, y, n X + i - off]`` (zeros outside)."""
+    A, H, W = S.shape
+    T = np.zeros((A, H, cols_out))
+    for a in range(A):
+        for y in range(H):
+            for X in range(cols_out):
+                acc = 0.0
+                base = n * X - off
+                for i in range(kern.size):
+                    x = base + i
+                    if 0 <= x < W:
+                        acc += kern[i] * S[a, y, x]
+                T[a, y, X] = acc
+    return T
+
+
+@njit(cache=True, nogil=True)
+def col_pass(T, kern, n, off, rows_out):
+    """``O[a, Y, x] = sum_i kern[i] T[a, n Y + i - off, x]`` (zeros outside)."""
+    A, H, W = T.shape
+    O = np.zeros((A, rows_out, W))
+    for a in range(A):
+        for Y in range(rows_out):
+            base = n * Y - off
+            for i in range(kern.size):
+                y = base + i
+                if 0 <= y < H:
+                    w = kern[i]
+                    for x in range(W):
+                        O[a, Y, x] += w * T[a, y, x]
+    return O
+
+
+@njit(cache=True, nogil=True)
+def block_max(img, b):
+    """Maxima of the ``b x b`` blocks of a 2-D image (any numeric type), as float."""
+    rows, cols = img.shape[0] // b, img.shape[1] // b
+    out = np.empty((rows, cols))
+    for R in range(rows):
+        for C in range(cols):
+            out[R, C] = img[R * b, C * b]
+        for i in range(R * b, R * b + b):
+            for C in range(cols):
+                m = out[R, C]
+                for j in range(C * b, C * b + b):
+                    if img[i, j] > m:
+                        m = img[i, j]
+                out[R, C] = m
+    return out
+
+
+@njit(cache=True, nogil=True)
+def cross3(a, b):
+    """Cross product of two 3-vectors."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
