@@ -45,15 +45,7 @@ def propagate_rows(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc):
         _compensate(dtheta_b, k, bg, sg, dt, th)
         _compensate(dvel_b, k, ba, sa, dt, dv)
         qx, qy, qz, qw = state[6], state[7], state[8], state[9]
-        c[0] = 1.0 - 2.0 * (qy * qy + qz * qz)
-        c[1] = 2.0 * (qx * qy - qz * qw)
-        c[2] = 2.0 * (qx * qz + qy * qw)
-        c[3] = 2.0 * (qx * qy + qz * qw)
-        c[4] = 1.0 - 2.0 * (qx * qx + qz * qz)
-        c[5] = 2.0 * (qy * qz - qx * qw)
-        c[6] = 2.0 * (qx * qz - qy * qw)
-        c[7] = 2.0 * (qy * qz + qx * qw)
-        c[8] = 1.0 - 2.0 * (qx * qx + qy * qy)
+        _kernels.quat_to_dcm_rows(qx, qy, qz, qw, c)
         for i in range(3):
             for j in range(3):
                 cij = c[3 * i + j]

@@ -28,6 +28,21 @@ def _rates(lat, h, vn, ve):
 
 
 @nb.njit(cache=True, inline="always")
+def quat_to_dcm_rows(qx, qy, qz, qw, c):
+    """``C`` of the unit quaternion ``[qx, qy, qz, qw]`` (scalar last) into ``c[0:9]``,
+    row by row (``c[3 i + j] = C[i, j]``; the same as :func:`ins.rotation.quat_to_dcm`)."""
+    c[0] = 1.0 - 2.0 * (qy * qy + qz * qz)
+    c[1] = 2.0 * (qx * qy - qz * qw)
+    c[2] = 2.0 * (qx * qz + qy * qw)
+    c[3] = 2.0 * (qx * qy + qz * qw)
+    c[4] = 1.0 - 2.0 * (qx * qx + qz * qz)
+    c[5] = 2.0 * (qy * qz - qx * qw)
+    c[6] = 2.0 * (qx * qz - qy * qw)
+    c[7] = 2.0 * (qy * qz + qx * qw)
+    c[8] = 1.0 - 2.0 * (qx * qx + qy * qy)
+
+
+@nb.njit(cache=True, inline="always")
 def _rotvec_to_quat(x, y, z):
     """Quaternion (x, y, z, w) of a rotation vector (rad); series below 0.01 rad."""
     a2 = x * x + y * y + z * z
@@ -103,15 +118,7 @@ def _step(s, c, th_p, dv_p, th, dv, dt):
         th_p[0] * dv[1] - th_p[1] * dv[0] + dv_p[0] * th[1] - dv_p[1] * th[0]) / 12.0
 
     # C_nb at the start of the interval
-    c[0] = 1.0 - 2.0 * (qy * qy + qz * qz)
-    c[1] = 2.0 * (qx * qy - qz * qw)
-    c[2] = 2.0 * (qx * qz + qy * qw)
-    c[3] = 2.0 * (qx * qy + qz * qw)
-    c[4] = 1.0 - 2.0 * (qx * qx + qz * qz)
-    c[5] = 2.0 * (qy * qz - qx * qw)
-    c[6] = 2.0 * (qx * qz - qy * qw)
-    c[7] = 2.0 * (qy * qz + qx * qw)
-    c[8] = 1.0 - 2.0 * (qx * qx + qy * qy)
+    quat_to_dcm_rows(qx, qy, qz, qw, c)
 
     # --- (1) velocity. Pass 1: rates at t[k-1] to extrapolate v and position to mid.
     wie_n, wie_d, wen_n, wen_e, wen_d, g = _rates(lat, h, vn, ve)
