@@ -129,7 +129,40 @@ def demo_figures():
           + "/".join(f"{x:.1f}" for x in np.degrees(np.abs(s.mount_rate).max(0))) + " deg/s")
 
 
+def whole_folder():
+    """``ins simulate`` as a user runs it: the same 1 h, 4-strip plan written as a flight
+    folder (IMU, truth, GNSS, mount log, exposures, tie points), in a child process."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    import tomli_w
+    with open(DEMO, "rb") as f:
+        d = tomllib.load(f)
+    d["block"].update(n_strips=4, strip_length_m=50000.0)
+    with tempfile.TemporaryDirectory() as tmp:
+        plan = Path(tmp) / "one_hour.toml"
+        plan.write_text(tomli_w.dumps(d))
+        cmd = [str(Path(sys.executable).parent / "ins"), "simulate", str(plan), "-o",
+               str(Path(tmp) / "flight"), "-q"]
+        t = time.perf_counter()
+        proc = subprocess.Popen(cmd)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        if status:
+            raise SystemExit("ins simulate failed")
+        man = tomllib.loads((Path(tmp) / "flight" / "manifest.toml").read_text())
+        size = sum(p.stat().st_size for p in (Path(tmp) / "flight").iterdir())
+        fl = man["flight"]
+        print(f"ins simulate, 4 strips of 50 km ({fl['end_time_s'] - fl['start_time_s']:.0f} s "
+              f"at {fl['imu_rate_hz']:.0f} Hz, {fl['n_images']} images, "
+              f"{fl['n_tiepoint_observations']} tie-point observations): wall {wall:.1f} s, "
+              f"peak RSS {usage.ru_maxrss / 1024:.0f} MB, folder {size / 1e6:.0f} MB")
+
+
 def main():
+    whole_folder()
     truth, log = speed()
     pyins_same_truth(truth, log)
     del truth, log
