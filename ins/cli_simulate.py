@@ -11,7 +11,10 @@ frames and units:
   The plan (TOML, units in the key names: _deg, _m, _mps, _hz, _s, _percent; see
   data/flights/demo.toml) gives the block origin (WGS84 lat/lon deg, ellipsoidal h m),
   strips, flying height, speed, wind, turbulence, the stabilized mount, the IMU grade,
-  GNSS, camera, terrain and tie points.
+  GNSS, camera, terrain and tie points.  Refused, naming the key: a bank (or turn rate)
+  above [flight] max_bank_deg; wind crab + yaw turbulence, or roll/pitch turbulence,
+  beyond 80 % of the mount's limits on the strips (the mount must follow there; in the
+  turns it saturates smoothly); a run-in shorter than 3 servo lags.
 
 output folder (docs/interfaces.md; manifest.toml names every file, frame and unit):
   imu.txt      KF-GINS IMU text: time_s, dtheta x y z (rad), dvel x y z (m/s), body FRD
