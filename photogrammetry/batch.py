@@ -6,7 +6,8 @@ tasks on ``dask.distributed`` (a local cluster by default, or an existing schedu
 address); the tasks are pure functions of their inputs, so the results are identical to
 running :func:`refine` on each block in one process.
 """
-from dataclasses import dataclass, replace
+import warnings
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -33,6 +34,8 @@ class RefineResult:
     pairs : ndarray (P, 2)
     pair_points : list of (xy_i, xy_j)
     settings : dict
+    warnings : list of (category, str)
+        The warnings of the run (re-issued by :func:`refine_many` in the caller).
     """
     eo: object
     prior: object
@@ -41,6 +44,7 @@ class RefineResult:
     pairs: np.ndarray
     pair_points: list
     settings: dict
+    warnings: list = field(default_factory=list)
 
 
 def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
@@ -106,7 +110,20 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
 
 
 def _run(kwargs):
-    return refine(**kwargs)
+    """:func:`refine` on one task; its warnings travel with the result (a Dask worker's
+    own warnings would otherwise be printed raw on the worker's stderr)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = refine(**kwargs)
+    result.warnings = [(w.category, str(w.message)) for w in caught]
+    return result
+
+
+def _reemit(results):
+    for r in results:
+        for category, message in getattr(r, "warnings", ()):
+            warnings.warn(message, category, stacklevel=3)
+    return results
 
 
 def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=True):
@@ -136,7 +153,7 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
             out.append(_run(t))
             if progress is not None:
                 progress(k + 1, len(tasks))
-        return out
+        return _reemit(out)
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
@@ -153,7 +170,7 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
             results[index[fut.key]] = fut.result()
             if progress is not None:
                 progress(done, len(tasks))
-        return results
+        return _reemit(results)
     finally:
         client.close()
         if cluster is not None:
