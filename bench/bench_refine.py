@@ -55,7 +55,6 @@ def colmap(p):
     import pycolmap
     R2 = np.empty_like(p["R2"])
     prior = angles_to_matrix(p["prior2"], p["system"])
-    opts = pycolmap.SolverOptions() if hasattr(pycolmap, "SolverOptions") else None
     t0 = time.perf_counter()
     for k in range(len(R2)):
         R_cw1 = C_CV_C @ p["R1"][k].T

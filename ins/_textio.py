@@ -629,6 +629,24 @@ def read_text(path, expected="text"):
     return text
 
 
+def check_rows(rows, row_line, path, time_col=0, name_duplicates=True):
+    """Every value finite and the time column strictly increasing, else an
+    :class:`InputError` naming the file and line (a duplicated epoch named as such
+    unless ``name_duplicates`` is false)."""
+    path = os.fspath(path)
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+    if bad.size:
+        raise InputError("non-finite value", path=path, line=int(row_line[bad[0]]))
+    t = rows[:, time_col]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        k = back[0] + 1
+        what = ("duplicated epoch" if name_duplicates and t[k] == t[k - 1]
+                else "time not increasing")
+        raise InputError(f"{what}: t = {float(t[k])!r} s after {float(t[k - 1])!r} s",
+                         path=path, line=int(row_line[k]))
+
+
 def read_toml(path, expected="a TOML file"):
     """A TOML file as a dict; :class:`InputError` naming the file for binary data or
     invalid TOML (the TOML parser's message gives the line and column)."""

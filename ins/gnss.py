@@ -82,15 +82,7 @@ def read_gnss(path):
     if ncols not in (7, 13):
         raise InputError(f"{ncols} columns: expected 7 (position) or 13 (position and "
                          f"velocity) ({_HINT})", path=path_s, line=int(row_line[0]))
-    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
-    if bad.size:
-        raise InputError("non-finite value", path=path_s, line=int(row_line[bad[0]]))
-    back = np.flatnonzero(np.diff(rows[:, 0]) <= 0)
-    if back.size:
-        k = back[0] + 1
-        what = "duplicated epoch" if rows[k, 0] == rows[k - 1, 0] else "time not increasing"
-        raise InputError(f"{what}: t = {float(rows[k, 0])!r} s after {float(rows[k - 1, 0])!r} s",
-                         path=path_s, line=int(row_line[k]))
+    _textio.check_rows(rows, row_line, path_s)
     lat_bad = np.flatnonzero(np.abs(rows[:, 1]) > 90.0)
     if lat_bad.size:
         k = lat_bad[0]

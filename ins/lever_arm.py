@@ -95,16 +95,18 @@ def antenna_lla(lla, C_nb, l_b):
     The offset ``C_nb l_b`` (m, NED) is converted through ``D^-1`` at the IMU position
     (the error of this linearization is below 1e-6 m for arms of a few metres).
     """
-    d_n = C_nb @ l_b
-    rm, rn = earth.radii(lla[0])
-    return np.array([lla[0] + d_n[0] / (rm + lla[2]),
-                     lla[1] + d_n[1] / ((rn + lla[2]) * np.cos(lla[0])),
-                     lla[2] - d_n[2]])
+    return lla + earth.lla_rate(lla[0], lla[2], C_nb @ l_b)
 
 
 def antenna_velocity(v_n, C_nb, w_ib_b, w_in_n, l_b, dl_b):
-    """Antenna velocity NED (m/s) (module notes); rates in rad/s, arms in m."""
-    return (v_n + C_nb @ (np.cross(w_ib_b, l_b) + dl_b) - np.cross(w_in_n, C_nb @ l_b))
+    """Antenna velocity NED (m/s) (module notes); rates in rad/s, arms in m.
+
+    ``v_n + C_nb (w_ib_b x l_b + dl_b/dt) - w_in_n x (C_nb l_b)``; one epoch, or stacks
+    with a leading dimension n (``C_nb`` (n, 3, 3), the vectors (n, 3)).
+    """
+    arm_n = np.einsum("...ij,...j->...i", C_nb, l_b)
+    return (v_n + np.einsum("...ij,...j->...i", C_nb, np.cross(w_ib_b, l_b) + dl_b)
+            - np.cross(w_in_n, arm_n))
 
 
 def position_jacobian(C_nb, l_b):

@@ -80,14 +80,7 @@ def read_mount(path):
     """
     path_s = str(path)
     rows, row_line = _textio.read_table(path, ncols_min=4, ncols_max=4, hint=_HINT)
-    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
-    if bad.size:
-        raise InputError("non-finite value", path=path_s, line=int(row_line[bad[0]]))
-    back = np.flatnonzero(np.diff(rows[:, 0]) <= 0)
-    if back.size:
-        k = back[0] + 1
-        raise InputError(f"time not increasing: t = {float(rows[k, 0])!r} s after {float(rows[k - 1, 0])!r} s",
-                         path=path_s, line=int(row_line[k]))
+    _textio.check_rows(rows, row_line, path_s, name_duplicates=False)
     big = np.flatnonzero(np.any(np.abs(rows[:, 1:]) > 180.0, axis=1))
     if big.size:
         raise InputError("mount angle beyond +-180 deg (expected deg)", path=path_s,

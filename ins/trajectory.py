@@ -111,15 +111,7 @@ def read_nav(path):
                                         hint="KF-GINS .nav: week t lat lon h vN vE vD "
                                              "roll pitch yaw")
     rows = rows[:, :11]
-    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
-    if bad.size:
-        raise InputError("non-finite value", path=str(path), line=int(row_line[bad[0]]))
-    back = np.flatnonzero(np.diff(rows[:, 1]) <= 0)
-    if back.size:
-        k = back[0] + 1
-        what = "duplicated epoch" if rows[k, 1] == rows[k - 1, 1] else "time not increasing"
-        raise InputError(f"{what}: t = {float(rows[k, 1])!r} s after {float(rows[k - 1, 1])!r} s",
-                         path=str(path), line=int(row_line[k]))
+    _textio.check_rows(rows, row_line, path, time_col=1)
     if np.any(np.abs(rows[:, 2]) > 90.0):
         k = int(np.flatnonzero(np.abs(rows[:, 2]) > 90.0)[0])
         raise InputError(f"latitude {float(rows[k, 2])!r} deg outside +-90 deg (expected "

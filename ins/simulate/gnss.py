@@ -20,8 +20,9 @@ KF-GINS GNSS text of ``docs/interfaces.md``).
 import numpy as np
 import pymap3d
 
-from ..earth import dcm_en, earth_rate_n, lla_to_ecef, radii, transport_rate_n
+from ..earth import dcm_en, earth_rate_n, lla_rate, lla_to_ecef, transport_rate_n
 from ..gnss import GnssLog
+from ..lever_arm import antenna_velocity
 from ..rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew
 
 __all__ = ["lever_arm_b", "antenna_state", "offset_ecef", "offset_lla", "gnss_times",
@@ -93,9 +94,8 @@ def antenna_state(sample, l_bp, l_ap):
     arm_n = np.einsum("nij,nj->ni", C_nb, l_b)
     lla_ant = offset_lla(lla, arm_n)
     w_in_n = earth_rate_n(lla[:, 0]) + transport_rate_n(lla[:, 0], lla[:, 2], sample.v_n)
-    w_ib_b = np.atleast_2d(sample.w_ib_b)
-    v_ant = (np.atleast_2d(sample.v_n) + np.einsum("nij,nj->ni", C_nb, np.cross(w_ib_b, l_b))
-             - np.cross(w_in_n, arm_n) + np.einsum("nij,nj->ni", C_nb, dl_b))
+    v_ant = antenna_velocity(np.atleast_2d(sample.v_n), C_nb, np.atleast_2d(sample.w_ib_b),
+                             w_in_n, l_b, dl_b)
     return lla_ant, v_ant
 
 
@@ -143,14 +143,6 @@ def gnss_times(t_start, t_end, rate_hz, outages=()):
     return time[keep]
 
 
-def _ned_to_dlla(lla, d_ned):
-    """Small NED offsets (m) to (dlat, dlon, dh) in rad, rad, m (``D^-1``)."""
-    M, N = radii(lla[:, 0])
-    return np.column_stack([d_ned[:, 0] / (M + lla[:, 2]),
-                            d_ned[:, 1] / ((N + lla[:, 2]) * np.cos(lla[:, 0])),
-                            -d_ned[:, 2]])
-
-
 def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
                   sigma_vel_mps=None):
     """Noisy antenna fixes at the given epochs.
@@ -180,7 +172,8 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
     sigma = np.broadcast_to(np.asarray(sigma_ned_m, dtype=float), (3,))
     sample = truth.evaluate(time)
     lla, v_n = antenna_state(sample, l_bp, l_ap)
-    lla = lla + _ned_to_dlla(lla, rng.standard_normal((len(time), 3)) * sigma)
+    # small NED offsets to (dlat, dlon, dh): D^-1, the same map as the position rate
+    lla = lla + lla_rate(lla[:, 0], lla[:, 2], rng.standard_normal((len(time), 3)) * sigma)
     std = np.tile(np.maximum(sigma, STD_FLOOR), (len(time), 1))
     if not velocity:
         return GnssLog(time, lla, std)
