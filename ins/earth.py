@@ -158,6 +158,25 @@ def dcm_en(lat, lon):
                      np.stack([cl, z, -sl], axis=-1)], axis=-2)
 
 
+def offset_ecef(lla, offset_n):
+    """ECEF position (m) of the point ``offset_n`` (NED in the n frame at ``lla``, m) away
+    from ``lla`` (rows: lat rad, lon rad, h m); shape (n, 3).  Exact for any offset."""
+    lla = np.atleast_2d(np.asarray(lla, dtype=float))
+    offset_n = np.atleast_2d(np.asarray(offset_n, dtype=float))
+    r_e = lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2])
+    return r_e + np.einsum("nij,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), offset_n)
+
+
+def offset_lla(lla, offset_n):
+    """Geodetic position (rows: lat rad, lon rad, h m) of ``lla`` moved by ``offset_n``
+    (NED at ``lla``, m): exact, through ECEF and back with pymap3d; shape (n, 3).
+    The inverse of :func:`ned_offset`."""
+    import pymap3d
+    r_e = offset_ecef(lla, offset_n)
+    lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
+    return np.column_stack([lat, lon, h])
+
+
 def ned_offset(lla_from, lla_to):
     """NED offset (m) of ``lla_to`` from ``lla_from`` (rows: lat rad, lon rad, h m).
 

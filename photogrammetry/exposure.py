@@ -24,10 +24,9 @@ import io
 from dataclasses import dataclass, replace
 
 import numpy as np
-import pymap3d
 
 from ins import _textio
-from ins.earth import dcm_en, lla_to_ecef
+from ins.earth import dcm_en, offset_lla
 from ins.errors import InputError
 from ins.fileio import atomic_open
 from ins.interpolation import interpolate_linear, interpolate_trajectory
@@ -174,7 +173,7 @@ def compute_eo(traj, image_ids, times, mounting, frame, system="phi-omega-kappa"
         raise ValueError(f"times must have shape ({len(image_ids)},), got {times.shape}")
     at = interpolate_trajectory(traj, times, method=method, names=image_ids, path=path)
     C_nb = quat_to_dcm(at.q_nb)
-    lla_c = _camera_lla(at.lla, C_nb, mounting.lever_arm_m)
+    lla_c = offset_lla(at.lla, C_nb @ np.asarray(mounting.lever_arm_m, dtype=float))
     # C_nb refers to the n frame at the IMU: C_mn(camera) C_en(camera)^T C_en(IMU)
     C_ncam_nimu = np.swapaxes(dcm_en(lla_c[:, 0], lla_c[:, 1]), -1, -2) @ dcm_en(
         at.lla[:, 0], at.lla[:, 1])
@@ -193,15 +192,6 @@ def compute_eo(traj, image_ids, times, mounting, frame, system="phi-omega-kappa"
         sig_ang = _propagate(_angle_jacobian(quat_to_euler(at.q_nb), angles_of), std[:, 6:9])
     return ExposureOrientation(image_ids, times, frame.position(lla_c), angles, system,
                                frame.header(), sig_pos, sig_ang)
-
-
-def _camera_lla(lla, C_nb, lever_b):
-    """Geodetic position of ``r_imu + C_nb lever_b`` (exact, through ECEF)."""
-    lever_n = C_nb @ np.asarray(lever_b, dtype=float)
-    r_e = lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2]) + np.einsum(
-        "nij,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), lever_n)
-    lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
-    return np.column_stack([lat, lon, h])
 
 
 # --------------------------------------------------------------------------

@@ -136,3 +136,16 @@ def test_ned_offset_against_pymap3d():
     b = np.array([np.deg2rad(30.5), np.deg2rad(114.3), 1230.0])
     ref = pymap3d.geodetic2ned(b[0], b[1], b[2], a[0], a[1], a[2], deg=False)
     np.testing.assert_allclose(earth.ned_offset(a, b), ref, atol=1e-8)
+
+
+def test_offset_lla_against_pymap3d_and_inverse_of_ned_offset():
+    rng = np.random.default_rng(7)
+    lla = np.column_stack([np.deg2rad(rng.uniform(-80, 80, 20)),
+                           np.deg2rad(rng.uniform(-180, 180, 20)), rng.uniform(-50, 3000, 20)])
+    off = rng.uniform(-2000, 2000, (20, 3))
+    got = earth.offset_lla(lla, off)
+    lat, lon, h = pymap3d.ned2geodetic(off[:, 0], off[:, 1], off[:, 2], lla[:, 0], lla[:, 1],
+                                       lla[:, 2], deg=False)
+    assert np.allclose(got[:, 0], lat, atol=1e-12) and np.allclose(got[:, 1], lon, atol=1e-12)
+    assert np.allclose(got[:, 2], h, atol=1e-6)
+    assert np.allclose(earth.ned_offset(lla, got), off, atol=1e-6)

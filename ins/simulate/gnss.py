@@ -18,9 +18,8 @@ The log is an :class:`ins.gnss.GnssLog`, written with :func:`ins.gnss.write_gnss
 KF-GINS GNSS text of ``docs/interfaces.md``).
 """
 import numpy as np
-import pymap3d
 
-from ..earth import dcm_en, earth_rate_n, lla_rate, lla_to_ecef, transport_rate_n
+from ..earth import earth_rate_n, lla_rate, offset_ecef, offset_lla, transport_rate_n
 from ..gnss import GnssLog
 from ..lever_arm import antenna_velocity
 from ..rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew
@@ -97,23 +96,6 @@ def antenna_state(sample, l_bp, l_ap):
     v_ant = antenna_velocity(np.atleast_2d(sample.v_n), C_nb, np.atleast_2d(sample.w_ib_b),
                              w_in_n, l_b, dl_b)
     return lla_ant, v_ant
-
-
-def offset_ecef(lla, offset_n):
-    """ECEF (m) of ``lla`` (rows: rad, rad, m) plus ``offset_n`` (NED at ``lla``, m), (n, 3)."""
-    lla = np.atleast_2d(np.asarray(lla, dtype=float))
-    r_e = lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2])
-    return r_e + np.einsum("nij,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), offset_n)
-
-
-def offset_lla(lla, offset_n):
-    """Geodetic position of ``lla + offset_n`` (offset NED in the n frame at ``lla``, m).
-
-    Exact: ECEF of the point plus ``C_en offset_n``, back to geodetic with pymap3d.
-    """
-    r_e = offset_ecef(lla, offset_n)
-    lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
-    return np.column_stack([lat, lon, h])
 
 
 def gnss_times(t_start, t_end, rate_hz, outages=()):
