@@ -6,9 +6,12 @@ value out of range).  Its message is one line and names the file and, when known
 interface prints it and exits with code 2.  :class:`InputWarning` flags data that are
 usable but suspicious (gaps, a log that looks like increments where rates were
 announced); library code issues it through :mod:`warnings`, never by printing.
+:class:`QualityWarning` (an :class:`InputWarning`) flags a result that should not be
+trusted as it stands (an adjustment that did not converge, a variance that is not
+estimable).
 """
 
-__all__ = ["InputError", "InputWarning"]
+__all__ = ["InputError", "InputWarning", "QualityWarning"]
 
 
 class InputError(ValueError):
@@ -71,3 +74,8 @@ class InputError(ValueError):
 
 class InputWarning(UserWarning):
     """Input data that are usable but suspicious (gaps, an unusual magnitude)."""
+
+
+class QualityWarning(InputWarning):
+    """A result that is computed but should not be trusted as it stands (not converged,
+    a variance factor or component that cannot be estimated)."""
