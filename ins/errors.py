@@ -8,10 +8,12 @@ usable but suspicious (gaps, a log that looks like increments where rates were
 announced); library code issues it through :mod:`warnings`, never by printing.
 :class:`QualityWarning` (an :class:`InputWarning`) flags a result that should not be
 trusted as it stands (an adjustment that did not converge, a variance that is not
-estimable).
+estimable).  :class:`QualityError` is raised when a result must not be used at all
+(a filter that rejected most of its measurements or diverged, a covariance that lost
+positive definiteness); the command-line interface prints it and exits with code 3.
 """
 
-__all__ = ["InputError", "InputWarning", "QualityWarning"]
+__all__ = ["InputError", "InputWarning", "QualityError", "QualityWarning"]
 
 
 class InputError(ValueError):
@@ -79,3 +81,14 @@ class InputWarning(UserWarning):
 class QualityWarning(InputWarning):
     """A result that is computed but should not be trusted as it stands (not converged,
     a variance factor or component that cannot be estimated)."""
+
+
+class QualityError(RuntimeError):
+    """A result that is not to be trusted (exit code 3 in the command-line interface).
+
+    The message is one line and names the likely cause (start state, noise settings,
+    lever arm, time base) or the time and state of a numerical failure.
+    """
+
+    def __init__(self, message):
+        super().__init__(" ".join(str(message).splitlines()).strip())
