@@ -23,10 +23,12 @@ import tomli_w
 from ins import _textio
 from ins.errors import InputError
 from ins.fileio import atomic_open
+from ins.tomlschema import REQUIRED, Table, check_keys
 
 from .rotation import boresight_matrix
 
-__all__ = ["FrameCamera", "CameraMounting", "read_camera", "write_camera", "NADIR_AXES"]
+__all__ = ["FrameCamera", "CameraMounting", "read_camera", "write_camera", "NADIR_AXES",
+           "CAMERA_KEYS"]
 
 #: Nominal axes of a nadir-looking camera with x_c forward: ``C_bc`` rows.
 NADIR_AXES = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
@@ -248,48 +250,66 @@ class CameraMounting:
 
 # --------------------------------------------------------------------------
 # camera file (TOML)
-def _get(table, key, path, section, default=None, required=True):
-    if key not in table:
-        if required:
-            raise InputError(f"missing key [{section}] {key}", path=path)
-        return default
-    return table[key]
+
+#: Sections and keys of a camera file (``docs/interfaces.md``); any other key is refused
+#: (:mod:`ins.tomlschema`).  Optional: ``[camera] model`` ("frame"), ``radial_k`` and
+#: ``tangential_p`` (zeros) and the whole ``[mounting]`` (:data:`NADIR_AXES`, zero lever
+#: arm, zero boresight).
+CAMERA_KEYS = {
+    "camera": ("model", "focal_length_mm", "pixel_size_mm", "width_px", "height_px",
+               "principal_point_px", "radial_k", "tangential_p"),
+    "mounting": ("axes", "lever_arm_m", "boresight_deg"),
+}
 
 
 def read_camera(path):
     """Read a camera file (``docs/interfaces.md``): ``(FrameCamera, CameraMounting)``.
 
-    Errors (:class:`ins.errors.InputError`) name the file and the ``[section] key``.
-    ``[mounting]`` is optional (nadir axes, zero lever arm and boresight).
+    Strict: an unknown section or key (``lever_arm`` for ``lever_arm_m``, a table
+    ``[mount]``) is an error, never silently replaced by the default.  ``[mounting]`` is
+    optional: nadir axes :data:`NADIR_AXES`, zero lever arm, zero boresight.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the ``[section] key`` and the expected unit.
     """
     path = str(path)
     doc = _textio.read_toml(path, "a TOML camera file with [camera] and [mounting]")
-    cam = doc.get("camera")
-    if not isinstance(cam, dict):
-        raise InputError("missing table [camera]", path=path)
-    model = cam.get("model", "frame")
+    check_keys(doc, CAMERA_KEYS, path)
+    if "camera" not in doc:
+        raise InputError("[camera]: missing required section (focal_length_mm, "
+                         "pixel_size_mm, width_px, height_px, principal_point_px)", path=path)
+    cam = Table(doc["camera"], "camera", path, CAMERA_KEYS["camera"], CAMERA_KEYS)
+    model = cam.string("model", "frame", '"frame"')
     if model != "frame":
         raise InputError(f"[camera] model = {model!r}: only 'frame' is read here "
                          "(fisheye cameras: photogrammetry.lunar)", path=path)
-    kwargs = {}
-    for key in ("focal_length_mm", "pixel_size_mm", "width_px", "height_px",
-                "principal_point_px"):
-        kwargs[key] = _get(cam, key, path, "camera")
-    kwargs["radial_k"] = _get(cam, "radial_k", path, "camera", (0.0, 0.0, 0.0), False)
-    kwargs["tangential_p"] = _get(cam, "tangential_p", path, "camera", (0.0, 0.0), False)
+    kwargs = dict(
+        focal_length_mm=cam.number("focal_length_mm", unit="mm > 0"),
+        pixel_size_mm=cam.number("pixel_size_mm", unit="mm > 0"),
+        width_px=cam.number("width_px", unit="integer px > 0", integer=True),
+        height_px=cam.number("height_px", unit="integer px > 0", integer=True),
+        principal_point_px=cam.numbers("principal_point_px", REQUIRED, "px (u0, v0)",
+                                       length=2, scalar=False),
+        radial_k=cam.numbers("radial_k", (0.0, 0.0, 0.0), "k1 mm^-2, k2 mm^-4, k3 mm^-6",
+                             length=3, scalar=False),
+        tangential_p=cam.numbers("tangential_p", (0.0, 0.0), "p1, p2 mm^-1", length=2,
+                                 scalar=False))
+    cam.finish()
     try:
         camera = FrameCamera(**kwargs)
     except InputError as exc:
         raise InputError(f"[camera] {exc.reason}", path=path) from None
-    mnt = doc.get("mounting", {})
-    if not isinstance(mnt, dict):
-        raise InputError("[mounting] must be a table", path=path)
+    mnt = Table(doc.get("mounting"), "mounting", path, CAMERA_KEYS["mounting"], CAMERA_KEYS)
+    axes = mnt.matrix("axes", NADIR_AXES, (3, 3), "rows of C_bc, a rotation matrix")
+    lever = mnt.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m, body FRD", length=3,
+                        scalar=False)
+    bore = mnt.numbers("boresight_deg", (0.0, 0.0, 0.0), "deg (rx, ry, rz)", length=3,
+                       scalar=False)
+    mnt.finish()
     try:
-        axes = mnt.get("axes", NADIR_AXES)
-        bore = mnt.get("boresight_deg", (0.0, 0.0, 0.0))
-        bore = np.deg2rad(_floats(bore, "boresight_deg", 3, "deg"))
-        mounting = CameraMounting(axes=axes, lever_arm_m=mnt.get("lever_arm_m", (0, 0, 0)),
-                                  boresight_rad=bore)
+        mounting = CameraMounting(axes=axes, lever_arm_m=lever, boresight_rad=np.deg2rad(bore))
     except InputError as exc:
         raise InputError(f"[mounting] {exc.reason}", path=path) from None
     return camera, mounting

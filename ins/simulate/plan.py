@@ -4,8 +4,10 @@ The file has the sections ``[block] [flight] [wind] [turbulence] [mount] [imu] [
 [camera] [terrain] [tie_points]``; key names carry their unit (``_deg``, ``_m``,
 ``_mps``, ``_hz``, ``_s``, ``_percent``).  ``data/flights/demo.toml`` is the documented
 example.  Every key has a default except the block origin; unknown keys and sections are
-errors.  :func:`load_plan` and :func:`parse_plan` raise :class:`~ins.errors.InputError`
-as ``"plan.toml: [section] key: message (expected unit)"``.
+errors (:mod:`ins.tomlschema`: the message lists the known keys of the section, with
+"did you mean" for a near miss; :data:`PLAN_KEYS` holds them).  :func:`load_plan` and
+:func:`parse_plan` raise :class:`~ins.errors.InputError` as
+``"plan.toml: [section] key: message (expected unit)"``.
 
 Geometry of the photo block
 ---------------------------
@@ -34,16 +36,17 @@ limits ("the mount cannot follow" otherwise), and ``run_in_m`` must give the ser
 lags to recover from the turn.
 """
 import math
-import tomllib
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
 import numpy as np
 
+from .._textio import read_toml
 from ..errors import InputError
+from ..tomlschema import REQUIRED, Table, check_keys
 from .sensor_errors import MANIFEST_KEYS, PRESETS
 
-__all__ = ["FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
+__all__ = ["PLAN_KEYS", "FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
            "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "load_plan",
            "parse_plan", "G_TURN", "MOUNT_KNEE"]
 
@@ -237,84 +240,31 @@ class FlightPlan:
 # ---------------------------------------------------------------------------------------
 # reading
 
-class _Section:
-    """Typed access to one TOML table; records the keys used, rejects the others."""
-
-    def __init__(self, source, name, table):
-        self.source, self.name = source, name
-        if not isinstance(table, dict):
-            raise InputError(f"[{name}]: expected a table, got {type(table).__name__}",
-                             path=source)
-        self.table, self.used = table, set()
-
-    def error(self, key, message, unit=None):
-        tail = f" (expected {unit})" if unit else ""
-        return InputError(f"[{self.name}] {key}: {message}{tail}", path=self.source)
-
-    def has(self, key):
-        return key in self.table
-
-    def number(self, key, default=None, unit="", lo=None, hi=None, lo_open=False,
-               integer=False):
-        self.used.add(key)
-        if key not in self.table:
-            if default is None:
-                raise self.error(key, "missing", unit)
-            return default
-        v = self.table[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.error(key, f"expected a number, got {v!r}", unit)
-        if integer and (not float(v).is_integer()):
-            raise self.error(key, f"expected an integer, got {v!r}", unit)
-        if not math.isfinite(v):
-            raise self.error(key, f"must be finite, got {v!r}", unit)
-        if lo is not None and (v <= lo if lo_open else v < lo):
-            raise self.error(key, f"must be {'>' if lo_open else '>='} {lo}, got {v!r}", unit)
-        if hi is not None and v > hi:
-            raise self.error(key, f"must be <= {hi}, got {v!r}", unit)
-        return int(v) if integer else float(v)
-
-    def numbers(self, key, default=(), unit="", length=None, lo=None):
-        self.used.add(key)
-        if key not in self.table:
-            return tuple(default)
-        v = self.table[key]
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            v = [v]
-        if not isinstance(v, list) or not all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                for x in v):
-            raise self.error(key, f"expected a list of finite numbers, got {v!r}", unit)
-        if length is not None and len(v) != length:
-            raise self.error(key, f"expected {length} numbers, got {len(v)}", unit)
-        if lo is not None and any(x < lo for x in v):
-            raise self.error(key, f"values must be >= {lo}, got {v!r}", unit)
-        return tuple(float(x) for x in v)
-
-    def boolean(self, key, default):
-        self.used.add(key)
-        v = self.table.get(key, default)
-        if not isinstance(v, bool):
-            raise self.error(key, f"expected true or false, got {v!r}")
-        return v
-
-    def choice(self, key, default, options):
-        self.used.add(key)
-        v = self.table.get(key, default)
-        if v not in options:
-            raise self.error(key, f"expected one of {', '.join(map(repr, options))}, got {v!r}")
-        return v
-
-    def finish(self):
-        unknown = sorted(set(self.table) - self.used)
-        if unknown:
-            raise self.error(unknown[0], "unknown key (known: "
-                             + ", ".join(sorted(self.used)) + ")")
+#: Every key of every section of a flight plan (the reader refuses the others).
+PLAN_KEYS = {
+    "block": ("origin_lat_deg", "origin_lon_deg", "origin_h_m", "strip_azimuth_deg",
+              "strip_length_m", "n_strips", "side_overlap_percent", "strip_spacing_m",
+              "forward_overlap_percent", "exposure_interval_s"),
+    "flight": ("height_agl_m", "ground_speed_mps", "turn_rate_deg_s", "bank_deg",
+               "max_bank_deg", "climb_rate_mps", "start", "stationary_s", "run_in_m",
+               "takeoff_accel_mps2", "gps_week", "start_time_s"),
+    "wind": ("speed_mps", "from_deg"),
+    "turbulence": ("roll_amp_deg", "roll_freq_hz", "pitch_amp_deg", "pitch_freq_hz",
+                   "yaw_amp_deg", "yaw_freq_hz", "heave_amp_m", "heave_freq_hz", "seed"),
+    "mount": ("enabled", "level_limit_deg", "azimuth_limit_deg", "servo_lag_s", "log_rate_hz",
+              "imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"),
+    "imu": ("grade", "rate_hz") + tuple(MANIFEST_KEYS),
+    "gnss": ("rate_hz", "sigma_ned_m", "velocity", "sigma_vel_mps", "outages"),
+    "camera": ("focal_length_mm", "pixel_size_mm", "width_px", "height_px",
+               "principal_point_px", "radial_k", "tangential_p", "axes", "lever_arm_m",
+               "boresight_deg"),
+    "terrain": ("relief_m", "wavelength_m", "seed_offset"),
+    "tie_points": ("per_image", "sigma_px"),
+}
 
 
 def _either(sec, a, b):
-    if sec.has(a) and sec.has(b):
-        raise sec.error(b, f"give either {a} or {b}, not both")
+    sec.either(a, b)
 
 
 def _block(sec):
@@ -332,8 +282,8 @@ def _block(sec):
         if v is not None and v >= 1.0:
             raise sec.error(key, f"must be below 100, got {100 * v:g}", "percent in [0, 100)")
     return Block(
-        origin_lat=sec.number("origin_lat_deg", None, "deg in [-85, 85]", -85.0, 85.0) * D2R,
-        origin_lon=sec.number("origin_lon_deg", None, "deg in [-180, 360]", -180.0, 360.0) * D2R,
+        origin_lat=sec.number("origin_lat_deg", REQUIRED, "deg in [-85, 85]", -85.0, 85.0) * D2R,
+        origin_lon=sec.number("origin_lon_deg", REQUIRED, "deg in [-180, 360]", -180.0, 360.0) * D2R,
         origin_h=sec.number("origin_h_m", 0.0, "m (ellipsoidal)", -500.0, 9000.0),
         strip_azimuth=sec.number("strip_azimuth_deg", 0.0, "deg", -360.0, 360.0) * D2R,
         strip_length=sec.number("strip_length_m", 3000.0, "m > 0", 0.0, 200e3, lo_open=True),
@@ -425,8 +375,7 @@ def _imu(sec):
 
 def _gnss(sec):
     outages = []
-    sec.used.add("outages")
-    raw = sec.table.get("outages", [])
+    raw = sec.raw("outages", [])
     if not isinstance(raw, list) or not all(
             isinstance(o, list) and len(o) == 2 and all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) for x in o)
@@ -447,8 +396,7 @@ def _gnss(sec):
 
 
 def _camera(sec):
-    axes = sec.table.get("axes", [list(r) for r in _NADIR_AXES])
-    sec.used.add("axes")
+    axes = sec.raw("axes", [list(r) for r in _NADIR_AXES])
     a = np.asarray(axes, dtype=float) if isinstance(axes, list) else np.zeros(0)
     if a.shape != (3, 3) or not np.allclose(a @ a.T, np.eye(3), atol=1e-9) \
             or np.linalg.det(a) < 0:
@@ -506,16 +454,13 @@ def parse_plan(data, source="<string>"):
     """
     if not isinstance(data, dict):
         raise InputError("expected a table of sections", path=source)
-    unknown = sorted(set(data) - set(_SECTIONS))
-    if unknown:
-        raise InputError(f"[{unknown[0]}]: unknown section (known: {', '.join(_SECTIONS)})",
-                         path=source)
+    check_keys(data, PLAN_KEYS, source)
     if "block" not in data:
         raise InputError("[block]: missing section (origin_lat_deg, origin_lon_deg, ...)",
                          path=source)
     parts = {}
     for name, parse in _SECTIONS.items():
-        sec = _Section(source, name, data.get(name, {}))
+        sec = Table(data.get(name), name, source, known=PLAN_KEYS[name], sections=PLAN_KEYS)
         parts[name] = parse(sec)
         sec.finish()
     plan = FlightPlan(**parts, source=str(source))
@@ -525,11 +470,7 @@ def parse_plan(data, source="<string>"):
 
 def load_plan(path):
     """Read and validate a TOML flight plan (see :func:`parse_plan`)."""
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", path=path) from None
+    data = read_toml(path, "a TOML flight plan")
     return parse_plan(data, source=str(path))
 
 

@@ -22,8 +22,9 @@ import numpy as np
 
 from ins import _textio
 from ins.errors import InputError
+from ins.tomlschema import Table, check_keys
 
-__all__ = ["FisheyeCamera", "read_camera"]
+__all__ = ["FisheyeCamera", "read_camera", "FISHEYE_KEYS"]
 
 
 @dataclass(frozen=True)
@@ -119,56 +120,55 @@ class FisheyeCamera:
         return J
 
 
+#: Keys of a fisheye camera file (one section ``[camera]``); any other key is refused
+#: (:mod:`ins.tomlschema`).  Optional: ``principal_point_px`` (the image centre),
+#: ``radial_k`` (zeros), ``pixel_size_mm`` (needed only with ``focal_length_mm``).
+FISHEYE_KEYS = {"camera": ("model", "focal_length_px", "focal_length_mm", "pixel_size_mm",
+                           "width_px", "height_px", "principal_point_px", "radial_k")}
+
+
 def read_camera(path):
     """Read a fisheye camera file (TOML).
 
     ``[camera]`` keys: ``model = "fisheye-equisolid"``; ``focal_length_px``, or
     ``focal_length_mm`` with ``pixel_size_mm``; ``width_px``, ``height_px``;
     ``principal_point_px = [u0, v0]`` (default: the image centre); ``radial_k =
-    [k1, k2, k3]`` in rad (eq. 1; default zeros).
+    [k1, k2, k3]`` in rad (eq. 1; default zeros).  Any other section or key is an
+    error (:data:`FISHEYE_KEYS`).
 
     Raises
     ------
     InputError
-        Naming the file and the key, for a missing or malformed value.
+        Naming the file and the key, for a missing, unknown or malformed value.
     """
+    path = str(path)
     doc = _textio.read_toml(path, "a TOML fisheye camera file with [camera]")
-    cam = doc.get("camera")
-    if not isinstance(cam, dict):
-        raise InputError("missing table [camera]", path)
-
-    def number(key, positive=True, default=None):
-        value = cam.get(key, default)
-        if value is None:
-            raise InputError(f"[camera] {key}: missing", path)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
-                or (positive and value <= 0):
-            raise InputError(f"[camera] {key}: expected a {'positive ' if positive else ''}"
-                             f"number, got {value!r}", path)
-        return float(value)
-
-    def vector(key, n, default):
-        value = cam.get(key, default)
-        if (not isinstance(value, list) or len(value) != n
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                           and np.isfinite(v) for v in value)):
-            raise InputError(f"[camera] {key}: expected {n} numbers, got {value!r}", path)
-        return tuple(float(v) for v in value)
-
-    model = cam.get("model")
+    check_keys(doc, FISHEYE_KEYS, path)
+    if "camera" not in doc:
+        raise InputError("[camera]: missing required section (model = "
+                         "\"fisheye-equisolid\", focal_length_px, width_px, height_px)", path)
+    cam = Table(doc["camera"], "camera", path, FISHEYE_KEYS["camera"], FISHEYE_KEYS)
+    model = cam.string("model", unit='"fisheye-equisolid"')
     if model != "fisheye-equisolid":
-        raise InputError(f"[camera] model: expected \"fisheye-equisolid\", got {model!r}", path)
-    width, height = number("width_px"), number("height_px")
-    pixel = number("pixel_size_mm") if "pixel_size_mm" in cam else None
-    if "focal_length_px" in cam:
-        f_px = number("focal_length_px")
-    elif "focal_length_mm" in cam:
+        raise cam.error("model", f"expected \"fisheye-equisolid\", got {model!r}")
+    width = cam.number("width_px", unit="integer px > 0", lo=1, integer=True)
+    height = cam.number("height_px", unit="integer px > 0", lo=1, integer=True)
+    pixel = cam.number("pixel_size_mm", None, "mm > 0", lo=0.0, lo_open=True)
+    cam.either("focal_length_px", "focal_length_mm")
+    if cam.has("focal_length_px"):
+        f_px = cam.number("focal_length_px", unit="px > 0", lo=0.0, lo_open=True)
+    elif cam.has("focal_length_mm"):
         if pixel is None:
-            raise InputError("[camera] pixel_size_mm: needed with focal_length_mm", path)
-        f_px = number("focal_length_mm") / pixel
+            raise cam.error("pixel_size_mm", "missing: needed with focal_length_mm", "mm > 0")
+        f_px = cam.number("focal_length_mm", unit="mm > 0", lo=0.0, lo_open=True) / pixel
     else:
-        raise InputError("[camera] focal_length_px (or focal_length_mm): missing", path)
-    pp = vector("principal_point_px", 2, [(width - 1) / 2, (height - 1) / 2])
-    k = vector("radial_k", 3, [0.0, 0.0, 0.0])
+        raise cam.error("focal_length_px", "missing required key (or focal_length_mm with "
+                        "pixel_size_mm)", "px > 0")
+    pp = cam.numbers("principal_point_px", ((width - 1) / 2, (height - 1) / 2),
+                     "px (u0, v0)", length=2, scalar=False)
+    k = cam.numbers("radial_k", (0.0, 0.0, 0.0), "rad (k1, k2, k3 of eq. 1)", length=3,
+                    scalar=False)
+    cam.finish()
     return FisheyeCamera(focal_length_px=f_px, width_px=int(width), height_px=int(height),
                          principal_point_px=pp, radial_k=k, pixel_size_mm=pixel)
+
