@@ -13,7 +13,7 @@ import numpy as np
 
 from . import _textio
 from .errors import InputError
-from .rotation import euler_to_dcm
+from .rotation import euler_to_dcm, wrap_to_pi
 
 _HINT = "mount log: time_s roll_deg pitch_deg yaw_deg"
 
@@ -49,8 +49,11 @@ class MountLog:
     def angles(self, t):
         """Interpolated angles at ``t`` (rad, shape (m, 3)) and a validity mask.
 
-        ``valid`` is False outside the log and inside gaps longer than ``max_gap_s``; the
-        angles there are zero (mount at its reference position).
+        Each angle is interpolated linearly along the shorter arc between the two
+        bracketing epochs (an angle logged as 179 then -179 deg passes +-180 deg, not 0)
+        and returned in (-pi, pi].  ``valid`` is False outside the log and inside gaps
+        longer than ``max_gap_s``; the angles there are zero (mount at its reference
+        position).
         """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         k = np.searchsorted(self.time, t, side="right")
@@ -59,7 +62,9 @@ class MountLog:
         gap = self.time[k] - self.time[k - 1]
         valid = inside & (gap <= self.max_gap_s)
         w = np.clip((t - self.time[k - 1]) / gap, 0.0, 1.0)[:, None]
-        rpy = (1.0 - w) * self.rpy[k - 1] + w * self.rpy[k]
+        # the short way round: a yaw from 179 to -179 deg passes 180, not 0
+        step = wrap_to_pi(self.rpy[k] - self.rpy[k - 1])
+        rpy = wrap_to_pi(self.rpy[k - 1] + w * step)
         rpy[~valid] = 0.0
         return rpy, valid
 

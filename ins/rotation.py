@@ -17,7 +17,12 @@ Conventions (``conventions.md``, "Rotations"):
 
 Every function takes one item, shape (3,), (4,) or (3, 3), or a stack of them,
 shape (n, 3), (n, 4) or (n, 3, 3); the output has a leading ``n`` axis exactly
-when an input had one.  Inputs are never modified.  Quaternions returned by the
+when an input had one.  Inputs are never modified.  The conversions and
+``quat_normalize`` / ``quat_rotate`` refuse a NaN or infinite element with a
+``ValueError`` naming the first offending row of a stack (a NaN quaternion
+would otherwise pass the zero-norm test and come out as a NaN rotation); the
+algebra (``skew``, ``quat_multiply``, ``quat_conjugate``) and the angle wraps
+propagate NaN unchanged.  Quaternions returned by the
 conversions (``dcm_to_quat``, ``euler_to_quat``, ``rotvec_to_quat``) have the
 canonical sign ``w >= 0``; the algebraic functions (``quat_multiply``,
 ``quat_conjugate``, ``quat_normalize``) do not change the sign.
@@ -44,16 +49,27 @@ _GIMBAL_TOL = 1e-14
 
 # --------------------------------------------------------------------------
 # shape helpers
-def _as_stack(x, name, tail):
-    """Return ``(a, single)``: `x` as a float (n, *tail) array and whether it was one item."""
+def _as_stack(x, name, tail, finite=False):
+    """Return ``(a, single)``: `x` as a float (n, *tail) array and whether it was one item.
+
+    With ``finite=True`` a NaN or infinite element is refused (ValueError naming the
+    first offending row of a stack).
+    """
     a = np.asarray(x, dtype=float)
     if a.shape == tail:
-        return a[np.newaxis], True
-    if a.ndim == len(tail) + 1 and a.shape[1:] == tail:
-        return a, False
-    one = "(" + ", ".join(map(str, tail)) + ("," if len(tail) == 1 else "") + ")"
-    many = "(n, " + ", ".join(map(str, tail)) + ")"
-    raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
+        a, single = a[np.newaxis], True
+    elif a.ndim == len(tail) + 1 and a.shape[1:] == tail:
+        single = False
+    else:
+        one = "(" + ", ".join(map(str, tail)) + ("," if len(tail) == 1 else "") + ")"
+        many = "(n, " + ", ".join(map(str, tail)) + ")"
+        raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
+    if finite and not np.isfinite(a).all():
+        bad = np.flatnonzero(~np.isfinite(a.reshape(len(a), -1)).all(axis=1))
+        value = np.array2string(a[bad[0]], separator=", ").replace("\n", "")
+        where = "" if single else f" (row {int(bad[0])} of {len(a)}; {bad.size} such)"
+        raise ValueError(f"{name} must be finite, got {value}{where}")
+    return a, single
 
 
 def _out(a, single):
@@ -67,9 +83,16 @@ def _check_pair(a, a_single, b, b_single, names):
 
 
 def _normalized(q, name="q"):
+    """Unit quaternions of the (n, 4) stack `q`: refuses a zero, NaN or infinite norm
+    (a NaN quaternion would pass a bare ``norm == 0`` test and come out as NaN)."""
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    if np.any(norm == 0):
-        raise ValueError(f"{name} must have nonzero norm")
+    bad = np.flatnonzero(~(np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)))
+    if bad.size:
+        i = int(bad[0])
+        what = "nonzero norm" if norm[i, 0] == 0 else "finite elements"
+        where = f" (row {i} of {len(q)}; {bad.size} such)" if len(q) > 1 else ""
+        raise ValueError(f"{name} must have {what}, got "
+                         f"{np.array2string(q[i], separator=', ')}{where}")
     return q / norm
 
 
@@ -222,9 +245,9 @@ def quat_normalize(q):
     Raises
     ------
     ValueError
-        If a quaternion has zero norm.
+        If a quaternion has zero norm or a NaN / infinite element.
     """
-    q, single = _as_stack(q, "q", (4,))
+    q, single = _as_stack(q, "q", (4,), finite=True)
     return _out(_normalized(q), single)
 
 
@@ -244,8 +267,8 @@ def quat_rotate(q, v):
     ndarray, shape (3,) or (n, 3)
         Vector(s) in the target frame, same unit as `v`.
     """
-    q, qs = _as_stack(q, "q", (4,))
-    v, vs = _as_stack(v, "v", (3,))
+    q, qs = _as_stack(q, "q", (4,), finite=True)
+    v, vs = _as_stack(v, "v", (3,), finite=True)
     _check_pair(q, qs, v, vs, ("q", "v"))
     C = _q2c(_normalized(q))
     return _out((C @ v[:, :, np.newaxis])[:, :, 0], qs and vs)
@@ -369,9 +392,10 @@ def quat_to_dcm(q):
     Raises
     ------
     ValueError
-        On a wrong shape or a zero-norm quaternion.
+        On a wrong shape, a zero-norm quaternion or a NaN / infinite element (the
+        message names the first offending row of a stack).
     """
-    q, single = _as_stack(q, "q", (4,))
+    q, single = _as_stack(q, "q", (4,), finite=True)
     return _out(_q2c(_normalized(q)), single)
 
 
@@ -394,7 +418,7 @@ def dcm_to_quat(C):
     ndarray, shape (4,) or (n, 4)
         Unit quaternion ``[x, y, z, w]`` with ``w >= 0``.
     """
-    C, single = _as_stack(C, "C", (3, 3))
+    C, single = _as_stack(C, "C", (3, 3), finite=True)
     return _out(_c2q(C), single)
 
 
@@ -414,7 +438,7 @@ def euler_to_dcm(rpy, *, degrees=False):
     ndarray, shape (3, 3) or (n, 3, 3)
         ``C_nb``; equals ``Rotation.from_euler('ZYX', [yaw, pitch, roll]).as_matrix()``.
     """
-    rpy, single = _as_stack(rpy, "rpy", (3,))
+    rpy, single = _as_stack(rpy, "rpy", (3,), finite=True)
     if degrees:
         rpy = np.deg2rad(rpy)
     return _out(_e2c(rpy), single)
@@ -447,7 +471,7 @@ def dcm_to_euler(C, *, degrees=False):
     carries the combined angle (yaw - roll at pitch = +90 deg, yaw + roll at
     pitch = -90 deg).  (scipy's ``as_euler`` makes the opposite choice, yaw = 0.)
     """
-    C, single = _as_stack(C, "C", (3, 3))
+    C, single = _as_stack(C, "C", (3, 3), finite=True)
     rpy = _c2e(C)
     return _out(np.rad2deg(rpy) if degrees else rpy, single)
 
@@ -467,7 +491,7 @@ def euler_to_quat(rpy, *, degrees=False):
     ndarray, shape (4,) or (n, 4)
         ``q_z(yaw) * q_y(pitch) * q_x(roll)`` as ``[x, y, z, w]``, with ``w >= 0``.
     """
-    rpy, single = _as_stack(rpy, "rpy", (3,))
+    rpy, single = _as_stack(rpy, "rpy", (3,), finite=True)
     if degrees:
         rpy = np.deg2rad(rpy)
     return _out(_e2q(rpy), single)
@@ -489,7 +513,7 @@ def quat_to_euler(q, *, degrees=False):
         ``[roll, pitch, yaw]`` with the ranges and gimbal-lock rule of
         :func:`dcm_to_euler`.
     """
-    q, single = _as_stack(q, "q", (4,))
+    q, single = _as_stack(q, "q", (4,), finite=True)
     rpy = _c2e(_q2c(_normalized(q)))
     return _out(np.rad2deg(rpy) if degrees else rpy, single)
 
@@ -513,7 +537,7 @@ def rotvec_to_quat(rv):
     Below 1e-4 rad ``sin(a/2)/a`` is replaced by its series ``1/2 - a^2/48 + a^4/3840``,
     so tiny and zero vectors are exact (no 0/0).
     """
-    rv, single = _as_stack(rv, "rv", (3,))
+    rv, single = _as_stack(rv, "rv", (3,), finite=True)
     return _out(_rv2q(rv), single)
 
 
@@ -531,7 +555,7 @@ def quat_to_rotvec(q):
         ``angle * axis``, rad, with ``angle = 2 atan2(|v|, |w|)``; accurate for
         tiny angles (series) and near pi (atan2, no arccos).
     """
-    q, single = _as_stack(q, "q", (4,))
+    q, single = _as_stack(q, "q", (4,), finite=True)
     return _out(_q2rv(q), single)
 
 
@@ -547,7 +571,7 @@ def rotvec_to_dcm(rv):
     -------
     ndarray, shape (3, 3) or (n, 3, 3)
     """
-    rv, single = _as_stack(rv, "rv", (3,))
+    rv, single = _as_stack(rv, "rv", (3,), finite=True)
     return _out(_q2c(_rv2q(rv)), single)
 
 
@@ -564,7 +588,7 @@ def dcm_to_rotvec(C):
     ndarray, shape (3,) or (n, 3)
         Rotation vector(s), rad (via Shepperd's quaternion, so accurate at 180 deg).
     """
-    C, single = _as_stack(C, "C", (3, 3))
+    C, single = _as_stack(C, "C", (3, 3), finite=True)
     return _out(_q2rv(_c2q(C)), single)
 
 

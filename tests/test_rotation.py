@@ -421,3 +421,48 @@ def test_read_only_inputs_two_argument_functions():
 def test_errors(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+# --------------------------------------------------------------------------
+# non-finite input (issue 12: a NaN quaternion passed the `norm == 0` test and came out
+# as a NaN "rotation"); every conversion refuses it, naming the row of a stack
+_NONFINITE = [
+    ("quat_to_dcm", "q", Q_RAND), ("quat_to_euler", "q", Q_RAND),
+    ("quat_to_rotvec", "q", Q_RAND), ("quat_normalize", "q", Q_RAND),
+    ("dcm_to_quat", "C", C_RAND), ("dcm_to_euler", "C", C_RAND),
+    ("dcm_to_rotvec", "C", C_RAND), ("euler_to_dcm", "rpy", RPY_RAND),
+    ("euler_to_quat", "rpy", RPY_RAND), ("rotvec_to_quat", "rv", RV_RAND),
+    ("rotvec_to_dcm", "rv", RV_RAND),
+]
+
+
+@pytest.mark.parametrize("func, name, good", _NONFINITE)
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_nonfinite_input_is_refused(func, name, good, bad):
+    f = getattr(rot, func)
+    one = np.array(good[0])
+    one.flat[1] = bad
+    with pytest.raises(ValueError, match=rf"^{name} must (be finite|have finite elements), "
+                                         r"got \[") as exc:
+        f(one)
+    assert "row" not in str(exc.value)
+    stack = np.array(good[:6])
+    stack[3].flat[0] = bad
+    stack[5].flat[-1] = bad
+    with pytest.raises(ValueError, match=rf"^{name} must .*finite.*\(row 3 of 6; 2 such\)"):
+        f(stack)
+
+
+def test_nan_quaternion_never_becomes_a_rotation():
+    """The exact red flag: [nan, 0, 0, 1] has a NaN norm, which is not == 0."""
+    q = np.array([np.nan, 0.0, 0.0, 1.0])
+    assert not np.linalg.norm(q) == 0                     # why the old test let it pass
+    for f in (rot.quat_to_dcm, rot.quat_normalize, rot.quat_to_euler, rot.quat_to_rotvec,
+              lambda q: rot.quat_rotate(q, [1.0, 0.0, 0.0])):
+        with pytest.raises(ValueError, match="finite"):
+            f(q)
+    with pytest.raises(ValueError, match=r"v must be finite"):
+        rot.quat_rotate(Q_RAND[0], [0.0, np.nan, 0.0])
+    with pytest.raises(ValueError, match=r"q must have nonzero norm, got \[0\., 0\., 0\., 0\.\] "
+                                          r"\(row 1 of 2; 1 such\)"):
+        rot.quat_normalize(np.array([[0, 0, 0, 1.0], [0, 0, 0, 0]]))
