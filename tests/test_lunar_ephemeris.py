@@ -102,29 +102,60 @@ def test_eq10_vector_erratum():
     assert np.all(np.linalg.norm(printed @ ned_from_seu.T - sky.moon_h, axis=1) > 0.1)
 
 
-def test_topocentric_parallax():
-    """Topocentric minus geocentric: the lunar parallax HP sin(z), up to about 1 deg."""
-    _, wgs84, ts, eph = E._skyfield()
-    sky = E.moon_sun_directions(UTC[:1], LAT, LON, H)
-    t = ts.utc(2017, 5, 12, 15, 0, 0)
-    geo = eph["earth"].at(t).observe(eph["moon"]).apparent()
-    dist = geo.distance().m
-    topo_dir = sky.moon_h[0]
-    # geocentric direction expressed in the station's NED frame
-    from ins.earth import dcm_en
-    pos = wgs84.latlon(np.rad2deg(LAT), np.rad2deg(LON), elevation_m=H).at(t)
-    r_geo_gcrs = geo.position.m
-    r_sta_gcrs = pos.position.m
-    topo_calc = r_geo_gcrs - r_sta_gcrs
-    angle_calc = np.arccos(r_geo_gcrs @ topo_calc / (np.linalg.norm(topo_calc) * dist))
-    z = np.pi / 2 - sky.alt[0]
-    hp = np.arcsin(6371e3 / dist)
-    assert abs(angle_calc - hp * np.sin(z)) < 0.01 * hp
-    assert angle_calc > 0.5 * np.deg2rad(0.9)
-    # our direction is topocentric: its altitude is lower than the geocentric one by ~HP sin z
-    geo_alt = np.arcsin(np.clip(np.dot(r_geo_gcrs / dist, r_sta_gcrs / np.linalg.norm(r_sta_gcrs)), -1, 1))
-    assert sky.alt[0] < geo_alt
-    assert np.isclose(np.linalg.norm(topo_dir), 1) and dcm_en is not None
+def _astropy_moon_sun(utc):
+    """astropy's geocentric Moon (direction and distance), topocentric Moon and Sun at the
+    station: the independent reference for the parallax, semidiameter and phase."""
+    pytest.importorskip("astropy")
+    import os
+    import astropy.units as u
+    import skyfield_data
+    from astropy.coordinates import (GCRS, AltAz, EarthLocation, SkyCoord, get_body,
+                                     solar_system_ephemeris)
+    from astropy.time import Time
+    from astropy.utils import iers
+    iers.conf.auto_download = False
+    path = os.path.join(skyfield_data.get_skyfield_data_path(), "de421.bsp")
+    loc = EarthLocation.from_geodetic(np.rad2deg(LON) * u.deg, np.rad2deg(LAT) * u.deg, H * u.m)
+    t = Time([str(x) for x in utc.astype("datetime64[ns]")], scale="utc")
+    frame = AltAz(obstime=t, location=loc)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with solar_system_ephemeris.set(path):
+            geo = get_body("moon", t)
+            topo = get_body("moon", t, loc)
+            sun = get_body("sun", t, loc)
+        # the geocentric direction as a direction only (no distance: no parallax)
+        geo_aa = SkyCoord(geo.ra, geo.dec, frame=GCRS(obstime=t)).transform_to(frame)
+        elongation = sun.separation(topo).rad
+    r_station = np.linalg.norm(u.Quantity([loc.x, loc.y, loc.z]).to_value(u.m))
+    return dict(geo_h=E.direction_ned(geo_aa.alt.rad, geo_aa.az.rad),
+                geo_alt=geo_aa.alt.rad, geo_dist=geo.distance.to_value(u.m),
+                topo_dist=topo.distance.to_value(u.m), sun_dist=sun.distance.to_value(u.m),
+                elongation=elongation, r_station=r_station)
+
+
+def test_topocentric_parallax_semidiameter_phase_against_astropy():
+    """Our Moon direction is topocentric: it is the lunar parallax away from astropy's
+    geocentric direction (sine rule, sin p = rho sin z / Delta_geo, about 50 arcmin here),
+    and lower in the sky; the semidiameter and the phase angle follow astropy's distances
+    and elongation."""
+    ref = _astropy_moon_sun(UTC)
+    sky = E.moon_sun_directions(UTC, LAT, LON, H)
+    shift = np.arccos(np.clip(np.sum(sky.moon_h * ref["geo_h"], axis=1), -1, 1))
+    z = np.pi / 2 - sky.alt
+    parallax = np.arcsin(ref["r_station"] / ref["geo_dist"] * np.sin(z))
+    assert np.all(parallax > np.deg2rad(0.8))
+    assert np.abs(shift / parallax - 1).max() < 0.005          # measured 0.12 %
+    assert np.all(sky.alt < ref["geo_alt"] - 0.9 * parallax)
+    # semidiameter from the topocentric distance (the radius prior of the limb fit)
+    np.testing.assert_allclose(sky.semidiameter, np.arcsin(E.MOON_RADIUS_M / ref["topo_dist"]),
+                               rtol=1e-6)
+    # Sun-Moon-observer angle from the elongation E and the distances:
+    # tan i = R_sun sin E / (Delta - R_sun cos E)
+    el, r_sun, dist = ref["elongation"], ref["sun_dist"], ref["topo_dist"]
+    phase = np.arctan2(r_sun * np.sin(el), dist - r_sun * np.cos(el))
+    assert np.abs(sky.phase_angle - phase).max() < 0.1 * ARCSEC      # measured 0.003"
+    assert np.all(np.abs(np.linalg.norm(sky.moon_h, axis=1) - 1) < 1e-12)
 
 
 def test_dut1_override_and_range():

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 import pytest
+from scipy.spatial.transform import Rotation
 
 from ins.earth import ned_offset
 from ins.gnss import read_gnss, write_gnss
@@ -45,16 +46,32 @@ def test_lever_arm_geometry_and_rate():
     assert np.allclose((lp - lm) / (2 * h), dl_b, atol=1e-9)
 
 
+def _independent_antenna_ecef(s, l_bp=L_BP, l_ap=L_AP):
+    """Antenna ECEF position (m) written without ins: the mount's C_ap = Rz Ry Rx from
+    scipy's ZYX Euler angles, C_nb from scipy's quaternion, and pymap3d's NED -> ECEF."""
+    C_ap = Rotation.from_euler("ZYX", s.mount_rpy[:, ::-1])
+    l_b = l_bp + C_ap.inv().apply(l_ap)
+    arm_n = Rotation.from_quat(s.q_nb).apply(l_b)
+    lat, lon, h = s.lla.T
+    return np.column_stack(pymap3d.ned2ecef(arm_n[:, 0], arm_n[:, 1], arm_n[:, 2],
+                                            lat, lon, h, deg=False)), arm_n
+
+
 def test_antenna_position_is_exact(truth):
     t = np.linspace(truth.t_start, truth.t_end, 25)
     s = truth.evaluate(t)
     lla_ant, _ = antenna_state(s, L_BP, L_AP)
-    l_b, _ = lever_arm_b(s.mount_rpy, s.mount_rate, L_BP, L_AP)
-    arm_n = np.einsum("nij,nj->ni", quat_to_dcm(s.q_nb), l_b)
+    r_ref, arm_n = _independent_antenna_ecef(s)
+    r_ant = np.column_stack(pymap3d.geodetic2ecef(lla_ant[:, 0], lla_ant[:, 1], lla_ant[:, 2],
+                                                  deg=False))
+    assert np.abs(r_ant - r_ref).max() < 1e-6
     n, e, d = pymap3d.geodetic2ned(lla_ant[:, 0], lla_ant[:, 1], lla_ant[:, 2],
                                    s.lla[:, 0], s.lla[:, 1], s.lla[:, 2], deg=False)
     assert np.allclose(np.column_stack([n, e, d]), arm_n, atol=1e-6)
     assert np.abs(np.rad2deg(s.mount_rpy)).max() > 0.5      # the mount really moves
+    # and the arm really turns with it: against the fixed arm, centimetres
+    fixed = Rotation.from_quat(s.q_nb).apply(L_BP + L_AP)
+    assert np.abs(arm_n - fixed).max() > 0.01
 
 
 def test_antenna_velocity_against_finite_difference(truth):
@@ -76,19 +93,45 @@ def test_antenna_velocity_against_finite_difference(truth):
     assert np.abs(fd_arm - arm_v).max() < 1e-4
 
 
-def test_velocity_matches_processing_lever_arm(truth):
-    """Same numbers as the post-processor's ins.lever_arm.antenna_velocity."""
-    lever_arm = pytest.importorskip("ins.lever_arm")
+def _exact_antenna_velocity(truth, t, h=0.005):
+    """Antenna velocity NED at the antenna (m/s), independent of ins: central difference
+    of the independently built ECEF antenna position, rotated by pymap3d (fourth order:
+    the truth is smooth, so the difference error is ~h^4 |r^(5)| / 30, far below 1e-6)."""
+    r = [_independent_antenna_ecef(truth.evaluate(t + k * h))[0] for k in (-2, -1, 1, 2)]
+    v_e = (r[0] - 8 * r[1] + 8 * r[2] - r[3]) / (12 * h)
+    lat, lon, _ = pymap3d.ecef2geodetic(*_independent_antenna_ecef(truth.evaluate(t))[0].T,
+                                        deg=False)
+    return np.column_stack(pymap3d.ecef2nedv(v_e[:, 0], v_e[:, 1], v_e[:, 2], lat, lon,
+                                             deg=False))
+
+
+def test_antenna_velocity_of_simulator_and_processor_against_exact(truth):
+    """The simulator's antenna velocity (antenna_state) and the post-processor's
+    (ins.lever_arm.LeverArm on the mount log + antenna_velocity) against the exact one.
+
+    Both use the first-order form, which neglects w_en x (C_nb l_b) and the turn of n
+    between IMU and antenna, ~|v| |l_b| / R = 1.5e-5 m/s; a wrong sign of its
+    w_in x (C_nb l_b) term would be off by 2 |w_ie| |l_b| ~ 2e-4 m/s."""
     from ins.earth import earth_rate_n, transport_rate_n
-    t = np.linspace(truth.t_start, truth.t_end, 7)
+    from ins.lever_arm import LeverArm, antenna_velocity
+    from ins.mount import MountLog
+    t = np.linspace(truth.t_start + 1.0, truth.t_end - 1.0, 40)
+    v_exact = _exact_antenna_velocity(truth, t)
     s = truth.evaluate(t)
-    _, v_ant = antenna_state(s, L_BP, L_AP)
-    l_b, dl_b = lever_arm_b(s.mount_rpy, s.mount_rate, L_BP, L_AP)
-    C_nb = quat_to_dcm(s.q_nb)
+    arm_v = v_exact - s.v_n
+    assert np.abs(arm_v).max() > 0.02                       # turns and mount motion
+    _, v_sim = antenna_state(s, L_BP, L_AP)
+    assert np.abs(v_sim - v_exact).max() < 3e-5
+    # the post-processor on a dense mount log of the same flight (its own interpolation
+    # and central difference of C_ap; 1 kHz keeps their error below 1e-6 m/s)
+    tm = np.arange(truth.t_start, truth.t_end, 0.001)
+    mount = MountLog(tm, truth.evaluate(tm).mount_rpy)
+    l_b, dl_b, valid = LeverArm(L_BP, L_AP, mount=mount).at(t)
+    assert valid.all()
+    C_nb = Rotation.from_quat(s.q_nb).as_matrix()
     w_in = earth_rate_n(s.lla[:, 0]) + transport_rate_n(s.lla[:, 0], s.lla[:, 2], s.v_n)
-    for k in range(len(t)):
-        v = lever_arm.antenna_velocity(s.v_n[k], C_nb[k], s.w_ib_b[k], w_in[k], l_b[k], dl_b[k])
-        assert np.allclose(v, v_ant[k], atol=1e-12)
+    v_proc = antenna_velocity(s.v_n, C_nb, s.w_ib_b, w_in, l_b, dl_b)
+    assert np.abs(v_proc - v_exact).max() < 3e-5
 
 
 def test_gnss_times_and_outages():
