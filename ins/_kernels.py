@@ -1,8 +1,11 @@
 """Numba loops of the strapdown mechanization (private; hot paths only).
 
 The Earth-model formulas are those of :mod:`ins.earth` (``register_jitable`` there).
-numba's on-disk cache keys on THIS file: after editing ``ins/earth.py`` touch this file
-(or delete ``ins/__pycache__/*.nbi``) so the kernels recompile.
+numba's on-disk cache keys on THIS file only (its timestamp): after editing
+``ins/earth.py`` touch this file (or delete ``ins/__pycache__/*.nbi``) so the kernels
+recompile.  The test suite does not depend on that: ``tests/conftest.py`` points
+``NUMBA_CACHE_DIR`` at a folder keyed on a hash of every source of ``ins/`` and
+``photogrammetry/``.
 
 State vector layout (float64[10]): lat, lon (rad), h (m), vN, vE, vD (m/s),
 q_nb = qx, qy, qz, qw (scalar last).

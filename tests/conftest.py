@@ -1,7 +1,30 @@
-"""Shared fixtures: the common benchmark dataset (built once, cached)."""
-import pytest
+"""Shared test set-up: numba's cache keyed on the package sources, and the common
+benchmark dataset (built once, cached; see ``benchdata.py``)."""
+import os
+import sys
 
-from benchdata import SHARED, ensure_bench_data
+import benchdata
+
+# numba's on-disk cache is invalidated only by the timestamp of the file that defines a
+# kernel, not by a change in a function or constant it calls from another module: a
+# stale cache let a gravity change in ins/earth.py pass the shared-dataset test.  Point
+# it at a folder per hash of every ins/ and photogrammetry/ source, before numba is
+# imported (subprocesses of the tests inherit the variable).  INS_TEST_NUMBA_CACHE=keep
+# leaves numba's own setting alone.
+if os.environ.get("INS_TEST_NUMBA_CACHE") != "keep":
+    _NUMBA_DIR = str(benchdata.numba_cache_dir())
+    os.environ["NUMBA_CACHE_DIR"] = _NUMBA_DIR
+    if "numba" in sys.modules:                         # imported early by a plugin
+        from numba.core import config as _numba_config
+        _numba_config.CACHE_DIR = _NUMBA_DIR
+
+import pytest  # noqa: E402
+
+from benchdata import SHARED, ensure_bench_data  # noqa: E402
+
+
+def pytest_report_header(config):
+    return [f"numba cache: {os.environ.get('NUMBA_CACHE_DIR', '(numba default)')}"]
 
 
 @pytest.fixture(scope="session")

@@ -1,6 +1,5 @@
 """Forward filter: consistency (NEES in its chi-square band) on simulated flights, bias
 estimates, innovation test, node schedule."""
-import hashlib
 import os
 import tomllib
 from pathlib import Path
@@ -112,20 +111,18 @@ sigma_px = 0.5
 
 def short_flight(seed=3, plan=PLAN):
     """The ~15 min flight of ``PLAN`` (or another plan's flight), simulated once (~5 s)
-    and cached on disk."""
+    and cached on disk, keyed on the plan, the seed and the sources of ins/ and
+    photogrammetry/ (``benchdata.cached_flight``): a code change simulates it again."""
+    from benchdata import cached_flight
     from ins.errors import InputError
     from ins.simulate.folder import simulate_flight
-    key = hashlib.sha1(f"{plan}|{seed}".encode()).hexdigest()[:12]
-    folder = FLIGHT_CACHE / f"short-{key}"
-    if not (folder / "manifest.toml").exists():
-        FLIGHT_CACHE.mkdir(parents=True, exist_ok=True)
-        path = FLIGHT_CACHE / f"short-{key}.toml"
-        path.write_text(plan)
+
+    def simulate(path, folder, seed):
         try:
             simulate_flight(path, folder, seed=seed, force=True)
         except InputError as exc:         # the simulator's plan format moved on
             pytest.skip(f"test flight plan refused by the simulator: {exc}")
-    return folder
+    return cached_flight(FLIGHT_CACHE, plan, seed, simulate)
 
 
 def given_config(folder, varying=True):
