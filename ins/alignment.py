@@ -15,7 +15,18 @@ Accuracy (small angles, the classical error budget): a tilt error of
 error of ``b_g,east / (W_ie cos lat)`` (0.01 deg/h at 30 deg latitude gives 0.044 deg =
 2.6 arcmin), to which the noise adds ``ARW / (W_ie cos lat sqrt(T))`` for a window of
 ``T`` seconds.  :func:`static_accuracy` gives these figures; tests check them on
-simulated data.
+simulated data.  The stated sigma uses the gyro that logged the window, not an assumed
+grade: the larger of the stated ARW and the one measured from the scatter of the
+increments, and the stated gyro bias (without ``noise``: the misfit between the
+measured rate and the Earth rate, a lower bound).
+
+Stationarity: the mean specific force must be within 5 % of normal gravity and the
+mean rotation rate within ``5 sigma`` of the Earth rate (sigma from the gyro bias and
+ARW: ``hypot(sqrt(3) b_g, ARW / sqrt(T))``; without ``noise``, within the Earth rate
+itself plus 5 ARW sigma): a turning vehicle is refused (``InputError``).  A vehicle
+that turned and came back (rocking, a turn and its return) keeps a mean rate close to
+the Earth rate; the integrated rotation's departure from a constant rate, beyond
+``5 ARW sqrt(T)`` and :data:`MAX_STATIC_ROTATION_DEG`, is an ``InputWarning``.
 
 In-air start
 ------------
@@ -102,6 +113,51 @@ def static_accuracy(lat, duration_s, accel_bias_mps2, gyro_bias_rps, arw_rad_sqr
     return np.array([tilt, tilt, heading])
 
 
+#: A static window whose integrated rotation departs from a constant rate by more than
+#: this (deg, and more than 5 ARW sqrt(T)) is flagged as moving.
+MAX_STATIC_ROTATION_DEG = 0.05
+
+
+def _check_rotation(imu, i0, i1, span, w_b, lat, noise, arw_meas, where):
+    """Refuse (InputError) or flag (InputWarning) a window in which the body rotates
+    (module notes).  Returns the rate misfit ``| |w_b| - W_ie |`` (rad/s)."""
+    import warnings
+
+    from .error_model import DEG_SQRTH, DPH
+    from .errors import InputWarning
+    w_ie = earth.OMEGA_IE
+    rate = float(np.linalg.norm(w_b))
+    misfit = abs(rate - w_ie)
+    if noise is not None:
+        b_g = float(np.max(noise.gyro_bias_std_dph)) * DPH
+        arw = max(float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH, arw_meas)
+        allow = 5.0 * np.hypot(np.sqrt(3.0) * b_g, arw / np.sqrt(span))
+        grade = (f"a gyro bias sigma of {b_g / DPH:g} deg/h and an ARW of "
+                 f"{arw / DEG_SQRTH:.3g} deg/sqrt(h)")
+    else:
+        allow = w_ie + 5.0 * arw_meas / np.sqrt(span)
+        grade = "an unknown gyro grade (no noise given)"
+    if misfit > allow:
+        raise InputError(f"window {where}: not stationary: the mean rotation rate is "
+                         f"{np.rad2deg(rate) * 3600:.2f} deg/h against the Earth rate "
+                         f"{np.rad2deg(w_ie) * 3600:.2f} deg/h (at most "
+                         f"{np.rad2deg(allow) * 3600:.2f} deg/h apart for {grade}): "
+                         f"the vehicle turns, or the gyro errors are larger than stated")
+    angle = np.cumsum(imu.dtheta_b[i0:i1], axis=0) - np.outer(
+        imu.time[i0:i1] - imu.time[i0 - 1], w_b)
+    dev = float(np.max(np.linalg.norm(angle, axis=1)))
+    arw = arw_meas if noise is None else max(
+        float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH, arw_meas)
+    bound = max(5.0 * arw * np.sqrt(span), np.deg2rad(MAX_STATIC_ROTATION_DEG))
+    if dev > bound:
+        warnings.warn(f"window {where}: the body rotated by up to {np.rad2deg(dev):.3f} deg "
+                      f"away from a constant rate during the static alignment (more than "
+                      f"{np.rad2deg(bound):.3f} deg): the vehicle moved (rocked or turned "
+                      f"and came back); the levelling and the heading are degraded",
+                      InputWarning, stacklevel=3)
+    return misfit
+
+
 def align_static(imu, t_start, t_end, lla, noise=None):
     """Coarse alignment on the stationary window ``[t_start, t_end]`` of ``imu``.
 
@@ -113,12 +169,21 @@ def align_static(imu, t_start, t_end, lla, noise=None):
     lla : array_like, shape (3,)
         Position of the IMU (lat, lon rad, h m), e.g. from GNSS.
     noise : ins.error_model.ImuNoise, optional
-        For the stated accuracy (default: a navigation-grade 0.01 deg/h, 25 mGal).
+        The IMU's stated errors, for the stationarity test and the stated accuracy.
+        Without it the accuracy uses what the window shows: the measured ARW, the
+        rate misfit as gyro bias (a lower bound) and a 25 mGal accelerometer bias.
 
     Returns
     -------
     Alignment
-        At the first IMU epoch >= ``t_start`` with zero velocity.
+        At the first IMU epoch >= ``t_start`` with zero velocity; ``att_std_deg`` from
+        the gyro that logged the window (module notes).
+
+    Raises
+    ------
+    InputError
+        Too few epochs; a mean specific force more than 5 % from gravity; a mean
+        rotation rate too far from the Earth rate (the vehicle turns).
     """
     from .error_model import DEG_SQRTH, DPH, MGAL
     i0, i1 = _window(imu, t_start, t_end)
@@ -126,16 +191,22 @@ def align_static(imu, t_start, t_end, lla, noise=None):
     f_b = imu.dvel_b[i0:i1].sum(axis=0) / span
     w_b = imu.dtheta_b[i0:i1].sum(axis=0) / span
     g = float(earth.normal_gravity(lla[0], lla[2]))
+    where = f"{t_start} .. {t_end} s"
     if abs(np.linalg.norm(f_b) - g) > 0.05 * g:
-        raise InputError(f"window {t_start} .. {t_end} s is not stationary: mean specific "
+        raise InputError(f"window {where} is not stationary: mean specific "
                          f"force {np.linalg.norm(f_b):.3f} m/s^2, gravity {g:.3f} m/s^2")
+    # ARW from the scatter of the increments (white angle noise: std = ARW sqrt(dt))
+    dt = np.diff(imu.time[i0 - 1:i1])
+    rates = imu.dtheta_b[i0:i1] / dt[:, None]
+    arw_meas = float(np.max(np.std(rates, axis=0)) * np.sqrt(np.median(dt)))
+    misfit = _check_rotation(imu, i0, i1, span, w_b, lla[0], noise, arw_meas, where)
     rpy = static_attitude(f_b, w_b)
     if noise is None:
-        acc = static_accuracy(lla[0], span, 25 * MGAL, 0.01 * DPH, 0.003 * DEG_SQRTH)
+        acc = static_accuracy(lla[0], span, 25 * MGAL, misfit, arw_meas)
     else:
         acc = static_accuracy(lla[0], span, float(np.max(noise.accel_bias_std_mgal)) * MGAL,
                               float(np.max(noise.gyro_bias_std_dph)) * DPH,
-                              float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH)
+                              max(float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH, arw_meas))
     t0 = float(imu.time[i0 - 1])
     state = NavState(np.asarray(lla, dtype=float), np.zeros(3),
                      euler_to_quat(rpy))
