@@ -11,9 +11,22 @@ of their integration interval.
 __version__ = "0.1.0"
 
 from .errors import InputError, InputWarning  # noqa: E402
-from .imu import ImuLog, compensate, read_imu  # noqa: E402
-from .mechanization import NavState, iter_mechanize, mechanize  # noqa: E402
-from .trajectory import Trajectory, read_nav, write_nav  # noqa: E402
+
+# The rest is imported on first use (PEP 562): ``import ins.cli`` stays light, so that
+# the command-line tools install their Ctrl-C handler before numpy and numba load.
+_LAZY = {"ImuLog": "imu", "compensate": "imu", "read_imu": "imu",
+         "NavState": "mechanization", "iter_mechanize": "mechanization",
+         "mechanize": "mechanization",
+         "Trajectory": "trajectory", "read_nav": "trajectory", "write_nav": "trajectory"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["ImuLog", "InputError", "InputWarning", "NavState", "Trajectory", "compensate",
            "iter_mechanize", "mechanize", "read_imu", "read_nav", "write_nav"]

@@ -6,27 +6,53 @@ Units on the command line are degrees and metres; inside, SI.  Errors in the inp
 one line on stderr and exit code 2, and no output file.
 """
 import argparse
+import errno
 import importlib
 import os
+import re
+import signal
 import sys
+import threading
 import time as wallclock
 import warnings
 
-import numpy as np
-
 from . import __version__
-from .errors import InputError, InputWarning
+from . import interrupts
+from .errors import InputError, InputWarning, QualityError
 
 EXIT_BAD_INPUT = 2
 
 
+EXIT_QUALITY = 3
+EXIT_INTERRUPTED = 130
+
+#: One number as a user types it: -5, -.5, 5., -1.5e-3, +2E4 (no spaces).
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+#: An argument that starts with "-" but is a value, not an option: a negative number or
+#: a comma-separated list of numbers that starts with one ("-33.9,151.2,50").
+NEGATIVE_VALUE = re.compile(rf"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:,{_NUMBER})*$")
+
+
 class _Parser(argparse.ArgumentParser):
+    """The parser of both command-line interfaces and all their sub-commands.
+
+    Bad arguments exit with code 2 (as bad input does).  An argument that looks like a
+    negative number or a comma-separated list starting with one (``-33.9,151.2,50``,
+    ``-1.5e-3``) is a value, not an option, so ``--init-lla -33.9,151.2,50`` works as
+    well as ``--init-lla=-33.9,151.2,50`` (argparse alone knows only ``-5`` and ``-.5``).
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_VALUE
+
     def error(self, message):
         self.print_usage(sys.stderr)
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
 
 
 def _triplet(text, name="value"):
+    import numpy as np
     parts = text.replace(" ", "").split(",")
     if len(parts) != 3:
         raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
@@ -141,6 +167,8 @@ class _Progress:
 
 
 def _cmd_mechanize(args):
+    import numpy as np
+
     from . import imu as imu_mod
     from .imu_blocks import iter_imu, prefetch
     from .mechanization import NavState, iter_mechanize_blocks
@@ -270,34 +298,227 @@ def build_parser():
 
 
 def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    return run_command(args, "ins")
+    """``ins`` on the command line (``argv=None``: ``sys.argv``); returns the exit code."""
+    return run_main(build_parser, argv, "ins")
+
+
+def run_main(build, argv, prog):
+    """Parse ``argv`` with ``build()`` and run the command (:func:`run_command`).
+
+    Shared by ``ins`` and ``photogrammetry``.  Stdout and stderr are guarded against a
+    reader that goes away (``| head``): further output is dropped, the command finishes
+    its files, the exit code is the command's own.  Ctrl-C exits 130 (see
+    :func:`run_command`); run as a program (``argv=None``) SIGINT is ignored once the
+    command has returned, so that an interrupt during the interpreter's shutdown cannot
+    turn a finished run into a killed one.
+    """
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = _PipeGuard(sys.stdout), _PipeGuard(sys.stderr)
+    interrupts.reset()
+    restore = interrupts.install()
+    try:
+        try:
+            args = build().parse_args(argv)
+        except SystemExit:
+            raise
+        except BaseException as exc:
+            if not interrupts.caused_by_interrupt(exc):
+                raise
+            _say(f"{prog}: interrupted; no output written")
+            return EXIT_INTERRUPTED
+        return run_command(args, prog)
+    except KeyboardInterrupt:       # between the command's end and here
+        _say(f"{prog}: interrupted; no output written")
+        return EXIT_INTERRUPTED
+    finally:
+        interrupts.close()          # from here on SIGINT is ignored by the handler
+        sys.stdout, sys.stderr = streams
+        if argv is None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            if interrupts.interrupted():
+                _exit_now(EXIT_INTERRUPTED)
+        else:
+            restore()
+
+
+def _exit_now(code):
+    """Leave at once after an interrupt (run as a program only): the interpreter's own
+    exit would wait for worker threads still finishing a block, and turns the exit status
+    into "killed by SIGINT" when a KeyboardInterrupt escaped inside an extension's call
+    back into Python; everything was cleaned up on the way here."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+class _PipeGuard:
+    """A text stream whose reader may go away: on EPIPE (``| head``) the descriptor is
+    pointed at /dev/null (the usual recipe, so that the interpreter's last flush does
+    not fail either) and further writes are dropped silently."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self.broken = False
+
+    def _broken(self):
+        self.broken = True
+        try:
+            fd = self._stream.fileno()
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, fd)
+            os.close(null)
+        except (OSError, ValueError, AttributeError):   # not a real file (pytest capture)
+            pass
+
+    def write(self, text):
+        if self.broken:
+            return len(text)
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._broken()
+            return len(text)
+
+    def writelines(self, lines):
+        for line in lines:
+            self.write(line)
+
+    def flush(self):
+        if self.broken:
+            return
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._broken()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _say(text):
+    try:
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+_HIDDEN = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]{8}\.(?:part|old)$")
+
+
+def user_path(path):
+    """The user's spelling of a path that may pass through a hidden temporary of
+    :mod:`ins.fileio` (``.out.nav.k2j3x9a1.part`` -> ``out.nav``; ``.res.abcd1234.part/
+    solution.nav`` -> ``res/solution.nav``)."""
+    if path is None:
+        return None
+    path = os.fsdecode(path) if isinstance(path, bytes) else str(path)
+    parts = path.split(os.sep)
+    for i, part in enumerate(parts):
+        m = _HIDDEN.match(part)
+        if m:
+            parts[i] = m.group("name")
+    return os.sep.join(parts)
+
+
+def _outputs(args):
+    """The output paths named on the command line (for messages without a file name)."""
+    found = []
+    for name in ("output", "plot", "report"):
+        value = getattr(args, name, None)
+        if value:
+            found.append(str(value))
+    return found
+
+
+def _os_error_message(exc, args):
+    """One line for an OSError: the user's path and the reason, never a temporary."""
+    reason = exc.strerror or errno.errorcode.get(exc.errno, "") or str(exc)
+    names = [user_path(n) for n in (exc.filename, exc.filename2) if n is not None]
+    # a rename names the temporary first and the user's path second: keep one, the
+    # user's path (the two are the same once the temporary is mapped)
+    names = list(dict.fromkeys(names))
+    if len(names) == 2 and exc.filename2 is not None:
+        names = [user_path(exc.filename2)]
+    if names:
+        return f"{names[0]}: {reason}"
+    outputs = _outputs(args)
+    if outputs:
+        return f"{reason} (while writing {', '.join(outputs)})"
+    return reason
 
 
 def run_command(args, prog):
-    """Run ``args.func(args)``: bad input -> one line on stderr and exit code 2."""
+    """Run ``args.func(args)`` and map what goes wrong to an exit code and ONE line.
+
+    ======================================================  ====  =======================
+    outcome                                                  exit  stderr
+    ======================================================  ====  =======================
+    success                                                  code  warnings only
+    :class:`~ins.errors.InputError` (bad input)              2     ``PROG CMD: error: ...``
+    OSError on a path (missing, a file in the path, no       2     the user's path (never
+    space, read-only, permission, not empty without --force)       a hidden temporary)
+    :class:`~ins.errors.QualityError` (untrustworthy result) 3     ``PROG CMD: error: ...``
+    Ctrl-C (also when it surfaced wrapped in another         130   ``PROG CMD: interrupted;
+    exception, e.g. from a numba dispatcher or the JIT)             no output written``
+    ======================================================  ====  =======================
+
+    An interrupt is held back while an output is renamed into place
+    (:mod:`ins.interrupts`): it either takes effect before (no output) or after the
+    output is complete, which the message then says.  After an interrupt, tracebacks
+    of background threads and unraisable exceptions (finalizers of half-built objects)
+    are silenced.
+    """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
         try:
             code = args.func(args)
-        except InputError as exc:
-            _flush_warnings(caught)
-            print(f"{prog} {args.command}: error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-            print(f"{prog} {args.command}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        except KeyboardInterrupt:
-            print(f"{prog} {args.command}: interrupted; no output written", file=sys.stderr)
-            return 130
+        except SystemExit:
+            raise
+        except BaseException as exc:
+            return _failure(exc, args, prog, caught)
+    if interrupts.interrupted():           # held back until after the last output
+        return _interrupted(args, prog)
     _flush_warnings(caught)
     return code
 
 
+def _failure(exc, args, prog, caught):
+    if interrupts.caused_by_interrupt(exc):
+        return _interrupted(args, prog)
+    where = f"{prog} {args.command}"
+    if isinstance(exc, InputError):
+        _flush_warnings(caught)
+        _say(f"{where}: error: {exc}")
+        return EXIT_BAD_INPUT
+    if isinstance(exc, QualityError):
+        _flush_warnings(caught)
+        _say(f"{where}: error: {exc}")
+        return EXIT_QUALITY
+    if isinstance(exc, OSError):
+        _flush_warnings(caught)
+        _say(f"{where}: error: {_os_error_message(exc, args)}")
+        return EXIT_BAD_INPUT
+    raise exc                              # a bug: the traceback is the report
+
+
+def _interrupted(args, prog):
+    sys.unraisablehook = lambda unraisable: None
+    threading.excepthook = lambda hook_args: None
+    written = interrupts.written_outputs()
+    if written:
+        _say(f"{prog} {args.command}: interrupted after the output was complete: "
+             + ", ".join(user_path(p) for p in written))
+    else:
+        _say(f"{prog} {args.command}: interrupted; no output written")
+    return EXIT_INTERRUPTED
+
+
 def _flush_warnings(caught):
     for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
+        _say(f"warning: {w.message}")
 
 
 if __name__ == "__main__":

@@ -1,22 +1,33 @@
-"""``ins allan IMU_FILE``: Allan deviation of a (static) IMU log, noise terms per axis."""
+"""``ins allan IMU_FILE``: Allan deviation of a static IMU log, noise terms per axis (a\nmoving log is refused: :func:`ins.allan.static_check`)."""
 import argparse
+import warnings
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, InputWarning
 
 EPILOG = """\
 frames and units:
   The IMU file holds increments (dtheta rad, dvel m/s) over (t[k-1], t[k]] in the body
-  frame forward-right-down (KF-GINS text/binary or CSV, as for `ins mechanize`); the log
-  should be static.  The Allan deviation is that of the rates (overlapping estimator).
-  The table gives per axis the angle random walk (deg/sqrt(h)) and gyro bias instability
-  (deg/h), the velocity random walk (m/s/sqrt(h)) and accelerometer bias instability
-  (mGal = 1e-5 m/s^2); random walk = sigma(1 s) of the slope -1/2, bias instability =
-  flat minimum / 0.664.
+  frame forward-right-down (KF-GINS text/binary or CSV, as for `ins mechanize`).  The
+  Allan deviation is that of the rates (overlapping estimator).  The table gives per
+  axis the angle random walk (deg/sqrt(h)) and gyro bias instability (deg/h), the
+  velocity random walk (m/s/sqrt(h)) and accelerometer bias instability (mGal =
+  1e-5 m/s^2); random walk = sigma(1 s) of the slope -1/2, bias instability = flat
+  minimum / 0.664.
+
+the log must be static (motion would be reported as noise); it is refused when
+  - its mean specific force is not normal gravity (9.780..9.832 m/s^2) within 0.3 m/s^2,
+  - its mean angular rate exceeds 0.1 deg/s (Earth rate 15 deg/h plus a gyro bias), or
+  - in 1 s windows the mean rate or specific force departs from the log's median by
+    more than 7 sigma of a window mean (white noise estimated from the log's
+    sample-to-sample differences) and more than 0.01 deg/s or 0.05 m/s^2;
+  the message gives the time spans that move.  --start/--end (s, the log's time) cut
+  the static part; --allow-motion computes anyway, with a warning.
 
 example:
   ins allan static_imu.txt --plot allan.png
+  ins allan flight_imu.txt --start 200000 --end 200055
 """
 
 
@@ -30,19 +41,49 @@ def add_parser(sub):
     p.add_argument("--format", choices=["kfgins", "kfgins-bin", "csv"], default=None,
                    help="IMU file format (default: from the extension)")
     p.add_argument("--axes", choices=["FRD", "FLU", "RFU", "FUR"], default="FRD")
+    p.add_argument("--start", type=float, metavar="T",
+                   help="first epoch used, s (the log's time; default: the first)")
+    p.add_argument("--end", type=float, metavar="T",
+                   help="last epoch used, s (default: the last)")
+    p.add_argument("--allow-motion", action="store_true",
+                   help="compute even when the log moves (a warning instead of an error)")
     p.add_argument("--plot", metavar="PNG", help="write the log-log plot of the deviations")
     p.set_defaults(func=_cmd_allan)
 
 
+def _span_text(spans, limit=3):
+    text = ", ".join(f"{a:.2f} .. {b:.2f} s" for a, b in spans[:limit])
+    if len(spans) > limit:
+        text += f" and {len(spans) - limit} more span(s)"
+    return text
+
+
 def _cmd_allan(args):
     from . import imu as imu_mod
-    from .allan import allan_deviation, noise_densities
+    from .allan import allan_deviation, noise_densities, static_check
     from .fileio import atomic_open
 
     log = imu_mod.read_imu(args.imu_file, format=args.format, axes=args.axes)
+    if args.start is not None or args.end is not None:
+        t0, t1 = float(log.time[0]), float(log.time[-1])
+        if args.start is not None and args.end is not None and args.start >= args.end:
+            raise InputError(f"--start {args.start} s is not before --end {args.end} s")
+        log = log.slice_time(args.start, args.end)
+        if len(log) == 0:
+            raise InputError(f"{args.imu_file}: no epoch in --start/--end (the log covers "
+                             f"{t0:.3f} .. {t1:.3f} s)")
     if len(log) < 100:
         raise InputError(f"{args.imu_file}: {len(log)} epochs are too few for an Allan "
                          f"deviation (expected >= 100)")
+    check = static_check(log.time, log.dtheta_b, log.dvel_b)
+    if not check.static:
+        where = f"; moving: {_span_text(check.spans)}" if check.spans else ""
+        text = (f"{args.imu_file} is not a static log: {'; '.join(check.reasons)}{where}")
+        if not args.allow_motion:
+            raise InputError(text + " (cut the static part with --start/--end, or "
+                             "--allow-motion)")
+        warnings.warn(text + " (--allow-motion: the deviations include the motion)",
+                      InputWarning)
     dt = log.nominal_dt
     tau, ag = allan_deviation(log.dtheta_b, dt)
     _, aa = allan_deviation(log.dvel_b, dt)

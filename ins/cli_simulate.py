@@ -33,7 +33,8 @@ output folder (docs/interfaces.md; manifest.toml names every file, frame and uni
   plan.toml    a verbatim copy of the plan
 
   The same plan and seed give the same bytes.  The folder is built beside FLIGHT_DIR and
-  renamed into place when complete; a non-empty FLIGHT_DIR is refused unless --force.
+  renamed into place when complete; a non-empty FLIGHT_DIR is refused unless --force,
+  which replaces it whole (never a mix of two runs).  Ctrl-C leaves nothing behind.
 
 example:
   ins simulate data/flights/demo.toml -o flight1 --seed 1 --grade tactical
@@ -77,7 +78,8 @@ def add_parser(sub):
 
 def _cmd_simulate(args):
     from .cli import _Progress
-    from .simulate.folder import check_target, simulate_flight
+    from .fileio import check_output_folder
+    from .simulate.folder import simulate_flight
 
     t0 = wallclock.perf_counter()
     out = Path(args.output)
@@ -88,10 +90,7 @@ def _cmd_simulate(args):
     if out.exists() and out.resolve() == plan_path.resolve().parent:
         raise InputError("--output is the plan's own folder; choose a new folder",
                          path=args.output)
-    try:
-        check_target(out, args.force)
-    except InputError as exc:
-        raise InputError(f"--output {exc}") from None
+    check_output_folder(out, args.force)      # OSError naming FLIGHT_DIR: exit 2
     progress = _Progress("simulate", not args.quiet)
     folder = simulate_flight(args.plan, out, args.seed, grade=args.grade, force=args.force,
                              progress=progress)

@@ -5,6 +5,8 @@ import os
 import shutil
 import tempfile
 
+from . import interrupts
+
 
 def _umask():
     mask = os.umask(0)
@@ -38,10 +40,12 @@ def atomic_open(path, mode="wb"):
         os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600; give the usual mode
         with os.fdopen(fd, mode) as f:
             yield f
-        try:
-            os.replace(tmp, path)
-        except OSError as exc:
-            raise _fs_error(exc, path) from None
+        with interrupts.deferred():       # Ctrl-C: before the rename or after the record
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise _fs_error(exc, path) from None
+            interrupts.record_output(path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -110,17 +114,21 @@ def output_folder(path, force=False):
         yield tmp
         check_output_folder(path, force)
         os.chmod(tmp, 0o777 & ~_umask())
-        if not os.path.exists(path):
-            os.rename(tmp, path)
-            return
-        old = tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=parent)
-        os.rename(path, old)                # replaces the empty placeholder
-        try:
-            os.rename(tmp, path)
-        except BaseException:
-            os.rename(old, path)
-            raise
-        shutil.rmtree(old, ignore_errors=True)
+        with interrupts.deferred():       # Ctrl-C neither splits the swap nor the cleanup
+            if not os.path.exists(path):
+                os.rename(tmp, path)
+                interrupts.record_output(path)
+                return
+            old = tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=parent)
+            os.rename(path, old)                # replaces the empty placeholder
+            try:
+                os.rename(tmp, path)
+            except BaseException:
+                os.rename(old, path)
+                raise
+            interrupts.record_output(path)
+            shutil.rmtree(old, ignore_errors=True)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        with interrupts.deferred():
+            shutil.rmtree(tmp, ignore_errors=True)
         raise

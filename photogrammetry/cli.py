@@ -7,7 +7,7 @@ one line on stderr, exit code 2 and no output (shared with ``ins.cli.run_command
 import importlib
 import sys
 
-from ins.cli import _Parser, run_command
+from ins.cli import _Parser, run_main
 
 from . import __version__
 
@@ -35,8 +35,9 @@ def build_parser():
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
-    return run_command(args, "photogrammetry")
+    """``photogrammetry`` on the command line (``argv=None``: ``sys.argv``); returns the
+    exit code (bad input 2, untrustworthy result 3, Ctrl-C 130: ``ins.cli.run_command``)."""
+    return run_main(build_parser, argv, "photogrammetry")
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ import os
 
 import numpy as np
 
+from ins import interrupts
 from ins.cli import _Progress
 from ins.errors import InputError
 
@@ -138,17 +139,20 @@ def run(args):
         results = refine_many([j[0] for j in jobs], workers=args.workers,
                               scheduler=args.scheduler,
                               progress=_Progress("refine", not args.quiet))
-    for (task, out, rep), res in zip(jobs, results):
-        blk = res.block
-        write_eo_csv(out, res.eo, comments=(
-            f"refined by photogrammetry refine: method = {res.settings['method']}; "
-            f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",))
-        if rep:
-            write_report(rep, res)
-        if not args.quiet:
-            s = res.settings
-            print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
-                  f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
-                  f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
-                  + (f"; report {rep}" if rep else ""))
+    # the outputs of every block (CSV, report, its plots) are written as one set: a
+    # Ctrl-C meanwhile takes effect once the set is complete (ins.interrupts)
+    with interrupts.deferred():
+        for (task, out, rep), res in zip(jobs, results):
+            blk = res.block
+            write_eo_csv(out, res.eo, comments=(
+                f"refined by photogrammetry refine: method = {res.settings['method']}; "
+                f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",))
+            if rep:
+                write_report(rep, res)
+            if not args.quiet:
+                s = res.settings
+                print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
+                      f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
+                      f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
+                      + (f"; report {rep}" if rep else ""))
     return 0

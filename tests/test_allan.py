@@ -53,3 +53,136 @@ def test_cli_bad_file(tmp_path, capsys):
     path.write_text("1 2 3\n")
     assert main(["allan", str(path)]) == 2
     assert str(path) in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------
+# a moving log is refused (issue 12): the static check and --start/--end/--allow-motion
+
+from ins import earth  # noqa: E402
+from ins.allan import (GRAVITY_MARGIN, GRAVITY_RANGE, MIN_FORCE_DEPARTURE,  # noqa: E402
+                       MIN_RATE_DEPARTURE, static_check)
+from ins.imu import ImuLog  # noqa: E402
+from ins.rotation import euler_to_dcm  # noqa: E402
+from ins.simulate.sensor_errors import PRESETS  # noqa: E402
+
+
+def _tilted_static(grade, duration_s, rate_hz=100.0, seed=5, rpy_deg=(3.0, -4.0, 130.0)):
+    """A static log of ``grade`` with the IMU tilted and turned (gravity and Earth rate on
+    every axis), with the grade's sensor errors."""
+    lat, h = 0.6, 50.0
+    log = static_log(lat, h, rate_hz, duration_s)
+    C_bn = euler_to_dcm(np.deg2rad(rpy_deg)).T
+    log = ImuLog(log.time + 1000.0, log.dtheta_b @ C_bn.T, log.dvel_b @ C_bn.T)
+    return apply_errors(log, ImuErrorModel.preset(grade), seed), lat, h
+
+
+@pytest.mark.parametrize("grade", sorted(PRESETS))
+def test_static_logs_of_every_grade_pass(grade):
+    """No false alarm on an hour at rest of each grade; the mean force is normal gravity
+    (independent formula of conventions.md) and the mean rate the Earth rate plus the
+    preset's gyro bias."""
+    log, lat, h = _tilted_static(grade, 3600.0)
+    check = static_check(log.time, log.dtheta_b, log.dvel_b)
+    assert check.static, check.reasons
+    assert check.spans == [] and check.moving_s == 0.0
+    s2 = np.sin(lat) ** 2
+    g = 9.7803267715 * (1 + 0.0052790414 * s2 + 0.0000232718 * s2 ** 2) \
+        + (-0.0000030876910891 + 0.0000000043977311 * s2) * h + 0.0000000000007211 * h ** 2
+    bias_a = np.linalg.norm(PRESETS[grade]["accel_bias_mgal"]) * 1e-5
+    assert abs(check.mean_force - g) <= bias_a * 1.05 + 1e-3
+    bias_g = np.deg2rad(np.linalg.norm(PRESETS[grade]["gyro_bias_dph"]) / 3600.0)
+    assert abs(check.mean_rate - earth.OMEGA_IE) <= bias_g * 1.05 + np.deg2rad(0.5 / 3600)
+    assert GRAVITY_RANGE[0] - GRAVITY_MARGIN < check.mean_force < GRAVITY_RANGE[1] + GRAVITY_MARGIN
+
+
+def _with_motion(log, turn=(100.0, 103.0), bump=(200.0, 201.5)):
+    """``log`` with a turn of 5 deg/s about the body z axis in ``turn`` (s from the
+    start) and a forward acceleration of 0.5 m/s^2 in ``bump``."""
+    t = log.time - log.time[0]
+    dth, dv = log.dtheta_b.copy(), log.dvel_b.copy()
+    dt = log.nominal_dt
+    dth[(t > turn[0]) & (t <= turn[1]), 2] += np.deg2rad(5.0) * dt
+    dv[(t > bump[0]) & (t <= bump[1]), 0] += 0.5 * dt
+    return ImuLog(log.time, dth, dv)
+
+
+def test_moving_spans_are_found_where_the_motion_is():
+    log, _, _ = _tilted_static("tactical", 300.0)
+    moving = _with_motion(log)
+    check = static_check(moving.time, moving.dtheta_b, moving.dvel_b)
+    assert not check.static
+    t0 = log.time[0]
+    assert len(check.spans) == 2, check.spans
+    for (a, b), (u, v) in zip(check.spans, [(100.0, 103.0), (200.0, 201.5)]):
+        assert u - 1.0 - 1e-6 <= a - t0 <= u + 1e-6      # within one window of the truth
+        assert v - 1e-6 <= b - t0 <= v + 1.0 + 1e-6
+    assert "moves in" in check.reasons[-1]
+    # the departures are far above the thresholds, which are the floors or above
+    assert check.rate_threshold >= MIN_RATE_DEPARTURE
+    assert check.force_threshold >= MIN_FORCE_DEPARTURE
+    # a steady turn of 0.2 deg/s over the whole log: only the mean-rate test sees it
+    t = log.time - log.time[0]
+    steady = ImuLog(log.time, log.dtheta_b + np.array([0, 0, np.deg2rad(0.2)]) * log.nominal_dt,
+                    log.dvel_b)
+    check = static_check(steady.time, steady.dtheta_b, steady.dvel_b)
+    assert not check.static and "mean angular rate" in check.reasons[0]
+    assert t[-1] > 290
+
+
+def test_cli_refuses_a_moving_log_and_cuts_or_allows(tmp_path, capsys):
+    log, _, _ = _tilted_static("tactical", 600.0, seed=8)
+    path = tmp_path / "imu.txt"
+    write_kfgins_text(path, _with_motion(log, turn=(100.0, 103.0), bump=(400.0, 401.0)))
+    png = tmp_path / "allan.png"
+    assert main(["allan", str(path), "--plot", str(png)]) == 2
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ins allan: error: ")
+    assert f"{path} is not a static log" in err and "--start/--end" in err
+    # windows of 1 s from the first increment's start (999.99 s): the turn (1100 ..
+    # 1103 s) and the bump (1400 .. 1401 s) each within one window
+    assert "moving: 1099.99 .. 1103.99 s, 1399.99 .. 1400.99 s" in err, err
+    assert out == "" and not png.exists()
+    # the static part between the two motions: accepted, the noise recovered
+    code = main(["allan", str(path), "--start", "1110", "--end=1395", "--plot", str(png)])
+    out, err = capsys.readouterr()
+    assert code == 0 and err == "", err
+    rows = [line.split() for line in out.splitlines() if line[:1] in "xyz"]
+    assert np.allclose([float(r[1]) for r in rows], PRESETS["tactical"]["arw_deg_sqrth"],
+                       rtol=0.2)
+    assert png.stat().st_size > 1000
+    # --allow-motion: computed, with one warning line
+    assert main(["allan", str(path), "--allow-motion"]) == 0
+    out, err = capsys.readouterr()
+    warns = [x for x in err.splitlines() if x.strip()]
+    assert len(warns) == 1 and warns[0].startswith("warning: ") and "not a static" in warns[0]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--start", "2000"], "no epoch"),
+    (["--start", "1200", "--end", "1100"], "not before --end"),
+    (["--start", "1000", "--end", "1000.5"], "too few"),
+])
+def test_cli_bad_start_end(tmp_path, capsys, argv, words):
+    log, _, _ = _tilted_static("navigation", 30.0)
+    path = tmp_path / "imu.txt"
+    write_kfgins_text(path, log)
+    assert main(["allan", str(path), *argv]) == 2
+    assert words in capsys.readouterr().err
+
+
+def test_simulated_flight_is_refused(tmp_path, capsys):
+    """The issue's case: a flight log gave an 'ARW' without a word.  Refused now, naming
+    the moving span; --allow-motion computes with a warning."""
+    from pathlib import Path
+
+    from ins.simulate.folder import simulate_flight
+    plan = Path(__file__).parent / "data" / "flights" / "short.toml"
+    folder = simulate_flight(plan, tmp_path / "flight", seed=0)
+    imu = str(folder / "imu.txt")
+    assert main(["allan", imu]) == 2
+    err = capsys.readouterr().err
+    assert "is not a static log" in err and "moves in" in err and "mean angular rate" in err
+    assert main(["allan", imu, "--allow-motion"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("warning: ") and "--allow-motion" in err

@@ -39,6 +39,9 @@ def good(tmp_path_factory):
     simulate_flight(ROOT / "tests" / "data" / "flights" / "short.toml", flight, 0)
     man = tomllib.loads((flight / "manifest.toml").read_text())
     ini, arm = man["initial"], man["lever_arm"]
+    # IMU noise of the simulated (tactical) IMU, a little pessimistic: its biases are
+    # 1000/800/600 mGal and 1/0.8/0.6 deg/h (ins.simulate.sensor_errors.PRESETS); the
+    # 50 mGal of an earlier version made ins process reject half the fixes (exit 3)
     (base / "config.toml").write_text(f"""
 [initial]
 time_s = {man['flight']['start_time_s']}
@@ -50,8 +53,10 @@ rpy_deg = {list(ini['rpy_deg'])}
 [imu_noise]
 arw_deg_sqrth = 0.15
 vrw_mps_sqrth = 0.1
-gyro_bias_std_dph = 1.0
-accel_bias_std_mgal = 50.0
+gyro_bias_std_dph = 1.5
+accel_bias_std_mgal = 1500.0
+gyro_scale_std_ppm = 200.0
+accel_scale_std_ppm = 400.0
 corr_time_h = 1.0
 [mount]
 imu_to_platform_centre_b_m = {arm['imu_to_platform_centre_b_m']}
@@ -106,7 +111,8 @@ def _process_dir(good, tmp, slot, bad, extra):
     name = {"imu": "imu.txt", "gnss": "gnss.txt", "mount": "mount.txt",
             "manifest": "manifest.toml"}[slot]
     folder = _flight_copy(good, tmp, name, bad)
-    return "ins", ["process", folder, "--no-plots", *extra, "-o", tmp / "out" / "res"]
+    return "ins", ["process", folder, "--no-plots", "--force", *extra, "-o",
+                   tmp / "out" / "res"]
 
 
 def _process_files(good, tmp, slot, bad, extra):
@@ -115,8 +121,8 @@ def _process_files(good, tmp, slot, bad, extra):
              "config": good / "config.toml"}
     paths[slot] = bad
     return "ins", ["process", "--imu", paths["imu"], "--gnss", paths["gnss"], "--mount",
-                   paths["mount"], "--config", paths["config"], "--no-plots", *extra,
-                   "-o", tmp / "out" / "res"]
+                   paths["mount"], "--config", paths["config"], "--no-plots", "--force",
+                   *extra, "-o", tmp / "out" / "res"]
 
 
 def _eo(good, tmp, slot, bad, extra):
@@ -470,10 +476,15 @@ def test_mount_stops_early_falls_back_with_count(good, tmp_path, capsys):
                                      "--gnss", good / "flight" / "gnss.txt",
                                      "--mount", BAD / "mount_stops_early.txt",
                                      "--config", good / "config.toml", "--no-plots",
-                                     "-o", out], capsys)
+                                     "--accept-poor", "-o", out], capsys)
+    # the static arm is wrong by the mount's crab for 150 s: since issue 12 ins process
+    # judges that solution poor (exit 3 without --accept-poor, a warning with it)
     assert code == 0, err
     warns = [x for x in err.splitlines() if x.startswith("warning:")]
-    assert len(warns) == 1 and f"{expected} GNSS record" in warns[0], err
+    fallback = [w for w in warns if "without mount data" in w]
+    assert len(fallback) == 1 and f"{expected} GNSS record" in fallback[0], err
+    assert all("without mount data" in w or "untrustworthy" in w or "rejected" in w
+               for w in warns), err
     assert f"{expected} with the static arm" in stdout
     assert (out / "solution.nav").is_file()
 

@@ -2,18 +2,16 @@
 
 :func:`simulate_flight` runs the whole simulator (truth, IMU with sensor errors, GNSS
 antenna log, mount angles, exposures, true EO, terrain, tie points) and writes the folder
-of ``docs/interfaces.md``.  The folder is built in a temporary sibling directory and
-renamed into place when complete; an existing folder is replaced (``force=True``) only
-after the new one is complete, so a failure leaves no partial output and the old folder
-untouched.
+of ``docs/interfaces.md``.  The folder is built aside and swapped into place whole
+(:func:`ins.fileio.output_folder`, the rule of every command that writes a folder): a
+non-empty folder is refused unless ``force=True``, and replaced only once the new one is
+complete, so a failure or Ctrl-C leaves no partial output and the old folder untouched.
 
 Reproducibility: every random product draws from its own generator, derived from the
 seed and the product's name (:func:`product_seed`), so the same seed gives the same
 bytes and changing, e.g., the GNSS rate leaves the IMU noise unchanged.
 """
 import os
-import shutil
-import tempfile
 import tomllib
 import zlib
 from pathlib import Path
@@ -23,7 +21,7 @@ import tomli_w
 
 from .. import _textio
 from ..errors import InputError
-from ..fileio import atomic_open
+from ..fileio import atomic_open, check_output_folder, output_folder
 from ..gnss import write_gnss
 from ..imu import write_kfgins_text
 from ..trajectory import Trajectory, write_nav
@@ -56,40 +54,6 @@ def product_seed(seed, name):
 def product_rng(seed, name):
     """``numpy.random.Generator`` of the random product ``name`` of flight ``seed``."""
     return np.random.default_rng(product_seed(seed, name))
-
-
-# ---------------------------------------------------------------------------------------
-# the target folder
-
-def check_target(out_dir, force=False):
-    """Raise InputError if ``out_dir`` cannot take the flight folder."""
-    out_dir = Path(out_dir)
-    if not out_dir.parent.is_dir():
-        raise InputError("the folder's parent directory does not exist", path=out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError("exists and is not a directory", path=out_dir)
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
-        raise InputError("the output folder is not empty (force=True / --force replaces "
-                         "it)", path=out_dir)
-
-
-def _install(tmp, out_dir, force):
-    """Rename the complete folder ``tmp`` to ``out_dir`` (replacing an old one)."""
-    check_target(out_dir, force)
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(tmp, 0o777 & ~mask)
-    if not out_dir.exists():
-        os.rename(tmp, out_dir)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".old", dir=out_dir.parent))
-    os.rename(out_dir, old)            # replaces the empty placeholder
-    try:
-        os.rename(tmp, out_dir)
-    except BaseException:
-        os.rename(old, out_dir)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
 
 
 # ---------------------------------------------------------------------------------------
@@ -256,8 +220,10 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None)
     Raises
     ------
     InputError
-        A bad plan (naming the key), a bad seed or grade, or an output folder that cannot
-        be written.
+        A bad plan (naming the key), a bad seed or grade.
+    FileNotFoundError, NotADirectoryError, FileExistsError, PermissionError
+        An output folder that cannot be written (naming ``out_dir``): missing parent, a
+        file in the way, not empty without ``force``.
     """
     from .sensor_errors import PRESETS
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -265,15 +231,11 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None)
     if grade is not None and grade not in PRESETS:
         raise InputError(f"unknown IMU grade {grade!r} (expected one of {', '.join(PRESETS)})")
     out_dir = Path(out_dir)
-    check_target(out_dir, force)
+    check_output_folder(out_dir, force)            # before the work, not only after it
     plan, plan_text = _plan_and_text(plan)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".part", dir=out_dir.parent))
-    try:
-        _write_products(plan, plan_text, tmp, int(seed), grade or plan.imu.grade, progress)
-        _install(tmp, out_dir, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with output_folder(out_dir, force) as tmp:
+        _write_products(plan, plan_text, Path(tmp), int(seed), grade or plan.imu.grade,
+                        progress)
     return out_dir
 
 
