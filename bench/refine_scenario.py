@@ -99,7 +99,9 @@ def block_table(seeds, n_strips=5, n_per_strip=10):
                              sigma_mm=B["sigma_mm"])
         ratio = a.ins_noise / B["ins_noise"].std(axis=0, ddof=1)
         z = (a.boresight - B["boresight"]) / a.boresight_sigma
-        print(f"{seed:>4} {' '.join(f'{r:6.3f}' for r in ratio):>36} "
+        est = " ".join("   neg" if neg else f"{r:6.3f}"      # negative: not estimable
+                       for r, neg in zip(ratio, a.ins_noise_negative))
+        print(f"{seed:>4} {est:>36} "
               f"{' '.join(f'{v:+6.2f}' for v in z):>26} {res.sigma0:7.3f} "
               f"{a.cov_factor:6.2f} {chi2_per_angle(res, B):5.2f} {chi2_per_angle(indep, B):5.2f} "
               f"{dt:6.2f}")

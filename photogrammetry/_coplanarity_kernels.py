@@ -20,12 +20,25 @@ the full problem (angles first, then the two base-direction nuisances).
 import numpy as np
 from numba import njit
 
+from ins.errors import InputError
 from ins.rotation import rot_x, rot_y, rot_z
 
-# axis index of the primary, secondary, tertiary rotation for each angle system
+# axis index of the primary, secondary, tertiary rotation for each angle system, and the
+# sign of the angle in it: phi-omega-kappa is Ry(-phi) Rx(omega) Rz(kappa) (conventions.md)
 _AXES = {"phi-omega-kappa": (1, 0, 2), "omega-phi-kappa": (0, 1, 2)}
+_SIGNS = {"phi-omega-kappa": (-1.0, 1.0, 1.0), "omega-phi-kappa": (1.0, 1.0, 1.0)}
 _ROT = (rot_x, rot_y, rot_z)
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_SINGULAR, STATUS_TOO_FEW = 0, 1, 2, 3
+#: Internal (numba kernel): a condition with zero or non-finite variance; never returned,
+#: :func:`solve_pairs` raises InputError naming the observation.
+STATUS_ZERO_VARIANCE = 5
+
+
+def _refuse_zero_variance(pair, point, var, sigma_xy):
+    raise InputError(
+        f"pair {pair}, tie point {point}: the coplanarity condition has variance {var!r} "
+        f"(photo-coordinate sigma {sigma_xy!r} mm); a zero or non-finite variance has no "
+        "weight (expected sigma > 0 mm and a point off the base line, finite coordinates)")
 
 
 def rotation_and_axes(angles, system):
@@ -42,16 +55,17 @@ def rotation_and_axes(angles, system):
     -------
     R : ndarray, shape (P, 3, 3)
     M : ndarray, shape (P, 3, 3)
-        Column k is the model-frame axis of angle k, so that ``dR = skew(M @ d_angles) R``.
+        Column k is the model-frame axis of angle k, so that ``dR = skew(M @ d_angles) R``
+        (for phi-omega-kappa the axis of phi is ``-y``: ``R = Ry(-phi) Rx(omega) Rz(kappa)``).
     """
-    order = _AXES[system]
+    order, signs = _AXES[system], _SIGNS[system]
     angles = np.asarray(angles, dtype=float).reshape(-1, 3)
     E = np.eye(3)
     R = np.broadcast_to(E, (len(angles), 3, 3)).copy()
     M = np.empty((len(angles), 3, 3))
-    for k, axis in enumerate(order):
-        M[:, :, k] = R[:, :, axis]           # axis of rotation k, rotated by the earlier ones
-        R = R @ _ROT[axis](angles[:, k])
+    for k, (axis, sign) in enumerate(zip(order, signs)):
+        M[:, :, k] = sign * R[:, :, axis]    # axis of rotation k, rotated by the earlier ones
+        R = R @ _ROT[axis](sign * angles[:, k])
     return R, M
 
 
@@ -140,6 +154,9 @@ def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
     """
     P = len(u1)
     k = 3 if mode == "known" else 5
+    if not (np.isfinite(sigma_xy) and sigma_xy > 0):
+        raise InputError(f"sigma_xy: the photo-coordinate sigma must be > 0 mm (it weighs "
+                         f"every condition), got {sigma_xy!r}")
     n_used = mask.sum(axis=1)
     need = {"known": 3, "relative": 5, "free": 5}[mode]
     status = np.where(n_used < need, STATUS_TOO_FEW, STATUS_NOT_CONVERGED)
@@ -163,11 +180,15 @@ def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
         R2, M2 = rotation_and_axes(angles, system)
         r2 = np.einsum("pij,pnj->pni", R2, u2)
         g, var, N, A = condition_terms(r1, r2, b, R1, R2, sigma_xy)
-        w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
         if mode == "free":          # profile the base out with the current weights
+            w = np.where(mask & (var > 0), 1.0 / np.where(var > 0, var, 1.0), 0.0)
             b = smallest_direction(N, w)
             g, var, N, A = condition_terms(r1, r2, b, R1, R2, sigma_xy)
-            w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
+        bad = active[:, None] & mask & ~(var > 0)
+        if bad.any():
+            pp, ii = np.argwhere(bad)[0]
+            _refuse_zero_variance(int(pp), int(ii), float(var[pp, ii]), sigma_xy)
+        w = np.where(mask, 1.0 / np.where(var > 0, var, 1.0), 0.0)
         J = np.einsum("pni,pij->pnj", A, M2)
         E = None
         if mode != "known":
@@ -204,12 +225,17 @@ def _solve_numba(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter, 
     out = {"Q": np.zeros((P, k, k)), "vtpv": np.zeros(P), "g": np.zeros((P, n)),
            "var": np.zeros((P, n)), "J": np.zeros((P, n, k)), "w": np.zeros((P, n)),
            "iterations": np.zeros(P, dtype=np.int64)}
+    bad_point = np.full(P, -1, dtype=np.int64)
     f64 = np.ascontiguousarray
     solve_pairs_numba(f64(u1, dtype=float), f64(u2, dtype=float), f64(mask, dtype=np.bool_),
                       f64(R1, dtype=float), angles, b, _MODE_ID[mode], _ORDER[system],
-                      float(sigma_xy) ** 2, int(max_iter), float(tol), status,
+                      _SIGN[system], float(sigma_xy) ** 2, int(max_iter), float(tol), status,
                       out["iterations"], out["Q"], out["vtpv"], out["g"], out["var"],
-                      out["J"], out["w"])
+                      out["J"], out["w"], bad_point)
+    if np.any(status == STATUS_ZERO_VARIANCE):
+        pp = int(np.flatnonzero(status == STATUS_ZERO_VARIANCE)[0])
+        ii = int(bad_point[pp])
+        _refuse_zero_variance(pp, ii, float(out["var"][pp, ii]), sigma_xy)
     out.update(angles=angles, base=b, status=status,
                redundancy=np.maximum(n_used - (3 if mode == "known" else 5), 0))
     return out
@@ -217,12 +243,14 @@ def _solve_numba(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter, 
 
 # --------------------------------------------------------------------------
 # numba kernel: the same Gauss-Newton, one pair at a time (no temporaries)
-_ORDER = {"phi-omega-kappa": np.array([1, 0, 2]), "omega-phi-kappa": np.array([0, 1, 2])}
+_ORDER = {s: np.array(a) for s, a in _AXES.items()}
+_SIGN = {s: np.array(a) for s, a in _SIGNS.items()}
 _MODE_ID = {"known": 0, "relative": 1, "free": 2}
 
 
 @njit(cache=True)
-def _nb_rotation(a, order, R, M):
+def _nb_rotation(a, order, sign, R, M):
+    """``R`` (3, 3) and the axes ``M`` of one angle triplet, as :func:`rotation_and_axes`."""
     for i in range(3):
         for j in range(3):
             R[i, j] = 1.0 if i == j else 0.0
@@ -230,8 +258,8 @@ def _nb_rotation(a, order, R, M):
     for k in range(3):
         ax = order[k]
         for i in range(3):
-            M[i, k] = R[i, ax]
-        c, s = np.cos(a[k]), np.sin(a[k])
+            M[i, k] = sign[k] * R[i, ax]
+        c, s = np.cos(sign[k] * a[k]), np.sin(sign[k] * a[k])
         i1, i2 = (ax + 1) % 3, (ax + 2) % 3
         for i in range(3):                       # R <- R @ elementary(ax, a[k])
             T[i, ax] = R[i, ax]
@@ -305,9 +333,13 @@ def _nb_profile(r1, u2, mask, R1, R2, M2, b, s2, use_weights, N, Ji, scratch, E)
 
 
 @njit(cache=True)
-def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, s2, max_iter, tol,
-                      status, iterations, Q, vtpv, g_out, var_out, J_out, w_out):
-    """In-place per-pair Gauss-Newton (see :func:`solve_pairs`); angles and base updated."""
+def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, sign, s2, max_iter, tol,
+                      status, iterations, Q, vtpv, g_out, var_out, J_out, w_out, bad_point):
+    """In-place per-pair Gauss-Newton (see :func:`solve_pairs`); angles and base updated.
+
+    A condition whose variance is not > 0 stops its pair with status
+    :data:`STATUS_ZERO_VARIANCE` and its point index in ``bad_point`` (the caller
+    refuses it)."""
     P, n = mask.shape
     k = 3 if mode == 0 else 5
     R2, M2, E = np.empty((3, 3)), np.empty((3, 3)), np.zeros((3, 2))
@@ -323,11 +355,11 @@ def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, s2, max_iter,
         b = base[p] / np.sqrt(base[p] @ base[p])
         ang = angles[p]
         if mode == 2:
-            _nb_rotation(ang, order, R2, M2)
+            _nb_rotation(ang, order, sign, R2, M2)
             b = _nb_profile(r1, u2[p], mask[p], R1[p], R2, M2, b, s2, False, N, Ji, scratch, E)
         done = False
         for it in range(max_iter + 1):
-            _nb_rotation(ang, order, R2, M2)
+            _nb_rotation(ang, order, sign, R2, M2)
             if mode == 2:
                 b = _nb_profile(r1, u2[p], mask[p], R1[p], R2, M2, b, s2, True, N, Ji, scratch,
                                 E)
@@ -343,7 +375,12 @@ def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, s2, max_iter,
                     continue
                 g, var = _nb_terms(r1[i], u2[p, i], R1[p], R2, M2, b, E, s2, k, Ji, N,
                                    scratch)
-                w = 1.0 / var if var > 0 else 0.0
+                if not var > 0:
+                    status[p] = 5
+                    bad_point[p] = i
+                    var_out[p, i] = var
+                    break
+                w = 1.0 / var
                 for a in range(k):
                     wa = w * Ji[a]
                     grad[a] += wa * g
@@ -353,6 +390,8 @@ def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, s2, max_iter,
                 g_out[p, i], var_out[p, i], w_out[p, i] = g, var, w
                 for a in range(k):
                     J_out[p, i, a] = Ji[a]
+            if status[p] == 5:
+                break
             for a in range(k):
                 for c in range(a):
                     H[a, c] = H[c, a]

@@ -17,6 +17,19 @@ correlated-data form of ``sqrt(mean(d^2) - sigma_adj^2)``.  For a single-heading
 ``beta`` is essentially the (GLS) mean of ``d``; for strips flown back and forth the
 mean of phi and omega cancels, the fit does not.
 
+The model is linear in ``beta`` only to first order: a boresight of 0.2 deg makes
+second-order terms of about one arcsec, as large as the estimate's sigma on a good block.
+So the fit is iterated (Gauss-Newton): with the current estimate ``B_k`` the INS attitude
+is corrected exactly, ``R_c = P_k^T R_ins B_k`` (``P_k`` the datum's common rotation when
+it is estimated), its differences with the adjusted angles give the increment, until it
+is below 1e-12 rad.  The reported differences (``diff``, ``mean``, ``rms``) are those of
+the uncorrected INS angles.
+
+A variance component whose estimate is negative (the data show less scatter than the
+adjustment's own covariance predicts) is not estimable: it is held at 0 inside the fit
+(the constrained REML estimate) and reported as NaN with ``ins_noise_negative`` set,
+never as a noise of 0; ``ins_noise_var`` keeps the signed estimate.
+
 The boresight is only observable when the block's orientation does not come from the
 INS (``known-base`` with GNSS bases); with datum ``first`` or ``ins`` it is absorbed by
 the datum and the report says so; the fit then also takes out a common model-frame
@@ -31,7 +44,7 @@ import numpy as np
 from ins.rotation import rotvec_to_dcm, wrap_to_pi
 
 from . import _coplanarity_kernels as K
-from .rotation import matrix_to_angles
+from .rotation import angles_to_matrix, matrix_to_angles
 
 __all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL"]
 
@@ -60,7 +73,14 @@ class Assessment:
     boresight_observable : bool
     ins_noise, ins_noise_sigma : ndarray (3,)
         Per-angle INS noise (REML variance component, the adjustment's own covariance
-        removed; 0 if not positive) and its sigma (from the REML Fisher information).
+        removed; NaN where the estimate is negative, see ``ins_noise_negative``) and its
+        sigma (from the REML Fisher information; where the noise is NaN, the square root
+        of the sigma of the variance: the scale the data could have detected).
+    ins_noise_var : ndarray (3,)
+        Signed estimate of the noise variance, rad^2 (one unconstrained scoring step at
+        the constrained REML solution; negative: not estimable).
+    ins_noise_negative : ndarray of bool (3,)
+        The variance component came out negative: ``ins_noise`` is NaN (not 0).
     residual_rms : ndarray (3,)
         RMS of the differences after removing the boresight (and datum rotation).
     adj_sigma_rms : ndarray (3,)
@@ -93,6 +113,9 @@ class Assessment:
     cov_factor: float
     cov_factor_sigma: float
     correlations: np.ndarray
+    ins_noise_var: np.ndarray = None
+    ins_noise_negative: np.ndarray = None
+    boresight_iterations: int = 0
 
 
 def _image_correlations(cov, m):
@@ -132,11 +155,21 @@ def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
     cov_x : ndarray (p, p)
         ``(A^T V^-1 A)^-1`` at the estimated components.
     theta : ndarray (q,)
+        Constrained estimate (``>= 0``; a component whose estimate is negative is held
+        at 0, see `negative`).
     sigma_theta : ndarray (q,)
-        From the inverse Fisher information of the estimated components (0 if fixed).
+        From the inverse Fisher information of the estimated components (0 if fixed, NaN
+        if the information matrix is not positive definite).
     residual : ndarray (n,)
     chi2 : float
         ``r^T V^-1 r``.
+    theta_signed : ndarray (q,)
+        One unconstrained scoring step from the constrained solution (the MINQUE
+        estimate there): equal to `theta` for components inside the bound, negative for
+        those that are not estimable.
+    negative : ndarray of bool (q,)
+        Estimated components whose unconstrained estimate is negative (not estimable:
+        reported as such, never as a variance of 0).
     """
     q, n = len(G), len(y)
     fixed = [None] * q if fixed is None else list(fixed)
@@ -151,27 +184,34 @@ def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
         cov_x = np.linalg.inv(A.T @ ViA)
         return Vi, cov_x, Vi - ViA @ cov_x @ ViA.T
 
-    for _ in range(max_iter):
+    def scoring(theta):
         _, _, P = terms(theta)
         PG = [P @ g for g in G]
         Py = P @ y
         info = np.array([[0.5 * np.sum(a * b.T) for b in PG] for a in PG])
         u = np.array([0.5 * Py @ g @ Py for g in G])
         rhs = u[est] - info[np.ix_(est, ~est)] @ theta[~est]
+        return info, np.linalg.solve(info[np.ix_(est, est)], rhs)
+
+    for _ in range(max_iter):
         new = theta.copy()
-        new[est] = np.maximum(np.linalg.solve(info[np.ix_(est, est)], rhs), 0.0)
+        new[est] = np.maximum(scoring(theta)[1], 0.0)
         done = np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new), 1e-3 * np.max(new)))
         theta = new
         if done:
             break
+    info, step = scoring(theta)
+    signed = theta.copy()
+    signed[est] = step
+    negative = np.zeros(q, bool)
+    negative[est] = step < 0
     Vi, cov_x, P = terms(theta)
-    PG = [P @ g for g in G]
-    info = np.array([[0.5 * np.sum(a * b.T) for b in PG] for a in PG])
     sig = np.zeros(q)
-    sig[est] = np.sqrt(np.maximum(np.diag(np.linalg.inv(info[np.ix_(est, est)])), 0.0))
+    var_theta = np.diag(np.linalg.inv(info[np.ix_(est, est)]))
+    sig[est] = np.where(var_theta >= 0, np.sqrt(np.abs(var_theta)), np.nan)
     x = cov_x @ (A.T @ Vi @ y)
     r = y - A @ x
-    return x, cov_x, theta, sig, r, float(r @ Vi @ r)
+    return x, cov_x, theta, sig, r, float(r @ Vi @ r), signed, negative
 
 #: The factor of the adjustment covariance is estimated only when its relative sigma is
 #: below this (else held at 1: the INS noise dominates and the factor does not matter).
@@ -193,8 +233,9 @@ def _fit(y, A, C, groups):
     if not (lam > 0 and lam_sigma < LAMBDA_MAX_REL * lam):
         out = gls_variance_components(y, A, [C] + D, fixed=[1.0, None, None, None])
         lam, lam_sigma = 1.0, 0.0
-    x, cov_x, theta, sig, r, chi2 = out
-    return x, cov_x, lam, lam_sigma, theta[1:] * scale, sig[1:] * scale, r, chi2
+    x, cov_x, theta, sig, r, chi2, signed, negative = out
+    return (x, cov_x, lam, lam_sigma, theta[1:] * scale, sig[1:] * scale, r, chi2,
+            signed[1:] * scale, negative[1:])
 
 
 def assess(result, angles_ins, system, datum, method):
@@ -219,6 +260,8 @@ def assess(result, angles_ins, system, datum, method):
     diff = np.where(used[:, None], wrap_to_pi(ins - result.angles), 0.0)
     d = diff[used]
     k = len(d)
+    negative = np.zeros(3, bool)
+    boresight_iterations = 0
     idx = (3 * np.flatnonzero(used)[:, None] + np.arange(3)).ravel()
     C = result.cov[np.ix_(idx, idx)]
     groups = np.tile(np.arange(3), k)
@@ -230,6 +273,7 @@ def assess(result, angles_ins, system, datum, method):
     rms = np.sqrt(np.mean(d ** 2, axis=0)) if k else z3
     beta, beta_sigma, e = z3, z3, d - mean
     theta, theta_sigma, chi2, dof, lam, lam_sigma = z3, z3, 0.0, 0, 1.0, 0.0
+    signed = z3
     if k > 6:
         R, M = K.rotation_and_axes(result.angles[used], system)
         J = np.linalg.solve(M, R)               # d_angles = J @ camera-frame rotation
@@ -237,7 +281,21 @@ def assess(result, angles_ins, system, datum, method):
         # a common model-frame rotation of the whole block as well
         X = -J if observable else np.concatenate([-J, np.linalg.inv(M)], axis=2)
         A = X.reshape(3 * k, -1)
-        v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2 = _fit(d.ravel(), A, C, groups)
+        # Gauss-Newton on the exact model R_ins = P R_true B^T: correct the INS attitude
+        # by the current B (and P), fit the increment, until it vanishes
+        R_ins = angles_to_matrix(ins[used], system)
+        B_k, P_k = np.eye(3), np.eye(3)
+        d_k = d
+        for boresight_iterations in range(1, 21):
+            (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
+             negative) = _fit(d_k.ravel(), A, C, groups)
+            B_k = B_k @ rotvec_to_dcm(v[:3])
+            if not observable:
+                P_k = P_k @ rotvec_to_dcm(v[3:6])
+            d_k = wrap_to_pi(matrix_to_angles(P_k.T @ R_ins @ B_k, system)
+                             - result.angles[used])
+            if np.max(np.abs(v)) < 1e-12:
+                break
         dof = 3 * k - A.shape[1]
         e = r.reshape(k, 3)
         V = lam * C + np.diag(theta[groups])
@@ -247,16 +305,18 @@ def assess(result, angles_ins, system, datum, method):
         gls_mean = cov_mean @ (ones.T @ Vi @ d.ravel())
         gls_mean_sigma = np.sqrt(np.diag(cov_mean))
         if observable:
-            beta_sigma = np.sqrt(np.diag(cov_v))
-            beta = matrix_to_angles(rotvec_to_dcm(v), "omega-phi-kappa")   # Rx Ry Rz angles
-    ins_noise = np.sqrt(theta)
+            beta_sigma = np.sqrt(np.diag(cov_v)[:3])
+            beta = matrix_to_angles(B_k, "omega-phi-kappa")             # Rx Ry Rz angles
+    # a negative variance component is not estimable: NaN and flagged, never 0
+    ins_noise = np.where(negative, np.nan, np.sqrt(theta))
     # sigma of s from that of s^2 (delta method; the bound's half-width at s = 0)
-    ins_noise_sigma = np.where(ins_noise > 0, theta_sigma / (2 * np.where(ins_noise > 0,
-                                                                           ins_noise, 1)),
+    pos = ins_noise > 0
+    ins_noise_sigma = np.where(pos, theta_sigma / (2 * np.where(pos, ins_noise, 1)),
                                np.sqrt(theta_sigma))
     adj_var = np.mean(result.sigma[used] ** 2, axis=0) if k else z3
     names = tuple(system.split("-"))
     return Assessment(names, used, diff, mean, mean_sigma, gls_mean, gls_mean_sigma, rms,
                       beta, beta_sigma, observable, ins_noise, ins_noise_sigma,
                       np.sqrt(np.mean(e ** 2, axis=0)) if k else z3, np.sqrt(adj_var),
-                      chi2, dof, lam, lam_sigma, _image_correlations(result.cov, m))
+                      chi2, dof, lam, lam_sigma, _image_correlations(result.cov, m),
+                      np.asarray(signed, float), negative, boresight_iterations)

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ins.errors import InputError
+from ins.rotation import wrap_to_pi
 
 from .assessment import assess
 from .block import adjust_block
@@ -26,7 +27,7 @@ class RefineResult:
     Attributes
     ----------
     eo : photogrammetry.exposure.ExposureOrientation
-        Refined angles with their sigmas (positions as given).
+        Refined angles (wrapped to (-pi, pi]) with their sigmas (positions as given).
     prior : photogrammetry.exposure.ExposureOrientation
         The input in the working system.
     block : photogrammetry.block.BlockResult
@@ -81,7 +82,12 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
         eo = eo.in_system(system)
     system = eo.system
     if sigma_mm is None:
-        sigma_mm = tiepoints.sigma_mm or 0.5 * camera.pixel_size_mm
+        if tiepoints.sigma_mm == 0:
+            raise InputError("the tie points state a photo-coordinate sigma of 0 "
+                             "(noise-free); the conditions need a weight: give a sigma > 0 "
+                             "(--sigma-px)", path=tiepoints.path)
+        sigma_mm = (tiepoints.sigma_mm if tiepoints.sigma_mm is not None
+                    else 0.5 * camera.pixel_size_mm)
     if prior_sigma_rad is None:
         prior_sigma_rad = eo.sigma_angles if eo.sigma_angles is not None else 0.005
     if position_sigma_m is None and eo.sigma_position is not None:
@@ -95,7 +101,9 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                          datum, positions=eo.position, prior_sigma=prior_sigma_rad,
                          sigma_mm=sigma_mm, position_sigma=position_sigma_m, point_ids=point_ids,
                          snooping=snooping, progress=progress)
-    result_eo = replace(eo, angles=block.angles, sigma_angles=block.sigma,
+    # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
+    # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
+    result_eo = replace(eo, angles=wrap_to_pi(block.angles), sigma_angles=block.sigma,
                         sigma_position=(eo.sigma_position if eo.sigma_position is not None
                                         else np.zeros((len(eo), 3))))
     settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,

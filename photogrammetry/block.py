@@ -38,7 +38,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import splu
 
-from ins.errors import InputError, InputWarning
+from ins.errors import InputError, InputWarning, QualityWarning
 
 from . import _coplanarity_kernels as K
 from .coplanarity import STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
@@ -77,7 +77,9 @@ class BlockResult:
     adjusted : ndarray of bool (m,)
         Images that took part (connected to the block by at least one good pair).
     pair_status : ndarray of int (P,)
-        Per pair, see :data:`photogrammetry.coplanarity.STATUS_TEXT`.
+        Per pair, see :data:`photogrammetry.coplanarity.STATUS_TEXT`; every pair not
+        ``0`` ("ok", including "not converged" in the pair-wise screening) was left out
+        with a warning.
     rejected : ndarray of bool (P, n)
         Tie points rejected by data snooping (pair-wise, before the block adjustment).
     residuals : ndarray (P, n)
@@ -301,7 +303,16 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     ------
     InputError
         Unknown method or datum, missing positions, a block whose normal equations are
-        singular (a part not connected to the datum).
+        singular (a part not connected to the datum), a condition with zero or non-finite
+        variance (names the pair and tie point).
+
+    Warns
+    -----
+    InputWarning
+        A pair left out (too few points, singular, zero base), an image without a pair.
+    QualityWarning
+        A pair left out because its pair-wise screening did not converge; the block
+        adjustment itself not converged.
     """
     check_system(system)
     mode = {"known-base": "known", "relative": "relative", "base-free": "free"}.get(method)
@@ -336,10 +347,15 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         status = np.where(few, K.STATUS_OK, status)
         norm = np.linalg.norm(base, axis=1)
         status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
-    good = status <= K.STATUS_NOT_CONVERGED
+    # a pair whose screening did not converge has no valid outlier tests (and, for the
+    # relative methods, no starting base direction): it is left out, and said so
+    good = status == K.STATUS_OK
     for k in np.flatnonzero(~good):
-        warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {STATUS_TEXT[status[k]]}",
-                      InputWarning, stacklevel=2)
+        what = ("its pair-wise screening did not converge"
+                if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT[status[k]])
+        warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {what}",
+                      QualityWarning if status[k] == K.STATUS_NOT_CONVERGED else InputWarning,
+                      stacklevel=2)
     mask = screen["mask"] & good[:, None]
     adjusted = np.zeros(m, bool)
     adjusted[pairs[good].ravel()] = True
@@ -379,6 +395,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         g, d, J_ang, N = _condition_terms(U, img, p_c, R, M, b)
         W, rank, var = _joint_weights(buckets if joint else buckets_1, obs if joint else obs_1,
                                       d, sigma_mm ** 2, len(g), RANK_TOL[mode])
+        if not np.all(var > 0):
+            c = int(np.flatnonzero(~(var > 0))[0])
+            pid = s_c[c] if point_ids is None else point_ids[p_c[c]][s_c[c]]
+            raise InputError(f"pair {img[c, 0]}-{img[c, 1]}, tie point {pid!r}: the "
+                             f"coplanarity condition has variance {var[c]!r} (photo sigma "
+                             f"{sigma_mm!r} mm); a zero or non-finite variance has no weight")
         E = None if mode == "known" else K.tangent_basis(b)
         NE = None if E is None else np.einsum("ca,cak->ck", N, E[p_c])
         J = _jacobian(J_ang, NE, img, bslot[p_c], col, n_ang, n_ang + n_base)
@@ -435,7 +457,7 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(prior_sigma[i] ** 2)
     if not converged:
         warnings.warn(f"block adjustment did not converge in {max_iter} iterations",
-                      InputWarning, stacklevel=2)
+                      QualityWarning, stacklevel=2)
     sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     res = np.zeros(mask.shape)
     res[p_c, s_c] = g / np.sqrt(np.where(var > 0, var, np.inf))

@@ -21,15 +21,22 @@ adjusted.  Methods:
     to one.  Biased (erratum 1); kept only to show it.
 
 Each condition is weighted by the inverse of its variance propagated from the four photo
-coordinates (sigma ``sigma_mm`` each); Gauss-Newton with analytic derivatives; outliers
-by Baarda's data snooping on the conditions' normalized residuals.
+coordinates (sigma ``sigma_mm`` each; a condition whose variance is zero or not finite is
+refused, InputError naming the pair and point); Gauss-Newton with analytic derivatives;
+outliers by Baarda's data snooping on the conditions' normalized residuals.
+
+Failures are stated, never hidden: a pair that failed (too few points, singular normal
+equations, zero base) keeps its prior angles with a NaN covariance and its reason; a
+pair that did not converge is marked ``converged = False``; with zero redundancy the
+variance factor cannot be estimated: ``sigma0`` is NaN and the covariance is the
+a-priori one (``sigma0 = 1``), marked by ``sigma0_estimated = False``.
 """
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ins.errors import InputError, InputWarning
+from ins.errors import InputError, QualityWarning
 from ins.rotation import skew
 
 from . import _coplanarity_kernels as K
@@ -56,21 +63,26 @@ class PairResult:
     Attributes
     ----------
     angles : ndarray (3,)
-        Image 2's angles (rad, system order), the prior's when the pair failed.
+        Image 2's angles (rad, system order).
     cov : ndarray (3, 3)
-        A-posteriori covariance of the angles, rad^2 (``sigma0^2 Q``).
+        A-posteriori covariance of the angles, rad^2 (``sigma0^2 Q``; ``Q`` alone, the
+        a-priori covariance, when ``sigma0_estimated`` is False).
     sigma : ndarray (3,)
         Per-angle standard deviations, rad.
     base : ndarray (3,) or None
         Unit base direction in the model frame (the given one for known-base).
     sigma0 : float
-        A-posteriori standard deviation of unit weight (1 = the a-priori sigma).
+        A-posteriori standard deviation of unit weight (1 = the a-priori sigma); NaN
+        when the redundancy is zero (not estimable).
     redundancy : int
     iterations : int
     status : str
-        ``"ok"`` or the reason of a failure.
+        ``"ok"`` or ``"not converged"`` (a failed pair raises, see :func:`adjust_pair`).
     rejected : ndarray of int
         Indices of the points rejected as outliers.
+    converged : bool
+    sigma0_estimated : bool
+        False when the redundancy is zero: ``cov`` is then the a-priori covariance.
     """
     angles: np.ndarray
     cov: np.ndarray
@@ -81,6 +93,8 @@ class PairResult:
     iterations: int
     status: str
     rejected: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    converged: bool = True
+    sigma0_estimated: bool = True
 
 
 def _stack_rays(xy, f_mm, name):
@@ -133,8 +147,17 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     -------
     dict of arrays: ``angles`` (P, 3), ``cov`` (P, 3, 3) rad^2, ``sigma`` (P, 3),
     ``base`` (P, 3) unit, ``sigma0`` (P,), ``redundancy``, ``iterations``, ``status``
-    (ints, see :data:`STATUS_TEXT`), ``rejected`` (P, n) bool, ``mask`` (P, n) final,
-    ``vtpv`` (P,).
+    (ints, see :data:`STATUS_TEXT`), ``reason`` (P,) its text, ``converged`` (P,) bool,
+    ``failed`` (P,) bool (status above "not converged": the prior angles are returned,
+    with NaN ``cov``, ``sigma`` and ``sigma0``, never a zero covariance),
+    ``sigma0_estimated`` (P,) bool (False at zero redundancy: ``sigma0`` NaN and ``cov``
+    the a-priori ``Q``), ``rejected`` (P, n) bool, ``mask`` (P, n) final, ``vtpv`` (P,).
+
+    Raises
+    ------
+    InputError
+        Unknown method, ``sigma_mm`` not > 0, a missing base for known-base, or a
+        condition with zero or non-finite variance (names the pair and point).
     """
     check_system(system)
     if not sigma_mm > 0:
@@ -191,14 +214,19 @@ def _merge(out, part, idx):
 
 def _finish(out, status, prior2, mask, rejected):
     good = status <= K.STATUS_NOT_CONVERGED
-    r = out["redundancy"]
-    s0sq = np.where(r > 0, out["vtpv"] / np.maximum(r, 1), 1.0)
+    r = out["redundancy"] * good
+    estimated = good & (r > 0)
+    # zero redundancy: no variance factor; the covariance is the a-priori one (s0 = 1)
+    s0sq = np.where(estimated, out["vtpv"] / np.maximum(r, 1), 1.0)
     cov = s0sq[:, None, None] * out["Q"][:, :3, :3]
-    cov[~good] = 0.0
+    cov[~good] = np.nan                     # failed: no estimate, no covariance
     angles = np.where(good[:, None], out["angles"], prior2)
     return {"angles": angles, "cov": cov, "sigma": np.sqrt(np.einsum("pii->pi", cov)),
-            "base": out["base"], "sigma0": np.sqrt(s0sq) * good, "redundancy": r * good,
-            "iterations": out["iterations"], "status": status, "rejected": rejected,
+            "base": out["base"], "sigma0": np.where(estimated, np.sqrt(s0sq), np.nan),
+            "sigma0_estimated": estimated, "redundancy": r,
+            "iterations": out["iterations"], "status": status,
+            "reason": np.array([STATUS_TEXT[int(k)] for k in status], dtype=object),
+            "converged": status == K.STATUS_OK, "failed": ~good, "rejected": rejected,
             "mask": mask, "vtpv": out["vtpv"] * good}
 
 
@@ -255,11 +283,18 @@ def adjust_pair(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fre
     if status >= K.STATUS_SINGULAR:
         raise InputError(f"pair adjustment failed: {STATUS_TEXT[status]}")
     if status == K.STATUS_NOT_CONVERGED:
-        warnings.warn("pair adjustment did not converge", InputWarning, stacklevel=2)
+        warnings.warn("pair adjustment did not converge: the angles are the last iterate "
+                      "and their covariance is not to be trusted", QualityWarning,
+                      stacklevel=2)
+    estimated = bool(res["sigma0_estimated"][0])
+    if not estimated:
+        warnings.warn("pair adjustment has no redundancy: sigma0 is not estimable (NaN); "
+                      "the covariance is the a-priori one (sigma0 = 1)", QualityWarning,
+                      stacklevel=2)
     return PairResult(res["angles"][0], res["cov"][0], res["sigma"][0], res["base"][0],
                       float(res["sigma0"][0]), int(res["redundancy"][0]),
                       int(res["iterations"][0]), STATUS_TEXT[status],
-                      np.flatnonzero(res["rejected"][0]))
+                      np.flatnonzero(res["rejected"][0]), status == K.STATUS_OK, estimated)
 
 
 def pencil_determinants(r1, r2, triples):
@@ -304,7 +339,8 @@ def paper_adjust(u1, u2, mask, R1, angles2, system, sigma_mm=0.005, max_iter=30,
     """The paper's literal eqs. (12)-(15): F1 = F2 = 0 on the triples (1, 2, k).
 
     Unweighted Gauss-Newton on image 2's angles.  Biased (``conventions.md``, erratum 1):
-    kept to demonstrate it.  Same inputs and outputs as :func:`adjust_pairs` (rays).
+    kept to demonstrate it.  Same inputs and outputs as :func:`adjust_pairs` (rays); the
+    covariance, sigmas and sigma0 are NaN (not estimated).
     """
     P = len(u1)
     angles = np.array(angles2, dtype=float, copy=True)
@@ -330,9 +366,13 @@ def paper_adjust(u1, u2, mask, R1, angles2, system, sigma_mm=0.005, max_iter=30,
         if not active.any():
             break
     good = status <= K.STATUS_NOT_CONVERGED
-    zeros = np.zeros((P, 3, 3))
-    return {"angles": np.where(good[:, None], angles, angles2), "cov": zeros,
-            "sigma": np.zeros((P, 3)), "base": np.zeros((P, 3)), "sigma0": np.zeros(P),
+    # unweighted and biased: no covariance, no variance factor (NaN, never zero)
+    return {"angles": np.where(good[:, None], angles, angles2),
+            "cov": np.full((P, 3, 3), np.nan), "sigma": np.full((P, 3), np.nan),
+            "base": np.zeros((P, 3)), "sigma0": np.full(P, np.nan),
+            "sigma0_estimated": np.zeros(P, bool),
             "redundancy": np.maximum(2 * (mask.sum(axis=1) - 2) - 3, 0), "iterations": iterations,
-            "status": status, "rejected": np.zeros(mask.shape, bool), "mask": mask,
-            "vtpv": np.zeros(P)}
+            "status": status,
+            "reason": np.array([STATUS_TEXT[int(k)] for k in status], dtype=object),
+            "converged": status == K.STATUS_OK, "failed": ~good,
+            "rejected": np.zeros(mask.shape, bool), "mask": mask, "vtpv": np.zeros(P)}

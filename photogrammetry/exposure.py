@@ -13,7 +13,8 @@ convergence is taken at the camera and the n frame carried from the IMU to the c
 Files:
 
 - EO CSV (``docs/interfaces.md``): header comments naming the system, frame and units,
-  then ``image_id,time_s,X_m,Y_m,Z_m,<angles>_deg[,sigmas]``.
+  then ``image_id,time_s,X_m,Y_m,Z_m,<angles>_deg[,sigmas]``.  Every angle written to a
+  file is wrapped to (-180, 180] deg (:func:`wrapped_deg`).
 - Applanix-style text: ``ID event time_s E_m N_m h_m omega_deg phi_deg kappa_deg``
   (always omega-phi-kappa, whitespace separated).
 - PATB-style: per image a line ``ID X0 Y0 Z0`` and three lines of the rotation matrix
@@ -36,7 +37,7 @@ from .rotation import SYSTEMS, angles_to_matrix, check_system, matrix_to_angles
 
 __all__ = ["ExposureOrientation", "compute_eo", "read_events", "read_solution_std",
            "write_eo_csv", "read_eo_csv", "write_eo_applanix", "read_eo_applanix",
-           "write_eo_patb", "read_eo_patb", "angle_names"]
+           "write_eo_patb", "read_eo_patb", "angle_names", "wrapped_deg"]
 
 _MAGIC = "# insphoto exterior orientation"
 _UNITS = "time_s GPS seconds of week; X Y Z m; angles deg; sigmas in the same units"
@@ -267,6 +268,24 @@ def _fmt(v, decimals):
     return f"{v:.{decimals}f}"
 
 
+def wrapped_deg(angles_rad, decimals=10):
+    """Angles (rad) as degrees in (-180, 180], rounded to `decimals` (what the files
+    hold: an angle written as -180.0000000000 after rounding is written as 180).
+
+    Parameters
+    ----------
+    angles_rad : array_like
+        Any shape; unwrapped values (e.g. an adjustment's kappa of 180.05 deg) allowed.
+    decimals : int
+
+    Returns
+    -------
+    ndarray, same shape, deg
+    """
+    d = np.round(np.rad2deg(wrap_to_pi(np.asarray(angles_rad, dtype=float))), decimals)
+    return np.where(d <= -180.0, d + 360.0, d) + 0.0
+
+
 def write_eo_csv(path, eo, system=None, comments=()):
     """Write an EO CSV (atomically).
 
@@ -290,7 +309,7 @@ def write_eo_csv(path, eo, system=None, comments=()):
     for c in comments:
         out.write(f"# {c}\n")
     out.write(",".join(cols) + "\n")
-    deg = np.rad2deg(eo.angles)
+    deg = wrapped_deg(eo.angles)                 # (-180, 180], whatever eo holds
     for i in range(len(eo)):
         fields = [eo.image_id[i], _fmt(eo.time[i], 6)]
         fields += [_fmt(v, 6) for v in eo.position[i]] + [_fmt(v, 10) for v in deg[i]]
@@ -382,7 +401,7 @@ def write_eo_applanix(path, eo):
     """Applanix-style EO text: ``ID event time_s E_m N_m h_m omega_deg phi_deg kappa_deg``
     (omega-phi-kappa, whitespace separated, event = 1-based exposure number)."""
     eo = eo.in_system("omega-phi-kappa")
-    deg = np.rad2deg(eo.angles)
+    deg = wrapped_deg(eo.angles)
     out = io.StringIO()
     out.write(f"{_MAGIC}, Applanix-style\n# system = omega-phi-kappa\n# frame = {eo.frame}\n"
               "# ID event time_s E_m N_m h_m omega_deg phi_deg kappa_deg\n")

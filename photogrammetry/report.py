@@ -9,6 +9,7 @@ import os
 import numpy as np
 
 from ins.fileio import atomic_open
+from ins.rotation import wrap_to_pi
 
 from .coplanarity import STATUS_TEXT
 
@@ -66,8 +67,15 @@ def _save(fig, path):
         f.write(buf.getvalue())
 
 
-def _fmt3(v, scale=_AS, digits=1):
-    return " | ".join(f"{x * scale:.{digits}f}" for x in v)
+def _fmt3(v, scale=_AS, digits=1, nan_text="n/a"):
+    return " | ".join(nan_text if not np.isfinite(x) else f"{x * scale:.{digits}f}" for x in v)
+
+
+def _deg3(v):
+    """Angles (rad) as deg with 6 decimals, wrapped to (-180, 180] after rounding."""
+    d = np.round(np.rad2deg(wrap_to_pi(np.asarray(v, float))), 6)
+    d = np.where(d <= -180.0, d + 360.0, d) + 0.0
+    return " | ".join(f"{x:.6f}" for x in d)
 
 
 def report_text(result, plots=()):
@@ -85,7 +93,7 @@ def report_text(result, plots=()):
              f"**sigma0 = {blk.sigma0:.3f}** (= {blk.sigma0 * s['sigma_mm'] / px:.3g} px), "
              f"redundancy {blk.redundancy}, {blk.iterations} iterations, "
              f"{'converged' if blk.converged else 'NOT converged'}", ""]
-    bad = [(k, st) for k, st in enumerate(blk.pair_status) if st > 1]
+    bad = [(k, st) for k, st in enumerate(blk.pair_status) if st != 0]
     if bad:
         lines += ["Pairs left out:", ""]
         lines += [f"- {result.eo.image_id[result.pairs[k, 0]]}-"
@@ -100,9 +108,16 @@ def report_text(result, plots=()):
               "| RMS | " + _fmt3(a.rms) + " |",
               "| RMS after boresight/datum | " + _fmt3(a.residual_rms) + " |",
               "| adjustment sigma (RMS) | " + _fmt3(a.adj_sigma_rms) + " |",
-              "| **INS noise** (REML variance component) | " + _fmt3(a.ins_noise) + " |",
-              "| sigma of the INS noise | " + _fmt3(a.ins_noise_sigma) + " |", "",
-              "The differences are correlated (the adjusted angles of a strip chain through "
+              "| **INS noise** (REML variance component) | "
+              + _fmt3(a.ins_noise, nan_text="not estimable (negative)") + " |",
+              "| sigma of the INS noise | " + _fmt3(a.ins_noise_sigma) + " |", ""]
+    negative = [n for n, neg in zip(names, np.atleast_1d(a.ins_noise_negative)) if neg]
+    if negative:
+        lines += [f"INS noise of {', '.join(negative)}: the variance component came out "
+                  "negative (the differences scatter less than the adjustment's own "
+                  "covariance predicts), so it is not estimable here: below the "
+                  "adjustment's sigma, not zero.", ""]
+    lines += ["The differences are correlated (the adjusted angles of a strip chain through "
               "the relative orientations): the sigma of the mean is sqrt(1' V 1)/k and the "
               "GLS mean, the boresight and the INS noise are estimated with the full "
               "covariance V = lambda C_adj + diag(s^2) (generalized least squares; s and "
@@ -129,7 +144,7 @@ def report_text(result, plots=()):
               "|---|" + "---:|" * 10]
     for i, iid in enumerate(result.eo.image_id):
         c = a.correlations[i]
-        lines.append(f"| {iid} | " + _fmt3(result.eo.angles[i], 180 / np.pi, 6) + " | "
+        lines.append(f"| {iid} | " + _deg3(result.eo.angles[i]) + " | "
                      + _fmt3(blk.sigma[i]) + " | " + _fmt3(a.diff[i]) + " | "
                      + f"{c[0, 1]:.2f} {c[0, 2]:.2f} {c[1, 2]:.2f} |")
     lines.append("")

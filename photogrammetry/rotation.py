@@ -6,25 +6,44 @@ condition is ``X_m - X_0 = lambda * R @ (x, y, -f)``.
 
 Two angle systems, always named, never implicit (``conventions.md``, "Rotations"):
 
-==================== ============ =========================================== ===================
-system               primary axis matrix                                      angle order in arrays
-==================== ============ =========================================== ===================
-``phi-omega-kappa``  Y            ``R = Ry(phi) @ Rx(omega) @ Rz(kappa)``     ``(phi, omega, kappa)``
-``omega-phi-kappa``  X            ``R = Rx(omega) @ Ry(phi) @ Rz(kappa)``     ``(omega, phi, kappa)``
-==================== ============ =========================================== ===================
+==================== ======= ============================================ =======================
+system               primary matrix                                       array order
+==================== ======= ============================================ =======================
+``phi-omega-kappa``  Y       ``R = Ry(-phi) @ Rx(omega) @ Rz(kappa)``     ``(phi, omega, kappa)``
+``omega-phi-kappa``  X       ``R = Rx(omega) @ Ry(phi) @ Rz(kappa)``      ``(omega, phi, kappa)``
+==================== ======= ============================================ =======================
 
 ``Rx``, ``Ry``, ``Rz`` are the ACTIVE elementary rotations of :mod:`ins.rotation`
 (``rot_x(a) = [[1, 0, 0], [0, cos a, -sin a], [0, sin a, cos a]]``, and cyclically): a
-positive angle turns a vector counter-clockwise about the axis seen from its tip.  In
-scipy's terms ``phi-omega-kappa`` is ``Rotation.from_euler('YXZ', [phi, omega, kappa])``
-and ``omega-phi-kappa`` is ``Rotation.from_euler('XYZ', [omega, phi, kappa])`` (intrinsic).
+positive angle turns a vector counter-clockwise about the axis seen from its tip.
+
+``phi-omega-kappa`` carries the sign of phi of the Russian/Vietnamese/Chinese textbooks
+and programs whose name it has: ``R_phi = Ry(-phi) = [[cos phi, 0, -sin phi], [0, 1, 0],
+[sin phi, 0, cos phi]]`` and the nine elements (rows a, b, c of ``R``)
+
+    a1 = cos phi cos kappa - sin phi sin omega sin kappa
+    a2 = -cos phi sin kappa - sin phi sin omega cos kappa
+    a3 = -sin phi cos omega
+    b1 = cos omega sin kappa,  b2 = cos omega cos kappa,  b3 = -sin omega
+    c1 = sin phi cos kappa + cos phi sin omega sin kappa
+    c2 = -sin phi sin kappa + cos phi sin omega cos kappa
+    c3 = cos phi cos omega
+
+with ``phi = atan2(-a3, c3)``, ``omega = asin(-b3)``, ``kappa = atan2(b1, b2)``.
+``omega-phi-kappa`` is the Western (PATB, Applanix) system; its transpose is the
+object-to-image matrix ``M`` of Wolf/Dewitt/Mikhail.  Near nadir with the mapping x axis
+to the east the two phi differ in sign (``phi_W ~ -phi_CN``) and omega agrees to first
+order.  In scipy's terms (intrinsic sequences) ``phi-omega-kappa`` is
+``Rotation.from_euler('YXZ', [-phi, omega, kappa])`` and ``omega-phi-kappa`` is
+``Rotation.from_euler('XYZ', [omega, phi, kappa])``.
 
 Extracted angles: the primary angle and kappa in (-pi, pi], the middle (secondary)
 angle in [-pi/2, pi/2].  At gimbal lock (middle angle +-90 deg, cosine below 1e-14)
 only the sum or difference of primary and kappa is defined: kappa is set to 0 and the
-primary angle carries the whole rotation about the vertical.  The primary angle is then
-recovered from ``R @ Rz(kappa).T``, which keeps the matrix round trip exact to rounding
-at and near the lock.
+primary angle carries the whole rotation about the vertical.  The primary angle is
+recovered from ``D = R @ Rz(kappa).T`` (the rotation by the primary and middle angles
+alone), which equals the atan2 of the textbook elements away from the lock and keeps the
+matrix round trip exact to rounding at and near it.
 
 INS attitude to camera attitude: ``C_mc = C_mn @ C_nb @ C_bc`` (:func:`camera_attitude`);
 for the ENU mapping frame ``C_mn`` is :func:`dcm_mn_enu`.  The computer-vision (OpenCV,
@@ -63,19 +82,19 @@ def _pm_pi(a):
 
 
 def _pok_matrix(phi, omega, kappa):
-    """Ry(phi) Rx(omega) Rz(kappa), element by element."""
+    """Ry(-phi) Rx(omega) Rz(kappa), element by element (the textbooks' a1..c3)."""
     sp, so, sk = np.sin(phi), np.sin(omega), np.sin(kappa)
     cp, co, ck = np.cos(phi), np.cos(omega), np.cos(kappa)
     R = np.empty(phi.shape + (3, 3))
-    R[:, 0, 0] = cp * ck + sp * so * sk
-    R[:, 0, 1] = -cp * sk + sp * so * ck
-    R[:, 0, 2] = sp * co
-    R[:, 1, 0] = co * sk
-    R[:, 1, 1] = co * ck
-    R[:, 1, 2] = -so
-    R[:, 2, 0] = -sp * ck + cp * so * sk
-    R[:, 2, 1] = sp * sk + cp * so * ck
-    R[:, 2, 2] = cp * co
+    R[:, 0, 0] = cp * ck - sp * so * sk          # a1
+    R[:, 0, 1] = -cp * sk - sp * so * ck         # a2
+    R[:, 0, 2] = -sp * co                        # a3
+    R[:, 1, 0] = co * sk                         # b1
+    R[:, 1, 1] = co * ck                         # b2
+    R[:, 1, 2] = -so                             # b3
+    R[:, 2, 0] = sp * ck + cp * so * sk          # c1
+    R[:, 2, 1] = -sp * sk + cp * so * ck         # c2
+    R[:, 2, 2] = cp * co                         # c3
     return R
 
 
@@ -97,14 +116,15 @@ def _opk_matrix(omega, phi, kappa):
 
 
 def _pok_angles(R):
-    # middle: R12 = -sin(omega); kappa: R10 = cos(omega) sin(kappa), R11 = cos(omega) cos(kappa)
+    # middle: b3 = -sin(omega); kappa: b1 = cos(omega) sin(kappa), b2 = cos(omega) cos(kappa)
     r10, r11 = R[:, 1, 0], R[:, 1, 1]
     cos_mid = np.hypot(r10, r11)
     omega = np.arctan2(-R[:, 1, 2], cos_mid)
     kappa = np.where(cos_mid < _GIMBAL_TOL, 0.0, np.arctan2(r10, r11))
-    # D = R Rz(kappa)^T = Ry(phi) Rx(omega): D00 = cos(phi), D20 = -sin(phi)
+    # D = R Rz(kappa)^T = Ry(-phi) Rx(omega): D00 = cos(phi), D20 = sin(phi)
+    # (away from the lock the same as phi = atan2(-a3, c3))
     sk, ck = np.sin(kappa), np.cos(kappa)
-    phi = np.arctan2(-(R[:, 2, 0] * ck - R[:, 2, 1] * sk), R[:, 0, 0] * ck - R[:, 0, 1] * sk)
+    phi = np.arctan2(R[:, 2, 0] * ck - R[:, 2, 1] * sk, R[:, 0, 0] * ck - R[:, 0, 1] * sk)
     return np.stack([_pm_pi(phi), omega + 0.0, _pm_pi(kappa)], axis=-1)
 
 
@@ -130,8 +150,9 @@ def angles_to_matrix(angles, system, degrees=False):
         ``"phi-omega-kappa"``, ``(omega, phi, kappa)`` for ``"omega-phi-kappa"``;
         rad, or deg with ``degrees=True``.
     system : {"phi-omega-kappa", "omega-phi-kappa"}
-        ``R = Ry(phi) Rx(omega) Rz(kappa)`` or ``R = Rx(omega) Ry(phi) Rz(kappa)``
-        (active elementary rotations of :mod:`ins.rotation`).
+        ``R = Ry(-phi) Rx(omega) Rz(kappa)`` (the textbooks' sign of phi) or
+        ``R = Rx(omega) Ry(phi) Rz(kappa)`` (active elementary rotations of
+        :mod:`ins.rotation`).
     degrees : bool, default False
 
     Returns
@@ -174,6 +195,9 @@ def matrix_to_angles(R, system, degrees=False):
 
     Notes
     -----
+    ``phi-omega-kappa``: ``phi = atan2(-a3, c3)``, ``omega = asin(-b3)``,
+    ``kappa = atan2(b1, b2)``; ``omega-phi-kappa``: ``omega = atan2(-r23, r33)``,
+    ``phi = asin(r13)``, ``kappa = atan2(-r12, r11)`` (1-based element names).
     Gimbal lock (middle angle +-90 deg, its cosine below 1e-14): kappa = 0, the primary
     angle takes the whole rotation about the then common axis.
     """
@@ -186,7 +210,22 @@ def matrix_to_angles(R, system, degrees=False):
 
 
 def convert_angles(angles, from_system, to_system, degrees=False):
-    """Angles of one system to the other (same rotation), shape (3,) or (n, 3)."""
+    """Angles of one system to the other (same rotation matrix ``R = C_mc``).
+
+    Parameters
+    ----------
+    angles : array_like, shape (3,) or (n, 3)
+        In the order of `from_system`'s name; rad, or deg with ``degrees=True``.
+    from_system, to_system : {"phi-omega-kappa", "omega-phi-kappa"}
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, same shape
+        In the order of `to_system`'s name, wrapped as :func:`matrix_to_angles`.
+        Near nadir with the mapping x axis east, phi changes sign and omega stays to
+        first order; reordering the numbers is not a conversion.
+    """
     return matrix_to_angles(angles_to_matrix(angles, from_system, degrees), to_system, degrees)
 
 

@@ -105,11 +105,22 @@ def _undistort(camera, xy, path):
                          path=path) from None
 
 
-def _sigma_from_comments(comments):
-    for text in comments:
-        m = re.search(r"sigma_mm\s*=\s*([0-9.eE+-]+)", text)
+def _sigma_from_comments(comments, key, path):
+    """The value of ``key = ...`` (sigma_mm or sigma_px) in the leading comment lines
+    (``comments[i]`` is line i + 1), or None; a value that is not a number >= 0 is
+    refused (0, a noise-free simulation, is kept: the refinement then asks for a sigma)."""
+    for k, text in enumerate(comments):
+        m = re.search(rf"\b{key}\s*=\s*([^\s,;)]*)", text)
         if m:
-            return float(m.group(1))
+            try:
+                value = float(m.group(1))
+            except ValueError:
+                value = None
+            if value is None or not (np.isfinite(value) and value >= 0):
+                unit = "mm" if key == "sigma_mm" else "px"
+                raise InputError(f"{key} = {m.group(1)!r}: expected a number >= 0 ({unit})",
+                                 path=path, line=k + 1)
+            return value
     return None
 
 
@@ -120,7 +131,8 @@ def read_tiepoints(path, camera=None):
     ----------
     path : str
     camera : photogrammetry.camera.FrameCamera, optional
-        Needed for a file in pixels (``u_px,v_px``), to convert to photo mm.
+        Needed for a file in pixels (``u_px,v_px``), to convert to photo mm (and a
+        ``sigma_px`` of the header without ``sigma_mm``).
 
     Returns
     -------
@@ -130,7 +142,8 @@ def read_tiepoints(path, camera=None):
     ------
     InputError
         Wrong header, a malformed or non-finite line, a repeated (image, point), a pixel
-        file without camera; the message names the file and line.
+        file without camera, a header ``sigma_mm``/``sigma_px`` that is not a number
+        >= 0; the message names the file and line.
     """
     path = str(path)
     text = _textio.read_text(path, "a tie-point CSV file (image_id,point_id,x_mm,y_mm)"
@@ -176,11 +189,11 @@ def read_tiepoints(path, camera=None):
     if not rows:
         raise InputError("no tie-point observations", path=path)
     xy = np.array(rows)
-    sigma = _sigma_from_comments(comments)
+    sigma = _sigma_from_comments(comments, "sigma_mm", path)
+    sigma_px = _sigma_from_comments(comments, "sigma_px", path)
+    if sigma is None and sigma_px is not None and camera is not None:
+        sigma = sigma_px * camera.pixel_size_mm
     if unit == "px":
         xy = camera.pixel_to_photo(xy)
-        m = re.search(r"sigma_px\s*=\s*([0-9.eE+-]+)", " ".join(comments))
-        if m and sigma is None:
-            sigma = float(m.group(1)) * camera.pixel_size_mm
     xy.setflags(write=False)
     return TiePoints(path, tuple(ids), tuple(pids), xy, np.array(lines), sigma)

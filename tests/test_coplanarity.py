@@ -25,11 +25,14 @@ def _err(p, out):
     return sc.rotation_error(angles_to_matrix(out["angles"], p["system"]), p["R2"])
 
 
-@pytest.mark.parametrize("system,seq", [("phi-omega-kappa", "YXZ"), ("omega-phi-kappa", "XYZ")])
-def test_rotation_and_axes_against_scipy_and_differences(system, seq):
+@pytest.mark.parametrize("system,seq,sign", [("phi-omega-kappa", "YXZ", [-1, 1, 1]),
+                                              ("omega-phi-kappa", "XYZ", [1, 1, 1])])
+def test_rotation_and_axes_against_scipy_and_differences(system, seq, sign):
     a = np.random.default_rng(1).uniform(-0.5, 0.5, (5, 3))
     R, M = K.rotation_and_axes(a, system)
-    np.testing.assert_allclose(R, Rotation.from_euler(seq, a).as_matrix(), atol=1e-14)
+    # phi-omega-kappa = Ry(-phi) Rx(omega) Rz(kappa) = scipy's 'YXZ' of (-phi, omega, kappa)
+    np.testing.assert_allclose(R, Rotation.from_euler(seq, a * sign).as_matrix(), atol=1e-14)
+    np.testing.assert_allclose(R, angles_to_matrix(a, system), atol=1e-15)
     for k in range(3):
         d = np.zeros(3)
         d[k] = 1e-6
@@ -163,7 +166,10 @@ def test_single_pair_and_degenerate_input():
     line = np.column_stack([np.linspace(-30, 30, 12), np.zeros(12)])   # collinear points
     with pytest.raises(InputError, match="singular"):
         adjust_pair(line, line + [0.1, 0], p["f_mm"], np.zeros(3), np.zeros(3), p["system"])
-    # in a batch a bad pair gets a status, the others are solved, nothing is NaN
+    # in a batch a bad pair gets a status and says it failed: its prior angles with a NaN
+    # covariance (never 0, which would read as perfect) and the reason; the others are
+    # solved and finite.  (This test used to require "nothing is NaN": the zero
+    # covariance of the failed pair was the red flag of issue 12.)
     q = sc.make_pairs(3, 12, seed=15)
     xy2b = q["u2"][..., :2].copy()
     mask = np.ones((3, 12), bool)
@@ -171,8 +177,70 @@ def test_single_pair_and_degenerate_input():
     out = adjust_pairs(q["u1"][..., :2], xy2b, q["f_mm"], q["ang1"], q["prior2"], q["system"],
                        mask=mask, sigma_mm=q["sigma_mm"])
     assert list(out["status"]) == [0, K.STATUS_TOO_FEW, 0]
+    assert list(out["converged"]) == [True, False, True]
+    assert list(out["failed"]) == [False, True, False]
+    assert out["reason"][1] == "too few tie points" and out["reason"][0] == "ok"
     np.testing.assert_array_equal(out["angles"][1], q["prior2"][1])
-    assert all(np.all(np.isfinite(v)) for v in out.values() if isinstance(v, np.ndarray))
+    assert np.all(np.isnan(out["cov"][1])) and np.all(np.isnan(out["sigma"][1]))
+    assert np.isnan(out["sigma0"][1]) and out["redundancy"][1] == 0
+    good = [0, 2]
+    for key in ("angles", "cov", "sigma", "sigma0", "base", "vtpv"):
+        assert np.all(np.isfinite(out[key][good])), key
+    assert np.all(out["sigma"][good] > 0) and np.all(out["sigma0_estimated"][good])
+
+
+def test_zero_redundancy_flags_sigma0_and_not_converged_warns():
+    """Three points, known base: 3 conditions for 3 angles.  No variance factor can be
+    estimated: sigma0 is NaN, the covariance is the a-priori one (sigma0 = 1), marked,
+    with a QualityWarning (it used to set s0^2 = 1 silently)."""
+    from ins.errors import QualityWarning
+    p = sc.make_pairs(1, 3, seed=17)
+    args = (p["u1"][0, :, :2], p["u2"][0, :, :2], p["f_mm"], p["ang1"][0], p["prior2"][0],
+            p["system"], "known-base")
+    with pytest.warns(QualityWarning, match="no redundancy.*not estimable"):
+        res = adjust_pair(*args, base=p["C2"][0] - p["C1"][0], sigma_mm=p["sigma_mm"])
+    assert res.redundancy == 0 and np.isnan(res.sigma0) and not res.sigma0_estimated
+    assert res.converged and res.status == "ok"
+    # the covariance is Q itself: the inverse of the normal matrix of the 3 conditions
+    R1 = angles_to_matrix(p["ang1"], p["system"])
+    out = K.solve_pairs(p["u1"], p["u2"], p["mask"], R1, res.angles[None],
+                        p["C2"] - p["C1"], "known", p["system"], p["sigma_mm"], max_iter=0,
+                        engine="numpy")
+    np.testing.assert_allclose(res.cov, out["Q"][0], rtol=1e-6)
+    assert np.all(np.isfinite(res.sigma)) and np.all(res.sigma > 0)
+    # one Gauss-Newton step only: not converged, said so by a flag and a warning
+    q = sc.make_pairs(1, 12, seed=18)
+    with pytest.warns(QualityWarning, match="did not converge"):
+        res = adjust_pair(q["u1"][0, :, :2], q["u2"][0, :, :2], q["f_mm"], q["ang1"][0],
+                          q["prior2"][0], q["system"], "base-free", sigma_mm=q["sigma_mm"],
+                          max_iter=1)
+    assert res.status == "not converged" and not res.converged
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_zero_photo_variance_refused_by_both_engines(engine):
+    """A condition of zero variance used to weigh 1 in the numpy engine and 0 in the numba
+    one; both refuse it, naming the pair and the point."""
+    p = sc.make_pairs(2, 9, seed=19)
+    args = [p["u1"], p["u2"], p["mask"], p["R1"], p["prior2"], p["C2"] - p["C1"], "known",
+            p["system"]]
+    with pytest.raises(InputError, match="sigma_xy.*> 0 mm"):
+        K.solve_pairs(*args, sigma_xy=0.0, engine=engine)
+    # a tie point on the base line (at the epipole of both images): g does not move with
+    # its photo coordinates, its variance is exactly zero
+    u1, u2, R1, prior2 = p["u1"].copy(), p["u2"].copy(), p["R1"].copy(), p["prior2"].copy()
+    R1[1], prior2[1] = np.eye(3), 0.0            # two level cameras, one above the other
+    u1[1, 4] = u2[1, 4] = [0.0, 0.0, -p["f_mm"]]  # the point straight below both
+    base = p["C2"] - p["C1"]
+    base[1] = [0.0, 0.0, -1.0]
+    with pytest.raises(InputError, match="pair 1, tie point 4: .* variance 0.0"):
+        K.solve_pairs(u1, u2, p["mask"], R1, prior2, base, "known", p["system"],
+                      p["sigma_mm"], engine=engine)
+    # a non-finite photo coordinate: refused the same way
+    u2[0, 2, 0] = np.nan
+    with pytest.raises(InputError, match="pair 0, tie point 2: .* variance nan"):
+        K.solve_pairs(u1, u2, p["mask"], p["R1"], p["prior2"], p["C2"] - p["C1"], "known",
+                      p["system"], p["sigma_mm"], engine=engine)
 
 
 @pytest.mark.parametrize("mode", ["known", "relative", "free"])

@@ -17,6 +17,8 @@ from test_interpolation import Turn
 
 ARCSEC = np.pi / 180 / 3600
 SCIPY_SEQ = {"phi-omega-kappa": "YXZ", "omega-phi-kappa": "XYZ"}
+#: phi-omega-kappa is Ry(-phi) Rx(omega) Rz(kappa): scipy's 'YXZ' angles are (-phi, omega, kappa)
+SCIPY_SIGN = {"phi-omega-kappa": np.array([-1.0, 1.0, 1.0]), "omega-phi-kappa": np.ones(3)}
 TURN = Turn()
 T200 = np.arange(0.0, 20.0 + 1e-9, 0.005)
 TRAJ = TURN.trajectory(T200)
@@ -45,7 +47,7 @@ def test_chain_reproduces_closed_form_eo(system):
     assert np.abs(eo.position - X_true).max() < 1e-6            # < 1 um
     # the attitude is rigid: C_nb refers to the n frame at the IMU, so C_mn is the IMU's
     C_mc = C_mn @ C_nb @ MOUNT.C_bc
-    ref = Rotation.from_matrix(C_mc).as_euler(SCIPY_SEQ[system])
+    ref = Rotation.from_matrix(C_mc).as_euler(SCIPY_SEQ[system]) * SCIPY_SIGN[system]
     err = np.abs(angle_diff(eo.angles, ref)).max() / ARCSEC
     assert err < 0.01, err                                      # well under 0.1 arcsec
     assert eo.system == system and eo.frame.startswith("enu; origin_lat_deg")

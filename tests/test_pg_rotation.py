@@ -1,4 +1,5 @@
-"""Tests of photogrammetry.rotation against scipy compositions, pymap3d and OpenCV."""
+"""Tests of photogrammetry.rotation against the textbooks' elements written out, the
+Wolf/Dewitt matrix, scipy compositions, pymap3d and OpenCV."""
 import numpy as np
 import pymap3d
 import pytest
@@ -6,12 +7,56 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from ins.earth import lla_to_ecef
-from ins.rotation import euler_to_dcm
+from ins.rotation import euler_to_dcm, wrap_to_pi
 from photogrammetry import rotation as pr
 
 rng = np.random.default_rng(7)
 N = 2000
 SCIPY_SEQ = {"phi-omega-kappa": "YXZ", "omega-phi-kappa": "XYZ"}
+#: scipy's intrinsic angles of each system: phi-omega-kappa is Ry(-phi) Rx(omega) Rz(kappa)
+SCIPY_SIGN = {"phi-omega-kappa": np.array([-1.0, 1.0, 1.0]), "omega-phi-kappa": np.ones(3)}
+
+
+def scipy_matrix(a, system):
+    return Rotation.from_euler(SCIPY_SEQ[system], np.asarray(a) * SCIPY_SIGN[system]).as_matrix()
+
+
+def scipy_angles(R, system):
+    return Rotation.from_matrix(R).as_euler(SCIPY_SEQ[system]) * SCIPY_SIGN[system]
+
+
+def textbook_elements(phi, omega, kappa):
+    """The nine elements a1..c3 of the phi-omega-kappa matrix as the Russian/Vietnamese/
+    Chinese textbooks print them (conventions.md), written out; rows a, b, c."""
+    sp, cp, so, co, sk, ck = (np.sin(phi), np.cos(phi), np.sin(omega), np.cos(omega),
+                              np.sin(kappa), np.cos(kappa))
+    a1 = cp * ck - sp * so * sk
+    a2 = -cp * sk - sp * so * ck
+    a3 = -sp * co
+    b1 = co * sk
+    b2 = co * ck
+    b3 = -so
+    c1 = sp * ck + cp * so * sk
+    c2 = -sp * sk + cp * so * ck
+    c3 = cp * co
+    return np.array([[a1, a2, a3], [b1, b2, b3], [c1, c2, c3]]).transpose(2, 0, 1)
+
+
+def wolf_dewitt_M(omega, phi, kappa):
+    """Wolf/Dewitt's object-to-image matrix M (Elements of Photogrammetry), element by
+    element; the omega-phi-kappa R = C_mc is its transpose."""
+    so, co, sp, cp, sk, ck = (np.sin(omega), np.cos(omega), np.sin(phi), np.cos(phi),
+                              np.sin(kappa), np.cos(kappa))
+    m11 = cp * ck
+    m12 = so * sp * ck + co * sk
+    m13 = -co * sp * ck + so * sk
+    m21 = -cp * sk
+    m22 = -so * sp * sk + co * ck
+    m23 = co * sp * sk + so * ck
+    m31 = sp
+    m32 = -so * cp
+    m33 = co * cp
+    return np.array([[m11, m12, m13], [m21, m22, m23], [m31, m32, m33]]).transpose(2, 0, 1)
 
 
 def random_angles(n):
@@ -24,14 +69,76 @@ def random_angles(n):
 def test_matrix_equals_scipy_composition(system):
     a = random_angles(N)
     R = pr.angles_to_matrix(a, system)
-    R_ref = Rotation.from_euler(SCIPY_SEQ[system], a).as_matrix()
-    assert_allclose(R, R_ref, atol=2e-15)
+    # scipy: phi-omega-kappa = from_euler('YXZ', [-phi, omega, kappa])
+    assert_allclose(R, scipy_matrix(a, system), atol=2e-15)
     # and the elementary product of ins.rotation's rot_x/rot_y/rot_z for one item
     from ins.rotation import rot_x, rot_y, rot_z
     p, m, k = a[0]
-    prod = rot_y(p) @ rot_x(m) @ rot_z(k) if system == "phi-omega-kappa" else \
+    prod = rot_y(-p) @ rot_x(m) @ rot_z(k) if system == "phi-omega-kappa" else \
         rot_x(p) @ rot_y(m) @ rot_z(k)
     assert_allclose(pr.angles_to_matrix(a[0], system), prod, atol=2e-16 * 10)
+
+
+def test_phi_omega_kappa_is_the_textbooks_nine_elements():
+    """The nine elements written out as the textbooks print them (not through our code
+    or scipy), for random angles: matrix, extraction phi = atan2(-a3, c3),
+    omega = asin(-b3), kappa = atan2(b1, b2), and the round trip; near the lock too."""
+    a = random_angles(N)
+    T = textbook_elements(*a.T)
+    R = pr.angles_to_matrix(a, "phi-omega-kappa")
+    assert np.abs(R - T).max() < 1e-15
+    ang = pr.matrix_to_angles(T, "phi-omega-kappa")
+    a3, b1, b2, b3, c3 = T[:, 0, 2], T[:, 1, 0], T[:, 1, 1], T[:, 1, 2], T[:, 2, 2]
+    book = np.column_stack([np.arctan2(-a3, c3), np.arcsin(-b3), np.arctan2(b1, b2)])
+    assert np.abs(ang - book).max() < 1e-12
+    assert np.abs(ang - a).max() < 1e-12                       # the generating angles
+    # the sign that gave its name to the issue: phi alone, a3 = -sin(phi)
+    R = pr.angles_to_matrix([10.0, 0.0, 0.0], "phi-omega-kappa", degrees=True)
+    assert R[0, 2] == pytest.approx(-np.sin(np.deg2rad(10.0)), abs=1e-16)
+    assert R[2, 0] == pytest.approx(+np.sin(np.deg2rad(10.0)), abs=1e-16)
+    # near the lock (omega -> +-90 deg): the literal elements still round-trip
+    for near in (1e-3, 1e-6, 1e-9):
+        b = random_angles(200)
+        b[:, 1] = np.sign(b[:, 1]) * (np.pi / 2 - near)
+        Tb = textbook_elements(*b.T)
+        out = pr.matrix_to_angles(Tb, "phi-omega-kappa")
+        assert np.abs(textbook_elements(*out.T) - Tb).max() < 1e-14
+        assert np.abs(out[:, 1] - b[:, 1]).max() < 1e-7        # asin is ill-conditioned
+        if near >= 1e-6:              # conditioning ~ 1/cos(omega): 1e-16 / near
+            assert np.abs(wrap_to_pi(out - b)).max() < 1e-8
+
+
+def test_omega_phi_kappa_is_the_transpose_of_wolf_dewitt_M():
+    """Wolf/Dewitt's M (object to image), element by element, is R^T of omega-phi-kappa."""
+    a = random_angles(N)                 # (omega, phi, kappa): primary, middle, kappa
+    M = wolf_dewitt_M(*a.T)
+    R = pr.angles_to_matrix(a, "omega-phi-kappa")
+    assert np.abs(R - np.swapaxes(M, 1, 2)).max() < 1e-15
+    # extraction from M^T, in Wolf's terms: phi = asin(m31), omega = atan2(-m32, m33),
+    # kappa = atan2(-m21, m11)
+    ang = pr.matrix_to_angles(np.swapaxes(M, 1, 2), "omega-phi-kappa")
+    wolf = np.column_stack([np.arctan2(-M[:, 2, 1], M[:, 2, 2]), np.arcsin(M[:, 2, 0]),
+                            np.arctan2(-M[:, 1, 0], M[:, 0, 0])])
+    assert np.abs(ang - wolf).max() < 1e-12 and np.abs(ang - a).max() < 1e-12
+
+
+def test_near_nadir_phi_changes_sign_omega_agrees():
+    """Near nadir with the mapping x axis east, the Western and the textbooks' systems
+    differ in the sign of phi (phi_W ~ -phi_CN) and agree in omega to first order."""
+    for eps in (1e-2, 1e-3):
+        a = rng.uniform(-eps, eps, (500, 3))
+        a[:, 2] = rng.uniform(-np.pi, np.pi, 500)               # any kappa
+        w = pr.convert_angles(a, "phi-omega-kappa", "omega-phi-kappa")
+        # second order: |phi_W + phi_CN|, |omega_W - omega_CN| <= (3 eps)^2
+        assert np.abs(w[:, 1] + a[:, 0]).max() < 2 * eps ** 2
+        assert np.abs(w[:, 0] - a[:, 1]).max() < 2 * eps ** 2
+        assert np.abs(wrap_to_pi(w[:, 2] - a[:, 2])).max() < 2 * eps ** 2
+    # literally: the Western M (Wolf/Dewitt) and the textbooks' elements for phi_W = -phi
+    phi, omega, kappa = 1e-3, -2e-3, 0.7
+    MT = np.swapaxes(wolf_dewitt_M(np.array([omega]), np.array([-phi]), np.array([kappa])),
+                     1, 2)
+    T = textbook_elements(np.array([phi]), np.array([omega]), np.array([kappa]))
+    assert np.abs(MT - T).max() < 3e-6            # equal up to products of two small angles
 
 
 def test_active_sign_convention():
@@ -41,6 +148,12 @@ def test_active_sign_convention():
     # only omega = 90 deg turns camera y onto map Z (active rotation about X)
     R = pr.angles_to_matrix([90, 0, 0], "omega-phi-kappa", degrees=True)
     assert_allclose(R @ [0, 1, 0], [0, 0, 1], atol=1e-15)
+    # phi-omega-kappa with only phi = 90 deg: Ry(-phi) turns camera z onto map -X, so a
+    # positive phi tilts the view (-z) towards +X (east); omega-phi-kappa's phi the other way
+    R = pr.angles_to_matrix([90, 0, 0], "phi-omega-kappa", degrees=True)
+    assert_allclose(R @ [0, 0, -1], [1, 0, 0], atol=1e-15)
+    R = pr.angles_to_matrix([0, 90, 0], "omega-phi-kappa", degrees=True)
+    assert_allclose(R @ [0, 0, -1], [-1, 0, 0], atol=1e-15)
 
 
 @pytest.mark.parametrize("system", pr.SYSTEMS)
@@ -52,8 +165,8 @@ def test_round_trip(system):
     R = Rotation.random(N, rng).as_matrix()
     ang = pr.matrix_to_angles(R, system)
     assert np.abs(pr.angles_to_matrix(ang, system) - R).max() < 1e-14
-    ref = Rotation.from_matrix(R).as_euler(SCIPY_SEQ[system])
-    assert np.abs(ang - ref).max() < 1e-10
+    ref = scipy_angles(R, system)
+    assert np.abs(wrap_to_pi(ang - ref)).max() < 1e-10
     # degrees
     d = pr.matrix_to_angles(R[:5], system, degrees=True)
     assert_allclose(pr.angles_to_matrix(d, system, degrees=True), R[:5], atol=1e-14)

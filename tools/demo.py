@@ -159,7 +159,9 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
     apparent = matrix_to_angles(C_rel, "omega-phi-kappa")          # Rx Ry Rz angles
     b_apparent = apparent.mean(axis=0)
     # the truth of the INS-noise estimate: the scatter of that error about its mean, in
-    # the order of the angle system (phi ~ about camera y, omega ~ about camera x)
+    # the order of the angle system (near nadir phi ~ a rotation about camera y, omega
+    # ~ about camera x; phi-omega-kappa's Ry(-phi) turns the other way round y, which
+    # changes the sign of the error, not its scatter: a reordering, no sign, is right here)
     order = [1, 0, 2] if eo_ins.system == "phi-omega-kappa" else [0, 1, 2]
     noise_true = apparent.std(axis=0, ddof=1)[order]
 

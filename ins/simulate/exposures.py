@@ -10,7 +10,10 @@ True EO (``docs/interfaces.md``, ``conventions.md``): the perspective centre is
 ``r_cam = r_imu + C_nb lever_b`` (exact, through ECEF), its mapping-frame coordinates
 are the ENU of ``r_cam`` at the block origin (``pymap3d.ecef2enu``), and the attitude is
 ``C_mc = C_mn C_nb C_bc`` with the exact ``C_mn`` of :func:`photogrammetry.rotation.
-dcm_mn_enu`.  Angles are extracted from ``C_mc`` in both named systems.
+dcm_mn_enu`.  Angles are extracted from ``C_mc`` in both named systems
+(:func:`photogrammetry.rotation.matrix_to_angles`: ``eo_true.csv`` holds
+``phi-omega-kappa`` with the textbooks' sign of phi, ``R = Ry(-phi) Rx(omega) Rz(kappa)``),
+wrapped to (-pi, pi].
 """
 from dataclasses import dataclass
 
