@@ -130,3 +130,112 @@ def test_joint_weights_of_points_in_three_or_more_images():
     lo, hi = chi2.ppf([0.001, 0.999], n) / n
     assert lo < chi_joint / n < hi, chi_joint / n
     assert 1.05 < np.mean(ratio) < 1.4, ratio
+
+
+def _fd(f, x, h):
+    """Central differences of f (array-valued) by every element of x."""
+    x = np.asarray(x, dtype=float)
+    f0 = np.asarray(f(x))
+    out = np.empty(f0.shape + x.shape)
+    for idx in np.ndindex(x.shape):
+        e = np.zeros_like(x)
+        e[idx] = h
+        out[(...,) + idx] = (np.asarray(f(x + e)) - np.asarray(f(x - e))) / (2 * h)
+    return out
+
+
+def _close(analytic, fd, rtol=1e-7):
+    """|analytic - fd| <= rtol (|fd| + 1e-3 max|fd|) element-wise (5 % of a term fails)."""
+    scale = np.max(np.abs(fd))
+    err = np.abs(np.asarray(analytic) - fd)
+    bad = err > rtol * (np.abs(fd) + 1e-3 * scale)
+    assert not bad.any(), (np.argwhere(bad)[:5], (err / (np.abs(fd) + 1e-3 * scale)).max())
+
+
+def _triangle(system, seed=25, n=5):
+    """Three images (centres in a triangle, random attitudes), n points seen by all."""
+    from photogrammetry.block import _condition_index, pad_pairs
+    rng = np.random.default_rng(seed)
+    m, f = 3, 100.0
+    angles = rng.uniform(-0.5, 0.5, (m, 3))
+    X = np.array([[0.0, 0.0, 1000.0], [400.0, 30.0, 1010.0], [150.0, 380.0, 990.0]])
+    xy = rng.uniform(-40, 40, (m, n, 2))
+    pairs = np.array([[0, 1], [0, 2], [1, 2]])
+    pair_points = [(xy[i], xy[j]) for i, j in pairs]
+    point_ids = [list(range(n))] * 3
+    xy_i, xy_j, mask = pad_pairs(pair_points)
+    p_c, s_c, obs, buckets = _condition_index(pairs, mask, point_ids, m)
+    img = pairs[p_c]
+    U = np.stack([np.concatenate([q[p_c, s_c], np.full((len(p_c), 1), -f)], axis=1)
+                  for q in (xy_i, xy_j)], axis=1)
+    return dict(angles=angles, X=X, xy=xy, pairs=pairs, p_c=p_c, s_c=s_c, obs=obs,
+                buckets=buckets, img=img, U=U, f=f, m=m, n=n, system=system)
+
+
+def _g(T, angles=None, X=None, xy=None):
+    """g of every condition from scratch: (X_j - X_i) . (R_i u_i x R_j u_j)."""
+    angles = T["angles"] if angles is None else angles
+    X = T["X"] if X is None else X
+    xy = T["xy"] if xy is None else xy
+    R = angles_to_matrix(angles, T["system"])
+    i, j, pt = T["img"][:, 0], T["img"][:, 1], T["s_c"]
+    ui = np.concatenate([xy[i, pt], np.full((len(i), 1), -T["f"])], axis=1)
+    uj = np.concatenate([xy[j, pt], np.full((len(i), 1), -T["f"])], axis=1)
+    ri, rj = np.einsum("cab,cb->ca", R[i], ui), np.einsum("cab,cb->ca", R[j], uj)
+    return np.einsum("ca,ca->c", X[j] - X[i], np.cross(ri, rj))
+
+
+@pytest.mark.parametrize("system", ["phi-omega-kappa", "omega-phi-kappa"])
+def test_block_derivatives_and_joint_weights_against_differences(system):
+    """The block's condition Jacobian (both images' angles in the named system), the
+    derivatives by the photo coordinates, dg/db, the joint weight matrix of a point seen
+    in three images (the inverse of the conditions' covariance propagated from the six
+    shared photo coordinates) and the position-error term of the covariance, all against
+    central differences of g built from scratch, to 1e-7 (issue 12)."""
+    from scipy import sparse
+
+    from photogrammetry import _coplanarity_kernels as K
+    from photogrammetry.block import _condition_terms, _joint_weights, _position_cov
+    T = _triangle(system)
+    R, M = K.rotation_and_axes(T["angles"], system)
+    base = T["X"][T["pairs"][:, 1]] - T["X"][T["pairs"][:, 0]]
+    g, d, J, N = _condition_terms(T["U"], T["img"], T["p_c"], R, M, base)
+    _close(g, _g(T), 1e-12)
+    C = len(g)
+    # by the angles of image i (columns 0-2) and image j (3-5)
+    d_ang = _fd(lambda a: _g(T, angles=a), T["angles"], 1e-6)        # (C, m, 3)
+    rows = np.arange(C)
+    _close(J[:, :3], d_ang[rows, T["img"][:, 0]])
+    _close(J[:, 3:], d_ang[rows, T["img"][:, 1]])
+    # by the photo coordinates of the observation in image i and in image j
+    d_xy = _fd(lambda q: _g(T, xy=q), T["xy"], 1e-3)                  # (C, m, n, 2)
+    _close(d[:, 0], d_xy[rows, T["img"][:, 0], T["s_c"]])
+    _close(d[:, 1], d_xy[rows, T["img"][:, 1], T["s_c"]])
+    # by the base (g = b . N)
+    for c in range(C):
+        p = T["p_c"][c]
+        _close(N[c], _fd(lambda b: np.cross(*(np.einsum(
+            "ab,b->a", R[T["img"][c, k]], T["U"][c, k]) for k in (0, 1))) @ b, base[p], 1.0))
+    # joint weights: per tie point the inverse of s2 G G^T, G the differences by the six
+    # photo coordinates of its three observations
+    s2 = 0.004 ** 2
+    W, rank, var = _joint_weights(T["buckets"], T["obs"], d, s2, C, 1e-4)
+    assert rank == C                                   # a triangle: nothing repeated
+    W = W.toarray()
+    G = d_xy.reshape(C, -1)
+    Sigma = s2 * G @ G.T
+    _close(var, np.diag(Sigma))
+    for t in range(T["n"]):
+        idx = np.flatnonzero(T["s_c"] == t)
+        assert len(idx) == 3
+        _close(W[np.ix_(idx, idx)], np.linalg.inv(Sigma[np.ix_(idx, idx)]))
+        other = np.setdiff1d(np.arange(C), idx)
+        assert np.all(W[np.ix_(idx, other)] == 0)      # points are independent
+    # the EO position errors in the angles' covariance: T S_X T^T, T = (WJ)^T dg/dX
+    rng = np.random.default_rng(26)
+    WJ = sparse.csr_matrix(rng.normal(size=(C, 9)))
+    ps = rng.uniform(0.01, 0.05, (3, 3))
+    got = _position_cov(WJ, N, T["img"], T["m"], 9, ps)
+    G_X = _fd(lambda x: _g(T, X=x), T["X"], 1e-3).reshape(C, -1)
+    Tm = WJ.toarray().T @ G_X
+    _close(got, Tm @ np.diag(ps.ravel() ** 2) @ Tm.T)

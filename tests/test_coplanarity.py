@@ -257,3 +257,103 @@ def test_numba_kernel_equals_numpy_reference(mode):
     np.testing.assert_allclose(b["vtpv"][ok], a["vtpv"][ok], rtol=1e-7)
     m = p["mask"][ok]
     np.testing.assert_allclose(b["g"][ok] * m, a["g"][ok] * m, rtol=1e-7, atol=1e-14)
+
+
+def _fd(f, x, h):
+    """Central differences of f (array-valued) by every element of x: (f.shape + x.shape)."""
+    x = np.asarray(x, dtype=float)
+    f0 = np.asarray(f(x))
+    out = np.empty(f0.shape + x.shape)
+    for idx in np.ndindex(x.shape):
+        e = np.zeros_like(x)
+        e[idx] = h
+        out[(...,) + idx] = (np.asarray(f(x + e)) - np.asarray(f(x - e))) / (2 * h)
+    return out
+
+
+def _close(analytic, fd, rtol=1e-7):
+    """Element-wise |analytic - fd| <= rtol (|fd| + 1e-3 max|fd|): a 5 % change of any
+    term of any element fails."""
+    scale = np.max(np.abs(fd))
+    err = np.abs(analytic - fd)
+    bad = err > rtol * (np.abs(fd) + 1e-3 * scale)
+    assert not bad.any(), (np.argwhere(bad)[:5], (err / (np.abs(fd) + 1e-3 * scale)).max())
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+@pytest.mark.parametrize("system", ["phi-omega-kappa", "omega-phi-kappa"])
+@pytest.mark.parametrize("mode", ["known", "relative", "free"])
+def test_every_analytic_derivative_against_central_differences(engine, system, mode):
+    """The solvers' Jacobian (by image 2's angles in the named system and by the two
+    base-direction parameters) and the condition variances (from the derivatives by the
+    four photo coordinates) against central differences of g = b . (R1 u1 x R2 u2) built
+    from photogrammetry.rotation (itself checked against the textbooks' elements), to
+    1e-7: a 5 % error in any derivative term fails (issue 12, mutation 'a 5 % error in a
+    coplanarity derivative passes every Cramer-Rao band')."""
+    rng = np.random.default_rng(23)
+    P, n, f = 3, 7, 100.0
+    R1 = Rotation.random(P, random_state=24).as_matrix()
+    ang2 = rng.uniform(-0.6, 0.6, (P, 3))
+    u1 = np.concatenate([rng.uniform(-40, 40, (P, n, 2)), np.full((P, n, 1), -f)], axis=2)
+    u2 = np.concatenate([rng.uniform(-40, 40, (P, n, 2)), np.full((P, n, 1), -f)], axis=2)
+    base = rng.normal(size=(P, 3)) * 300.0
+    mask = np.ones((P, n), bool)
+    s = 0.004
+    out = K.solve_pairs(u1, u2, mask, R1, ang2, base, mode, system, s, max_iter=0,
+                        engine=engine)
+    b = out["base"] if mode != "known" else base / np.linalg.norm(base, axis=1)[:, None]
+    if mode == "free":                     # the profiled base: a unit null-ish vector
+        assert np.allclose(np.linalg.norm(b, axis=1), 1.0)
+    np.testing.assert_array_equal(out["angles"], ang2)          # no step taken
+
+    def g_of(a2, bb, uu1=u1, uu2=u2):
+        r1 = np.einsum("pij,pnj->pni", R1, uu1)
+        r2 = np.einsum("pij,pnj->pni", angles_to_matrix(a2, system), uu2)
+        return np.einsum("pni,pi->pn", np.cross(r1, r2), bb)
+
+    for p in range(P):
+        g_p = g_of(ang2, b)[p]
+        _close(out["g"][p], g_p, 1e-12)
+        # by the angles of image 2 (system order)
+        d_ang = _fd(lambda a: g_of(np.where(np.arange(P)[:, None] == p, a, ang2), b)[p],
+                    ang2[p], 1e-6)
+        _close(out["J"][p, :, :3], d_ang)
+        if mode != "known":                # by the base direction's tangent parameters
+            E = K.tangent_basis(b[p:p + 1])[0]
+
+            def g_t(t):
+                bb = b.copy()
+                bb[p] = (b[p] + E @ t) / np.linalg.norm(b[p] + E @ t)
+                return g_of(ang2, bb)[p]
+            _close(out["J"][p, :, 3:], _fd(g_t, np.zeros(2), 1e-6))
+        # the variance: sigma^2 times the squared derivatives by x1, y1, x2, y2
+        d_xy = np.zeros((n, 4))
+        for i in range(n):
+            for c in range(4):
+                def g_xy(v, i=i, c=c):
+                    w1, w2 = u1.copy(), u2.copy()
+                    (w1 if c < 2 else w2)[p, i, c % 2] = v[0]
+                    return g_of(ang2, b, w1, w2)[p, i]
+                x0 = (u1 if c < 2 else u2)[p, i, c % 2]
+                d_xy[i, c] = _fd(g_xy, [x0], 1e-3)[0]
+        _close(out["var"][p], s ** 2 * np.sum(d_xy ** 2, axis=1))
+        # and the weights used are their inverses
+        _close(out["w"][p], 1.0 / (s ** 2 * np.sum(d_xy ** 2, axis=1)))
+
+
+@pytest.mark.parametrize("system", ["phi-omega-kappa", "omega-phi-kappa"])
+def test_paper_jacobian_by_the_angles_against_differences(system):
+    """The paper's F1/F2 by image 2's angles in the named system (dF . M), to 1e-7."""
+    p = sc.make_pairs(2, 6, seed=8, system=system)
+    r1 = np.einsum("pij,pnj->pni", p["R1"], p["u1"])
+    a2 = p["prior2"]
+
+    def F_of(a):
+        r2 = np.einsum("pij,pnj->pni", angles_to_matrix(a, system), p["u2"])
+        return _paper_terms(r1, r2, p["mask"])[0]
+    R2, M2 = K.rotation_and_axes(a2, system)
+    r2 = np.einsum("pij,pnj->pni", R2, p["u2"])
+    J = np.einsum("pmi,pij->pmj", _paper_terms(r1, r2, p["mask"])[1], M2)
+    for q in range(2):
+        fd = _fd(lambda a: F_of(np.where(np.arange(2)[:, None] == q, a, a2))[q], a2[q], 1e-6)
+        _close(J[q], fd, 1e-6)
