@@ -234,6 +234,9 @@ def noise_densities(tau, adev):
     one = a.ndim == 1
     a = a.reshape(len(a), -1)
     rw = np.empty(a.shape[1])
+    if not np.all(np.isfinite(a)) or np.any(a <= 0):
+        raise ValueError("the Allan deviation is zero or not finite somewhere: the log "
+                         "holds no noise (an exact synthetic log?)")
     for j in range(a.shape[1]):
         la, lt = np.log(a[:, j]), np.log(tau)
         slope = np.gradient(la, lt)

@@ -65,6 +65,25 @@ def _triplet(text, name="value"):
     return values
 
 
+def check_output_file(path):
+    """Raise before the work the OSError that writing the output file ``path`` would
+    raise at its end (``ins.fileio.atomic_open``): ``path`` a directory, its directory
+    missing or a regular file in the way (``-o FILE/sub/out.csv``), naming ``path``."""
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
+    if not os.path.isdir(directory):
+        probe = directory
+        while probe and not os.path.exists(probe):
+            probe = os.path.dirname(probe)
+        if probe and not os.path.isdir(probe):
+            raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory",
+                                     path)
+        raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
+                                directory)
+
+
 def _positive_int(text):
     try:
         value = int(text)
@@ -313,7 +332,8 @@ def run_main(build, argv, prog):
     turn a finished run into a killed one.
     """
     streams = sys.stdout, sys.stderr
-    sys.stdout, sys.stderr = _PipeGuard(sys.stdout), _PipeGuard(sys.stderr)
+    guards = _PipeGuard(sys.stdout), _PipeGuard(sys.stderr)
+    sys.stdout, sys.stderr = guards
     interrupts.reset()
     restore = interrupts.install()
     try:
@@ -332,6 +352,8 @@ def run_main(build, argv, prog):
         return EXIT_INTERRUPTED
     finally:
         interrupts.close()          # from here on SIGINT is ignored by the handler
+        for guard in guards:        # a pipe's buffered rest: EPIPE here, not at exit
+            guard.flush()
         sys.stdout, sys.stderr = streams
         if argv is None and threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)

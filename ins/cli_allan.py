@@ -63,6 +63,9 @@ def _cmd_allan(args):
     from .allan import allan_deviation, noise_densities, static_check
     from .fileio import atomic_open
 
+    if args.plot:
+        from .cli import check_output_file
+        check_output_file(args.plot)      # an unwritable plot: now, not after the work
     log = imu_mod.read_imu(args.imu_file, format=args.format, axes=args.axes)
     if args.start is not None or args.end is not None:
         t0, t1 = float(log.time[0]), float(log.time[-1])

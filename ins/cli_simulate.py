@@ -11,7 +11,10 @@ frames and units:
   The plan (TOML, units in the key names: _deg, _m, _mps, _hz, _s, _percent; see
   data/flights/demo.toml) gives the block origin (WGS84 lat/lon deg, ellipsoidal h m),
   strips, flying height, speed, wind, turbulence, the stabilized mount, the IMU grade,
-  GNSS, camera, terrain and tie points.  Refused, naming the key: a bank (or turn rate)
+  GNSS, camera, terrain and tie points.  Every section and key is optional (with the
+  defaults of ins/simulate/plan.py) except [block] origin_lat_deg and origin_lon_deg;
+  an unknown section or key is an error listing the known keys of its section, with a
+  "did you mean" for a near miss.  Refused, naming the key: a bank (or turn rate)
   above [flight] max_bank_deg; wind crab + yaw turbulence, or roll/pitch turbulence,
   beyond 80 % of the mount's limits on the strips (the mount must follow there; in the
   turns it saturates smoothly); a run-in shorter than 3 servo lags.

@@ -29,6 +29,12 @@ def atomic_open(path, mode="wb"):
     if os.path.isdir(path):
         raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
     if not os.path.isdir(directory):
+        probe = directory
+        while probe and not os.path.exists(probe):
+            probe = os.path.dirname(probe)
+        if probe and not os.path.isdir(probe):          # -o FILE/sub/out.nav
+            raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory",
+                                     path)
         raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
                                 directory)
     try:

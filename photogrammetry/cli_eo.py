@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ins.cli import _Progress, _triplet
+from ins.cli import _Progress, _triplet, check_output_file
 from ins import _textio
 from ins.errors import InputError
 
@@ -18,9 +18,13 @@ frames and units:
   1 um and 0.001 arcsec).  The camera file gives the camera axes C_bc, the boresight
   (deg) and the lever arm (IMU centre to perspective centre, body frame, m).
   Camera attitude C_mc = C_mn C_nb C_bc; angles in deg in the named system:
-    phi-omega-kappa  R = Ry(phi) Rx(omega) Rz(kappa)   (columns phi, omega, kappa)
+    phi-omega-kappa  R = Ry(-phi) Rx(omega) Rz(kappa)  (columns phi, omega, kappa)
+                     the textbooks' sign (Russian/Chinese/Vietnamese programs):
+                     a3 = R[0,2] = -sin(phi) cos(omega), phi = atan2(-a3, c3)
     omega-phi-kappa  R = Rx(omega) Ry(phi) Rz(kappa)   (columns omega, phi, kappa)
-  R maps camera-frame rays (x, y, -f) into the mapping frame.
+                     (Wolf/Dewitt's object-to-image matrix is its transpose)
+  R maps camera-frame rays (x, y, -f) into the mapping frame; elementary rotations
+  are active (Rx(a) = [[1, 0, 0], [0, cos a, -sin a], [0, sin a, cos a]]).
   Mapping frame: enu = east, north, up (m) at the block origin (--origin, or the
   flight folder's, or the first exposure's lat/lon at h = 0); utm or EPSG:<code> =
   easting, northing (m) of the projection with the meridian convergence applied to
@@ -29,6 +33,15 @@ frames and units:
 inputs:
   FLIGHT_DIR with manifest.toml (ins simulate) supplies truth.nav, events.csv,
   camera.toml and the mapping-frame origin; --trajectory etc. override them.
+  CAM.toml (docs/interfaces.md; any other section or key is an error, with the known
+  keys and a "did you mean"):
+    [camera]   focal_length_mm, pixel_size_mm, width_px, height_px,
+               principal_point_px = [u0, v0] (px), all required;
+               optional: model = "frame", radial_k = [0, 0, 0] (mm^-2, mm^-4, mm^-6),
+               tangential_p = [0, 0] (mm^-1)
+    [mounting] optional, and each of its keys: axes = [[1,0,0],[0,-1,0],[0,0,-1]]
+               (C_bc rows, nadir camera with x forward), lever_arm_m = [0, 0, 0] (m,
+               body FRD), boresight_deg = [0, 0, 0] (rx, ry, rz)
   events: CSV image_id,time_s.  --sigma: solution_std.txt (time, std N E D m,
   std vN vE vD m/s, std roll pitch yaw deg) adds sigma columns.
 
@@ -41,6 +54,8 @@ examples:
   photogrammetry eo FLIGHT_DIR -o eo.csv
   photogrammetry eo --trajectory sol.nav --events events.csv --camera camera.toml \\
       --frame EPSG:32650 --system omega-phi-kappa -o eo.csv
+  photogrammetry eo FLIGHT_DIR --origin -33.9,151.2,20 -o eo.csv   (negative values
+      work as typed, also --origin=-33.9,151.2,20)
 """
 
 
@@ -120,6 +135,7 @@ def run(args):
     from .mapping import parse_frame
 
     traj_path, events_path, camera_path, origin = _inputs(args)
+    check_output_file(args.output)        # an unwritable output: now, not after the work
     out = os.path.abspath(args.output)
     for p in (traj_path, events_path, camera_path, args.sigma):
         if p is not None and os.path.abspath(p) == out:

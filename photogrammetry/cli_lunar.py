@@ -4,7 +4,7 @@ import time as wallclock
 
 import numpy as np
 
-from ins.cli import _Progress, _triplet
+from ins.cli import _Progress, _triplet, check_output_file
 from ins.errors import InputError
 from ins.fileio import atomic_open
 
@@ -24,8 +24,11 @@ inputs:
   TIMES.csv    image_id,utc   or   image_id,gps_week,gps_time_s  (increasing times)
   CENTRES.csv  image_id,u_px,v_px[,sigma_px]  (default sigma 0.1 px)
   --images DIR <image_id>.png/.tif/.fits (FITS needs astropy)
-  CAM.toml     [camera] model = "fisheye-equisolid", focal_length_px (or _mm with
-               pixel_size_mm), width_px, height_px, principal_point_px, radial_k (rad)
+  CAM.toml     [camera] model = "fisheye-equisolid", focal_length_px (or
+               focal_length_mm with pixel_size_mm), width_px, height_px required;
+               optional: principal_point_px = [(width_px-1)/2, (height_px-1)/2],
+               radial_k = [0, 0, 0] (rad, eq. 1), pixel_size_mm; any other section or
+               key is an error (docs/interfaces.md)
 
 output:
   heading and sigma (deg and arcsec), per-image residuals (arcsec; '*' = outlier,
@@ -35,6 +38,10 @@ output:
 example:
   photogrammetry lunar-heading --images moon/ --times times.csv \\
       --station 40.0,116.0,50 --camera fisheye.toml --plot convergence.png
+  ... --station -33.9,-70.7,500 --temperature -5   (south/west: negative values as typed)
+
+output streams: the table goes to stdout (| head is fine: the rest is dropped, exit 0);
+  exit 2 on bad input, 130 on Ctrl-C (nothing half-written).
 """
 
 OUTLIER = 3.5
@@ -87,6 +94,8 @@ def run(args):
         raise InputError(f"--station: latitude {lat_deg} deg is outside +-90 deg")
     if args.pressure is not None and args.pressure < 0:
         raise InputError(f"--pressure: expected hPa >= 0, got {args.pressure}")
+    if args.plot:
+        check_output_file(args.plot)      # an unwritable plot: now, not after the work
     camera = read_camera(args.camera)
     ids, utc = read_times(args.times)
     pressure = standard_pressure_hpa(h) if args.pressure is None else args.pressure

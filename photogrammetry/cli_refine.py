@@ -5,18 +5,24 @@ import os
 import numpy as np
 
 from ins import interrupts
-from ins.cli import _Progress
+from ins.cli import _Progress, check_output_file
 from ins.errors import InputError
 
 EPILOG = """\
 frames and units:
   EO.csv is the INS exterior orientation (docs/interfaces.md): positions X_m Y_m Z_m in
   the mapping frame (ENU at the block origin, or a projection), angles in deg in the
-  named system (R = C_mc takes a camera ray (x, y, -f) into the mapping frame):
-  phi-omega-kappa R = Ry(phi) Rx(omega) Rz(kappa), omega-phi-kappa R = Rx Ry Rz.
+  named system (R = C_mc takes a camera ray (x, y, -f) into the mapping frame; active
+  elementary rotations):
+    phi-omega-kappa  R = Ry(-phi) Rx(omega) Rz(kappa), the textbooks' sign:
+                     a3 = R[0,2] = -sin(phi) cos(omega), phi = atan2(-a3, c3)
+    omega-phi-kappa  R = Rx(omega) Ry(phi) Rz(kappa)
   TIEPOINTS.csv: image_id,point_id,x_mm,y_mm (observed photo coordinates, mm, origin at
   the principal point) or image_id,point_id,u_px,v_px.  CAM.toml gives f, pixel size
-  and distortion (removed before the adjustment).
+  and distortion (removed before the adjustment): [camera] focal_length_mm,
+  pixel_size_mm, width_px, height_px, principal_point_px required; radial_k and
+  tangential_p optional (zeros); [mounting] optional (nadir axes, zero lever arm and
+  boresight); unknown sections or keys are errors (docs/interfaces.md).
 
 methods:
   known-base  det[b, R1 u1, R2 u2] = 0 with the base b from the EO positions (GNSS);
@@ -133,6 +139,10 @@ def run(args):
     from .exposure import write_eo_csv
     from .report import write_report
     jobs = _jobs(args)
+    for _, out, rep in jobs:               # an unwritable output: now, not after the work
+        for path in (out, rep):
+            if path:
+                check_output_file(path)
     if len(jobs) == 1 and args.scheduler is None:
         results = [refine(**jobs[0][0], progress=_Progress("refine", not args.quiet))]
     else:
