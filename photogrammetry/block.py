@@ -397,10 +397,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                                       d, sigma_mm ** 2, len(g), RANK_TOL[mode])
         if not np.all(var > 0):
             c = int(np.flatnonzero(~(var > 0))[0])
-            pid = s_c[c] if point_ids is None else point_ids[p_c[c]][s_c[c]]
+            pid = int(s_c[c]) if point_ids is None else point_ids[p_c[c]][s_c[c]]
+            pid = pid.item() if isinstance(pid, np.generic) else pid
             raise InputError(f"pair {img[c, 0]}-{img[c, 1]}, tie point {pid!r}: the "
-                             f"coplanarity condition has variance {var[c]!r} (photo sigma "
-                             f"{sigma_mm!r} mm); a zero or non-finite variance has no weight")
+                             f"coplanarity condition has variance {float(var[c])!r} (photo "
+                             f"sigma {float(sigma_mm)!r} mm); a zero or non-finite variance "
+                             "has no weight")
         E = None if mode == "known" else K.tangent_basis(b)
         NE = None if E is None else np.einsum("ca,cak->ck", N, E[p_c])
         J = _jacobian(J_ang, NE, img, bslot[p_c], col, n_ang, n_ang + n_base)

@@ -239,3 +239,45 @@ def test_block_derivatives_and_joint_weights_against_differences(system):
     G_X = _fd(lambda x: _g(T, X=x), T["X"], 1e-3).reshape(C, -1)
     Tm = WJ.toarray().T @ G_X
     _close(got, Tm @ np.diag(ps.ravel() ** 2) @ Tm.T)
+
+
+def test_pair_whose_screening_did_not_converge_is_left_out_with_a_warning(block, monkeypatch):
+    """A pair whose pair-wise screening did not converge has no valid outlier tests: it
+    is left out with a QualityWarning naming it (it used to enter the block silently),
+    and the block is the one adjusted without that pair."""
+    from ins.errors import QualityWarning
+    from photogrammetry import block as block_mod
+    from photogrammetry import _coplanarity_kernels as K
+    real = block_mod.adjust_pairs
+    k_bad = 4
+
+    def screening(*args, **kw):
+        out = real(*args, **kw)
+        out["status"] = out["status"].copy()
+        out["status"][k_bad] = K.STATUS_NOT_CONVERGED
+        return out
+    monkeypatch.setattr(block_mod, "adjust_pairs", screening)
+    i, j = block["pairs"][k_bad]
+    with pytest.warns(QualityWarning, match=f"pair {i}-{j} left out: its pair-wise "
+                                            "screening did not converge"):
+        res = _run(block, "known-base", "none")
+    assert res.pair_status[k_bad] == K.STATUS_NOT_CONVERGED and not res.mask[k_bad].any()
+    monkeypatch.setattr(block_mod, "adjust_pairs", real)
+    keep = [k for k in range(len(block["pairs"])) if k != k_bad]
+    B = dict(block, pairs=block["pairs"][keep], pair_points=[block["pair_points"][k] for k in keep],
+             point_ids=[block["point_ids"][k] for k in keep])
+    ref = _run(B, "known-base", "none")
+    np.testing.assert_allclose(res.angles, ref.angles, atol=1e-12)
+    np.testing.assert_allclose(res.cov, ref.cov, rtol=1e-9, atol=1e-20)
+
+
+def test_block_refuses_zero_photo_variance(block):
+    """A condition of zero variance in the block (a point on the base line) is refused
+    with the pair and the point named, not weighted 0 silently."""
+    p = sc.make_pairs(1, 8, seed=28)
+    pts = [(p["u1"][0, :, :2].copy(), p["u2"][0, :, :2].copy())]
+    pts[0][0][3] = pts[0][1][3] = 0.0                  # straight below both cameras
+    X = np.array([[0.0, 0.0, 1000.0], [0.0, 0.0, 900.0]])   # one above the other
+    with pytest.raises(InputError, match="pair 0-1, tie point 3: .* variance 0.0"):
+        adjust_block(np.zeros((2, 3)), [[0, 1]], pts, p["f_mm"], p["system"], "known-base",
+                     "none", positions=X, sigma_mm=p["sigma_mm"], snooping=False)
