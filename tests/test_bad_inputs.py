@@ -271,6 +271,8 @@ def _cases():
               Case("simulate", "plan", "plan_unknown_key.toml", None, ("speed_kt",)),
               Case("simulate", "plan", "plan_negative_speed.toml", None,
                    ("ground_speed_mps",)),
+              Case("simulate", "plan", "plan_misspelt_section.toml", None,
+                   ("[tiepoints]: unknown section (did you mean [tie_points]?)",)),
               Case("simulate", "plan", "empty.txt", None, ("[block]",)),
               Case("simulate", "plan", "garbage.bin", None, ())]
     for cmd in ("process-dir", "process-files"):
@@ -309,6 +311,11 @@ def _cases():
                     ("camera_negative_pixel.toml", None, ("pixel_size_mm", "positive")),
                     ("camera_truncated.toml", None, ("toml",)),
                     ("camera_reflection_axes.toml", None, ("axes", "det")),
+                    ("camera_lever_arm_typo.toml", None,
+                     ("[mounting] lever_arm: unknown key (did you mean lever_arm_m?)",
+                      "known keys of [mounting]: axes, boresight_deg, lever_arm_m")),
+                    ("camera_mount_table.toml", None,
+                     ("[mount]: unknown section (did you mean [mounting]?)",)),
                     ("empty.txt", None, ("[camera]",)), ("garbage.bin", None, ())]
     cases += [Case("eo", "camera", f, ln, w) for f, ln, w in camera_cases]
     cases += [Case("refine", "camera", f, ln, w) for f, ln, w in camera_cases]
@@ -338,6 +345,8 @@ def _cases():
               Case("lunar-heading", "centres", "garbage.bin", None, ()),
               Case("lunar-heading", "camera", "fisheye_missing_focal.toml", None,
                    ("focal_length",)),
+              Case("lunar-heading", "camera", "fisheye_unknown_key.toml", None,
+                   ("[camera] radial_k_rad: unknown key (did you mean radial_k?)",)),
               Case("lunar-heading", "camera", "empty.txt", None, ("[camera]",)),
               Case("lunar-heading", "camera", "garbage.bin", None, ()),
               Case("lunar-heading", "images", "garbage.bin", None, ("image",), names="m000.png")]

@@ -171,6 +171,8 @@ def _text_files(plan_text, config_text):
                                                      "pixel_size_mm = -0.005"),
         "camera_truncated.toml": CAMERA[:CAMERA.index("principal_point_px") + 25],
         "camera_reflection_axes.toml": CAMERA.replace("[0, 0, -1]]", "[0, 0, 1]]"),
+        "camera_lever_arm_typo.toml": CAMERA.replace("lever_arm_m =", "lever_arm ="),
+        "camera_mount_table.toml": CAMERA.replace("[mounting]", "[mount]"),
         # EO CSV
         "eo_no_system.csv": _lines([EO_HEAD[0], EO_HEAD[2], EO_HEAD[3],
                                     "image_id,time_s,X_m,Y_m,Z_m,a_deg,b_deg,c_deg"]
@@ -194,10 +196,12 @@ def _text_files(plan_text, config_text):
         "centres_zero_sigma.csv": _lines(CENTRES[:2] + ["m001,901.3,699.0,0"] + CENTRES[3:]),
         "centres_unknown_image.csv": _lines(CENTRES + ["m999,904.8,695.5,0.1"]),
         "fisheye_missing_focal.toml": FISHEYE.replace("focal_length_px = 800.0\n", ""),
+        "fisheye_unknown_key.toml": FISHEYE.replace("radial_k =", "radial_k_rad ="),
         # flight plans (ins simulate)
         "plan_truncated.toml": plan_text[:plan_text.index("sigma_ned_m = [") + 20],
         "plan_unknown_key.toml": plan_text.replace("ground_speed_mps = 50.0",
                                                    "ground_speed_mps = 50.0\nspeed_kt = 97"),
+        "plan_misspelt_section.toml": plan_text.replace("[tie_points]", "[tiepoints]"),
         "plan_negative_speed.toml": plan_text.replace("ground_speed_mps = 50.0",
                                                       "ground_speed_mps = -50.0"),
         # processing configs (ins process --config)
