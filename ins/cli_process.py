@@ -7,7 +7,7 @@ import time as wallclock
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, QualityError
 
 EPILOG = """\
 inputs:
@@ -26,7 +26,31 @@ frames and units:
   n = north-east-down, b = forward-right-down; lever arm from the IMU to the antenna in
   b (m); with a mount l_b(t) = l_bp + C_pa(t) l_ap.
 
-outputs (in -o OUT_DIR):
+start position:
+  checked against the first GNSS fix at or after the start (within 10 s): the start
+  state is moved to the fix time along its velocity and carried to the antenna through
+  the lever arm.  Farther than 5 sigma (fix, start position and velocity sigmas) + 300 m
+  is refused (exit 2, naming the config key and the distance: a start of another
+  flight, a wrong time_s, another time scale); beyond 5 sigma only, the start position
+  sigma is widened with a warning.  Without [initial] lat_deg, lon_deg, h_m the start
+  position is taken from that fix, less the lever arm (as the static and in-air
+  alignments do).
+
+trust (checked before anything is written):
+  GNSS measurements rejected by the innovation test: more than 5 % is a warning; more
+  than 50 %, none accepted, or the written solution farther than 10 fix sigmas from
+  every fix for 30 s or more stops with exit 3, naming the counts and the likely cause
+  (start state, IMU noise settings, lever arm, time base).  --accept-poor writes the
+  outputs anyway (exit 0, the warning printed).  A negative variance or a covariance
+  that is not positive definite stops with exit 3, naming the time and the state.
+
+exit codes:
+  0 success; 2 bad input (files, config, options, start far from the GNSS fixes, an
+  output folder that is not empty without --force); 3 untrustworthy solution (nothing
+  written without --accept-poor); 130 interrupted (Ctrl-C; nothing written).
+
+outputs (in -o OUT_DIR, a new or empty folder; --force replaces an existing one whole,
+built aside and swapped in: never a mix of two runs):
   solution.nav      smoothed trajectory, KF-GINS .nav: week t lat lon[deg] h[m]
                     vN vE vD[m/s] roll pitch yaw[deg]
   forward.nav       with --forward: the forward-filter trajectory (same layout; a
@@ -61,8 +85,15 @@ def add_parser(sub):
                    help="also write forward.nav (the forward filter's trajectory)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
     p.add_argument("--week", type=int, default=0, help="GPS week in the .nav (default 0)")
+    p.add_argument("--accept-poor", action="store_true",
+                   help="write the outputs even when the solution is not to be trusted "
+                        "(exit 0 with the warning; default: exit 3, nothing written)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
-    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR", help="output folder")
+    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR",
+                   help="output folder (new or empty; see --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty OUT_DIR whole (the new run is built aside "
+                        "and swapped in; nothing of the old run is kept)")
     p.set_defaults(func=_cmd_process)
 
 
@@ -99,35 +130,54 @@ def _from_args(args, load_config, path):
 
 def _cmd_process(args):
     from .cli import _Progress
+    from .fileio import output_folder
     from .process import process, write_outputs
     t0 = wallclock.perf_counter()
     cfg = _config(args)
     progress = _Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
-    created = not os.path.isdir(args.output)
-    os.makedirs(args.output, exist_ok=True)
-    try:
-        return _run(args, cfg, progress, t0, process, write_outputs)
-    except BaseException:
-        if created and not os.listdir(args.output):
-            os.rmdir(args.output)             # no output folder left on failure
-        raise
-
-
-def _run(args, cfg, progress, t0, process, write_outputs):
-    # the forward trajectory and the node matrices are spilled to temporary files in the
-    # output folder (memory bounded whatever the length of the log), removed at the end
-    with tempfile.TemporaryDirectory(dir=args.output, prefix=".process-") as work:
-        result = process(cfg, progress=progress, workdir=work)
-        t1 = wallclock.perf_counter()
-        paths = write_outputs(result, args.output, week=args.week, forward=args.forward)
-        if not args.no_plots:
-            from .plots import write_plots
-            paths += write_plots(result, args.output)
+    # the run is built in a hidden sibling of OUT_DIR and swapped in whole at the end;
+    # on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is written
+    with output_folder(args.output, force=args.force) as stage:
+        # the forward trajectory and the node matrices are spilled to temporary files
+        # inside the staged folder (memory bounded whatever the length of the log),
+        # removed before the swap
+        with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
+            try:
+                result = process(cfg, progress=progress, workdir=work,
+                                 accept_poor=args.accept_poor)
+            except QualityError as exc:
+                raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
+                                   f"outputs anyway).") from None
+            t1 = wallclock.perf_counter()
+            names = write_outputs(result, stage, week=args.week, forward=args.forward)
+            if not args.no_plots:
+                from .plots import write_plots
+                names += write_plots(result, stage)
         t2 = wallclock.perf_counter()
-        if not args.quiet:
-            _summary(result, cfg, paths, t1 - t0, t2 - t1)
+    paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
+    if not args.quiet:
+        _summary(result, cfg, paths, t1 - t0, t2 - t1)
     return 0
+
+
+def _cell(value, width=10, decimals=2):
+    """``value`` right-aligned in exactly ``width`` characters: fixed-point when it
+    fits, else scientific (never wider, so that columns never run together)."""
+    text = f"{value:.{decimals}f}"
+    if len(text) > width:
+        text = f"{value:.{max(width - 7, 1)}e}"
+    return text.rjust(width)
+
+
+def _table(title, columns, rows, width=10):
+    """Lines of a table: a label column, then ``columns`` in cells of ``width``
+    characters separated by a space."""
+    label = max([len(title)] + [len(name) for name, _ in rows])
+    lines = [f"{title:<{label}} " + " ".join(c.rjust(width) for c in columns)]
+    for name, values in rows:
+        lines.append(f"{name:<{label}} " + " ".join(_cell(v, width) for v in values))
+    return lines
 
 
 def _summary(result, cfg, paths, t_proc, t_write):
@@ -137,6 +187,15 @@ def _summary(result, cfg, paths, t_proc, t_write):
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
+    q = result.quality
+    if q is not None and np.isfinite(q["residual_rms_m"]):
+        print(f"solution vs GNSS fixes (antenna): residual RMS {q['residual_rms_m']:.3g} m, "
+              f"max {q['residual_max_m']:.3g} m; {q['rejected']} of {q['tested']} "
+              f"measurements rejected ({100 * q['rejected_fraction']:.1f} %)", file=out)
+    if result.start_check is not None:
+        s = result.start_check
+        print(f"start: {s['distance_m']:.3g} m from the first GNSS fix (bound "
+              f"{s['bound_m']:.4g} m)", file=out)
     if result.alignment is not None:
         al = result.alignment
         from .rotation import quat_to_euler
@@ -146,12 +205,14 @@ def _summary(result, cfg, paths, t_proc, t_write):
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
     print(f"processed in {t_proc:.2f} s, wrote {len(paths)} files in {t_write:.2f} s", file=out)
     if result.errors_smoothed is not None:
-        print(f"{'RMS vs truth':<14}{'N mm':>9}{'E mm':>9}{'D mm':>9}{'tiltN as':>9}"
-              f"{'tiltE as':>9}{'head as':>9}", file=out)
+        rows = []
         for name, e in (("forward", result.errors_forward),
                         ("smoothed", result.errors_smoothed)):
             p = 1e3 * np.sqrt(np.mean(e.pos_n ** 2, axis=0))
             a = np.sqrt(np.mean(e.att_n ** 2, axis=0)) * 180 / np.pi * 3600
-            print(f"{name:<14}" + "".join(f"{v:>9.2f}" for v in (*p, *a)), file=out)
+            rows.append((name, (*p, *a)))
+        for line in _table("RMS vs truth", ("N mm", "E mm", "D mm", "tiltN as", "tiltE as",
+                                            "head as"), rows):
+            print(line, file=out)
     for p in paths:
         print(f"  {p}", file=out)

@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _filter_kernels, earth
-from .error_model import (ATT, N_STATES, POS, VEL, ImuNoise, discretize, interval_matrix,
-                          noise_matrix)
+from .error_model import (ATT, N_STATES, POS, VEL, ImuNoise, checked_std, discretize,
+                          interval_matrix, noise_matrix)
 from .errors import InputError, InputWarning
 from .lever_arm import (LeverArm, antenna_lla, antenna_velocity, position_jacobian,
                         velocity_jacobian)
@@ -109,8 +109,14 @@ class NodeStore:
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
 
-    def append(self, P_prior, P_post, Phi):
-        self.post_std.append(np.sqrt(np.maximum(np.diag(P_post), 0.0)))
+    def append(self, P_prior, P_post, Phi, time=None):
+        """Store one node; a negative variance (beyond rounding) in either covariance
+        raises :class:`~ins.errors.QualityError` naming ``time`` (s) and the state."""
+        d_prior, d_post = np.diag(P_prior), np.diag(P_post)
+        scale = np.maximum(np.abs(d_prior), np.abs(d_post))
+        checked_std(d_prior, scale, time, what="forward filter's prior covariance")
+        self.post_std.append(checked_std(d_post, scale, time,
+                                         what="forward filter's posterior covariance"))
         rec = np.stack([P_prior, P_post, Phi])
         if self._mem is not None:
             self._mem.append(rec)
@@ -203,10 +209,17 @@ class ForwardResult:
         Sensor estimates after the node's updates: gyro bias rad/s, accel bias m/s^2,
         gyro scale, accel scale.
     n_updates, n_rejected, n_outside, n_mount_fallback : int
-        Accepted GNSS records (position or velocity), rejected by the innovation test,
-        outside the IMU time span, processed with the static arm for lack of mount data.
+        Accepted GNSS measurements (positions and velocities), rejected by the innovation
+        test, GNSS records outside the IMU time span, records processed with the static
+        arm for lack of mount data.
     nis : ndarray
         Normalized innovation squared of every tested position record.
+    nis_record : ndarray of int
+        Index (in the GNSS log) of the record of each ``nis``.
+    nis_threshold : float
+        The innovation test's chi-square bound (3 dof).
+    innovation_m : ndarray, shape (len(nis), 3)
+        Position innovation (predicted antenna minus fix, NED m) of each tested record.
     node_states : ndarray, shape (m, 10)
         Forward states at the nodes (after the update).
     """
@@ -215,7 +228,8 @@ class ForwardResult:
         self.trajectory, self.nodes = trajectory, nodes
         self.node_rows, self.node_time, self.dx, self.sensors = node_rows, node_time, dx, sensors
         self.n_updates = self.n_rejected = self.n_outside = self.n_mount_fallback = 0
-        self.nis = None
+        self.nis = self.nis_record = self.innovation_m = None
+        self.nis_threshold = np.inf
         self._whole = None
 
     def _arrays(self):
@@ -288,7 +302,7 @@ class _Updater:
         self.kf_predict, self.kf_update, chi2 = filterpy_functions()
         self.threshold = float(chi2.ppf(1.0 - settings.reject_probability, 3))
         self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
-        self.nis = []
+        self.nis, self.nis_record, self.innovation = [], [], []
 
     def _apply(self, state, sensors, P, z, R, H):
         S = H @ P @ H.T + R
@@ -317,6 +331,8 @@ class _Updater:
         R = np.diag(g.std_ned[k] ** 2)
         P, x, nis = self._apply(state, sensors, P, z, R, position_jacobian(C_nb, l_b))
         self.nis.append(nis)
+        self.nis_record.append(k)
+        self.innovation.append(z)
         if x is not None:
             dx += x
         if self.s.use_velocity and g.has_velocity:
@@ -357,7 +373,7 @@ def _pieces(imu, start, end):
 
 
 def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=None,
-                workdir=None):
+                workdir=None, initial_time=None):
     """Forward filter over an IMU log with GNSS updates, streaming the log.
 
     Parameters
@@ -369,7 +385,7 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     gnss : ins.gnss.GnssLog
         Antenna positions (velocities).
     initial : ins.mechanization.NavState
-        State at the first IMU epoch >= ``start``.
+        State at the first IMU epoch >= ``start`` (or at ``initial_time``).
     settings : FilterSettings
     progress : callable, optional
         ``progress(done_epochs, total_epochs)``; the total is estimated from the GNSS
@@ -377,6 +393,9 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     workdir : str, optional
         Folder for the temporary files holding the forward trajectory and the node
         matrices (bounded memory for long logs); ``None``: in memory.
+    initial_time : float, optional
+        Time (s) of ``initial`` when it is not an IMU epoch (e.g. a GNSS fix): its
+        position is moved along its velocity to the first IMU epoch >= ``start``.
 
     Returns
     -------
@@ -412,13 +431,16 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
                 raise InputError(f"fewer than 2 IMU epochs between start {start} and end "
                                  f"{end} s")
             state = initial.as_vector().copy()
+            if initial_time is not None:
+                state[0:3] += earth.lla_rate(state[0], state[2], state[3:6]) * (
+                    t[k0] - initial_time)
             P0 = P
             updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
             gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
             while gj < len(g_time) and _row_known(g_time[gj], t, k0):
                 P, _ = updater.update(gj, t[k0], state, sensors, P, np.zeros(3))
                 gj += 1
-            nodes.append(P0, P, np.eye(N_STATES))
+            nodes.append(P0, P, np.eye(N_STATES), t[k0])
             node_rows.append(0), node_time.append(t[k0]), dxs.append(np.zeros(N_STATES))
             sens.append(sensors.copy())
             traj.append(t[k0:k0 + 1], state[None, :])
@@ -470,6 +492,9 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     out.n_outside = updater.n_outside + (len(g_time) - gj)
     out.n_mount_fallback = updater.n_fallback
     out.nis = np.array(updater.nis)
+    out.nis_record = np.array(updater.nis_record, dtype=np.int64)
+    out.innovation_m = np.array(updater.innovation).reshape(-1, 3)
+    out.nis_threshold = updater.threshold
     if updater.n_fallback:
         warnings.warn(f"{updater.n_fallback} GNSS record(s) without mount data: the static "
                       f"lever arm l_bp + l_ap was used", InputWarning, stacklevel=2)
@@ -496,14 +521,19 @@ def _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes, updat
         dx += d
         gj += 1
     P = 0.5 * (P + P.T)
-    nodes.append(P_prior, P, Phi)
+    nodes.append(P_prior, P, Phi, t[r])
     dxs.append(dx)
     return P
 
 
-def std_of(P):
-    """Standard deviations of a stack of covariances (m, 21, 21) -> (m, 21)."""
-    return np.sqrt(np.maximum(np.einsum("mii->mi", P), 0.0))
+def std_of(P, time=None):
+    """Standard deviations of a stack of covariances (m, 21, 21) -> (m, 21).
+
+    A negative variance beyond rounding (relative to the largest variance of the same
+    state in the stack) raises :class:`~ins.errors.QualityError` naming the time and
+    the state (:func:`ins.error_model.checked_std`)."""
+    var = np.einsum("mii->mi", np.asarray(P, dtype=float))
+    return checked_std(var, np.max(np.abs(var), axis=0), time)
 
 
 __all__ = ["FilterSettings", "ForwardResult", "run_forward", "schedule_nodes", "std_of",

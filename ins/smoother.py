@@ -39,6 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _filter_kernels
+from .error_model import STATE_NAMES, checked_std
+from .errors import QualityError
 
 
 def _backward_nodes(fwd):
@@ -60,9 +62,20 @@ def rts_errors(fwd, full=True):
     backwards block by block) or the sequences ``P_prior``, ``P_post``, ``Phi``.
     Returns ``(xs, Ps)`` with ``Ps`` (m, 21, 21), or with ``full=False`` ``(xs, std)``
     with the smoothed standard deviations (m, 21) only (bounded memory).
+
+    Raises
+    ------
+    ins.errors.QualityError
+        When a forward prior covariance is not positive definite (its Cholesky factor
+        fails) or a smoothed variance is negative beyond rounding (relative to the
+        forward posterior variance of the same state): the message names the node time
+        (``fwd.node_time`` when present, else the node index) and the state.
     """
-    from scipy.linalg import cho_factor, cho_solve
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
     dx = np.asarray(fwd.dx)
+    node_time = getattr(fwd, "node_time", None)
+    when = ((lambda j: f"t = {float(node_time[j]):.3f} s") if node_time is not None
+            else (lambda j: f"node {j}"))
     m, n = dx.shape
     xs = np.zeros((m, n))
     Ps = np.empty((m, n, n)) if full else None
@@ -73,16 +86,37 @@ def rts_errors(fwd, full=True):
             Pj = np.array(P_post)
         else:
             # A = P+_j Phi^T (P-)^-1  <=>  A^T = (P-)^-1 Phi P+_j  (P- symmetric positive)
-            cf = cho_factor(nxt[0])
+            try:
+                cf = cho_factor(nxt[0])
+            except (LinAlgError, ValueError) as exc:
+                raise QualityError(_not_positive(nxt[0], when(j + 1), exc)) from None
             A = cho_solve(cf, nxt[1] @ P_post).T
             xs[j] = A @ (dx[j + 1] + xs[j + 1])
             Pj = P_post + A @ (nxt[2] - nxt[0]) @ A.T
             Pj = 0.5 * (Pj + Pj.T)
         if full:
             Ps[j] = Pj
-        std[j] = np.sqrt(np.maximum(np.diag(Pj), 0.0))
+        std[j] = checked_std(np.diag(Pj), np.diag(P_post),
+                             None if node_time is None else node_time[j],
+                             what="smoothed covariance")
         nxt = (P_prior, Phi, Pj)
     return xs, (Ps if full else std)
+
+
+def _not_positive(P, when, exc):
+    """Message for a prior covariance whose Cholesky factorization failed."""
+    d = np.diag(P)
+    if not np.all(np.isfinite(P)):
+        detail = "it holds non-finite values"
+    elif np.any(d <= 0):
+        k = int(np.argmin(d))
+        detail = f"variance {d[k]:.3e} for state {STATE_NAMES[k]}"
+    else:
+        w = np.linalg.eigvalsh(P / np.sqrt(np.outer(d, d)))
+        detail = f"smallest eigenvalue of its correlation matrix {w[0]:.3e}"
+    return (f"smoother: the forward filter's prior covariance at {when} is not positive "
+            f"definite ({detail}; {exc}); the forward solution is numerically unreliable "
+            f"there (implausible noise settings or initial sigmas?)")
 
 
 @dataclass

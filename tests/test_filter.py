@@ -342,3 +342,31 @@ def test_velocity_updates_with_the_varying_arm(flight):
         late = e.time > t0 + 60
         return np.sqrt(np.mean(e.vel_n[late] ** 2))
     assert vel_rms(a) < 0.8 * vel_rms(b)
+
+
+def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
+    """A negative variance in a node's covariance raises (it used to print as sigma 0),
+    naming the node time and the state; rounding-level negatives give 0."""
+    from ins.errors import QualityError
+    from ins.filter import NodeStore, std_of
+    store = NodeStore()
+    P = np.eye(21) * 1e-2
+    store.append(P, 0.5 * P, np.eye(21), 10.0)
+    bad = 0.5 * P
+    bad[4, 4] = -1e-6
+    with pytest.raises(QualityError, match=r"at t = 12\.000 s: the forward filter's "
+                                           r"posterior covariance has variance -1\.000e-06 "
+                                           r"for state vel_E"):
+        store.append(P, bad, np.eye(21), 12.0)
+    bad = P.copy()
+    bad[15, 15] = -1e-6                               # a negative prior variance
+    with pytest.raises(QualityError, match=r"t = 13\.000 s: the forward filter's prior "
+                                           r"covariance .* state gyro_scale_x"):
+        store.append(bad, 0.5 * P, np.eye(21), 13.0)
+    tiny = 0.5 * P
+    tiny[4, 4] = -1e-14                               # rounding (1e-12 of the prior)
+    store.append(P, tiny, np.eye(21), 14.0)
+    assert store.post_std[-1][4] == 0.0 and store.count == 2
+    stack = np.array([P, bad])
+    with pytest.raises(QualityError, match=r"t = 2\.000 s: .* gyro_scale_x"):
+        std_of(stack, time=[1.0, 2.0])

@@ -151,3 +151,31 @@ def test_in_air_start_from_gnss_track(flight):
     late = e.time > e.time[0] + 60
     assert np.sqrt(np.mean(e.att_n[late, 2] ** 2)) * 206265 < 30       # heading, arcsec
     assert np.sqrt(np.mean(res.errors_forward.att_n[late, 2] ** 2)) * 206265 < 300
+
+
+def test_euler_sigmas_against_a_numerical_jacobian():
+    """Roll/pitch/yaw sigmas of euler_std_deg against J P J^T with J the central
+    difference of scipy's ZYX angles under the phi perturbation C_est = Rot(-phi) C;
+    a covariance that is not positive semi-definite raises naming the angle."""
+    from scipy.spatial.transform import Rotation
+
+    from ins.errors import QualityError
+    from ins.process import euler_std_deg
+    rng = np.random.default_rng(7)
+    for rpy in ([3.0, -2.0, 40.0], [-20.0, 35.0, -150.0], [5.0, 70.0, 10.0]):
+        R = Rotation.from_euler("ZYX", rpy[::-1], degrees=True)
+        L = rng.normal(0, 1e-3, (3, 3))
+        P = L @ L.T
+        J = np.zeros((3, 3))
+        for k in range(3):
+            d = np.zeros(3)
+            d[k] = 1e-7
+            plus = (Rotation.from_rotvec(-d) * R).as_euler("ZYX")[::-1]
+            minus = (Rotation.from_rotvec(d) * R).as_euler("ZYX")[::-1]
+            J[:, k] = (plus - minus) / 2e-7
+        expect = np.rad2deg(np.sqrt(np.diag(J @ P @ J.T)))
+        got = euler_std_deg(R.as_quat()[None, :], P[None])[0]
+        np.testing.assert_allclose(got, expect, rtol=1e-5)
+    bad = np.diag([1e-6, -1e-6, 1e-6])
+    with pytest.raises(QualityError, match="attitude .* state pitch"):
+        euler_std_deg(np.array([[0.0, 0.0, 0.0, 1.0]]), bad[None])

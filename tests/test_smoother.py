@@ -118,3 +118,64 @@ def test_smoothed_better_in_every_component(bench_runs):
     for so, fo in zip(s_out, f_out):
         assert so["end_horizontal_m"] < 0.25 * fo["end_horizontal_m"]
         assert so["max_horizontal_m"] < 0.05
+
+
+# --- numerical red flags: a failure names the node time and the state ----------------
+
+def _chain(m=5, n=21, seed=0):
+    """A consistent closed-loop record of ``m`` nodes (random walk, direct observation):
+    the quantities rts_errors needs, with node times 100, 101, ... s."""
+    rng = np.random.default_rng(seed)
+    Q = np.diag(rng.uniform(0.5, 2.0, n)) * 1e-2
+    R = np.eye(n) * 0.1
+    P = np.eye(n)
+    rec = SimpleNamespace(P_prior=[P], P_post=[P], Phi=[np.eye(n)], dx=[np.zeros(n)])
+    for _ in range(m - 1):
+        Pp = P + Q
+        P = Pp - Pp @ np.linalg.inv(Pp + R) @ Pp
+        rec.P_prior.append(Pp)
+        rec.P_post.append(P)
+        rec.Phi.append(np.eye(n))
+        rec.dx.append(rng.normal(0, 0.1, n))
+    out = SimpleNamespace(**{k: np.array(v) for k, v in vars(rec).items()})
+    out.node_time = 100.0 + np.arange(m)
+    return out
+
+
+def test_smoother_cholesky_failure_names_the_node_time():
+    from ins.errors import QualityError
+    rec = _chain()
+    rts_errors(rec)                                       # consistent: no error
+    good = rec.P_prior.copy()
+    bad = good.copy()
+    bad[3, 4, 4] = -1e-3                                  # prior of node 3 (t = 103 s)
+    rec.P_prior = bad
+    with pytest.raises(QualityError, match=r"prior covariance at t = 103\.000 s is not "
+                                           r"positive definite \(variance -1\.000e-03 for "
+                                           r"state vel_E"):
+        rts_errors(rec)
+    # indefinite with a positive diagonal: the correlation's eigenvalue is named
+    bad = good.copy()
+    bad[2, 0, 1] = bad[2, 1, 0] = 1.5 * np.sqrt(bad[2, 0, 0] * bad[2, 1, 1])
+    rec.P_prior = bad
+    with pytest.raises(QualityError, match=r"t = 102\.000 s .*smallest eigenvalue"):
+        rts_errors(rec)
+
+
+def test_negative_smoothed_variance_is_a_failure_not_a_zero_sigma():
+    """An inconsistent record (a prior smaller than the posterior it was predicted
+    from) drives a smoothed variance negative: P+ + A (Ps - P-) A^T with A = P+ / P- =
+    10 and Ps - P- = -0.09 gives 1 - 9 < 0.  Raised naming the time and the state (it
+    used to print as sigma 0)."""
+    from ins.errors import QualityError
+    n = 21
+    rec = SimpleNamespace(P_prior=np.array([np.eye(n), 0.1 * np.eye(n)]),
+                          P_post=np.array([np.eye(n), 0.01 * np.eye(n)]),
+                          Phi=np.array([np.eye(n), np.eye(n)]), dx=np.zeros((2, n)),
+                          node_time=np.array([5.0, 6.0]))
+    with pytest.raises(QualityError, match=r"at t = 5\.000 s: the smoothed covariance has "
+                                           r"variance -8\.000e\+00 for state pos_N"):
+        rts_errors(rec, full=False)
+    # rounding-level negatives are not failures: -1e-12 of the scale gives sigma 0
+    from ins.error_model import checked_std
+    np.testing.assert_array_equal(checked_std([-1e-12, 4.0], [1.0, 4.0]), [0.0, 2.0])
