@@ -311,8 +311,8 @@ def _interrupt_once(args, delay, cwd):
 def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
     """SIGINT at random moments of a whole run (after the imports of ins.cli: reading,
     filter, smoother, writing, plots): exit 130 with one line and no traceback, and
-    neither the output folder nor a staging sibling left; or, when the signal came after the run, exit 0
-    with the complete folder.  INS_SIGINT_REPEATS sets the count (default 8)."""
+    neither the output folder nor a staging sibling left; or, when the signal came after
+    the run, exit 0 with the complete folder.  INS_SIGINT_REPEATS sets the count (default 8)."""
     cfg = _config(tmp_path, flight, noise=TACTICAL)
     args = ["process", "--imu", str(flight / "imu.txt"), "--gnss", str(flight / "gnss.txt"),
             "--mount", str(flight / "mount.txt"), "--config", str(cfg), "--truth",
