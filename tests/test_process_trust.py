@@ -348,3 +348,23 @@ def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
         if out.exists():
             assert sorted(p.name for p in out.iterdir()) == full, delay
     assert sum(c == 130 for _, c in outcomes) >= len(outcomes) // 2, outcomes
+
+
+def test_help_states_exit_codes_start_rule_and_thresholds(capsys):
+    """--help gives the exit codes, the start-position rule and the thresholds, with the
+    numbers the code uses."""
+    from ins import process as proc
+    with pytest.raises(SystemExit):
+        main(["process", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for phrase in ("exit codes: 0 success; 2 bad input", "3 untrustworthy solution",
+                   "130 interrupted", "--accept-poor", "--force",
+                   f"within {proc.START_FIX_WINDOW_S:g} s",
+                   f"Farther than {proc.START_SIGMAS:g} sigma",
+                   f"+ {proc.START_SLACK_M:g} m is refused",
+                   f"more than {100 * proc.REJECT_WARN_FRACTION:g} % is a warning",
+                   f"more than {100 * proc.REJECT_ERROR_FRACTION:g} %",
+                   f"farther than {proc.DEPART_SIGMAS:g} fix sigmas",
+                   f"for {proc.DEPART_SPAN_S:g} s or more stops with exit 3",
+                   "less the lever arm"):
+        assert phrase in text, phrase
