@@ -1,4 +1,5 @@
-"""``ins allan IMU_FILE``: Allan deviation of a static IMU log, noise terms per axis (a\nmoving log is refused: :func:`ins.allan.static_check`)."""
+"""``ins allan IMU_FILE``: Allan deviation of a static IMU log, noise terms per axis (a
+moving log is refused: :func:`ins.allan.static_check`)."""
 import argparse
 import warnings
 

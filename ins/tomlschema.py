@@ -7,10 +7,12 @@ otherwise give a result computed with the default (a zero lever arm) without a w
 
 Rules and messages (:class:`ins.errors.InputError`, ``str(exc)`` starts with the file):
 
-- an unknown section or key::
+- an unknown section or key (one line each)::
 
-      camera.toml: [mounting] lever_arm: unknown key (did you mean lever_arm_m?); known keys of [mounting]: axes, boresight_deg, lever_arm_m
-      camera.toml: [mount]: unknown section (did you mean [mounting]?); known sections: [camera], [mounting]
+      camera.toml: [mounting] lever_arm: unknown key (did you mean lever_arm_m?);
+          known keys of [mounting]: axes, boresight_deg, lever_arm_m
+      camera.toml: [mount]: unknown section (did you mean [mounting]?);
+          known sections: [camera], [mounting]
 
   A key that belongs to another section says so (``... (it belongs in [mounting])``);
   a key outside any section (before the first ``[section]`` line) is named as such.

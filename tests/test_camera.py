@@ -102,7 +102,8 @@ def test_camera_file_round_trip(tmp_path):
 def test_camera_file_errors(tmp_path):
     p = tmp_path / "cam.toml"
     p.write_text('[camera]\nmodel = "frame"\nfocal_length_mm = 100.0\n')
-    with pytest.raises(InputError, match=r"cam.toml: \[camera\] pixel_size_mm: missing required key \(expected mm"):
+    with pytest.raises(InputError, match=r"cam.toml: \[camera\] pixel_size_mm: missing "
+                                         r"required key \(expected mm"):
         read_camera(p)
     p.write_text('[camera]\nfocal_length_mm = -1\npixel_size_mm = 0.01\nwidth_px = 10\n'
                  'height_px = 10\nprincipal_point_px = [4.5, 4.5]\n')

@@ -46,7 +46,8 @@ from ..errors import InputError
 from ..tomlschema import REQUIRED, Table, check_keys
 from .sensor_errors import MANIFEST_KEYS, PRESETS
 
-__all__ = ["PLAN_KEYS", "FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
+__all__ = ["PLAN_KEYS", "FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount",
+           "ImuSettings",
            "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "load_plan",
            "parse_plan", "G_TURN", "MOUNT_KNEE"]
 
@@ -283,7 +284,8 @@ def _block(sec):
             raise sec.error(key, f"must be below 100, got {100 * v:g}", "percent in [0, 100)")
     return Block(
         origin_lat=sec.number("origin_lat_deg", REQUIRED, "deg in [-85, 85]", -85.0, 85.0) * D2R,
-        origin_lon=sec.number("origin_lon_deg", REQUIRED, "deg in [-180, 360]", -180.0, 360.0) * D2R,
+        origin_lon=sec.number("origin_lon_deg", REQUIRED, "deg in [-180, 360]", -180.0,
+                              360.0) * D2R,
         origin_h=sec.number("origin_h_m", 0.0, "m (ellipsoidal)", -500.0, 9000.0),
         strip_azimuth=sec.number("strip_azimuth_deg", 0.0, "deg", -360.0, 360.0) * D2R,
         strip_length=sec.number("strip_length_m", 3000.0, "m > 0", 0.0, 200e3, lo_open=True),
