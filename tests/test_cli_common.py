@@ -429,3 +429,113 @@ def test_help_states_the_textbook_phi_omega_kappa(command, capsys):
         R = angles_to_matrix(np.array([phi, omega, kappa]), "phi-omega-kappa")
         assert R[0, 2] == pytest.approx(-np.sin(phi) * np.cos(omega), abs=1e-15)
         assert np.arctan2(-R[0, 2], R[2, 2]) == pytest.approx(phi, abs=1e-12)
+
+
+# ---------------------------------------------------------------------------------------
+# Ctrl-C inside the process (the subprocess campaign is tests/test_interrupt.py)
+
+@pytest.fixture
+def handler_installed():
+    from ins import interrupts
+    interrupts.reset()
+    restore = interrupts.install()
+    yield interrupts
+    restore()
+    interrupts.reset()
+
+
+def _interrupt_now():
+    """What the SIGINT handler does when the signal arrives at this point."""
+    import signal as signal_
+    from ins import interrupts
+    interrupts.handler(signal_.SIGINT, None)
+
+
+def test_wrapped_interrupts_exit_130(tmp_path, capsys, handler_installed):
+    """An interrupt that surfaced as numba's SystemError (KeyboardInterrupt in its cause)
+    or, after the handler ran, as any other exception (llvmlite's AttributeError) is
+    reported as an interrupt, not as a traceback."""
+    def numba_style(args):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(<function _parse_kernel>) returned a result "
+                              "with an exception set") from exc
+
+    def llvmlite_style(args):
+        try:
+            _interrupt_now()
+        except KeyboardInterrupt:
+            pass                         # swallowed by a library, then a broken object:
+        raise AttributeError("'NoneType' object has no attribute '_ptr'")
+
+    for func in (numba_style, llvmlite_style):
+        handler_installed.reset()
+        args = argparse.Namespace(command="simulate", func=func, output=None)
+        assert ins_cli.run_command(args, "ins") == 130
+        assert capsys.readouterr().err == "ins simulate: interrupted; no output written\n"
+
+
+def test_an_interrupt_never_cuts_an_install(tmp_path, capsys, monkeypatch,
+                                            handler_installed):
+    """SIGINT while a finished output is being renamed into place: the install completes,
+    the interrupt takes effect after it, and the message says the output is complete;
+    SIGINT while writing: nothing left (no file, no hidden temporary)."""
+    import ins.fileio as fileio
+    real_rename, real_replace = os.rename, os.replace
+
+    def rename_with_signal(src, dst):     # the signal lands in the middle of the swap
+        _interrupt_now()
+        return real_rename(src, dst)
+
+    def replace_with_signal(src, dst):
+        _interrupt_now()
+        return real_replace(src, dst)
+
+    out = tmp_path / "folder"
+    out.mkdir()
+    (out / "old.txt").write_text("old")
+
+    def build_folder(args):
+        with fileio.output_folder(out, force=True) as tmp:
+            Path(tmp, "new.txt").write_text("new")
+            monkeypatch.setattr(fileio.os, "rename", rename_with_signal)
+        print("not reached")
+        return 0
+
+    args = argparse.Namespace(command="simulate", func=build_folder, output=str(out))
+    assert ins_cli.run_command(args, "ins") == 130
+    captured = capsys.readouterr()
+    assert captured.err == f"ins simulate: interrupted after the output was complete: {out}\n"
+    assert captured.out == ""
+    assert sorted(os.listdir(tmp_path)) == ["folder"] and os.listdir(out) == ["new.txt"]
+    monkeypatch.setattr(fileio.os, "rename", real_rename)
+
+    handler_installed.reset()
+    target = tmp_path / "file.txt"
+
+    def write_file(args):
+        with fileio.atomic_open(target, "w") as f:
+            f.write("complete")
+            monkeypatch.setattr(fileio.os, "replace", replace_with_signal)
+        return 0
+
+    args = argparse.Namespace(command="eo", func=write_file, output=str(target))
+    assert ins_cli.run_command(args, "photogrammetry") == 130
+    assert "after the output was complete" in capsys.readouterr().err
+    assert target.read_text() == "complete"
+    monkeypatch.setattr(fileio.os, "replace", real_replace)
+
+    handler_installed.reset()
+    target.unlink()
+
+    def interrupted_while_writing(args):
+        with fileio.atomic_open(target, "w") as f:
+            f.write("half")
+            _interrupt_now()
+        return 0
+
+    args.func = interrupted_while_writing
+    assert ins_cli.run_command(args, "photogrammetry") == 130
+    assert capsys.readouterr().err.endswith("interrupted; no output written\n")
+    assert sorted(os.listdir(tmp_path)) == ["folder"]
