@@ -51,10 +51,9 @@ from functools import cached_property
 
 import numpy as np
 
-from . import _filter_kernels
+from . import _filter_kernels, earth
 from .alignment import align_gnss_heading, align_static, check_static_heading
 from .error_model import ImuNoise
-from . import earth
 from .errors import InputError, QualityError, QualityWarning
 from .filter import FilterSettings, filterpy_functions, run_forward
 from .imu import ImuLog
@@ -770,7 +769,8 @@ def assess_quality(result, gnss, lever, cfg=None):
             f"the solution is more than {DEPART_SIGMAS:g} fix sigmas from all "
             f"{departure['n']} GNSS fixes from t = {departure['from_s']:.3f} to "
             f"{departure['to_s']:.3f} s ({departure['to_s'] - departure['from_s']:.0f} s, "
-            f"up to {departure['max_m']:.3g} m; bound {DEPART_SPAN_S:g} s)")
+            f"up to {departure['max_m']:.3g} m; bound {DEPART_SPAN_S:g} s: the solution "
+            f"drifted, or those fixes are wrong)")
     if problems:
         q["error"] = ("untrustworthy solution: " + "; ".join(problems) + ". "
                       + _causes(result, q, cfg))

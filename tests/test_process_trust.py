@@ -52,14 +52,14 @@ def _toml_list(v):
 
 
 def _config(tmp_path, flight, position=True, noise=None, shift_m=(0.0, 0.0, 0.0),
-            name="c.toml"):
+            name="c.toml", time_offset_s=0.0):
     """A config started from the flight's true initial state (optionally without the
     position, or shifted by ``shift_m`` NED), the mount's lever arms and ``noise``
     (a dict of [imu_noise] keys; None: the defaults, a navigation-grade 50 mGal)."""
     man = _manifest(flight)
     ini, arm = man["initial"], man["lever_arm"]
     lat, lon, h = pymap3d.ned2geodetic(*shift_m, ini["lat_deg"], ini["lon_deg"], ini["h_m"])
-    text = f"[initial]\ntime_s = {man['flight']['start_time_s']}\n"
+    text = f"[initial]\ntime_s = {man['flight']['start_time_s'] + time_offset_s!r}\n"
     if position:
         text += f"lat_deg = {float(lat)!r}\nlon_deg = {float(lon)!r}\nh_m = {float(h)!r}\n"
     text += (f"vel_ned_mps = {_toml_list(ini['vel_ned_mps'])}\n"
@@ -118,11 +118,13 @@ def test_start_of_another_flight_is_refused(flight, tmp_path, capsys):
 
 
 def test_start_position_taken_from_the_first_fix(flight, tmp_path):
-    """Without lat_deg, lon_deg, h_m the start is the first GNSS fix less the lever arm:
-    the first solution epoch is within a few cm of the truth (not the antenna's 1.1 m
-    away), and the run is trusted."""
+    """Without lat_deg, lon_deg, h_m the start is the first GNSS fix less the lever arm,
+    moved back along the velocity to time_s (here 0.4975 s before the fix, between two
+    IMU epochs: 30 m): the first solution epoch is within a few cm of the truth (not the
+    antenna's 1.1 m away), and the run is trusted."""
     from ins.process import load_config, process
-    cfg = load_config(_config(tmp_path, flight, position=False, noise=TACTICAL),
+    cfg = load_config(_config(tmp_path, flight, position=False, noise=TACTICAL,
+                              time_offset_s=0.5025),
                       files={"imu": str(flight / "imu.txt"), "gnss": str(flight / "gnss.txt")})
     cfg.mount = str(flight / "mount.txt")
     cfg.smooth = False
