@@ -160,7 +160,7 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         condition with zero or non-finite variance (names the pair and point).
     """
     check_system(system)
-    if not sigma_mm > 0:
+    if not (np.isfinite(sigma_mm) and sigma_mm > 0):
         raise InputError(f"sigma_mm: the photo-coordinate sigma must be > 0 mm, got {sigma_mm}")
     if method not in METHODS:
         raise InputError(f"method {method!r}: expected one of {', '.join(METHODS)}")
@@ -266,7 +266,13 @@ def adjust_pair(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fre
     ------
     InputError
         Too few points for the method, a zero base, or singular geometry (collinear
-        points).
+        points), a condition with zero variance.
+
+    Warns
+    -----
+    ins.errors.QualityWarning
+        Not converged (``converged`` False: the last iterate), or no redundancy
+        (``sigma0`` NaN, ``sigma0_estimated`` False: the covariance is the a-priori one).
     """
     xy1, xy2 = np.asarray(xy1_mm, float), np.asarray(xy2_mm, float)
     if xy1.ndim != 2 or xy1.shape != xy2.shape or xy1.shape[1] != 2:
