@@ -109,6 +109,11 @@ output (KF-GINS .nav, one epoch a line):
 example:
   ins mechanize imu.txt --init-lla 30.44,114.47,1000 --init-vel 60,0,0 \\
       --init-att 0,2.3,0.09 -o out.nav
+  ins mechanize imu.txt --init-lla -33.9,151.2,50 --init-vel -60,0,0 ...  (south or
+      west: negative values as typed; --init-lla=-33.9,151.2,50 works too)
+
+exit codes: 0 success, 2 bad input or an unwritable output (one line naming the file),
+  130 Ctrl-C (no output written).
 """
 
 
