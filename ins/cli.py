@@ -532,8 +532,6 @@ def _failure(exc, args, prog, caught):
 
 
 def _interrupted(args, prog):
-    sys.unraisablehook = lambda unraisable: None
-    threading.excepthook = lambda hook_args: None
     written = interrupts.written_outputs()
     if written:
         _say(f"{prog} {args.command}: interrupted after the output was complete: "

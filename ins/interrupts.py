@@ -16,6 +16,15 @@ from llvmlite) whose ``__cause__``/``__context__`` may or may not hold the
 ``KeyboardInterrupt``; the flag tells the command-line interface that any exception
 after the interrupt is its consequence (:func:`caused_by_interrupt`).
 
+An interrupt that arrives inside numba's compiler or llvmlite (a ctypes callback from
+C++ cannot take an exception: it crashed the process) is not raised there: the signal
+is sent again every 20 ms until the code has left them (:data:`UNSAFE_PACKAGES`).
+
+An interrupt raised where Python cannot propagate it (a weakref callback, ``__del__``)
+is "ignored" by Python: the unraisable-exception hook installed with the handler sends
+the signal again instead of printing it; after an interrupt, the tracebacks of
+unraisable exceptions and of background threads (its consequences) are not printed.
+
 Library code only uses :func:`deferred` and :func:`record_output`; without the handler
 installed they change nothing (Python's own handler raises ``KeyboardInterrupt`` at
 once).
@@ -23,6 +32,7 @@ once).
 import contextlib
 import os
 import signal
+import sys
 import threading
 
 __all__ = ["install", "close", "handler", "interrupted", "deferred", "record_output",
@@ -57,14 +67,41 @@ def close():
     _state.closed = True
 
 
+#: Packages whose Python code must not be cut by an exception: llvmlite calls back into
+#: Python from C++ (its object cache), where a KeyboardInterrupt is "ignored" by ctypes
+#: and the C++ side goes on with garbage (a segmentation fault was seen); numba's
+#: compiler drives llvmlite.  An interrupt there is retried every :data:`RETRY_S`.
+UNSAFE_PACKAGES = ("llvmlite", "numba")
+RETRY_S = 0.02
+
+
+def _in_unsafe_code(frame):
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if any(f"{os.sep}{p}{os.sep}" in name for p in UNSAFE_PACKAGES):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _retry_later(signum):
+    timer = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
+
+
 def handler(signum, frame):
     """SIGINT handler: record the interrupt; raise ``KeyboardInterrupt`` unless deferred
-    (or the command is over, :func:`close`)."""
+    (or the command is over, :func:`close`); inside numba's compiler or llvmlite the
+    signal is sent again a moment later, until the code has left them."""
     if _state.closed:
         return
     _state.interrupted = True
     if _state.depth > 0:
         _state.pending = True
+        return
+    if _in_unsafe_code(frame):
+        _retry_later(signum)
         return
     raise KeyboardInterrupt
 
@@ -80,9 +117,27 @@ def install():
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     previous = signal.signal(signal.SIGINT, handler)
+    previous_unraisable, previous_thread_hook = sys.unraisablehook, threading.excepthook
+
+    def unraisable(info):
+        # a KeyboardInterrupt raised where Python cannot propagate it (a weakref
+        # callback, __del__, a ctypes callback) is lost: send the signal again
+        if isinstance(info.exc_value, KeyboardInterrupt):
+            if not _state.closed:
+                _retry_later(signal.SIGINT)
+            return
+        if not _state.interrupted:          # after an interrupt: its consequences
+            previous_unraisable(info)
+
+    def thread_hook(info):
+        if not _state.interrupted:
+            previous_thread_hook(info)
+
+    sys.unraisablehook, threading.excepthook = unraisable, thread_hook
 
     def restore():
         signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
+        sys.unraisablehook, threading.excepthook = previous_unraisable, previous_thread_hook
     return restore
 
 

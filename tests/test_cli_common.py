@@ -539,3 +539,44 @@ def test_an_interrupt_never_cuts_an_install(tmp_path, capsys, monkeypatch,
     assert ins_cli.run_command(args, "photogrammetry") == 130
     assert capsys.readouterr().err.endswith("interrupted; no output written\n")
     assert sorted(os.listdir(tmp_path)) == ["folder"]
+
+
+def test_an_interrupt_inside_llvmlite_waits_until_it_is_left(handler_installed):
+    """llvmlite calls back into Python from C++ (its object cache): a KeyboardInterrupt
+    there is swallowed by ctypes and the process crashed (seen: SIGSEGV in 1 of 20
+    interrupts of ins process).  The handler does not raise inside llvmlite or numba's
+    compiler; it sends the signal again until the code has left them."""
+    import signal as signal_
+    import time
+    path = os.sep.join(["", "venv", "site-packages", "llvmlite", "binding", "ee.py"])
+    namespace = {}
+    exec(compile("import sys\nframe = sys._getframe()", path, "exec"), namespace)
+    assert handler_installed.handler(signal_.SIGINT, namespace["frame"]) is None
+    assert handler_installed.interrupted()
+    with pytest.raises(KeyboardInterrupt):          # the signal again, outside llvmlite
+        time.sleep(2.0)
+
+
+def test_an_interrupt_lost_in_a_finalizer_comes_back(handler_installed, capsys):
+    """A KeyboardInterrupt raised inside a weakref callback is 'ignored' by Python (seen:
+    'Exception ignored in: <function WeakSet...>' with a traceback, the interrupt lost):
+    the hook says nothing and sends the signal again."""
+    import gc
+    import time
+    import weakref
+
+    class Thing:
+        pass
+
+    def callback(ref):
+        _interrupt_now()                 # the signal lands inside the callback
+
+    thing = Thing()
+    ref = weakref.ref(thing, callback)
+    with pytest.raises(KeyboardInterrupt):
+        del thing
+        gc.collect()
+        time.sleep(2.0)                  # the signal again, where it can propagate
+    assert ref() is None
+    err = capsys.readouterr().err
+    assert "Exception ignored" not in err and "Traceback" not in err
