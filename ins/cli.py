@@ -341,6 +341,7 @@ def run_main(build, argv, prog):
     sys.stdout, sys.stderr = guards
     interrupts.reset()
     restore = interrupts.install()
+    args = None
     try:
         try:
             args = build().parse_args(argv)
@@ -353,6 +354,8 @@ def run_main(build, argv, prog):
             return EXIT_INTERRUPTED
         return run_command(args, prog)
     except KeyboardInterrupt:       # between the command's end and here
+        if args is not None and hasattr(args, "command"):
+            return _interrupted(args, prog)
         _say(f"{prog}: interrupted; no output written")
         return EXIT_INTERRUPTED
     finally:
