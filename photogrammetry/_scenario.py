@@ -196,10 +196,14 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
             "X": X}
 
 
-def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None):
+def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None,
+                      radial_k=(0.0, 0.0, 0.0), tangential_p=(0.0, 0.0)):
     """Write a :func:`make_block` block as files: ``eo.csv`` (INS priors), ``tiepoints.csv``
     and ``camera.toml`` in `folder`; ``outlier=(image, k, dy_mm)`` shifts one observation
-    across the strip (y).
+    across the strip (y).  With distortion coefficients (Brown, mm units) the camera file
+    states them and the tie points are written distorted (the block's observations are
+    the ideal coordinates plus noise; the file holds ``camera.distort`` of them, so a
+    reader that undistorts recovers them exactly).
 
     Returns the three paths.
     """
@@ -211,7 +215,8 @@ def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None
     ids = [f"img{i:03d}" for i in range(m)]
     pixel = block["pixel_mm"]
     cam = FrameCamera(block["f_mm"], pixel, width_px, height_px,
-                      ((width_px - 1) / 2, (height_px - 1) / 2))
+                      ((width_px - 1) / 2, (height_px - 1) / 2), tuple(radial_k),
+                      tuple(tangential_p))
     paths = [os.path.join(folder, name) for name in ("eo.csv", "tiepoints.csv", "camera.toml")]
     write_camera(paths[2], cam)
     eo = ExposureOrientation(ids, np.arange(m, dtype=float), block["positions"],
@@ -224,7 +229,10 @@ def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None
         xy = xy.copy()
         if outlier is not None and outlier[0] == i:
             xy[outlier[1], 1] += outlier[2]
-        rows += [f"{ids[i]},{p},{x:.7f},{y:.7f}" for p, (x, y) in zip(pid, xy)]
+        digits = 7
+        if np.any(radial_k) or np.any(tangential_p):
+            xy, digits = cam.distort(xy), 10         # the round trip to 1e-10 mm
+        rows += [f"{ids[i]},{p},{x:.{digits}f},{y:.{digits}f}" for p, (x, y) in zip(pid, xy)]
     with open(paths[1], "w") as f:
         f.write("\n".join(rows) + "\n")
     return paths

@@ -201,3 +201,25 @@ def test_mapping_frames():
     e0, n0 = tr.transform(lon, lat - 1e-6)
     e1, n1 = tr.transform(lon, lat + 1e-6)
     assert abs(g + np.arctan2(e1 - e0, n1 - n0)) < 1e-8
+
+
+def test_position_sigmas_rotated_into_a_projected_frame():
+    """The NED position sigmas rotated into a grid frame 3 deg off the central meridian
+    (convergence ~2.1 deg), against the grid azimuth of north from pyproj by differences:
+    sigma_X^2 = sin^2(g) sN^2 + cos^2(g) sE^2, sigma_Y^2 = cos^2(g) sN^2 + sin^2(g) sE^2
+    (a mutation using |C_mn| instead of C_mn^2 survived: at the ENU origin C_mn is a
+    permutation and both agree)."""
+    traj = level_trajectory(45.0, 120.0, heading_deg=30.0)
+    s_time = np.array([0.0, 2.0])
+    sN, sE, sD = 0.02, 0.03, 0.05
+    std = np.array([[sN, sE, sD, 0, 0, 0, *np.deg2rad([0.002, 0.003, 0.01])]] * 2)
+    eo = ex.compute_eo(traj, ["a"], [1.0], CameraMounting(), parse_frame("EPSG:32650"),
+                       "omega-phi-kappa", sigma=(s_time, std))
+    tr = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32650", always_xy=True)
+    e0, n0 = tr.transform(120.0, 45.0 - 1e-6)
+    e1, n1 = tr.transform(120.0, 45.0 + 1e-6)
+    g = np.arctan2(e1 - e0, n1 - n0)                  # grid azimuth of true north
+    assert np.deg2rad(2.0) < abs(g) < np.deg2rad(2.2)
+    ref = [np.sqrt(np.sin(g) ** 2 * sN ** 2 + np.cos(g) ** 2 * sE ** 2),
+           np.sqrt(np.cos(g) ** 2 * sN ** 2 + np.sin(g) ** 2 * sE ** 2), sD]
+    assert_allclose(eo.sigma_position[0], ref, rtol=1e-6)

@@ -177,3 +177,27 @@ def test_angles_wrapped_on_output_for_a_strip_at_kappa_180(tmp_path):
     # the boundary: -180 (exactly, or after rounding) is written as 180
     np.testing.assert_array_equal(wrapped_deg([-np.pi, np.pi, np.deg2rad(-179.99999999999),
                                                3 * np.pi / 2]), [180.0, 180.0, 180.0, -90.0])
+
+
+def test_distorted_tie_points_are_undistorted_with_the_camera(tmp_path):
+    """Tie points written distorted (6 px radial, 1 px tangential at the corners) with the
+    camera file stating the distortion: the refinement undistorts them and gets exactly
+    the result of the ideal coordinates (and sigma0 ~ 1); left distorted, sigma0 would
+    be several (a mutation that skipped the undistortion survived the whole suite)."""
+    B = sc.make_block(n_strips=2, n_per_strip=6, seed=43)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    ideal = sc.write_block_files(B, str(tmp_path / "a"))
+    dist = sc.write_block_files(B, str(tmp_path / "b"), radial_k=(-5e-7, 0.0, 0.0),
+                                tangential_p=(2e-6, -1e-6))
+    out = []
+    for eo, tp, cam in (ideal, dist):
+        camera, _ = read_camera(cam)
+        out.append(refine(read_eo_csv(eo), read_tiepoints(tp, camera), camera=camera,
+                          method="known-base", datum="none"))
+    a, b = out
+    raw = read_tiepoints(dist[1]).xy_mm - read_tiepoints(ideal[1]).xy_mm
+    assert np.abs(raw).max() > 0.04                      # the distortion is there (> 4 px)
+    assert abs(a.block.sigma0 - 1) < 0.1
+    np.testing.assert_allclose(b.block.sigma0, a.block.sigma0, rtol=1e-6)
+    np.testing.assert_allclose(b.block.angles, a.block.angles, atol=1e-9)
