@@ -306,7 +306,12 @@ def _interrupt_once(args, delay, cwd):
                             env=dict(os.environ, PYTHONPATH=str(ROOT)))
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=120)
+    try:
+        out, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:          # a deadlock: do not leave it behind
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f"hung after SIGINT at {delay:.2f} s (killed); stderr: {err[-800:]}")
     return proc.returncode, out, err
 
 
