@@ -21,7 +21,7 @@ from ins.gnss import GnssLog, read_gnss, write_gnss
 from ins.imu import (ImuLog, read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
                      write_kfgins_binary, write_kfgins_text)
 from ins.mount import read_mount
-from ins.rotation import euler_to_quat
+from ins.rotation import euler_to_quat, wrap_to_pi
 from ins.trajectory import Trajectory, read_nav, write_nav
 from photogrammetry.camera import FrameCamera
 from photogrammetry.exposure import ExposureOrientation, read_eo_csv, read_events, write_eo_csv
@@ -281,6 +281,8 @@ def exterior_orientations(draw):
 
 @SETTINGS
 @given(eo=exterior_orientations())
+@example(eo=ExposureOrientation(["A"], [0.0], [[0.0, 0.0, 0.0]],
+                                [[-math.pi, 0.0, -math.pi + 1e-13]], "omega-phi-kappa", "enu"))
 def test_eo_round_trip(scratch, eo):
     path = os.path.join(scratch, "rt_eo.csv")
     write_eo_csv(path, eo)
@@ -292,7 +294,9 @@ def test_eo_round_trip(scratch, eo):
     assert back.time.tolist() == [float(r[1]) for r in rows]
     assert back.position.tolist() == [[float(x) for x in r[2:5]] for r in rows]
     assert back.angles.tolist() == np.deg2rad([[float(x) for x in r[5:8]] for r in rows]).tolist()
-    np.testing.assert_allclose(back.angles, eo.angles, atol=1e-12, rtol=0)
+    # angles are written wrapped to (-180, 180] deg (issue 12): -pi comes back as +pi
+    assert np.all(back.angles <= math.pi) and np.all(back.angles > -math.pi)
+    np.testing.assert_allclose(wrap_to_pi(back.angles - eo.angles), 0.0, atol=1e-12, rtol=0)
     again = os.path.join(scratch, "rt_eo2.csv")
     write_eo_csv(again, back)
     assert open(again).read() == open(path).read()
