@@ -63,6 +63,7 @@ from .lever_arm import LeverArm, antenna_lla
 from .mechanization import NavState
 from .mount import read_mount
 from .smoother import iter_smoothed, rts_errors
+from .tomlschema import check_keys
 from .trajectory import Trajectory
 
 _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
@@ -177,14 +178,7 @@ def load_config(path, base=None, files=None):
     path = os.fspath(path)
     data = _read_toml(path)
     where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
-    for sec, value in data.items():
-        if sec not in _SECTIONS or not isinstance(value, dict):
-            raise InputError(f"{path}: unknown section [{sec}] (known: "
-                             f"{', '.join(_SECTIONS)})")
-        unknown = set(value) - _SECTIONS[sec]
-        if unknown:
-            raise InputError(f"{where(sec)}: unknown key(s) {', '.join(sorted(unknown))} "
-                             f"(known: {', '.join(sorted(_SECTIONS[sec]))})")
+    check_keys(data, _SECTIONS, path)
     base = os.path.dirname(os.path.abspath(path)) if base is None else base
     rel = {k: os.path.join(base, v) for k, v in data.get("files", {}).items()}
     rel.update({k: v for k, v in (files or {}).items() if v is not None})
@@ -284,7 +278,7 @@ def config_from_manifest(flight_dir, overrides=None):
     # segment is a straight level line): heading from the GNSS track at its start
     cfg.method = "static" if at_rest and cfg.static_window_s is not None else "gnss-heading"
     if overrides is not None:
-        data = _read_toml(overrides)
+        data = check_keys(_read_toml(overrides), _SECTIONS, overrides)
         _fill(cfg, data, lambda sec, key="": f"{overrides}: [{sec}]" + (f" {key}" if key else ""),
               overrides)
     return cfg

@@ -101,7 +101,8 @@ def main(argv=None):
     times["simulate"] = run([ins, "simulate", args.plan, "-o", flight, "--seed", args.seed,
                              "--force"])
     print("\n== 2. GNSS/INS post-processing: forward filter + RTS smoother, varying lever arm")
-    times["process"] = run([ins, "process", flight, "-o", proc, "--forward"])
+    times["process"] = run([ins, "process", flight, "-o", proc, "--forward",
+                            "--force"])
 
     print("\n== 3. exterior orientation per exposure from the smoothed trajectory "
           "(camera file without the boresight, which is unknown)")
