@@ -70,15 +70,20 @@ def close():
 #: Packages whose Python code must not be cut by an exception: llvmlite calls back into
 #: Python from C++ (its object cache), where a KeyboardInterrupt is "ignored" by ctypes
 #: and the C++ side goes on with garbage (a segmentation fault was seen); numba's
-#: compiler drives llvmlite.  An interrupt there is retried every :data:`RETRY_S`.
+#: compiler drives llvmlite.  The import machinery is unsafe too: an interrupt raised in
+#: importlib's module-lock callback is "ignored" and leaves the global import lock held
+#: (a hang was seen with the IMU reader thread importing).  An interrupt there is retried
+#: every :data:`RETRY_S`.
 UNSAFE_PACKAGES = ("llvmlite", "numba")
+UNSAFE_FILES = ("<frozen importlib",)
 RETRY_S = 0.02
 
 
 def _in_unsafe_code(frame):
     while frame is not None:
         name = frame.f_code.co_filename
-        if any(f"{os.sep}{p}{os.sep}" in name for p in UNSAFE_PACKAGES):
+        if any(f"{os.sep}{p}{os.sep}" in name for p in UNSAFE_PACKAGES) or \
+                name.startswith(UNSAFE_FILES):
             return True
         frame = frame.f_back
     return False
