@@ -7,8 +7,9 @@ Prints
   with 4x stronger turbulence (1.4 rad/s^2),
 - the speed of compute_eo for 1e4 and 1e5 events (wall time, best of 3) and the peak
   memory of the process,
-- the chain on a simulated 200 Hz flight (ins.simulate; tests/data/flights/short.toml):
-  largest difference from the simulator's true EO, in mm and arcsec.
+- the chain on a simulated 200 Hz flight (photogrammetry.simulate;
+  tests/data/flights/short.toml): largest difference from the simulator's true EO, in
+  mm and arcsec.
 
 Usage: python bench/bench_eo.py [--work DIR]
 """
@@ -79,9 +80,9 @@ def speed():
 
 def flight(work):
     try:
-        from ins.simulate.folder import simulate_flight
+        from photogrammetry.simulate.folder import simulate_flight
     except ImportError:
-        print("\nflight: ins.simulate not available")
+        print("\nflight: photogrammetry.simulate not available")
         return
     from photogrammetry.cli import main
     plan = work / "short200.toml"

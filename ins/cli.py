@@ -1,6 +1,21 @@
-"""Command-line interface: ``ins mechanize``, ``ins compare`` and the commands of the
-modules listed in ``COMMAND_MODULES`` (each has ``add_parser(sub)`` that registers one
-sub-command and sets ``func``).
+"""Command-line interface: ``ins mechanize``, ``ins compare``, the commands of the
+modules listed in ``COMMAND_MODULES`` and those registered by other packages in the
+entry-point group ``ins.commands`` (:data:`COMMAND_GROUP`).
+
+Each command module has ``add_parser(sub)`` that registers one sub-command and sets
+``func``.  The entry-point group is how a package ABOVE ``ins`` adds a command to the
+``ins`` tool without ``ins`` importing it: ``ins simulate`` needs the camera (exposures,
+tie points) and is therefore provided by ``photogrammetry.simulate.cli``, declared in
+``pyproject.toml``::
+
+    [project.entry-points."ins.commands"]
+    simulate = "photogrammetry.simulate.cli:add_parser"
+
+(the name is the sub-command, the value the module's ``add_parser``).  The group is read
+with :mod:`importlib.metadata` from the installed distributions, so a change of it takes
+effect after ``pip install -e .`` (``make test`` and ``make demo`` reinstall when
+pyproject.toml changes).  ``ins`` itself never imports ``photogrammetry``
+(``tests/test_layering.py``).
 
 Units on the command line are degrees and metres; inside, SI.  Errors in the input give
 one line on stderr and exit code 2, and no output file.
@@ -18,80 +33,16 @@ import warnings
 
 from . import __version__
 from . import interrupts
+from .cliutil import (EXIT_BAD_INPUT, NEGATIVE_VALUE, Parser, Progress,  # noqa: F401
+                      check_output_file, positive_int, triplet)
 from .errors import InputError, InputWarning, QualityError
-
-EXIT_BAD_INPUT = 2
-
 
 EXIT_QUALITY = 3
 EXIT_INTERRUPTED = 130
 
-#: One number as a user types it: -5, -.5, 5., -1.5e-3, +2E4 (no spaces).
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-#: An argument that starts with "-" but is a value, not an option: a negative number or
-#: a comma-separated list of numbers that starts with one ("-33.9,151.2,50").
-NEGATIVE_VALUE = re.compile(rf"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:,{_NUMBER})*$")
-
-
-class _Parser(argparse.ArgumentParser):
-    """The parser of both command-line interfaces and all their sub-commands.
-
-    Bad arguments exit with code 2 (as bad input does).  An argument that looks like a
-    negative number or a comma-separated list starting with one (``-33.9,151.2,50``,
-    ``-1.5e-3``) is a value, not an option, so ``--init-lla -33.9,151.2,50`` works as
-    well as ``--init-lla=-33.9,151.2,50`` (argparse alone knows only ``-5`` and ``-.5``).
-    """
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = NEGATIVE_VALUE
-
-    def error(self, message):
-        self.print_usage(sys.stderr)
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
-
-
-def _triplet(text, name="value"):
-    import numpy as np
-    parts = text.replace(" ", "").split(",")
-    if len(parts) != 3:
-        raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
-    try:
-        values = np.array([float(p) for p in parts])
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected three numbers, got {text!r}") from None
-    if not np.all(np.isfinite(values)):
-        raise argparse.ArgumentTypeError(f"expected finite numbers, got {text!r}")
-    return values
-
-
-def check_output_file(path):
-    """Raise before the work the OSError that writing the output file ``path`` would
-    raise at its end (``ins.fileio.atomic_open``): ``path`` a directory, its directory
-    missing or a regular file in the way (``-o FILE/sub/out.csv``), naming ``path``."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
-    if not os.path.isdir(directory):
-        probe = directory
-        while probe and not os.path.exists(probe):
-            probe = os.path.dirname(probe)
-        if probe and not os.path.isdir(probe):
-            raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory",
-                                     path)
-        raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
-                                directory)
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+#: Former private name, kept for ``ins.cli_process`` (same package); new code uses
+#: :class:`ins.cliutil.Progress`.
+_Progress = Progress
 
 
 MECHANIZE_EPILOG = """\
@@ -125,11 +76,11 @@ def _add_mechanize(sub):
                     "transport rate; two-sample coning and sculling).",
         epilog=MECHANIZE_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("imu_file", metavar="IMU_FILE", help="IMU log (KF-GINS text/binary or CSV)")
-    p.add_argument("--init-lla", required=True, type=_triplet, metavar="LAT,LON,H",
+    p.add_argument("--init-lla", required=True, type=triplet, metavar="LAT,LON,H",
                    help="initial latitude, longitude (deg) and ellipsoidal height (m)")
-    p.add_argument("--init-vel", required=True, type=_triplet, metavar="VN,VE,VD",
+    p.add_argument("--init-vel", required=True, type=triplet, metavar="VN,VE,VD",
                    help="initial velocity north, east, down (m/s)")
-    p.add_argument("--init-att", required=True, type=_triplet, metavar="ROLL,PITCH,YAW",
+    p.add_argument("--init-att", required=True, type=triplet, metavar="ROLL,PITCH,YAW",
                    help="initial roll, pitch, yaw (deg)")
     p.add_argument("--format", choices=["kfgins", "kfgins-bin", "csv"], default=None,
                    help="IMU file format (default: from the extension: .bin binary, "
@@ -139,17 +90,17 @@ def _add_mechanize(sub):
                         "increment[k] = rate[k] * (t[k] - t[k-1])")
     p.add_argument("--axes", choices=["FRD", "FLU", "RFU", "FUR"], default="FRD",
                    help="axes of the IMU's x, y, z (mapped into FRD; default FRD)")
-    p.add_argument("--gyro-bias-dph", type=_triplet, metavar="X,Y,Z",
+    p.add_argument("--gyro-bias-dph", type=triplet, metavar="X,Y,Z",
                    help="gyro bias to remove, deg/h")
-    p.add_argument("--accel-bias-mgal", type=_triplet, metavar="X,Y,Z",
+    p.add_argument("--accel-bias-mgal", type=triplet, metavar="X,Y,Z",
                    help="accelerometer bias to remove, mGal (1 mGal = 1e-5 m/s^2)")
-    p.add_argument("--gyro-scale-ppm", type=_triplet, metavar="X,Y,Z",
+    p.add_argument("--gyro-scale-ppm", type=triplet, metavar="X,Y,Z",
                    help="gyro scale-factor error to remove, ppm")
-    p.add_argument("--accel-scale-ppm", type=_triplet, metavar="X,Y,Z",
+    p.add_argument("--accel-scale-ppm", type=triplet, metavar="X,Y,Z",
                    help="accelerometer scale-factor error to remove, ppm")
     p.add_argument("--start", type=float, metavar="T", help="start time, s (default: first epoch)")
     p.add_argument("--end", type=float, metavar="T", help="end time, s (default: last epoch)")
-    p.add_argument("--every", type=_positive_int, default=1, metavar="N",
+    p.add_argument("--every", type=positive_int, default=1, metavar="N",
                    help="write every N-th epoch (default 1)")
     p.add_argument("--week", type=int, default=0, help="GPS week written in column 1 (default 0)")
     p.add_argument("--strict", action="store_true",
@@ -158,36 +109,6 @@ def _add_mechanize(sub):
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.add_argument("-o", "--output", required=True, metavar="OUT.nav", help="output .nav file")
     p.set_defaults(func=_cmd_mechanize)
-
-
-class _Progress:
-    """A one-line progress bar on stderr (only on a terminal)."""
-
-    def __init__(self, label, enabled):
-        self.label = label
-        self.enabled = enabled and sys.stderr.isatty()
-        self.last = 0.0
-
-    def note(self, text):
-        """A transient status line (erased by the bar)."""
-        if self.enabled:
-            sys.stderr.write(f"\r{text}")
-            sys.stderr.flush()
-
-    def __call__(self, done, total):
-        if not self.enabled:
-            return
-        now = wallclock.monotonic()
-        if now - self.last < 0.1 and done < total:
-            return
-        self.last = now
-        frac = done / max(total, 1)
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} epochs"
-                         "      ")
-        if done >= total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
 
 
 def _cmd_mechanize(args):
@@ -215,7 +136,7 @@ def _cmd_mechanize(args):
     binary = args.format == "kfgins-bin" or (args.format is None and os.path.splitext(
         args.imu_file)[1].lower() in (".bin", ".imu"))
     total = size // 56 if binary else size // 95
-    progress = _Progress("mechanize", not args.quiet and total > 100_000)
+    progress = Progress("mechanize", not args.quiet and total > 100_000)
     seen = {"n": 0, "t0": None, "t1": None, "dt": None}
     last = []
 
@@ -301,23 +222,37 @@ def _cmd_compare(args):
 
 # Sub-commands that live in modules of their own (one line each).
 COMMAND_MODULES = [
-    "ins.cli_simulate",
     "ins.cli_allan",
     "ins.cli_process",
 ]
+#: Entry-point group of the sub-commands that other packages add to ``ins`` (name: the
+#: sub-command; value: ``module:add_parser``).
+COMMAND_GROUP = "ins.commands"
+
+
+def command_entry_points():
+    """The entry points of :data:`COMMAND_GROUP` of the installed distributions, one per
+    name (the first found), in the order found."""
+    from importlib.metadata import entry_points
+    found = {}
+    for ep in entry_points(group=COMMAND_GROUP):
+        found.setdefault(ep.name, ep)
+    return list(found.values())
 
 
 def build_parser():
-    parser = _Parser(prog="ins", description="Strapdown INS and GNSS/INS post-processing. "
+    parser = Parser(prog="ins", description="Strapdown INS and GNSS/INS post-processing. "
                      "Frames: n = north-east-down, b = forward-right-down; units on the "
                      "command line: deg, m, s.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     _add_mechanize(sub)
     _add_compare(sub)
     for name in COMMAND_MODULES:
         importlib.import_module(name).add_parser(sub)
+    for ep in command_entry_points():
+        ep.load()(sub)
     return parser
 
 

@@ -59,6 +59,14 @@ def _lla_rate(lat, h, v_north, v_east, v_down):
     return v_north / (rm + h), v_east / ((rn + h) * np.cos(lat)), -v_down
 
 
+#: Public names of the jitable scalar formulas above, for the numba kernels of other
+#: subpackages (``ins.simulate._kernels``): normal gravity (m/s^2), Earth rate and
+#: transport rate as their north, east, down components (rad/s).
+gravity_kernel = _gravity
+earth_rate_kernel = _earth_rate
+transport_rate_kernel = _transport_rate
+
+
 def _as_vector(v, name):
     v = np.asarray(v, dtype=float)
     if v.ndim == 0 or v.shape[-1] != 3:

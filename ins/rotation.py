@@ -38,6 +38,7 @@ __all__ = [
     "euler_to_dcm", "dcm_to_euler", "euler_to_quat", "quat_to_euler",
     "rotvec_to_quat", "quat_to_rotvec", "rotvec_to_dcm", "dcm_to_rotvec",
     "wrap_to_pi", "wrap_to_2pi",
+    "as_stack",
 ]
 
 # Below this rotation angle (rad) the small-angle series are used.
@@ -49,8 +50,11 @@ _GIMBAL_TOL = 1e-14
 
 # --------------------------------------------------------------------------
 # shape helpers
-def _as_stack(x, name, tail, finite=False):
+def as_stack(x, name, tail, finite=False):
     """Return ``(a, single)``: `x` as a float (n, *tail) array and whether it was one item.
+
+    The shape check of every function here that takes one item or a stack (shared with
+    ``photogrammetry.rotation``); ``name`` is the argument's name in the message.
 
     With ``finite=True`` a NaN or infinite element is refused (ValueError naming the
     first offending row of a stack).
@@ -122,7 +126,7 @@ def skew(v):
     ndarray, shape (3, 3) or (n, 3, 3)
         ``S`` with ``S @ b == np.cross(v, b)`` for every 3-vector ``b``.
     """
-    v, single = _as_stack(v, "v", (3,))
+    v, single = as_stack(v, "v", (3,))
     x, y, z = v.T
     S = np.zeros((len(v), 3, 3))
     S[:, 0, 1], S[:, 0, 2] = -z, y
@@ -206,8 +210,8 @@ def quat_multiply(p, q):
     -------
     ndarray, shape (4,) or (n, 4)
     """
-    p, ps = _as_stack(p, "p", (4,))
-    q, qs = _as_stack(q, "q", (4,))
+    p, ps = as_stack(p, "p", (4,))
+    q, qs = as_stack(q, "q", (4,))
     _check_pair(p, ps, q, qs, ("p", "q"))
     pv, pw = p[:, :3], p[:, 3:]
     qv, qw = q[:, :3], q[:, 3:]
@@ -227,7 +231,7 @@ def quat_conjugate(q):
     -------
     ndarray, shape (4,) or (n, 4)
     """
-    q, single = _as_stack(q, "q", (4,))
+    q, single = as_stack(q, "q", (4,))
     return _out(q * np.array([-1.0, -1.0, -1.0, 1.0]), single)
 
 
@@ -247,7 +251,7 @@ def quat_normalize(q):
     ValueError
         If a quaternion has zero norm or a NaN / infinite element.
     """
-    q, single = _as_stack(q, "q", (4,), finite=True)
+    q, single = as_stack(q, "q", (4,), finite=True)
     return _out(_normalized(q), single)
 
 
@@ -267,8 +271,8 @@ def quat_rotate(q, v):
     ndarray, shape (3,) or (n, 3)
         Vector(s) in the target frame, same unit as `v`.
     """
-    q, qs = _as_stack(q, "q", (4,), finite=True)
-    v, vs = _as_stack(v, "v", (3,), finite=True)
+    q, qs = as_stack(q, "q", (4,), finite=True)
+    v, vs = as_stack(v, "v", (3,), finite=True)
     _check_pair(q, qs, v, vs, ("q", "v"))
     C = _q2c(_normalized(q))
     return _out((C @ v[:, :, np.newaxis])[:, :, 0], qs and vs)
@@ -395,7 +399,7 @@ def quat_to_dcm(q):
         On a wrong shape, a zero-norm quaternion or a NaN / infinite element (the
         message names the first offending row of a stack).
     """
-    q, single = _as_stack(q, "q", (4,), finite=True)
+    q, single = as_stack(q, "q", (4,), finite=True)
     return _out(_q2c(_normalized(q)), single)
 
 
@@ -418,7 +422,7 @@ def dcm_to_quat(C):
     ndarray, shape (4,) or (n, 4)
         Unit quaternion ``[x, y, z, w]`` with ``w >= 0``.
     """
-    C, single = _as_stack(C, "C", (3, 3), finite=True)
+    C, single = as_stack(C, "C", (3, 3), finite=True)
     return _out(_c2q(C), single)
 
 
@@ -438,7 +442,7 @@ def euler_to_dcm(rpy, *, degrees=False):
     ndarray, shape (3, 3) or (n, 3, 3)
         ``C_nb``; equals ``Rotation.from_euler('ZYX', [yaw, pitch, roll]).as_matrix()``.
     """
-    rpy, single = _as_stack(rpy, "rpy", (3,), finite=True)
+    rpy, single = as_stack(rpy, "rpy", (3,), finite=True)
     if degrees:
         rpy = np.deg2rad(rpy)
     return _out(_e2c(rpy), single)
@@ -471,7 +475,7 @@ def dcm_to_euler(C, *, degrees=False):
     carries the combined angle (yaw - roll at pitch = +90 deg, yaw + roll at
     pitch = -90 deg).  (scipy's ``as_euler`` makes the opposite choice, yaw = 0.)
     """
-    C, single = _as_stack(C, "C", (3, 3), finite=True)
+    C, single = as_stack(C, "C", (3, 3), finite=True)
     rpy = _c2e(C)
     return _out(np.rad2deg(rpy) if degrees else rpy, single)
 
@@ -491,7 +495,7 @@ def euler_to_quat(rpy, *, degrees=False):
     ndarray, shape (4,) or (n, 4)
         ``q_z(yaw) * q_y(pitch) * q_x(roll)`` as ``[x, y, z, w]``, with ``w >= 0``.
     """
-    rpy, single = _as_stack(rpy, "rpy", (3,), finite=True)
+    rpy, single = as_stack(rpy, "rpy", (3,), finite=True)
     if degrees:
         rpy = np.deg2rad(rpy)
     return _out(_e2q(rpy), single)
@@ -513,7 +517,7 @@ def quat_to_euler(q, *, degrees=False):
         ``[roll, pitch, yaw]`` with the ranges and gimbal-lock rule of
         :func:`dcm_to_euler`.
     """
-    q, single = _as_stack(q, "q", (4,), finite=True)
+    q, single = as_stack(q, "q", (4,), finite=True)
     rpy = _c2e(_q2c(_normalized(q)))
     return _out(np.rad2deg(rpy) if degrees else rpy, single)
 
@@ -537,7 +541,7 @@ def rotvec_to_quat(rv):
     Below 1e-4 rad ``sin(a/2)/a`` is replaced by its series ``1/2 - a^2/48 + a^4/3840``,
     so tiny and zero vectors are exact (no 0/0).
     """
-    rv, single = _as_stack(rv, "rv", (3,), finite=True)
+    rv, single = as_stack(rv, "rv", (3,), finite=True)
     return _out(_rv2q(rv), single)
 
 
@@ -555,7 +559,7 @@ def quat_to_rotvec(q):
         ``angle * axis``, rad, with ``angle = 2 atan2(|v|, |w|)``; accurate for
         tiny angles (series) and near pi (atan2, no arccos).
     """
-    q, single = _as_stack(q, "q", (4,), finite=True)
+    q, single = as_stack(q, "q", (4,), finite=True)
     return _out(_q2rv(q), single)
 
 
@@ -571,7 +575,7 @@ def rotvec_to_dcm(rv):
     -------
     ndarray, shape (3, 3) or (n, 3, 3)
     """
-    rv, single = _as_stack(rv, "rv", (3,), finite=True)
+    rv, single = as_stack(rv, "rv", (3,), finite=True)
     return _out(_q2c(_rv2q(rv)), single)
 
 
@@ -588,7 +592,7 @@ def dcm_to_rotvec(C):
     ndarray, shape (3,) or (n, 3)
         Rotation vector(s), rad (via Shepperd's quaternion, so accurate at 180 deg).
     """
-    C, single = _as_stack(C, "C", (3, 3), finite=True)
+    C, single = as_stack(C, "C", (3, 3), finite=True)
     return _out(_q2rv(_c2q(C)), single)
 
 

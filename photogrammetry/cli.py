@@ -7,7 +7,8 @@ one line on stderr, exit code 2 and no output (shared with ``ins.cli.run_command
 import importlib
 import sys
 
-from ins.cli import _Parser, run_main
+from ins.cli import run_main
+from ins.cliutil import Parser
 
 from . import __version__
 
@@ -20,14 +21,14 @@ COMMAND_MODULES = [
 
 
 def build_parser():
-    parser = _Parser(
+    parser = Parser(
         prog="photogrammetry",
         description="Photogrammetric orientation from an INS solution: exterior orientation "
                     "per exposure, coplanarity refinement of the angles, lunar heading. "
                     "Angles in files are degrees in a named system (phi-omega-kappa or "
                     "omega-phi-kappa); lengths in m, photo coordinates in mm.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     for name in COMMAND_MODULES:
         importlib.import_module(name).add_parser(sub)

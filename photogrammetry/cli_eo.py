@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ins.cli import _Progress, _triplet, check_output_file
 from ins import _textio
+from ins.cliutil import Progress, check_output_file, triplet
 from ins.errors import InputError
 
 EPILOG = """\
@@ -76,7 +76,7 @@ def add_parser(sub):
                    default="phi-omega-kappa", help="angle system (default phi-omega-kappa)")
     p.add_argument("--frame", default="enu", metavar="enu|utm|EPSG:CODE",
                    help="mapping frame (default enu)")
-    p.add_argument("--origin", type=_triplet, metavar="LAT,LON,H",
+    p.add_argument("--origin", type=triplet, metavar="LAT,LON,H",
                    help="ENU origin: lat, lon (deg), ellipsoidal h (m)")
     p.add_argument("--geoid-undulation", type=float, metavar="N_M",
                    help="constant geoid undulation (m): orthometric heights H = h - N "
@@ -144,7 +144,7 @@ def run(args):
         raise InputError(f"--origin: latitude {origin[0]} deg is outside +-90 deg")
     ids, times = read_events(events_path)
     _, mounting = read_camera(camera_path)
-    progress = _Progress("eo", not args.quiet)
+    progress = Progress("eo", not args.quiet)
     progress.note(f"reading {traj_path}...")
     traj = read_nav(traj_path)
     sigma = read_solution_std(args.sigma) if args.sigma else None

@@ -4,7 +4,7 @@ import time as wallclock
 
 import numpy as np
 
-from ins.cli import _Progress, _triplet, check_output_file
+from ins.cliutil import Progress, check_output_file, triplet
 from ins.errors import InputError
 from ins.fileio import atomic_open
 
@@ -59,7 +59,7 @@ def add_parser(sub):
     src.add_argument("--images", metavar="DIR", help="folder of Moon images <image_id>.png|tif|fits")
     src.add_argument("--centres", metavar="CENTRES.csv", help="measured Moon centres, px")
     p.add_argument("--times", required=True, metavar="TIMES.csv", help="exposure times (UTC)")
-    p.add_argument("--station", required=True, type=_triplet, metavar="LAT,LON,H",
+    p.add_argument("--station", required=True, type=triplet, metavar="LAT,LON,H",
                    help="station latitude, longitude (deg) and ellipsoidal height (m)")
     p.add_argument("--camera", required=True, metavar="CAM.toml", help="fisheye camera file")
     p.add_argument("--pressure", type=float, metavar="hPa",
@@ -116,7 +116,7 @@ def run(args):
             raise InputError(f"{args.images}: {len(used)} image(s) match the ids of "
                              f"{args.times}; at least 2 usable images are needed")
         sel = np.array([ids.index(k) for k in used])
-        progress = _Progress("lunar-heading", not args.quiet)
+        progress = Progress("lunar-heading", not args.quiet)
         result = heading_from_images(camera, [files[k] for k in used], utc[sel], lat, lon, h,
                                      progress=progress, **sky_options)
     sol = result.solution

@@ -5,7 +5,7 @@ import os
 import numpy as np
 
 from ins import interrupts
-from ins.cli import _Progress, check_output_file
+from ins.cliutil import Progress, check_output_file
 from ins.errors import InputError
 
 EPILOG = """\
@@ -144,11 +144,11 @@ def run(args):
             if path:
                 check_output_file(path)
     if len(jobs) == 1 and args.scheduler is None:
-        results = [refine(**jobs[0][0], progress=_Progress("refine", not args.quiet))]
+        results = [refine(**jobs[0][0], progress=Progress("refine", not args.quiet))]
     else:
         results = refine_many([j[0] for j in jobs], workers=args.workers,
                               scheduler=args.scheduler,
-                              progress=_Progress("refine", not args.quiet))
+                              progress=Progress("refine", not args.quiet))
     # the outputs of every block (CSV, report, its plots) are written as one set: a
     # Ctrl-C meanwhile takes effect once the set is complete (ins.interrupts)
     with interrupts.deferred():

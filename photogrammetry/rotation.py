@@ -52,7 +52,7 @@ COLMAP) convention is reached only through :func:`to_cv_rotation`/:func:`from_cv
 import numpy as np
 
 from ins.earth import dcm_en
-from ins.rotation import _as_stack, rot_x, rot_y, rot_z
+from ins.rotation import as_stack, rot_x, rot_y, rot_z
 
 __all__ = ["SYSTEMS", "angles_to_matrix", "matrix_to_angles", "check_system",
            "convert_angles", "dcm_mn_enu", "boresight_matrix", "camera_attitude",
@@ -167,7 +167,7 @@ def angles_to_matrix(angles, system, degrees=False):
         Unknown system or wrong shape.
     """
     check_system(system)
-    a, single = _as_stack(angles, "angles", (3,))
+    a, single = as_stack(angles, "angles", (3,))
     if degrees:
         a = np.deg2rad(a)
     maker = _pok_matrix if system == "phi-omega-kappa" else _opk_matrix
@@ -202,7 +202,7 @@ def matrix_to_angles(R, system, degrees=False):
     angle takes the whole rotation about the then common axis.
     """
     check_system(system)
-    R, single = _as_stack(R, "R", (3, 3))
+    R, single = as_stack(R, "R", (3, 3))
     a = _pok_angles(R) if system == "phi-omega-kappa" else _opk_angles(R)
     if degrees:
         a = np.rad2deg(a)
@@ -312,13 +312,13 @@ def to_cv_rotation(C_mc):
     -------
     ndarray, shape (3, 3) or (n, 3, 3)
     """
-    C, single = _as_stack(C_mc, "C_mc", (3, 3))
+    C, single = as_stack(C_mc, "C_mc", (3, 3))
     R = C_CV_C @ np.swapaxes(C, -1, -2)
     return R[0] if single else R
 
 
 def from_cv_rotation(R_cw):
     """Inverse of :func:`to_cv_rotation`: ``C_mc = R_cw.T @ C_CV_C``."""
-    R, single = _as_stack(R_cw, "R_cw", (3, 3))
+    R, single = as_stack(R_cw, "R_cw", (3, 3))
     C = np.swapaxes(R, -1, -2) @ C_CV_C
     return C[0] if single else C

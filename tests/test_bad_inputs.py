@@ -33,7 +33,7 @@ SENTINEL = b"an existing output that a failed run must leave alone\n"
 @pytest.fixture(scope="session")
 def good(tmp_path_factory):
     """Valid inputs: a simulated flight folder plus small config / lunar files."""
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
     base = tmp_path_factory.mktemp("good")
     flight = base / "flight"
     simulate_flight(ROOT / "tests" / "data" / "flights" / "short.toml", flight, 0)

@@ -14,7 +14,8 @@ import pytest
 
 from ins import cli as ins_cli
 from ins import earth
-from ins.cli import NEGATIVE_VALUE, _triplet, user_path
+from ins.cli import NEGATIVE_VALUE, user_path
+from ins.cliutil import triplet
 from ins.errors import QualityError
 from photogrammetry import cli as pg_cli
 
@@ -75,7 +76,7 @@ def _numeric_options():
             for action in p._actions:
                 if not action.option_strings:
                     continue
-                if action.type is _triplet:
+                if action.type is triplet:
                     found.append((prog, command, action.option_strings[-1], "triplet"))
                 elif action.type is float:
                     found.append((prog, command, action.option_strings[-1], "float"))
@@ -142,7 +143,7 @@ def test_mechanize_south_and_west(tmp_path, capsys, form):
 @pytest.fixture(scope="module")
 def southern_flight(tmp_path_factory):
     """The short test flight moved to the southern and western hemispheres."""
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
     tmp = tmp_path_factory.mktemp("south")
     text = SHORT.read_text()
     assert "origin_lat_deg = 30.5" in text and "origin_lon_deg = 114.3" in text
@@ -231,7 +232,7 @@ def _one_error_line(err, prog_cmd):
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
     return simulate_flight(SHORT, tmp_path_factory.mktemp("fl") / "flight", seed=4)
 
 

@@ -16,7 +16,7 @@ def angle_err_arcsec(a, b):
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
-    folder_mod = pytest.importorskip("ins.simulate.folder")
+    folder_mod = pytest.importorskip("photogrammetry.simulate.folder")
     tmp = tmp_path_factory.mktemp("eo_flight")
     plan = tmp / "plan200.toml"
     text = PLAN.read_text()

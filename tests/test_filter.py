@@ -115,7 +115,7 @@ def short_flight(seed=3, plan=PLAN):
     photogrammetry/ (``benchdata.cached_flight``): a code change simulates it again."""
     from benchdata import cached_flight
     from ins.errors import InputError
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
 
     def simulate(path, folder, seed):
         try:

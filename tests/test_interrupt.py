@@ -44,7 +44,7 @@ START_UP_S = 0.25
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory):
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
     return simulate_flight(SHORT, tmp_path_factory.mktemp("intr") / "flight", seed=9)
 
 

@@ -12,7 +12,7 @@ import pytest
 from ins.cli import main
 from ins.errors import InputError
 from ins.rotation import quat_to_dcm
-from ins.simulate.folder import FILES, simulate_flight
+from photogrammetry.simulate.folder import FILES, simulate_flight
 from ins.trajectory import read_nav
 from photogrammetry.camera import read_camera
 from photogrammetry.rotation import angles_to_matrix
@@ -248,8 +248,9 @@ def test_files_read_by_the_photogrammetry_readers(flight):
 
 
 def test_failure_keeps_the_old_folder(tmp_path, monkeypatch):
-    """--force replaces the old folder only once the new one is complete."""
-    import ins.simulate.folder as folder_mod
+    """--force replaces the old folder only once the new one is complete (also when
+    the image products, the last writer, fail)."""
+    import photogrammetry.simulate.images as images_mod
     out = tmp_path / "f"
     out.mkdir()
     (out / "old.txt").write_text("old")
@@ -257,7 +258,7 @@ def test_failure_keeps_the_old_folder(tmp_path, monkeypatch):
     def broken(*args):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(folder_mod, "_write_images", broken)
+    monkeypatch.setattr(images_mod, "write_images", broken)
     with pytest.raises(RuntimeError, match="disk full"):
         simulate_flight(PLAN, out, seed=1, force=True)
     assert [p.name for p in out.iterdir()] == ["old.txt"]

@@ -2,11 +2,11 @@
 the TRUE exterior orientation reproduces the ground points within the injected noise."""
 import numpy as np
 
-from ins.simulate.exposures import TrueExposures
-from ins.simulate.terrain import make_terrain
-from ins.simulate.tiepoints import project, simulate_tiepoints
 from photogrammetry.camera import FrameCamera
 from photogrammetry.rotation import angles_to_matrix
+from photogrammetry.simulate.exposures import TrueExposures
+from photogrammetry.simulate.terrain import make_terrain
+from photogrammetry.simulate.tiepoints import project, simulate_tiepoints
 
 F_MM = 50.0
 PIX_MM = 0.005

@@ -150,7 +150,7 @@ def test_camera_file_defaults_are_the_documented_ones(tmp_path):
 
 def test_eo_refuses_a_camera_with_a_misspelt_lever_arm(tmp_path, capsys):
     """The issue's case end to end: the EO was computed with a zero lever arm."""
-    from ins.simulate.folder import simulate_flight
+    from photogrammetry.simulate.folder import simulate_flight
     flight = simulate_flight(ROOT / "tests" / "data" / "flights" / "short.toml",
                              tmp_path / "flight", seed=3)
     text = (flight / "camera.toml").read_text()

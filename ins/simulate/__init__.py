@@ -1,6 +1,12 @@
-"""Survey-flight simulator: flight plan -> truth trajectory (with the stabilized mount)
--> IMU increments with sensor errors (and, in the modules of part B, GNSS, exposures,
-terrain and tie points).
+"""Survey-flight simulator, INS part: flight plan -> truth trajectory (with the stabilized
+mount) -> IMU increments with sensor errors, GNSS antenna log, mount angles, and the
+flight folder with its manifest.
+
+The image part (exposures, true EO, terrain, tie points, the camera file) needs the
+camera model and lives above, in :mod:`photogrammetry.simulate`; ``ins`` never imports
+``photogrammetry`` (``tests/test_layering.py``).  It joins the folder as a product
+writer of :func:`ins.simulate.folder.simulate_flight`; the complete folder of
+``ins simulate`` is :func:`photogrammetry.simulate.folder.simulate_flight`.
 
 Modules
 -------
@@ -16,6 +22,14 @@ imu_synth
 sensor_errors
     :class:`~ins.simulate.sensor_errors.ImuErrorModel`, the presets and
     :func:`~ins.simulate.sensor_errors.apply_errors`.
+gnss
+    :func:`~ins.simulate.gnss.simulate_gnss`: the antenna's fixes through the lever arm
+    and the mount.
+manifest
+    ``manifest.toml``: the INS tables and the merge of the tables of product writers.
+folder
+    :func:`~ins.simulate.folder.simulate_flight`: the INS products of a flight folder and
+    the product writers it is given.
 
 Figures (``bench/bench_simulate.py``): 1 h at 200 Hz of a 4-strip block in ~2.5 s of
 increments (+ ~1 s truth build, ~1.3 s sensor errors, peak RSS ~280 MB); mechanizing

@@ -6,7 +6,7 @@ import numba as nb
 import numpy as np
 from numba.extending import register_jitable
 
-from ..earth import _earth_rate, _gravity, _transport_rate
+from ..earth import earth_rate_kernel, gravity_kernel, transport_rate_kernel
 
 
 @nb.njit(cache=True)
@@ -193,13 +193,13 @@ def platform_state(prof, prof_lag, turb, turb_lag, wind_n, wind_e, g, lat, h, v_
         mount[k, 0], mount[k, 1], mount[k, 2] = mr, mp, my
         mount_rate[k, 0], mount_rate[k, 1], mount_rate[k, 2] = dmr, dmp, dmy
         vn, ve, vd = v_n[k, 0], v_n[k, 1], v_n[k, 2]
-        ie_n, ie_e, ie_d = _earth_rate(lat[k])
-        en_n, en_e, en_d = _transport_rate(lat[k], h[k], vn, ve)
+        ie_n, ie_e, ie_d = earth_rate_kernel(lat[k])
+        en_n, en_e, en_d = transport_rate_kernel(lat[k], h[k], vn, ve)
         wn, we, wd = ie_n + en_n, ie_e + en_e, ie_d + en_d
         xn, xe, xd = wn + ie_n, we + ie_e, wd + ie_d       # 2 w_ie + w_en
         fn = a_n[k, 0] + (xe * vd - xd * ve)
         fe = a_n[k, 1] + (xd * vn - xn * vd)
-        fd = a_n[k, 2] - _gravity(lat[k], h[k]) + (xn * ve - xe * vn)
+        fd = a_n[k, 2] - gravity_kernel(lat[k], h[k]) + (xn * ve - xe * vn)
         for i in range(3):
             # w_nb_b = C_ap^T w_na_a + w_ap_p ; + C_bn w_in_n
             w_ib_b[k, i] = (Cm[0, i] * wa[0] + Cm[1, i] * wa[1] + Cm[2, i] * wa[2] + wm[i]

@@ -1,20 +1,38 @@
-"""The simulated flight folder: every product of a plan, and ``manifest.toml`` naming them.
+"""The INS part of a simulated flight folder, and the hook for the products of others.
 
-:func:`simulate_flight` runs the whole simulator (truth, IMU with sensor errors, GNSS
-antenna log, mount angles, exposures, true EO, terrain, tie points) and writes the folder
-of ``docs/interfaces.md``.  The folder is built aside and swapped into place whole
-(:func:`ins.fileio.output_folder`, the rule of every command that writes a folder): a
-non-empty folder is refused unless ``force=True``, and replaced only once the new one is
-complete, so a failure or Ctrl-C leaves no partial output and the old folder untouched.
+:func:`simulate_flight` runs the INS part of the simulator (truth, IMU with sensor
+errors, GNSS antenna log, mount angles), writes ``imu.txt``, ``gnss.txt``, ``mount.txt``,
+``truth.nav`` and ``plan.toml``, then calls each PRODUCT WRITER it is given and writes
+``manifest.toml`` (:mod:`ins.simulate.manifest`) naming everything (``docs/interfaces.md``).
+
+Product writers are how a package above ``ins`` adds its files without ``ins``
+importing it (``ins`` never imports ``photogrammetry``: ``tests/test_layering.py``).
+A writer is a callable ``writer(flight) -> dict``: ``flight`` is a :class:`FlightProducts`
+(the plan, the truth, the folder being built, the seed and a progress callback); it
+writes its files into ``flight.folder``, draws its random numbers from
+``product_rng(flight.seed, name)``, and returns the manifest tables it adds
+(``{"files": {...}, "flight": {...}, ...}``, merged by :func:`ins.simulate.manifest.merge`).
+The complete folder of ``ins simulate`` (with exposures, true EO, terrain and tie points,
+which need the camera model) is :func:`photogrammetry.simulate.folder.simulate_flight`,
+this function with the image writer of :mod:`photogrammetry.simulate.images`; without
+writers the folder holds the INS products only (enough for ``ins process``).
+
+The folder is built aside and swapped into place whole (:func:`ins.fileio.output_folder`,
+the rule of every command that writes a folder): a non-empty folder is refused unless
+``force=True``, and replaced only once the new one is complete, so a failure or Ctrl-C
+(also inside a product writer) leaves no partial output and the old folder untouched.
 
 Reproducibility: every random product draws from its own generator, derived from the
 seed and the product's name (:func:`product_seed`), so the same seed gives the same
-bytes and changing, e.g., the GNSS rate leaves the IMU noise unchanged.
+bytes and changing, e.g., the GNSS rate leaves the IMU noise (and the tie points)
+unchanged.
 """
 import os
 import tomllib
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import tomli_w
@@ -25,20 +43,15 @@ from ..fileio import atomic_open, check_output_folder, output_folder
 from ..gnss import write_gnss
 from ..imu import write_kfgins_text
 from ..trajectory import Trajectory, write_nav
-from .exposures import event_times, true_exposures
 from .gnss import gnss_times, simulate_gnss
-from .terrain import make_terrain
-from .tiepoints import simulate_tiepoints
+from .manifest import FORMAT, ins_tables, merge
 
-__all__ = ["simulate_flight", "product_seed", "product_rng", "FORMAT", "FILES"]
+__all__ = ["simulate_flight", "FlightProducts", "product_seed", "product_rng", "write_bytes",
+           "FORMAT", "FILES"]
 
-#: Value of the manifest's ``format`` key.
-FORMAT = "insphoto-flight/1"
-#: Manifest ``[files]`` key -> file name.
-FILES = {"imu": "imu.txt", "gnss": "gnss.txt", "mount": "mount.txt", "truth": "truth.nav",
-         "events": "events.csv", "camera": "camera.toml", "eo_true": "eo_true.csv",
-         "eo_true_omega_phi_kappa": "eo_true_omega-phi-kappa.csv",
-         "tiepoints": "tiepoints.csv", "ground_points": "ground_points.csv"}
+#: Manifest ``[files]`` key -> file name of the INS products (``mount`` only with the
+#: mount enabled).
+FILES = {"imu": "imu.txt", "gnss": "gnss.txt", "mount": "mount.txt", "truth": "truth.nav"}
 MOUNT_HEADER = (b"# time_s roll_deg pitch_deg yaw_deg  (platform p relative to aircraft a: "
                 b"C_ap = Rz(yaw) Ry(pitch) Rx(roll))\n")
 #: IMU epochs per truth chunk written to truth.nav.
@@ -59,54 +72,10 @@ def product_rng(seed, name):
 # ---------------------------------------------------------------------------------------
 # small writers
 
-def _write_bytes(path, data):
+def write_bytes(path, data):
+    """Write ``data`` (bytes) to ``path`` atomically (:func:`ins.fileio.atomic_open`)."""
     with atomic_open(path, "wb") as f:
         f.write(data)
-
-
-def _csv_rows(ids, values, decimals):
-    """Lines ``id,v1,v2,...`` (bytes): string ids, fixed-point numbers."""
-    if len(ids) == 0:
-        return b""
-    text = _textio.format_fixed(values, np.asarray(decimals, np.int64), sep=",").tobytes()
-    lines = text.split(b"\n")[:-1]
-    return b"".join(i.encode() + b"," + line + b"\n" for i, line in zip(ids, lines))
-
-
-def _frame_text(exposures):
-    from photogrammetry.mapping import EnuFrame
-    return EnuFrame(*exposures.origin_lla).header()
-
-
-def _write_eo(path, exposures, system):
-    """EO CSV of ``docs/interfaces.md`` (:func:`photogrammetry.exposure.write_eo_csv`)."""
-    from photogrammetry.exposure import ExposureOrientation, write_eo_csv
-    eo = ExposureOrientation(exposures.image_id, exposures.time, exposures.X_m,
-                             exposures.angles(system), system, _frame_text(exposures))
-    write_eo_csv(path, eo, comments=("true exterior orientation of the simulated flight",))
-
-
-def _write_events(path, exposures):
-    _write_bytes(path, b"image_id,time_s\n" + _csv_rows(exposures.image_id,
-                                                       exposures.time[:, None], [6]))
-
-
-def _write_tiepoints(path, tp, exposures, pixel_size_mm):
-    header = (f"# tie points: observed photo coordinates (mm, origin at the principal point, "
-              f"distorted as in camera.toml) with white Gaussian noise sigma_px = "
-              f"{tp.sigma_px:g} (sigma_mm = {tp.sigma_px * pixel_size_mm:g}) per "
-              f"coordinate\nimage_id,point_id,x_mm,y_mm\n")
-    ids = [exposures.image_id[i] for i in tp.image_index]
-    values = np.column_stack([tp.point_id, tp.xy_mm])
-    _write_bytes(path, header.encode() + _csv_rows(ids, values, [0, 7, 7]))
-
-
-def _write_ground(path, tp, exposures):
-    header = (f"# ground truth of the tie points, mapping frame {_frame_text(exposures)}\n"
-              "point_id,X_m,Y_m,Z_m\n")
-    text = _textio.format_fixed(np.column_stack([tp.ground_id, tp.ground_m]),
-                                np.array([0, 6, 6, 6], np.int64), sep=",").tobytes()
-    _write_bytes(path, header.encode() + text)
 
 
 def _write_mount(path, truth, rate_hz):
@@ -181,18 +150,35 @@ class _Stages:
             self.progress(self.total, self.total)
 
 
-def _camera_of(plan):
-    from photogrammetry.camera import CameraMounting, FrameCamera
-    c = plan.camera
-    camera = FrameCamera(c.focal_length_mm, c.pixel_size_mm, c.width_px, c.height_px,
-                         c.principal_point_px, c.radial_k, c.tangential_p)
-    mounting = CameraMounting(axes=np.array(c.axes), lever_arm_m=np.array(c.lever_arm_m),
-                              boresight_rad=np.deg2rad(c.boresight_deg))
-    return camera, mounting
+@dataclass(frozen=True)
+class FlightProducts:
+    """What a product writer of :func:`simulate_flight` is given.
+
+    Attributes
+    ----------
+    plan : ins.simulate.plan.FlightPlan
+        The flight plan (with its ``[camera]``, ``[terrain]``, ``[tie_points]``).
+    truth : ins.simulate.truth.FlightTruth
+        The true trajectory, evaluable at any time (``truth.evaluate(t)``).
+    folder : pathlib.Path
+        The folder being built (a hidden temporary beside the user's folder): write the
+        product's files here, under the names the writer returns in ``[files]``.
+    seed : int
+        The flight's seed: draw from ``product_rng(seed, name)``, one name per product.
+    progress : callable
+        ``progress(fraction)``, 0 to 1, of the writer's own work.
+    """
+
+    plan: object
+    truth: object
+    folder: Path
+    seed: int
+    progress: Callable[[float], None]
 
 
-def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None):
-    """Simulate a survey flight and write its folder (``docs/interfaces.md``).
+def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
+                    products=()):
+    """Simulate the INS part of a survey flight (and the given products) into a folder.
 
     Parameters
     ----------
@@ -211,6 +197,11 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None)
         Replace a non-empty ``out_dir``.
     progress : callable, optional
         ``progress(done, total)``.
+    products : sequence of callable
+        Product writers ``writer(flight: FlightProducts) -> dict`` of manifest tables
+        (module docstring), called in order after the INS products.  The complete flight
+        folder of ``ins simulate`` is
+        :func:`photogrammetry.simulate.folder.simulate_flight`.
 
     Returns
     -------
@@ -235,11 +226,11 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None)
     plan, plan_text = _plan_and_text(plan)
     with output_folder(out_dir, force) as tmp:
         _write_products(plan, plan_text, Path(tmp), int(seed), grade or plan.imu.grade,
-                        progress)
+                        progress, tuple(products))
     return out_dir
 
 
-def _write_products(plan, plan_text, folder, seed, grade, progress):
+def _write_products(plan, plan_text, folder, seed, grade, progress, products):
     from .truth import build_truth
     truth = build_truth(plan)
     stages = _Stages(progress, (truth.t_end - truth.t_start) * plan.imu.rate_hz + 1)
@@ -247,11 +238,16 @@ def _write_products(plan, plan_text, folder, seed, grade, progress):
     rest = stages.stage("rest")
     files = _write_gnss_and_mount(plan, truth, folder, seed)
     rest(0.2, 1.0)
-    exposures, tp = _write_images(plan, truth, folder, seed, rest)
-    _write_bytes(folder / "plan.toml", plan_text)
-    manifest = _manifest(plan, truth, first, log, model, files, seed, grade, len(exposures),
-                         len(tp))
-    _write_bytes(folder / "manifest.toml", tomli_w.dumps(manifest).encode())
+    added = []
+    share = 0.8 / max(len(products), 1)
+    for k, writer in enumerate(products):
+        start = 0.2 + k * share
+        flight = FlightProducts(plan, truth, folder, seed,
+                                lambda f, start=start: rest(start + share * min(f, 1.0), 1.0))
+        added.append(writer(flight))
+    write_bytes(folder / "plan.toml", plan_text)
+    manifest = merge(ins_tables(plan, truth, first, log, model, files, seed, grade), *added)
+    write_bytes(folder / "manifest.toml", tomli_w.dumps(manifest).encode())
     stages.done()
 
 
@@ -284,79 +280,3 @@ def _write_gnss_and_mount(plan, truth, folder, seed):
     else:
         del files["mount"]
     return files
-
-
-def _write_images(plan, truth, folder, seed, rest):
-    """camera.toml, events, true EO, tie points and ground points."""
-    from photogrammetry.camera import write_camera
-    camera, mounting = _camera_of(plan)
-    write_camera(folder / FILES["camera"], camera, mounting)
-    b = plan.block
-    origin = np.array([b.origin_lat, b.origin_lon, b.origin_h])
-    exposures = true_exposures(truth, *event_times(truth.strips, plan.exposure_interval_s),
-                               mounting.C_bc, mounting.lever_arm_m, origin)
-    _write_events(folder / FILES["events"], exposures)
-    _write_eo(folder / FILES["eo_true"], exposures, "phi-omega-kappa")
-    _write_eo(folder / FILES["eo_true_omega_phi_kappa"], exposures, "omega-phi-kappa")
-    rest(0.4, 1.0)
-    t = plan.terrain
-    terrain = make_terrain(t.relief_m, t.wavelength_m,
-                           product_rng(seed, f"terrain/{t.seed_offset}"))
-    tp = simulate_tiepoints(exposures, camera, terrain, plan.tie_points.per_image,
-                            plan.tie_points.sigma_px, product_rng(seed, "tiepoints"),
-                            progress=lambda d, n: rest(0.4 + 0.5 * d / max(n, 1), 1.0))
-    _write_tiepoints(folder / FILES["tiepoints"], tp, exposures, camera.pixel_size_mm)
-    _write_ground(folder / FILES["ground_points"], tp, exposures)
-    return exposures, tp
-
-
-def _floats(v):
-    return [float(x) for x in v]
-
-
-def _tidy(v):
-    """Round unit conversions' last-bit noise (0.11999999999999998 -> 0.12)."""
-    if isinstance(v, list):
-        return [_tidy(x) for x in v]
-    return float(f"{v:.12g}")
-
-
-def _manifest(plan, truth, s0, log, model, files, seed, grade, n_images, n_obs):
-    b, m, g = plan.block, plan.mount, plan.gnss
-    rpy = s0.rpy(degrees=True)[0]
-    return {
-        "format": FORMAT,
-        "flight": {"seed": seed, "grade": grade, "gps_week": plan.flight.gps_week,
-                   "start_time_s": float(log.time[0]), "end_time_s": float(log.time[-1]),
-                   "imu_rate_hz": float(plan.imu.rate_hz), "plan": "plan.toml",
-                   "n_images": n_images, "n_tiepoint_observations": n_obs},
-        "files": files,
-        "frames": {
-            "imu": "FRD body on the stabilized platform (b = p)",
-            "n": "NED local level at the IMU",
-            "a": "aircraft FRD (mount base; GNSS antenna on it)",
-            "c": "camera: x, y image axes (x right, y up), z opposite to the view; "
-                 "ray (x, y, -f)",
-            "m": "ENU at block origin",
-            "gnss": "antenna phase centre, WGS84 lat/lon deg, ellipsoidal h m",
-            "truth": "IMU centre, .nav layout (week, time, lat, lon deg, h m, vN vE vD m/s, "
-                     "roll pitch yaw deg)",
-            "mount": "platform p relative to aircraft a: C_ap = Rz(yaw) Ry(pitch) Rx(roll)"},
-        "mapping_frame": {"type": "enu", "origin_lat_deg": float(np.rad2deg(b.origin_lat)),
-                          "origin_lon_deg": float(np.rad2deg(b.origin_lon)),
-                          "origin_h_m": float(b.origin_h)},
-        "lever_arm": {"imu_to_platform_centre_b_m": _floats(m.l_bp),
-                      "platform_centre_to_antenna_a_m": _floats(m.l_ap)},
-        "mount": {"enabled": bool(m.enabled), "log_rate_hz": float(m.log_rate_hz)},
-        "imu": {k: _tidy(v) for k, v in model.to_units().items()},
-        "gnss": {"rate_hz": float(g.rate_hz), "sigma_ned_m": _floats(g.sigma_ned),
-                 "velocity": bool(g.velocity), "sigma_vel_mps": float(g.sigma_vel),
-                 "outages": [_floats(o) for o in g.outages]},
-        "tie_points": {"sigma_px": float(plan.tie_points.sigma_px),
-                       "per_image": int(plan.tie_points.per_image)},
-        "initial": {"lat_deg": float(np.rad2deg(s0.lla[0, 0])),
-                    "lon_deg": float(np.rad2deg(s0.lla[0, 1])), "h_m": float(s0.lla[0, 2]),
-                    "vel_ned_mps": _floats(s0.v_n[0]), "rpy_deg": _floats(rpy)},
-        "stationary": {"segments_s": [_floats(seg) for seg in truth.stationary],
-                       "static": plan.flight.start == "ground"},
-    }

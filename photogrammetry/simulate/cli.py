@@ -1,10 +1,18 @@
-"""``ins simulate PLAN.toml -o FLIGHT_DIR``: simulate a survey flight into a flight folder."""
+"""``ins simulate PLAN.toml -o FLIGHT_DIR``: simulate a survey flight into a flight folder.
+
+A sub-command of the ``ins`` tool that lives in ``photogrammetry`` because the flight
+folder holds image products (camera file, true EO, tie points) that need the camera
+model, and ``ins`` never imports ``photogrammetry``.  ``ins.cli`` finds it through the
+entry-point group ``ins.commands`` declared in ``pyproject.toml``
+(``simulate = "photogrammetry.simulate.cli:add_parser"``); the interface, messages and
+exit codes are those of every ``ins`` command (:func:`ins.cli.run_command`).
+"""
 import argparse
 import time as wallclock
 from pathlib import Path
 
-from . import _textio
-from .errors import InputError
+from ins import _textio
+from ins.errors import InputError
 
 EPILOG = """\
 frames and units:
@@ -55,8 +63,8 @@ def _seed(text):
 
 
 def add_parser(sub):
-    """Register ``ins simulate``."""
-    from .simulate.sensor_errors import PRESETS
+    """Register ``ins simulate`` on the ``ins`` tool's sub-parsers ``sub``."""
+    from ins.simulate.sensor_errors import PRESETS
     p = sub.add_parser(
         "simulate", help="simulate a survey flight (IMU, GNSS, mount, images, tie points)",
         description="Simulate a photogrammetric survey flight from a TOML flight plan: the "
@@ -80,9 +88,10 @@ def add_parser(sub):
 
 
 def _cmd_simulate(args):
-    from .cli import _Progress
-    from .fileio import check_output_folder
-    from .simulate.folder import simulate_flight
+    from ins.cliutil import Progress
+    from ins.fileio import check_output_folder
+
+    from .folder import simulate_flight
 
     t0 = wallclock.perf_counter()
     out = Path(args.output)
@@ -94,7 +103,7 @@ def _cmd_simulate(args):
         raise InputError("--output is the plan's own folder; choose a new folder",
                          path=args.output)
     check_output_folder(out, args.force)      # OSError naming FLIGHT_DIR: exit 2
-    progress = _Progress("simulate", not args.quiet)
+    progress = Progress("simulate", not args.quiet)
     folder = simulate_flight(args.plan, out, args.seed, grade=args.grade, force=args.force,
                              progress=progress)
     if not args.quiet:

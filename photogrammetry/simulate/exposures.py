@@ -20,8 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 import pymap3d
 
-from ..rotation import quat_to_dcm
-from .gnss import offset_ecef
+from ins.earth import offset_ecef
+from ins.rotation import quat_to_dcm
+
+from ..rotation import camera_attitude, dcm_mn_enu, matrix_to_angles
 
 __all__ = ["TrueExposures", "event_times", "true_exposures", "enu_of_ecef"]
 
@@ -61,7 +63,6 @@ class TrueExposures:
 
     def angles(self, system, degrees=False):
         """Angles of ``C_mc`` in a named system (order of its name), shape (n, 3)."""
-        from photogrammetry.rotation import matrix_to_angles
         return matrix_to_angles(self.C_mc, system, degrees=degrees)
 
 
@@ -110,6 +111,7 @@ def true_exposures(truth, image_id, strip, time, C_bc, lever_b, origin_lla):
     Parameters
     ----------
     truth : ins.simulate.truth.FlightTruth
+        The true trajectory (evaluated at ``time``).
     image_id, strip, time
         From :func:`event_times`.
     C_bc : array_like, shape (3, 3)
@@ -123,7 +125,6 @@ def true_exposures(truth, image_id, strip, time, C_bc, lever_b, origin_lla):
     -------
     TrueExposures
     """
-    from photogrammetry.rotation import camera_attitude, dcm_mn_enu
     origin_lla = np.asarray(origin_lla, dtype=float)
     sample = truth.evaluate(np.asarray(time, dtype=float))
     lla = np.atleast_2d(sample.lla)

@@ -25,7 +25,7 @@ class TiePoints:
     Attributes
     ----------
     image_index : ndarray of int, shape (m,)
-        Exposure (row of the :class:`~ins.simulate.exposures.TrueExposures`) of each
+        Exposure (row of the :class:`~photogrammetry.simulate.exposures.TrueExposures`) of each
         observation.
     point_id : ndarray of int, shape (m,)
         Ground point of each observation (1-based ids).
@@ -124,11 +124,11 @@ def simulate_tiepoints(exposures, camera, terrain, per_image, sigma_px, rng, mar
 
     Parameters
     ----------
-    exposures : ins.simulate.exposures.TrueExposures
+    exposures : photogrammetry.simulate.exposures.TrueExposures
         True EO (mapping frame).
     camera : photogrammetry.camera.FrameCamera
         Focal length, pixel size, format, principal point, distortion.
-    terrain : ins.simulate.terrain.Terrain
+    terrain : photogrammetry.simulate.terrain.Terrain
     per_image : int
         Target number of ground points per image footprint.
     sigma_px : float

@@ -1,0 +1,292 @@
+"""The architecture as a test (issue 13, items 1 and 2): ``ins`` sits below
+``photogrammetry`` with no way back, the subpackages depend on each other only as
+listed in :data:`GRAPH`, and no module reaches a private name (leading underscore) of
+another package or subpackage.
+
+Every module of both packages is parsed with :mod:`ast` (nothing is imported): all
+import statements at any level (also inside functions and ``if`` blocks), the string
+arguments of ``importlib.import_module`` / ``__import__``, string constants that name a
+module of the upper package (a list of command modules, an entry point written in code),
+and attribute access to a private name through an imported module
+(``from ins import rotation; rotation._as_stack``).  Private members of classes
+(``ImuLog._adopt``) are not covered.
+"""
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("ins", "photogrammetry")
+#: The lower package and the upper one: ``ins`` never imports ``photogrammetry``.
+LOWER, UPPER = "ins", "photogrammetry"
+
+#: The import graph between subpackages (importer -> imported), edges inside one
+#: subpackage left out.  A new edge is a design decision: add it here, or move the code.
+GRAPH = {
+    "ins": set(),                            # the base: numpy, scipy, numba ... only
+    "ins.simulate": {"ins"},                 # flight plan, truth, IMU, GNSS, mount
+    "photogrammetry": {"ins", "photogrammetry.lunar"},        # cli_lunar runs lunar
+    "photogrammetry.lunar": {"ins"},
+    "photogrammetry.simulate": {"ins", "ins.simulate", "photogrammetry"},   # the images
+}
+
+#: Private modules of one package that others may still import.
+ALLOWED_PRIVATE = {
+    "ins._textio",      # to be split into public modules in issue 13 item 4
+}
+
+
+# ---------------------------------------------------------------------------------------
+# the scanner
+
+def _module_files():
+    """(module name, own package, path) of every module of :data:`PACKAGES`."""
+    for top in PACKAGES:
+        for path in sorted((ROOT / top).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+                yield ".".join(parts), ".".join(parts), path
+            else:
+                yield ".".join(parts), ".".join(parts[:-1]), path
+
+
+def _is_package(dotted):
+    return (ROOT.joinpath(*dotted.split(".")) / "__init__.py").is_file()
+
+
+def _is_module(dotted):
+    return _is_package(dotted) or ROOT.joinpath(*dotted.split(".")).with_suffix(".py").is_file()
+
+
+def package_of(dotted):
+    """The subpackage that holds the module, package or attribute ``dotted``, or None
+    outside :data:`PACKAGES` (numpy, the standard library)."""
+    if dotted.split(".")[0] not in PACKAGES:
+        return None
+    parts = dotted.split(".")
+    while parts and not _is_module(".".join(parts)):
+        parts.pop()                                   # an attribute: its module's
+    name = ".".join(parts)
+    return name if _is_package(name) else ".".join(parts[:-1])
+
+
+def _resolve(name, level, package):
+    """Absolute name of ``from <level dots><name>`` in a module of ``package``."""
+    if not level:
+        return name
+    base = package.split(".")
+    base = base[:len(base) - (level - 1)]
+    return ".".join(base + ([name] if name else []))
+
+
+def _call_name(func):
+    if isinstance(func, ast.Name):
+        return func.id
+    if isinstance(func, ast.Attribute):
+        return func.attr
+    return None
+
+
+def _docstrings(tree):
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef,
+                             ast.ClassDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                found.add(id(first.value))
+    return found
+
+
+def references(source, package):
+    """(line, dotted name, how) of every module or name that ``source`` (a module of
+    ``package``) imports or names, at any level of the code."""
+    tree = ast.parse(source)
+    docstrings = _docstrings(tree)
+    bound = {}                 # local name -> the imported module or name it stands for
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                found.append((node.lineno, a.name, "import"))
+                bound[a.asname or a.name.split(".")[0]] = a.name if a.asname else \
+                    a.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve(node.module, node.level, package)
+            for a in node.names:
+                target = f"{base}.{a.name}" if a.name != "*" else base
+                found.append((node.lineno, target, "from-import"))
+                bound[a.asname or a.name] = target
+        elif isinstance(node, ast.Call) and _call_name(node.func) in ("import_module",
+                                                                       "__import__"):
+            if node.args and isinstance(node.args[0], ast.Constant) \
+                    and isinstance(node.args[0].value, str):
+                text = node.args[0].value
+                level = len(text) - len(text.lstrip("."))
+                found.append((node.lineno, _resolve(text[level:], level, package),
+                              "import_module"))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and id(node) not in docstrings:
+            text = node.value.split(":")[0]
+            if text.split(".")[0] == UPPER and all(p.isidentifier() for p in text.split(".")):
+                found.append((node.lineno, text, "string"))
+    for node in ast.walk(tree):              # private attributes of imported modules
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                and node.value.id in bound and _private(node.attr) \
+                and _is_module(bound[node.value.id]):
+            found.append((node.lineno, f"{bound[node.value.id]}.{node.attr}", "attribute"))
+    return found
+
+
+def _private(part):
+    return part.startswith("_") and not (part.startswith("__") and part.endswith("__"))
+
+
+def private_owner(dotted):
+    """``(owner package, private prefix)`` of the first private part of ``dotted``
+    (``ins.cli._Progress`` -> ``("ins", "ins.cli._Progress")``), or None."""
+    parts = dotted.split(".")
+    for i, part in enumerate(parts):
+        if _private(part):
+            return package_of(".".join(parts[:i])), ".".join(parts[:i + 1])
+    return None
+
+
+def scan():
+    """{module: (own package, path, references)} of every module."""
+    return {name: (package, path, references(path.read_text(encoding="utf-8"), package))
+            for name, package, path in _module_files()}
+
+
+@pytest.fixture(scope="module")
+def modules():
+    return scan()
+
+
+# ---------------------------------------------------------------------------------------
+# the rules
+
+def test_ins_never_names_photogrammetry(modules):
+    bad = [f"{path.relative_to(ROOT)}:{line}: {how} {target}"
+           for name, (package, path, refs) in modules.items() if name.split(".")[0] == LOWER
+           for line, target, how in refs if target.split(".")[0] == UPPER]
+    assert not bad, "ins must not depend on photogrammetry:\n" + "\n".join(bad)
+
+
+def import_graph(modules):
+    """{importer subpackage: {imported subpackages}} of the scanned modules."""
+    graph = {}
+    for name, (package, path, refs) in modules.items():
+        for line, target, how in refs:
+            other = package_of(target)
+            if other is not None and other != package:
+                graph.setdefault(package, set()).add(other)
+    return graph
+
+
+def test_import_graph_is_the_listed_one(modules):
+    graph = import_graph(modules)
+    where = {}
+    for name, (package, path, refs) in modules.items():
+        for line, target, how in refs:
+            other = package_of(target)
+            if other is not None and other != package:
+                where.setdefault((package, other), f"{path.relative_to(ROOT)}:{line} {target}")
+    packages = {package for package, _, _ in modules.values()}
+    assert packages == set(GRAPH), f"subpackages not in GRAPH: {packages - set(GRAPH)}"
+    new = sorted((a, b) for a in graph for b in graph[a] - GRAPH.get(a, set()))
+    gone = sorted((a, b) for a in GRAPH for b in GRAPH[a] - graph.get(a, set()))
+    assert not new, "edges not in GRAPH (add them there or move the code):\n" + "\n".join(
+        f"{a} -> {b}  (first: {where[a, b]})" for a, b in new)
+    assert not gone, f"edges of GRAPH no module uses any more (remove them): {gone}"
+    for a, targets in graph.items():           # no way back from ins to photogrammetry
+        if a.split(".")[0] == LOWER:
+            assert all(b.split(".")[0] == LOWER for b in targets), (a, targets)
+
+
+def test_no_private_name_of_another_subpackage(modules):
+    bad, allowed_used = [], set()
+    for name, (package, path, refs) in modules.items():
+        for line, target, how in refs:
+            owner = private_owner(target)
+            if owner is None or owner[0] is None or owner[0] == package:
+                continue
+            if owner[1] in ALLOWED_PRIVATE:
+                allowed_used.add(owner[1])
+                continue
+            bad.append(f"{path.relative_to(ROOT)}:{line}: {how} {target} (private to "
+                       f"{owner[0]})")
+    assert not bad, "private names used across subpackages:\n" + "\n".join(bad)
+    assert allowed_used == ALLOWED_PRIVATE, \
+        f"allowed but no longer used (remove from ALLOWED_PRIVATE): {ALLOWED_PRIVATE - allowed_used}"
+
+
+# ---------------------------------------------------------------------------------------
+# the scanner finds what it must (so that the rules above can fail)
+
+SNIPPET = '''
+"""Docstring naming photogrammetry.camera, not an import."""
+import importlib
+import ins.rotation as rot
+from ins import rotation
+
+
+def f():
+    from photogrammetry.camera import read_camera
+    if True:
+        import photogrammetry.exposure
+    importlib.import_module("photogrammetry.rotation")
+    __import__("photogrammetry")
+    importlib.import_module(".cli_allan", "ins")
+    return rot._hidden, rotation.public
+
+
+MODULES = ["photogrammetry.cli_eo"]
+ENTRY = "photogrammetry.simulate.cli:add_parser"
+MESSAGE = "run photogrammetry eo first"
+
+
+class C:
+    def g(self):
+        from ..cli import _Progress
+        from . import _kernels
+        from .._textio import read_toml
+'''
+
+
+def test_scanner_finds_imports_at_every_level():
+    refs = references(SNIPPET, "ins.simulate")
+    targets = {(target, how) for _, target, how in refs}
+    for expected in [("photogrammetry.camera.read_camera", "from-import"),
+                     ("photogrammetry.exposure", "import"),
+                     ("photogrammetry.rotation", "import_module"),
+                     ("photogrammetry", "import_module"),
+                     ("photogrammetry.cli_eo", "string"),
+                     ("photogrammetry.simulate.cli", "string"),
+                     ("ins.rotation._hidden", "attribute"),
+                     ("ins.cli._Progress", "from-import"),
+                     ("ins.simulate._kernels", "from-import"),
+                     ("ins._textio.read_toml", "from-import")]:
+        assert expected in targets, expected
+    assert not any("Docstring" in t or "eo first" in t for t, _ in targets)
+    assert ("ins.rotation.public", "attribute") not in targets        # not private
+    assert ("photogrammetry.camera", "string") not in targets         # the docstring
+
+
+def test_private_owner_and_package_of():
+    assert package_of("ins.cli._Progress") == "ins"
+    assert package_of("ins.simulate.folder.simulate_flight") == "ins.simulate"
+    assert package_of("ins.simulate") == "ins.simulate"
+    assert package_of("photogrammetry.lunar.fisheye") == "photogrammetry.lunar"
+    assert package_of("numpy.linalg") is None
+    assert private_owner("ins.cli._Progress") == ("ins", "ins.cli._Progress")
+    assert private_owner("ins._textio.read_toml") == ("ins", "ins._textio")
+    assert private_owner("ins.simulate._kernels") == ("ins.simulate", "ins.simulate._kernels")
+    assert private_owner("ins.rotation.as_stack") is None
+    assert private_owner("ins.simulate.__init__") is None              # dunder: not private
+    # the private rule as it applies to the snippet's module (in ins.simulate)
+    cross = [t for _, t, _ in references(SNIPPET, "ins.simulate")
+             if private_owner(t) and private_owner(t)[0] != "ins.simulate"]
+    assert set(cross) == {"ins.rotation._hidden", "ins.cli._Progress", "ins._textio.read_toml"}
