@@ -220,7 +220,7 @@ def test_no_private_name_of_another_subpackage(modules):
                        f"{owner[0]})")
     assert not bad, "private names used across subpackages:\n" + "\n".join(bad)
     assert allowed_used == ALLOWED_PRIVATE, \
-        f"allowed but no longer used (remove from ALLOWED_PRIVATE): {ALLOWED_PRIVATE - allowed_used}"
+        f"no longer used (remove from ALLOWED_PRIVATE): {ALLOWED_PRIVATE - allowed_used}"
 
 
 # ---------------------------------------------------------------------------------------

@@ -263,3 +263,81 @@ def test_failure_keeps_the_old_folder(tmp_path, monkeypatch):
         simulate_flight(PLAN, out, seed=1, force=True)
     assert [p.name for p in out.iterdir()] == ["old.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["f"]
+
+
+# ---------------------------------------------------------------------------------------
+# the split: INS products in ins.simulate, image products in photogrammetry.simulate
+
+def test_ins_part_alone_is_the_ins_part_of_the_whole(flight, tmp_path):
+    """ins.simulate.folder.simulate_flight without product writers writes the INS files
+    of the complete folder byte for byte, a manifest holding exactly its INS entries, and
+    a folder that ins process reads."""
+    from ins.process import config_from_manifest
+    from ins.simulate import folder as ins_folder
+    folder, _ = flight
+    alone = ins_folder.simulate_flight(PLAN, tmp_path / "ins", seed=11)
+    names = sorted(p.name for p in alone.iterdir())
+    assert names == ["gnss.txt", "imu.txt", "manifest.toml", "mount.txt", "plan.toml",
+                     "truth.nav"]
+    for name in names:
+        if name != "manifest.toml":
+            assert (alone / name).read_bytes() == (folder / name).read_bytes(), name
+    part = tomllib.loads((alone / "manifest.toml").read_text())
+    whole = tomllib.loads((folder / "manifest.toml").read_text())
+    images = {"flight": {"n_images", "n_tiepoint_observations"},
+              "files": {"events", "camera", "eo_true", "eo_true_omega_phi_kappa",
+                        "tiepoints", "ground_points"},
+              "frames": {"c", "m"}}
+    assert set(whole) - set(part) == {"mapping_frame", "tie_points"}
+    for table, value in part.items():
+        if isinstance(value, dict):
+            assert set(whole[table]) - set(value) == images.get(table, set()), table
+            assert all(whole[table][k] == v for k, v in value.items()), table
+        else:
+            assert whole[table] == value
+    cfg = config_from_manifest(str(alone))
+    assert (cfg.imu, cfg.gnss, cfg.mount) == tuple(str(alone / n) for n in
+                                                   ("imu.txt", "gnss.txt", "mount.txt"))
+
+
+def test_manifest_layout_is_the_formats(flight):
+    """Tables and frames in the order of the format (as written before the split)."""
+    folder, _ = flight
+    text = (folder / "manifest.toml").read_text()
+    tables = [line.strip("[]") for line in text.splitlines() if line.startswith("[")]
+    assert tables == ["flight", "files", "frames", "mapping_frame", "lever_arm", "mount",
+                      "imu", "gnss", "tie_points", "initial", "stationary"]
+    manifest = tomllib.loads(text)
+    assert list(manifest["frames"]) == ["imu", "n", "a", "c", "m", "gnss", "truth", "mount"]
+    assert list(manifest["files"]) == list(FILES)
+    assert list(manifest["flight"])[-2:] == ["n_images", "n_tiepoint_observations"]
+
+
+def test_manifest_merge():
+    from ins.simulate.manifest import merge
+    base = {"format": "f", "files": {"imu": "imu.txt"}, "frames": {"imu": "FRD", "gnss": "g"}}
+    out = merge(base, {"extra": {"a": 1}},
+                {"files": {"events": "events.csv"}, "frames": {"m": "ENU"},
+                 "tie_points": {"sigma_px": 0.5}})
+    assert list(out) == ["format", "files", "frames", "tie_points", "extra"]
+    assert list(out["files"]) == ["imu", "events"]
+    assert list(out["frames"]) == ["imu", "m", "gnss"]
+    assert base == {"format": "f", "files": {"imu": "imu.txt"},                 # untouched
+                    "frames": {"imu": "FRD", "gnss": "g"}}
+    with pytest.raises(ValueError, match=r"\[files\] imu written twice"):
+        merge(base, {"files": {"imu": "other.txt"}})
+    with pytest.raises(ValueError, match="not a table"):
+        merge(base, {"format": {"x": 1}})
+
+
+def test_ins_simulate_comes_from_the_entry_point_group():
+    """``ins simulate`` is photogrammetry's command, found through ``ins.commands``."""
+    import argparse
+
+    from ins import cli
+    found = {ep.name: ep.value for ep in cli.command_entry_points()}
+    assert found.get("simulate") == "photogrammetry.simulate.cli:add_parser"
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    func = sub.choices["simulate"].get_default("func")
+    assert func.__module__ == "photogrammetry.simulate.cli"

@@ -25,8 +25,8 @@ class TiePoints:
     Attributes
     ----------
     image_index : ndarray of int, shape (m,)
-        Exposure (row of the :class:`~photogrammetry.simulate.exposures.TrueExposures`) of each
-        observation.
+        Exposure of each observation (row of the
+        :class:`~photogrammetry.simulate.exposures.TrueExposures`).
     point_id : ndarray of int, shape (m,)
         Ground point of each observation (1-based ids).
     xy_mm : ndarray, shape (m, 2)
