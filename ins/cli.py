@@ -40,10 +40,6 @@ from .errors import InputError, InputWarning, QualityError
 EXIT_QUALITY = 3
 EXIT_INTERRUPTED = 130
 
-#: Former private name, kept for ``ins.cli_process`` (same package); new code uses
-#: :class:`ins.cliutil.Progress`.
-_Progress = Progress
-
 
 MECHANIZE_EPILOG = """\
 frames and units:

@@ -129,12 +129,12 @@ def _from_args(args, load_config, path):
 
 
 def _cmd_process(args):
-    from .cli import _Progress
+    from .cliutil import Progress
     from .fileio import output_folder
     from .process import process, write_outputs
     t0 = wallclock.perf_counter()
     cfg = _config(args)
-    progress = _Progress("process", not args.quiet)
+    progress = Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
     # the run is built in a hidden sibling of OUT_DIR and swapped in whole at the end;
     # on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is written
