@@ -13,13 +13,16 @@ given).  Timing: wall time per pair on one core (ours: all pairs in one batched 
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from photogrammetry import _scenario as sc
 from photogrammetry.rotation import C_CV_C, angles_to_matrix
 
-sys.path.insert(0, __file__.rsplit("/", 1)[0])
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+import scenario as sc  # noqa: E402  (test scaffolding: tests/scenario.py)
 from refine_scenario import bound_axis, rms_axis, run_pairs  # noqa: E402
 
 

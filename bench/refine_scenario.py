@@ -8,20 +8,23 @@ Scenario: frame camera f = 10 000 px (100 mm, 0.01 mm pixels, 8000 x 6000), flyi
 1000 m, relief +-50 m, 60 % forward overlap, true angles within +-3 deg, photo noise
 0.5 px, INS prior noise 0.005 rad; image 1 of each pair carries its true angles.  Errors
 and bounds are RMS per rotation axis of image 2 (arcsec).  Generator and bound:
-``photogrammetry._scenario`` (also used by the tests).
+``tests/scenario.py`` (test scaffolding, also used by the tests).
 """
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ins.rotation import wrap_to_pi
-from photogrammetry import _scenario as sc
 from photogrammetry.assessment import assess
 from photogrammetry.block import adjust_block
 from photogrammetry.coplanarity import adjust_pairs
 from photogrammetry.rotation import angles_to_matrix
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import scenario as sc  # noqa: E402  (test scaffolding: tests/scenario.py)
 
 AS = 180 / np.pi * 3600
 

@@ -22,7 +22,7 @@ robustness against the nonlinear, geometry-made combinations.  The bases of the 
 methods start from each pair's screening (image i at its INS angles): the iterations
 weight the conditions one by one until the steps are small, then jointly.  Without ids
 each condition is weighted on its own (the covariance is then optimistic by about 1.2x
-in sigma on the blocks of ``_scenario.make_block``: chi-square per angle 1.3-1.6).
+in sigma on the blocks of ``tests/scenario.py``: chi-square per angle 1.3-1.6).
 
 Datum (the coplanarity conditions fix the angles only up to a common rotation unless the
 bases are known): ``"first"`` holds the first image's angles at their prior (the paper's

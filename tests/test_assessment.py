@@ -3,10 +3,11 @@ injected INS noise and boresight are known."""
 import numpy as np
 import pytest
 
-from photogrammetry import _scenario as sc
 from photogrammetry.assessment import assess
 from photogrammetry.block import adjust_block
 from photogrammetry.report import report_text
+
+import scenario as sc
 
 
 @pytest.fixture(scope="module")

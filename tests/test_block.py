@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from ins.errors import InputError
-from photogrammetry import _scenario as sc
 from photogrammetry._coplanarity_kernels import rotation_and_axes
 from photogrammetry.block import adjust_block
 from photogrammetry.coplanarity import adjust_pairs
 from photogrammetry.rotation import angles_to_matrix
+
+import scenario as sc
 
 
 @pytest.fixture(scope="module")

@@ -7,10 +7,11 @@ from scipy.spatial.transform import Rotation
 from ins.errors import InputError
 from ins.rotation import skew
 from photogrammetry import _coplanarity_kernels as K
-from photogrammetry import _scenario as sc
 from photogrammetry.coplanarity import (_paper_terms, adjust_pair, adjust_pairs,
                                         pencil_determinants)
 from photogrammetry.rotation import angles_to_matrix
+
+import scenario as sc
 
 ARCSEC = np.pi / 180 / 3600
 

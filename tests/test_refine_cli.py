@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from ins.errors import InputError
-from photogrammetry import _scenario as sc
 from photogrammetry.batch import refine, refine_many
 from photogrammetry.camera import read_camera
 from photogrammetry.cli import main
 from photogrammetry.exposure import read_eo_csv
 from photogrammetry.rotation import angles_to_matrix
 from photogrammetry.tiepoints import read_tiepoints
+
+import scenario as sc
 
 
 @pytest.fixture(scope="module")

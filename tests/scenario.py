@@ -1,17 +1,18 @@
 """Synthetic stereo pairs with known truth, and the Cramer-Rao bound of their angles.
 
-Used by the tests (small sizes) and by ``bench/refine_scenario.py`` (the full scenario of
-issue 6): a frame camera (f = 10 000 px), near-nadir images at flying height ``H`` over a
-terrain of relief +-``relief_m``, 60 % forward overlap along the mapping x axis, true
-angles within +-3 deg, photo-coordinate noise, INS priors with noise.  Image 1 of every
-pair carries its TRUE angles (the known image of the paper); image 2's prior is noisy.
-The mapping frame is ENU-like: a ray ``(x, y, -f)`` of a level camera points down.
+Test scaffolding, not part of the library: used by the tests (small sizes) and by
+``bench/refine_scenario.py`` and ``bench/bench_refine.py`` (the full scenario of issue 6;
+they put ``tests/`` on ``sys.path``).  A frame camera (f = 10 000 px), near-nadir images
+at flying height ``H`` over a terrain of relief +-``relief_m``, 60 % forward overlap
+along the mapping x axis, true angles within +-3 deg, photo-coordinate noise, INS priors
+with noise.  Image 1 of every pair carries its TRUE angles (the known image of the
+paper); image 2's prior is noisy.  The mapping frame is ENU-like: a ray ``(x, y, -f)``
+of a level camera points down.
 """
 import numpy as np
 
 from ins.rotation import dcm_to_rotvec, rotvec_to_dcm
-
-from .rotation import angles_to_matrix
+from photogrammetry.rotation import angles_to_matrix
 
 SYSTEM = "phi-omega-kappa"
 
@@ -148,7 +149,7 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
     of each pair's points], ``ins_noise`` (m, 3) injected,
     ``boresight`` (3,), ``f_mm``, ``sigma_mm``, ``system``, ``obs`` {image: (ids, xy)}.
     """
-    from .rotation import boresight_matrix, matrix_to_angles
+    from photogrammetry.rotation import boresight_matrix, matrix_to_angles
     rng = np.random.default_rng(seed)
     f_mm = f_px * pixel_mm
     scale = height_m / f_mm
@@ -209,8 +210,8 @@ def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None
     """
     import os
 
-    from .camera import FrameCamera, write_camera
-    from .exposure import ExposureOrientation, write_eo_csv
+    from photogrammetry.camera import FrameCamera, write_camera
+    from photogrammetry.exposure import ExposureOrientation, write_eo_csv
     m = len(block["prior"])
     ids = [f"img{i:03d}" for i in range(m)]
     pixel = block["pixel_mm"]
