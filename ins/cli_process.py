@@ -153,7 +153,7 @@ def _cmd_process(args):
             names = write_outputs(result, stage, week=args.week, forward=args.forward)
             if not args.no_plots:
                 from .plots import write_plots
-                names += write_plots(result, stage)
+                names += write_plots(result, stage, flight_dir=args.flight_dir)
         t2 = wallclock.perf_counter()
     paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
     if not args.quiet:

@@ -1,0 +1,163 @@
+"""The PNG plots of ``ins process`` (ins.plots) and the shared style (ins.plotstyle):
+titles, labels with units that fit the values, one time-axis convention, legends
+outside the data, y-limits not set by the start transient, injected biases beside
+the estimates.  The Figure objects are inspected, not the pixels."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from ins import plots, plotstyle
+from ins.plotstyle import ARCSEC
+
+T0 = 345600.0
+
+
+def _result(with_errors=True):
+    """A processing result shaped like ins.process.ProcessResult: 400 s of nodes, cm
+    level position sigmas, a forward filter that starts 1000 times worse (the first
+    10 s), known biases."""
+    rng = np.random.default_rng(3)
+    t = T0 + np.arange(0.0, 400.0, 1.0)
+    n = t.size
+    boost = np.where(t - T0 < 10.0, 1000.0, 1.0)[:, None]
+    std = np.empty((n, 21))
+    std[:, 0:3] = 0.008
+    std[:, 3:6] = 0.002
+    std[:, 6:9] = 30 * ARCSEC
+    std[:, 9:] = 1e-6
+    fwd_std = std * 2 * boost
+    sensors = np.zeros((n, 12))
+    sensors[:, 0:3] = np.array([1.0, -0.8, 0.6]) * np.pi / 180 / 3600
+    sensors[:, 3:6] = np.array([1000.0, -800.0, 600.0]) * 1e-5
+    res = SimpleNamespace(node_time=t, forward_std=fwd_std, smoothed_std=std,
+                          forward_sensors=sensors * boost, smoothed_sensors=sensors,
+                          errors_forward=None, errors_smoothed=None)
+    if with_errors:
+        te = T0 + np.arange(0.0, 400.0, 0.1)
+        big = np.where(te - T0 < 10.0, 500.0, 1.0)[:, None]
+        def err(scale):
+            return SimpleNamespace(time=te,
+                                   pos_n=scale * 0.006 * rng.standard_normal((te.size, 3)),
+                                   att_n=scale * 20 * ARCSEC * rng.standard_normal((te.size, 3)))
+        res.errors_smoothed = err(1.0)
+        res.errors_forward = err(2.0 * big)
+    return res
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the plot functions save (the PNG is still written)."""
+    saved = {}
+    real = plots.save_png
+
+    def keep(fig, path, **kw):
+        saved[path] = fig
+        return real(fig, path, **kw)
+    monkeypatch.setattr(plots, "save_png", keep)
+    return saved
+
+
+def _outside(fig, ax, legend):
+    fig.canvas.draw()
+    a, b = ax.get_window_extent(), legend.get_window_extent()
+    return b.x0 >= a.x1 or b.x1 <= a.x0 or b.y0 >= a.y1 or b.y1 <= a.y0
+
+
+def _png(path):
+    with open(path, "rb") as f:
+        return f.read(8) == b"\x89PNG\r\n\x1a\n"
+
+
+def test_errors_plot_units_titles_limits(tmp_path, figures):
+    res = _result()
+    path = plots.plot_errors(res, str(tmp_path / "errors.png"))
+    assert _png(path)
+    fig = figures[path]
+    axes = fig.axes
+    assert "Trajectory errors" in fig._suptitle.get_text()
+    assert f"{T0:.3f}" in fig._suptitle.get_text()        # the time origin, stated once
+    labels = [ax.get_ylabel() for ax in axes]
+    assert labels == ["north error, mm", "east error, mm", "down error, mm",
+                      "tilt N error, arcsec", "tilt E error, arcsec", "heading error, arcsec"]
+    assert axes[-1].get_xlabel().startswith("time since start, s")
+    for ax in axes:
+        lo, hi = ax.get_ylim()
+        # smoothed 3 sigma = 24 mm / 90 arcsec, the smoothed errors ~ 4 sigma of 6 mm /
+        # 20 arcsec; the forward transient (x 1000) must not set the limits
+        assert 20 < hi < 60 if "mm" in ax.get_ylabel() else 80 < hi < 200
+        assert lo == pytest.approx(-hi)
+        leg = ax.get_legend()
+        assert leg is not None and _outside(fig, ax, leg)
+        assert "clipped" in leg.get_texts()[0].get_text()
+
+
+def test_sigma_plot_units_and_transient(tmp_path, figures):
+    res = _result(with_errors=False)
+    path = plots.plot_sigma(res, str(tmp_path / "sigma.png"))
+    assert _png(path)
+    fig = figures[path]
+    pos, vel, att = fig.axes
+    assert pos.get_ylabel() == "position sigma, mm"
+    assert vel.get_ylabel() == "velocity sigma, mm/s"
+    assert att.get_ylabel() == "attitude sigma, arcsec"
+    assert "heading forward" in [t.get_text() for t in att.get_legend().get_texts()]
+    assert not any(t.get_text().startswith("D ") for t in att.get_legend().get_texts())
+    # forward sigma after the transient: 16 mm, 4 mm/s, 60 arcsec; the first 10 s are
+    # 1000 times larger and must lie above the limits
+    for ax, top in ((pos, 16), (vel, 4), (att, 60)):
+        lo, hi = ax.get_ylim()
+        assert top < hi < 3 * top
+        assert _outside(fig, ax, ax.get_legend())
+    assert "Standard deviations" in fig._suptitle.get_text()
+
+
+def test_bias_plot_truth_beside_estimates(tmp_path, figures):
+    flight = tmp_path / "flight"
+    flight.mkdir()
+    (flight / "manifest.toml").write_text(
+        "[imu]\ngyro_bias_dph = [1.0, -0.8, 0.6]\naccel_bias_mgal = [1000.0, -800.0, 600.0]\n")
+    inj = plots.injected_biases(str(flight))
+    np.testing.assert_array_equal(inj["gyro_bias_dph"], [1.0, -0.8, 0.6])
+    assert plots.injected_biases(str(tmp_path)) is None            # no manifest
+    res = _result(with_errors=False)
+    paths = plots.write_plots(res, str(tmp_path), flight_dir=str(flight))
+    fig = figures[str(tmp_path / "biases.png")]
+    gyro, accel = fig.axes
+    assert gyro.get_ylabel() == "gyro bias, deg/h" and accel.get_ylabel() == "accel bias, mGal"
+    for ax, truth in ((gyro, [1.0, -0.8, 0.6]), (accel, [1000.0, -800.0, 600.0])):
+        lines = {ln.get_label(): ln for ln in ax.get_lines()}
+        for axis, value in zip("xyz", truth):
+            ln = lines[f"{axis} injected (manifest)"]
+            assert np.allclose(ln.get_ydata(), value)
+            # the smoothed estimate equals the truth here: on top of it
+            assert np.allclose(lines[f"{axis} smoothed"].get_ydata(), value)
+        lo, hi = ax.get_ylim()
+        assert lo < min(truth) and hi > max(truth) and hi < 1.5 * max(np.abs(truth))
+        assert _outside(fig, ax, ax.get_legend())
+    assert "injected" in fig._suptitle.get_text()
+    assert [p.rsplit("/", 1)[1] for p in paths] == ["sigma.png", "biases.png"]   # no truth
+
+
+def test_length_unit_fits_values():
+    assert plotstyle.length_unit([0.025, -0.01]) == (1000.0, "mm")
+    assert plotstyle.length_unit([0.3]) == (100.0, "cm")
+    assert plotstyle.length_unit([12.0]) == (1.0, "m")
+
+
+def test_robust_limits_leave_out_transient():
+    t = np.arange(0.0, 300.0)
+    y = np.where(t < 60, 1e3, np.sin(t))
+    lo, hi = plotstyle.robust_limits(t, [y], margin=0.0)
+    assert -1.0 <= lo < -0.99 and 0.99 < hi <= 1.0
+    lo, hi = plotstyle.robust_limits(t, [np.column_stack([y, 2 * y])], symmetric=True,
+                                     margin=0.0)
+    assert hi == pytest.approx(2 * np.abs(np.sin(t[60:])).max())
+
+
+def test_strip_starts():
+    ids = [f"S{s:02d}_{k:03d}" for s in (1, 2, 3) for k in range(1, 5)]
+    assert plotstyle.strip_starts(ids) == [4, 8]
+    heading = np.deg2rad([90, 91, 89, 270, 271, 90])
+    assert plotstyle.strip_starts([str(i) for i in range(6)], heading_rad=heading) == [3, 5]
+    assert plotstyle.strip_starts(time_s=[0, 2, 4, 6, 60, 62, 64]) == [4]
