@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from ins import _textio, earth  # noqa: E402
+from ins import earth, textformat  # noqa: E402
 from ins.gnss import GnssLog, write_gnss  # noqa: E402
 from ins.imu import DPH, MGAL  # noqa: E402
 
@@ -63,7 +63,7 @@ def write_imu(path, n, rate_hz, fmt, chunk, seed=1):
             if fmt == "bin":
                 out.write(np.ascontiguousarray(table, "<f8").tobytes())
             else:
-                out.write(_textio.format_table(table, decimals).data)
+                out.write(textformat.format_table(table, decimals).data)
     return os.path.getsize(path)
 
 

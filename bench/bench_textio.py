@@ -2,7 +2,7 @@
 
 Reads the shared benchmark's IMU log (302 001 lines x 7 columns, 48 MB of text, 18-digit
 numbers) and GNSS log with:
-- ours: ``ins._textio.read_table`` (whole table, blocks of 16 MiB) and ``iter_table``
+- ours: ``ins.textfiles.read_table`` (whole table, blocks of 16 MiB) and ``iter_table``
   (streaming);
 - pandas' C engine (``float_precision="round_trip"`` before pandas 3, the default
   since), whole and in chunks;
@@ -55,17 +55,17 @@ def exact_reference(path, rows=20000):
 
 
 def readers(ncols):
-    from ins import _textio
+    from ins import textfiles
     import pandas as pd
     import pyarrow.csv as pacsv
 
     names = [f"c{i}" for i in range(ncols)]
 
     def ours(p):
-        return _textio.read_table(p, ncols, ncols)[0]
+        return textfiles.read_table(p, ncols, ncols)[0]
 
     def ours_stream(p):
-        return np.concatenate([v for v, _ in _textio.iter_table(p, ncols, ncols)])
+        return np.concatenate([v for v, _ in textfiles.iter_table(p, ncols, ncols)])
 
     exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
 
@@ -140,11 +140,11 @@ def bench_reads(path, ncols, repeat, tmpdir):
 
 
 def bench_writes(values, decimals, repeat):
-    from ins import _textio
+    from ins import textformat
     import pandas as pd
     dec = np.array(decimals, dtype=np.int64)
     fmt = " ".join(f"%.{d}f" for d in decimals)
-    ours = _textio.format_fixed(values, dec).tobytes()
+    ours = textformat.format_fixed(values, dec).tobytes()
 
     def numpy_savetxt():
         b = io.BytesIO()
@@ -159,7 +159,7 @@ def bench_writes(values, decimals, repeat):
 
     print(f"\nwriting {values.shape[0]} x {values.shape[1]} values, decimals {decimals}")
     print(f"{'writer':<32}{'time s':>8}  same bytes as Python's % formatting")
-    t, _ = best_of(lambda: _textio.format_fixed(values, dec).tobytes(), repeat)
+    t, _ = best_of(lambda: textformat.format_fixed(values, dec).tobytes(), repeat)
     ref_head = "\n".join(fmt % tuple(r) for r in values[:2000]).encode()
     print(f"{'ours format_fixed':<32}{t:>8.3f}  {ours.startswith(ref_head)}")
     t, out = best_of(numpy_savetxt, repeat)
@@ -176,12 +176,12 @@ def main():
     if data is None:
         print("shared benchmark dataset unavailable (../shared/bench/ins missing)")
         return 0
-    from ins import _textio
-    _textio.read_table(data / "gnss.txt", 7, 7)            # compile / warm the kernels
+    from ins import textfiles
+    textfiles.read_table(data / "gnss.txt", 7, 7)            # compile / warm the kernels
     with tempfile.TemporaryDirectory() as tmpdir:
         bench_reads(data / "imu_noisy.txt", 7, args.repeat, tmpdir)
         bench_reads(data / "gnss.txt", 7, args.repeat, tmpdir)
-    nav = _textio.read_table(data / "truth.nav", 11, 11)[0]
+    nav = textfiles.read_table(data / "truth.nav", 11, 11)[0]
     bench_writes(nav[:, 1:], [3, 9, 9, 4, 4, 4, 4, 6, 6, 6], args.repeat)
     return 0
 

@@ -121,7 +121,7 @@ def _config(args):
 
 
 def _from_args(args, load_config, path):
-    from ._textio import read_toml
+    from .textfiles import read_toml
     has_files = "files" in read_toml(path, "a processing config (TOML)")
     if not has_files and not (args.imu and args.gnss):
         raise InputError("--imu and --gnss are required (the config has no [files])")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _textio
+from . import textfiles, textformat, textrows
 from .errors import InputError
 from .fileio import atomic_open
 
@@ -77,12 +77,12 @@ def read_gnss(path):
         deviation.
     """
     path_s = str(path)
-    rows, row_line = _textio.read_table(path, ncols_min=7, ncols_max=13, hint=_HINT)
+    rows, row_line = textfiles.read_table(path, ncols_min=7, ncols_max=13, hint=_HINT)
     ncols = rows.shape[1]
     if ncols not in (7, 13):
         raise InputError(f"{ncols} columns: expected 7 (position) or 13 (position and "
                          f"velocity) ({_HINT})", path=path_s, line=int(row_line[0]))
-    _textio.check_rows(rows, row_line, path_s)
+    textrows.check_rows(rows, row_line, path_s)
     lat_bad = np.flatnonzero(np.abs(rows[:, 1]) > 90.0)
     if lat_bad.size:
         k = lat_bad[0]
@@ -114,7 +114,7 @@ def write_gnss(path, log):
     table = np.column_stack(cols)
     if not np.all(np.isfinite(table)):
         raise ValueError("GNSS log holds a non-finite value; not written")
-    text = _textio.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
+    text = textformat.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
     with atomic_open(path, "wb") as f:
         f.write(text)
     return len(table)

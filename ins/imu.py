@@ -58,7 +58,7 @@ from functools import cached_property
 
 import numpy as np
 
-from . import _textio
+from . import textfiles, textformat, textparse
 from .errors import InputError, InputWarning
 from .fileio import atomic_open
 
@@ -459,8 +459,8 @@ _RATES_HINT = "read them with rates=True (command line: --rates)"
 # readers
 
 def _parse_error(path, buf, res, ncols_min, ncols_max, names, layout):
-    msg = _textio.table_error_message(res, buf, ncols_min, ncols_max, names)
-    if res.status == _textio.TOO_FEW_COLUMNS or msg.startswith("binary data"):
+    msg = textparse.table_error_message(res, buf, ncols_min, ncols_max, names)
+    if res.status == textparse.TOO_FEW_COLUMNS or msg.startswith("binary data"):
         msg += f" ({layout})"
     return InputError(msg, path=os.fspath(path), line=res.err_line or None)
 
@@ -494,7 +494,7 @@ def read_kfgins_text(path, axes="FRD", rates=False):
     names = _KFGINS_RATE_NAMES if rates else _KFGINS_NAMES
     layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
               else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
-    values, row_line = _textio.read_table(path, 7, 1 << 30, column_names=names, hint=layout)
+    values, row_line = textfiles.read_table(path, 7, 1 << 30, column_names=names, hint=layout)
     return _finish(path, values, range(7), names, None, row_line, rates, axes, _RATES_HINT)
 
 
@@ -633,7 +633,7 @@ def read_csv(path, axes="FRD", rates=None):
     """
     axes = _check_axes(axes)
     path_s = os.fspath(path)
-    buf = _textio.file_buffer(path_s)
+    buf = textfiles.file_buffer(path_s)
     hline, names = _csv_header(path_s, buf)
     found = {}       # (quantity, axis) -> (column index, factor)
     for j, raw in enumerate(names):
@@ -677,7 +677,7 @@ def read_csv(path, axes="FRD", rates=None):
     has_inc = any(k[0] in _CSV_INCREMENTS for k in found)
     has_rate = any(k[0] in _CSV_RATES for k in found)
     if ("time", "") not in found:
-        if names and all(_textio.is_number(c) for c in names):
+        if names and all(textparse.is_number(c) for c in names):
             raise InputError("no header line: a CSV IMU file starts with a header like "
                              "time_s,dtheta_x_rad,...,dvel_z_mps (for a KF-GINS text file "
                              "without header use format 'kfgins')", path=path_s, line=hline)
@@ -702,11 +702,11 @@ def read_csv(path, axes="FRD", rates=None):
     cols = [found[k][0] for k in order]
     scale = [found[k][1] for k in order]
     ncols = len(names)
-    res = _textio.parse_table(buf, ncols, ncols, skip_header_lines=hline)
-    if res.status != _textio.OK:
-        if res.status == _textio.NO_DATA:
+    res = textparse.parse_table(buf, ncols, ncols, skip_header_lines=hline)
+    if res.status != textparse.OK:
+        if res.status == textparse.NO_DATA:
             raise InputError("no data lines after the header", path=path_s, line=hline)
-        if res.status in (_textio.TOO_FEW_COLUMNS, _textio.TOO_MANY_COLUMNS):
+        if res.status in (textparse.TOO_FEW_COLUMNS, textparse.TOO_MANY_COLUMNS):
             raise InputError(f"{res.err_col} columns, but the header (line {hline}) names "
                              f"{ncols}", path=path_s, line=res.err_line)
         raise _parse_error(path_s, buf, res, ncols, ncols, names, "")
@@ -765,7 +765,7 @@ def _table(log):
 
 def _decimals(table):
     """Time: the fewest decimals (3..9) that read back exactly, else %.17e; rest %.17e."""
-    d_time = _textio.roundtrip_decimals(table[:, 0], max_decimals=9, min_decimals=3)
+    d_time = textformat.roundtrip_decimals(table[:, 0], max_decimals=9, min_decimals=3)
     return np.array([d_time] + [-1] * 6, dtype=np.int64)
 
 
@@ -783,7 +783,7 @@ def write_kfgins_text(path, log):
         Number of epochs written.
     """
     table = _table(log)
-    text = _textio.format_table(table, _decimals(table))
+    text = textformat.format_table(table, _decimals(table))
     with atomic_open(path, "wb") as f:
         f.write(text.data)
     return table.shape[0]
@@ -801,7 +801,7 @@ def write_csv(path, log):
         Number of epochs written.
     """
     table = _table(log)
-    text = _textio.format_table(table, _decimals(table), sep=",")
+    text = textformat.format_table(table, _decimals(table), sep=",")
     header = b"time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dvel_x_mps,dvel_y_mps,dvel_z_mps\n"
     with atomic_open(path, "wb") as f:
         f.write(header)

@@ -14,7 +14,7 @@ import threading
 
 import numpy as np
 
-from . import _textio
+from . import textfiles
 from . import imu as imu_mod
 from .errors import InputError
 
@@ -35,7 +35,7 @@ def _text_tables(path, rates):
     names = imu_mod._KFGINS_RATE_NAMES if rates else imu_mod._KFGINS_NAMES
     layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
               else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
-    for values, row_line in _textio.iter_table(path, 7, 1 << 30, column_names=names,
+    for values, row_line in textfiles.iter_table(path, 7, 1 << 30, column_names=names,
                                                hint=layout):
         yield values[:, :7], row_line
 

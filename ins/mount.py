@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _textio
+from . import textfiles, textrows
 from .errors import InputError
 from .rotation import euler_to_dcm, wrap_to_pi
 
@@ -84,8 +84,8 @@ def read_mount(path):
         strictly increasing, an angle beyond +-180 deg.
     """
     path_s = str(path)
-    rows, row_line = _textio.read_table(path, ncols_min=4, ncols_max=4, hint=_HINT)
-    _textio.check_rows(rows, row_line, path_s, name_duplicates=False)
+    rows, row_line = textfiles.read_table(path, ncols_min=4, ncols_max=4, hint=_HINT)
+    textrows.check_rows(rows, row_line, path_s, name_duplicates=False)
     big = np.flatnonzero(np.any(np.abs(rows[:, 1:]) > 180.0, axis=1))
     if big.size:
         raise InputError("mount angle beyond +-180 deg (expected deg)", path=path_s,

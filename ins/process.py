@@ -151,7 +151,7 @@ def _number(value, where, positive=False):
 
 
 def _read_toml(path, expected="a processing config (TOML)"):
-    from ._textio import read_toml
+    from .textfiles import read_toml
     return read_toml(path, expected)
 
 
@@ -865,7 +865,7 @@ def write_outputs(result, out_dir, week=0, forward=False):
     The .nav files are written piece by piece as the trajectory is streamed (bounded
     memory).  Returns the list of written paths.  Every file is written atomically.
     """
-    from . import _textio
+    from . import textformat
     from .error_model import DPH, MGAL, PPM
     from .fileio import atomic_open
     from .trajectory import write_nav
@@ -885,7 +885,7 @@ def write_outputs(result, out_dir, week=0, forward=False):
     table = np.column_stack([result.node_time, result.smoothed_std[:, 0:6], att])
     header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
               "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
-    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, _textio, atomic_open)
+    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
     s = result.smoothed_sensors
     table = np.column_stack([result.node_time, s[:, 0:3] / DPH, s[:, 3:6] / MGAL,
                              s[:, 6:9] / PPM, s[:, 9:12] / PPM])
@@ -893,12 +893,12 @@ def write_outputs(result, out_dir, week=0, forward=False):
               "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
               "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
               "(smoothed estimates)\n")
-    _write_table(paths[2], header, table, [6] + [5] * 12, _textio, atomic_open)
+    _write_table(paths[2], header, table, [6] + [5] * 12, textformat, atomic_open)
     return paths
 
 
-def _write_table(path, header, table, decimals, _textio, atomic_open):
-    text = _textio.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
+def _write_table(path, header, table, decimals, textformat, atomic_open):
+    text = textformat.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
     with atomic_open(path, "wb") as f:
         f.write(header.encode())
         f.write(text)

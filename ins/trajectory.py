@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _textio
+from . import textfiles, textformat, textrows
 from .errors import InputError
 from .fileio import atomic_open
 from .rotation import euler_to_quat, quat_to_euler
@@ -87,7 +87,7 @@ class Trajectory:
 
 def format_nav(traj, week=0):
     """Text of the ``.nav`` lines of ``traj`` (bytes)."""
-    return _textio.format_fixed(traj.nav_rows(week), NAV_DECIMALS).tobytes()
+    return textformat.format_fixed(traj.nav_rows(week), NAV_DECIMALS).tobytes()
 
 
 def write_nav(path, pieces, week=0):
@@ -107,11 +107,11 @@ def write_nav(path, pieces, week=0):
 
 def read_nav(path):
     """Read a ``.nav`` file (11 or more columns) into a :class:`Trajectory`."""
-    rows, row_line = _textio.read_table(path, ncols_min=11, ncols_max=64,
+    rows, row_line = textfiles.read_table(path, ncols_min=11, ncols_max=64,
                                         hint="KF-GINS .nav: week t lat lon h vN vE vD "
                                              "roll pitch yaw")
     rows = rows[:, :11]
-    _textio.check_rows(rows, row_line, path, time_col=1)
+    textrows.check_rows(rows, row_line, path, time_col=1)
     if np.any(np.abs(rows[:, 2]) > 90.0):
         k = int(np.flatnonzero(np.abs(rows[:, 2]) > 90.0)[0])
         raise InputError(f"latitude {float(rows[k, 2])!r} deg outside +-90 deg (expected "

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import tomli_w
 
-from ins import _textio
+from ins import textfiles
 from ins.errors import InputError
 from ins.fileio import atomic_open
 from ins.tomlschema import REQUIRED, Table, check_keys
@@ -275,7 +275,7 @@ def read_camera(path):
         Naming the file and the ``[section] key`` and the expected unit.
     """
     path = str(path)
-    doc = _textio.read_toml(path, "a TOML camera file with [camera] and [mounting]")
+    doc = textfiles.read_toml(path, "a TOML camera file with [camera] and [mounting]")
     check_keys(doc, CAMERA_KEYS, path)
     if "camera" not in doc:
         raise InputError("[camera]: missing required section (focal_length_mm, "

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ins import _textio
+from ins import textfiles
 from ins.cliutil import Progress, check_output_file, triplet
 from ins.errors import InputError
 
@@ -96,7 +96,7 @@ def _flight_inputs(folder):
     manifest = folder / "manifest.toml"
     if not manifest.is_file():
         raise InputError(f"{folder} has no manifest.toml (not a flight folder)")
-    doc = _textio.read_toml(manifest, "a flight manifest (TOML)")
+    doc = textfiles.read_toml(manifest, "a flight manifest (TOML)")
     files = doc.get("files", {})
     out = {}
     for key in ("truth", "events", "camera"):

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ins import _textio
+from ins import textfiles
 from ins.earth import dcm_en, offset_lla
 from ins.errors import InputError
 from ins.fileio import atomic_open
@@ -201,7 +201,7 @@ def read_events(path):
     """Read an events file ``image_id,time_s`` (header line required): ids, times (s)."""
     path = str(path)
     ids, times, seen = [], [], {}
-    text = _textio.read_text(path, "a CSV file image_id,time_s")
+    text = textfiles.read_text(path, "a CSV file image_id,time_s")
     rows = csv.reader(io.StringIO(text, newline=""))
     header = None
     for row in rows:
@@ -247,7 +247,7 @@ def read_solution_std(path):
     std : ndarray (k, 9)
         SI units (m, m/s, rad).
     """
-    rows, row_line = _textio.read_table(path, ncols_min=10, ncols_max=64,
+    rows, row_line = textfiles.read_table(path, ncols_min=10, ncols_max=64,
                                         hint="time std_N std_E std_D std_vN std_vE std_vD "
                                              "std_roll std_pitch std_yaw")
     rows = np.array(rows[:, :10])
@@ -340,7 +340,7 @@ def read_eo_csv(path):
     columns), the frame from ``# frame =``.  Errors name the file and line.
     """
     path = str(path)
-    text = _textio.read_text(path, "an EO CSV file (image_id,time_s,X_m,...)").splitlines()
+    text = textfiles.read_text(path, "an EO CSV file (image_id,time_s,X_m,...)").splitlines()
     comments, k = [], 0
     while k < len(text) and (text[k].startswith("#") or not text[k].strip()):
         comments.append(text[k]) if text[k].startswith("#") else None
@@ -414,7 +414,7 @@ def write_eo_applanix(path, eo):
 
 
 def _data_lines(path):
-    for n, line in enumerate(_textio.read_text(path, "an EO text file").splitlines(), 1):
+    for n, line in enumerate(textfiles.read_text(path, "an EO text file").splitlines(), 1):
         s = line.strip()
         if s and not s.startswith("#"):
             yield n, s.split()
@@ -433,7 +433,7 @@ def _numbers(parts, path, line, count):
 
 
 def _frame_of(path):
-    lines = _textio.read_text(path, "an EO text file").splitlines()
+    lines = textfiles.read_text(path, "an EO text file").splitlines()
     meta = _header_values([ln for ln in lines if ln.startswith("#")], path)
     return meta.get("frame", "unknown")
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins import _textio
+from ins import textfiles
 from ins.errors import InputError
 
 __all__ = ["TiePoints", "read_tiepoints"]
@@ -146,7 +146,7 @@ def read_tiepoints(path, camera=None):
         >= 0; the message names the file and line.
     """
     path = str(path)
-    text = _textio.read_text(path, "a tie-point CSV file (image_id,point_id,x_mm,y_mm)"
+    text = textfiles.read_text(path, "a tie-point CSV file (image_id,point_id,x_mm,y_mm)"
                              ).splitlines()
     comments, k = [], 0
     while k < len(text) and (text[k].startswith("#") or not text[k].strip()):

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins import _textio, imu
+from ins import imu, textparse
 from ins.errors import InputError, InputWarning
 from ins.imu import ImuLog
 
@@ -50,7 +50,7 @@ ROW = "1e-6 2e-6 3e-6 1e-3 2e-3 -0.049"
 def engine(request, monkeypatch):
     """Run a test with the numba parser and with the pure-Python fallback."""
     if request.param == "python":
-        monkeypatch.setattr(_textio, "_use_numba", lambda: False)
+        monkeypatch.setattr(textparse, "_use_numba", lambda: False)
     return request.param
 
 

@@ -31,10 +31,9 @@ GRAPH = {
     "photogrammetry.simulate": {"ins", "ins.simulate", "photogrammetry"},   # the images
 }
 
-#: Private modules of one package that others may still import.
-ALLOWED_PRIVATE = {
-    "ins._textio",      # to be split into public modules in issue 13 item 4
-}
+#: Private modules of one package that others may still import (none: the text I/O of
+#: ``ins._textio`` now lives in the public ins.textparse, textformat, textfiles, textrows).
+ALLOWED_PRIVATE = set()
 
 
 # ---------------------------------------------------------------------------------------

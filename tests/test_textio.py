@@ -1,4 +1,5 @@
-"""Tests of ins._textio: exact parsing against np.loadtxt / float(), formatting against '%'."""
+"""Tests of the text I/O modules (ins.textparse, ins.textformat, ins.textfiles, ins.exactdecimal):
+exact parsing against np.loadtxt / float(), formatting against '%'."""
 import io
 
 import numpy as np
@@ -7,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins import _textio as tx
+from ins import exactdecimal, textfiles, textformat, textparse
 from ins.errors import InputError
 
 ENGINES = ["numba", "python"]
@@ -41,8 +42,8 @@ def test_parse_random_tables_bit_identical_to_loadtxt(engine, fmt):
         table = np.clip(table, -1e9, 1e9)
     text = ("\n".join(" ".join(fmt % v for v in row) for row in table.tolist()) + "\n").encode()
     ref = np.loadtxt(io.BytesIO(text))
-    res = tx.parse_table(as_buf(text), 7, 7, engine=engine)
-    assert res.status == tx.OK
+    res = textparse.parse_table(as_buf(text), 7, 7, engine=engine)
+    assert res.status == textparse.OK
     assert res.values.shape == (n, m)
     np.testing.assert_array_equal(bits(res.values), bits(ref))
     np.testing.assert_array_equal(res.row_line, np.arange(1, n + 1))
@@ -82,8 +83,8 @@ def test_parse_numbers_exactly_like_float():
                 "123456789012345678901234567890", "inf", "-Infinity", "NaN", "+nan",
                 "1" * 40 + "e-20"]
     text = "\n".join(strings) + "\n"
-    res = tx.parse_table(as_buf(text), 1, 1)
-    assert res.status == tx.OK, (res.status, res.err_line)
+    res = textparse.parse_table(as_buf(text), 1, 1)
+    assert res.status == textparse.OK, (res.status, res.err_line)
     ref = np.array([float(s) for s in strings])
     got = res.values[:, 0]
     fin = np.isfinite(ref)
@@ -93,14 +94,14 @@ def test_parse_numbers_exactly_like_float():
 
 
 def test_fast_conversion_defers_exact_ties_to_strtod():
-    hi, lo = tx._pow10_table()
+    hi, lo = exactdecimal.pow10_table()
     # 4503599627370496.5 is halfway between two doubles: the double-double product
     # cannot decide, so the kernel must hand it to strtod
-    v, ok = tx._fast_decimal(np.int64(45035996273704965), -1, hi, lo)
+    v, ok = textparse._fast_decimal(np.int64(45035996273704965), -1, hi, lo)
     assert not ok
-    v, ok = tx._fast_decimal(np.int64(663487338564133501), -22, hi, lo)
+    v, ok = textparse._fast_decimal(np.int64(663487338564133501), -22, hi, lo)
     assert ok and v == 6.63487338564133501e-05
-    v, ok = tx._fast_decimal(np.int64(300000005), -3, hi, lo)       # Clinger's exact path
+    v, ok = textparse._fast_decimal(np.int64(300000005), -3, hi, lo)       # Clinger's exact path
     assert ok and v == 300000.005
 
 
@@ -116,8 +117,8 @@ def test_parse_layout_variants(engine):
             b"10 , 11 ,\t12\n"
             b"  13,14 15\r\n"
             b"16 17 18")                         # no final newline
-    res = tx.parse_table(as_buf(text), 3, 3, engine=engine)
-    assert res.status == tx.OK
+    res = textparse.parse_table(as_buf(text), 3, 3, engine=engine)
+    assert res.status == textparse.OK
     np.testing.assert_array_equal(res.values, np.arange(1, 19, dtype=float).reshape(6, 3))
     np.testing.assert_array_equal(res.row_line, [3, 6, 7, 8, 9, 10])
     assert res.first_line == 3 and res.width == 3
@@ -126,8 +127,8 @@ def test_parse_layout_variants(engine):
 @pytest.mark.parametrize("engine", ENGINES)
 def test_parse_skip_header_and_nan_inf(engine):
     text = b"time_s,a,b\nnot numbers at all\n1,nan,inf\n2,-inf,3\n"
-    res = tx.parse_table(as_buf(text), 3, 3, skip_header_lines=2, engine=engine)
-    assert res.status == tx.OK
+    res = textparse.parse_table(as_buf(text), 3, 3, skip_header_lines=2, engine=engine)
+    assert res.status == textparse.OK
     assert np.isnan(res.values[0, 1]) and res.values[0, 2] == np.inf
     assert res.values[1, 1] == -np.inf
     np.testing.assert_array_equal(res.row_line, [3, 4])
@@ -135,44 +136,44 @@ def test_parse_skip_header_and_nan_inf(engine):
 
 BAD_CASES = [
     # text, ncols_min, ncols_max, status, line, col
-    ("", 1, 9, tx.NO_DATA, 0, 0),
-    ("# only\n\n   \n% comments\n", 1, 9, tx.NO_DATA, 0, 0),
-    ("# c\n1 2\n", 3, 9, tx.TOO_FEW_COLUMNS, 2, 2),
-    ("1 2 3 4\n", 1, 3, tx.TOO_MANY_COLUMNS, 1, 4),
-    ("1 2 3\n4 5 6\n\n# x\n7 8\n", 3, 3, tx.COLUMN_COUNT, 5, 2),
-    ("1 2 3\n4 5 6 7\n", 3, 9, tx.COLUMN_COUNT, 2, 4),
-    ("1 2 3\r\n4 5 6\r\n7 1.2.3 9\r\n", 3, 3, tx.BAD_NUMBER, 3, 2),
-    ("1 2 3\n4 abc 6\n", 3, 3, tx.BAD_NUMBER, 2, 2),
-    ("1 2 3\n4 5 1e\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 5 0x1p3\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 5 nan(1)\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 5 6#c\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 5 1_0\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 \v5 6\n", 3, 3, tx.BAD_NUMBER, 2, 2),
-    ("1 2 3\n4 5 6\x00\n", 3, 3, tx.BAD_NUMBER, 2, 3),
-    ("1 2 3\n4 \"5\" 6\n", 3, 3, tx.BAD_NUMBER, 2, 2),
-    ("1 2 3\n4 - 6\n", 3, 3, tx.BAD_NUMBER, 2, 2),
-    ("1 2 3\n4 infinit 6\n", 3, 3, tx.BAD_NUMBER, 2, 2),
-    ("1,2,3\n4,,6\n", 3, 3, tx.EMPTY_FIELD, 2, 2),
-    ("1,2,3\n4,5,6,\n", 3, 3, tx.EMPTY_FIELD, 2, 4),
-    ("1,2,3\n,4,5,6\n", 3, 3, tx.EMPTY_FIELD, 2, 1),
-    ("1,2,3\n4,5, # c\n", 3, 3, tx.EMPTY_FIELD, 2, 3),
-    ("1 2 3\n4 5 6\n7 8 9x", 3, 3, tx.BAD_NUMBER, 3, 3),
+    ("", 1, 9, textparse.NO_DATA, 0, 0),
+    ("# only\n\n   \n% comments\n", 1, 9, textparse.NO_DATA, 0, 0),
+    ("# c\n1 2\n", 3, 9, textparse.TOO_FEW_COLUMNS, 2, 2),
+    ("1 2 3 4\n", 1, 3, textparse.TOO_MANY_COLUMNS, 1, 4),
+    ("1 2 3\n4 5 6\n\n# x\n7 8\n", 3, 3, textparse.COLUMN_COUNT, 5, 2),
+    ("1 2 3\n4 5 6 7\n", 3, 9, textparse.COLUMN_COUNT, 2, 4),
+    ("1 2 3\r\n4 5 6\r\n7 1.2.3 9\r\n", 3, 3, textparse.BAD_NUMBER, 3, 2),
+    ("1 2 3\n4 abc 6\n", 3, 3, textparse.BAD_NUMBER, 2, 2),
+    ("1 2 3\n4 5 1e\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 5 0x1p3\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 5 nan(1)\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 5 6#c\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 5 1_0\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 \v5 6\n", 3, 3, textparse.BAD_NUMBER, 2, 2),
+    ("1 2 3\n4 5 6\x00\n", 3, 3, textparse.BAD_NUMBER, 2, 3),
+    ("1 2 3\n4 \"5\" 6\n", 3, 3, textparse.BAD_NUMBER, 2, 2),
+    ("1 2 3\n4 - 6\n", 3, 3, textparse.BAD_NUMBER, 2, 2),
+    ("1 2 3\n4 infinit 6\n", 3, 3, textparse.BAD_NUMBER, 2, 2),
+    ("1,2,3\n4,,6\n", 3, 3, textparse.EMPTY_FIELD, 2, 2),
+    ("1,2,3\n4,5,6,\n", 3, 3, textparse.EMPTY_FIELD, 2, 4),
+    ("1,2,3\n,4,5,6\n", 3, 3, textparse.EMPTY_FIELD, 2, 1),
+    ("1,2,3\n4,5, # c\n", 3, 3, textparse.EMPTY_FIELD, 2, 3),
+    ("1 2 3\n4 5 6\n7 8 9x", 3, 3, textparse.BAD_NUMBER, 3, 3),
 ]
 
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("text,nmin,nmax,status,line,col", BAD_CASES)
 def test_parse_errors(engine, text, nmin, nmax, status, line, col):
-    res = tx.parse_table(as_buf(text), nmin, nmax, engine=engine)
+    res = textparse.parse_table(as_buf(text), nmin, nmax, engine=engine)
     assert (res.status, res.err_line, res.err_col) == (status, line, col)
     assert res.values.shape[0] == 0
 
 
 @pytest.mark.parametrize("text,nmin,nmax,status,line,col", BAD_CASES)
 def test_engines_agree_on_errors(text, nmin, nmax, status, line, col):
-    a = tx.parse_table(as_buf(text), nmin, nmax, engine="numba")
-    b = tx.parse_table(as_buf(text), nmin, nmax, engine="python")
+    a = textparse.parse_table(as_buf(text), nmin, nmax, engine="numba")
+    b = textparse.parse_table(as_buf(text), nmin, nmax, engine="python")
     assert a[1:4] == b[1:4] and a[5:] == b[5:]
 
 
@@ -191,42 +192,42 @@ def test_engines_agree_on_a_messy_file():
             lines.append(sep.join("%.*g" % (int(rng.integers(1, 18)), v) for v in vals)
                          + rng.choice(["", "\r", " # x"]))
     text = "\n".join(lines)
-    a = tx.parse_table(as_buf(text), 4, 4, engine="numba")
-    b = tx.parse_table(as_buf(text), 4, 4, engine="python")
-    assert a.status == b.status == tx.OK
+    a = textparse.parse_table(as_buf(text), 4, 4, engine="numba")
+    b = textparse.parse_table(as_buf(text), 4, 4, engine="python")
+    assert a.status == b.status == textparse.OK
     np.testing.assert_array_equal(bits(a.values), bits(b.values))
     np.testing.assert_array_equal(a.row_line, b.row_line)
 
 
 def test_error_messages_name_field_and_text():
     buf = as_buf("1 2 3\n4 1.2.3 6\n")
-    res = tx.parse_table(buf, 3, 3)
-    msg = tx.table_error_message(res, buf, 3, 3, ["t", "a", "b"])
+    res = textparse.parse_table(buf, 3, 3)
+    msg = textparse.table_error_message(res, buf, 3, 3, ["t", "a", "b"])
     assert "field 2 (a)" in msg and "'1.2.3'" in msg
     buf = as_buf("1 2 3\n4 5\n")
-    res = tx.parse_table(buf, 3, 3)
-    assert "2 columns, expected 3" in tx.table_error_message(res, buf, 3, 3)
+    res = textparse.parse_table(buf, 3, 3)
+    assert "2 columns, expected 3" in textparse.table_error_message(res, buf, 3, 3)
 
 
 def test_read_table_raises_input_error_with_path_and_line(tmp_path):
     p = tmp_path / "table.txt"
     p.write_bytes(b"# header\n1 2\n3 x\n")
     with pytest.raises(InputError) as e:
-        tx.read_table(p, 2, 2)
+        textfiles.read_table(p, 2, 2)
     assert e.value.line == 3 and e.value.path == str(p)
     assert str(e.value).startswith(f"{p}:3: ")
     p.write_bytes(b"")
     with pytest.raises(InputError, match="no data lines") as e:
-        tx.read_table(p, 2, 2)
+        textfiles.read_table(p, 2, 2)
     assert e.value.line is None and str(e.value).startswith(f"{p}: ")
 
 
 def test_file_buffer_bom_and_nul(tmp_path):
     p = tmp_path / "bom.txt"
     p.write_bytes(b"\xef\xbb\xbf1 2\n3 4\n")
-    buf = tx.file_buffer(p)
+    buf = textfiles.file_buffer(p)
     assert buf[-1] == 0 and buf.size == p.stat().st_size + 1
-    values, lines = tx.read_table(p, 2, 2)
+    values, lines = textfiles.read_table(p, 2, 2)
     np.testing.assert_array_equal(values, [[1, 2], [3, 4]])
     assert p.read_bytes().startswith(b"\xef\xbb\xbf")    # the file itself is untouched
 
@@ -234,10 +235,10 @@ def test_file_buffer_bom_and_nul(tmp_path):
 def test_parse_does_not_modify_buffer():
     buf = as_buf("1 2 3\n4 5 6\n")
     before = buf.copy()
-    tx.parse_table(buf, 3, 3)
+    textparse.parse_table(buf, 3, 3)
     np.testing.assert_array_equal(buf, before)
     with pytest.raises(ValueError):
-        tx.parse_table(np.frombuffer(b"1 2", np.uint8), 1, 3)
+        textparse.parse_table(np.frombuffer(b"1 2", np.uint8), 1, 3)
 
 
 # ----------------------------------------------------------------------------- formatting
@@ -248,7 +249,7 @@ def test_format_fixed_matches_percent_f_on_random_data():
     total = same = 0
     for d in range(0, 16):
         x = rng.standard_normal(n) * 10.0 ** rng.integers(-d - 2, 17 - d, n)
-        out = tx.format_fixed(x[:, None], [d]).tobytes().decode().split("\n")[:-1]
+        out = textformat.format_fixed(x[:, None], [d]).tobytes().decode().split("\n")[:-1]
         ref = ["%.*f" % (d, v) for v in x]
         same += sum(a == b for a, b in zip(out, ref))
         total += n
@@ -264,41 +265,41 @@ def test_format_fixed_matches_percent_f_on_random_data():
 def test_format_fixed_table_and_ties():
     vals = np.array([[0.5, 1.5, 2.5, -0.0, -1e-9, 1.005, 0.125, 123.456, -2.675, 1e15]])
     dec = [0, 0, 0, 3, 3, 2, 2, 0, 2, 1]
-    out = tx.format_fixed(vals, dec).tobytes().decode()
+    out = textformat.format_fixed(vals, dec).tobytes().decode()
     assert out == " ".join("%.*f" % (d, v) for d, v in zip(dec, vals[0])) + "\n"
     assert out == "0 2 2 -0.000 -0.000 1.00 0.12 123 -2.67 1000000000000000.0\n"
     rng = np.random.default_rng(1)
     table = np.column_stack([np.arange(1000.0), 300000 + rng.random(1000),
                              rng.standard_normal((1000, 3)) * 100])
     dec = [0, 6, 12, 3, 9]
-    out = tx.format_fixed(table, np.array(dec)).tobytes().decode()
+    out = textformat.format_fixed(table, np.array(dec)).tobytes().decode()
     ref = "".join(" ".join("%.*f" % (d, v) for d, v in zip(dec, row)) + "\n"
                   for row in table.tolist())
     assert out == ref
-    csv = tx.format_fixed(table[:2], dec, sep=",").tobytes().decode()
+    csv = textformat.format_fixed(table[:2], dec, sep=",").tobytes().decode()
     assert csv == ref.replace(" ", ",").split("\n", 2)[0] + "\n" + \
         ref.replace(" ", ",").split("\n", 2)[1] + "\n"
 
 
 def test_format_fixed_errors():
     with pytest.raises(ValueError, match="non-finite"):
-        tx.format_fixed(np.array([[1.0, np.nan]]), [1, 1])
+        textformat.format_fixed(np.array([[1.0, np.nan]]), [1, 1])
     with pytest.raises(ValueError, match="row 1, column 0"):
-        tx.format_fixed(np.array([[1.0], [np.inf]]), [1])
+        textformat.format_fixed(np.array([[1.0], [np.inf]]), [1])
     with pytest.raises(ValueError, match="too large"):
-        tx.format_fixed(np.array([[1e12]]), [7])
+        textformat.format_fixed(np.array([[1e12]]), [7])
     with pytest.raises(ValueError, match="decimals"):
-        tx.format_fixed(np.array([[1.0]]), [-1])
+        textformat.format_fixed(np.array([[1.0]]), [-1])
     with pytest.raises(ValueError, match="shape"):
-        tx.format_fixed(np.ones((2, 3)), [1, 2])
-    assert tx.format_fixed(np.empty((0, 3)), [1, 1, 1]).size == 0
+        textformat.format_fixed(np.ones((2, 3)), [1, 2])
+    assert textformat.format_fixed(np.empty((0, 3)), [1, 1, 1]).size == 0
 
 
 def test_format_table_scientific_matches_percent_e():
     rng = np.random.default_rng(9)
     x = rng.standard_normal(50000) * 10.0 ** rng.integers(-300, 300, 50000)
     x[:6] = [0.0, -0.0, 1.0, 9.999999999999999e22, 5e-324, 1.7976931348623157e308]
-    out = tx.format_table(x[:, None], [-1]).tobytes().decode().split("\n")[:-1]
+    out = textformat.format_table(x[:, None], [-1]).tobytes().decode().split("\n")[:-1]
     assert out == ["%.17e" % v for v in x]
     back = np.array([float(s) for s in out])
     np.testing.assert_array_equal(bits(back), bits(x))
@@ -308,31 +309,31 @@ def test_format_table_scientific_matches_percent_e():
 @given(hnp.arrays(np.float64, hnp.array_shapes(min_dims=2, max_dims=2, max_side=6),
                   elements=st.floats(allow_nan=False, allow_infinity=False, width=64)))
 def test_format_table_roundtrip_property(table):
-    text = tx.format_table(table, [-1] * table.shape[1])
-    res = tx.parse_table(np.append(text, np.uint8(0)), 1, 99)
-    assert res.status == tx.OK
+    text = textformat.format_table(table, [-1] * table.shape[1])
+    res = textparse.parse_table(np.append(text, np.uint8(0)), 1, 99)
+    assert res.status == textparse.OK
     np.testing.assert_array_equal(bits(res.values), bits(table))
 
 
 def test_roundtrip_decimals():
-    assert tx.roundtrip_decimals(300000 + np.arange(2000) * 0.005) == 3
-    assert tx.roundtrip_decimals([0.25, 1.5]) == 2
-    assert tx.roundtrip_decimals([1.0, 2.0]) == 0
-    assert tx.roundtrip_decimals([1.0, 2.0], min_decimals=3) == 3
-    assert tx.roundtrip_decimals([9e15], min_decimals=3) == -1      # 9e18 > 2**53
-    assert tx.roundtrip_decimals([1 / 3]) == -1
-    assert tx.roundtrip_decimals([1e17]) == -1          # beyond 2**53: not claimed
-    assert tx.roundtrip_decimals([np.nan]) == -1
+    assert textformat.roundtrip_decimals(300000 + np.arange(2000) * 0.005) == 3
+    assert textformat.roundtrip_decimals([0.25, 1.5]) == 2
+    assert textformat.roundtrip_decimals([1.0, 2.0]) == 0
+    assert textformat.roundtrip_decimals([1.0, 2.0], min_decimals=3) == 3
+    assert textformat.roundtrip_decimals([9e15], min_decimals=3) == -1      # 9e18 > 2**53
+    assert textformat.roundtrip_decimals([1 / 3]) == -1
+    assert textformat.roundtrip_decimals([1e17]) == -1          # beyond 2**53: not claimed
+    assert textformat.roundtrip_decimals([np.nan]) == -1
     t = 456300.0 + np.arange(100) * 0.01
-    d = tx.roundtrip_decimals(t)
-    text = tx.format_fixed(t[:, None], [d])
-    back = tx.parse_table(np.append(text, np.uint8(0)), 1, 1).values[:, 0]
+    d = textformat.roundtrip_decimals(t)
+    text = textformat.format_fixed(t[:, None], [d])
+    back = textparse.parse_table(np.append(text, np.uint8(0)), 1, 1).values[:, 0]
     np.testing.assert_array_equal(bits(back), bits(t))
 
 
 def test_is_number():
-    assert tx.is_number("1.5e-3") and tx.is_number(b"-inf") and tx.is_number("nan")
-    assert not tx.is_number("time_s") and not tx.is_number("1.2.3") and not tx.is_number("")
+    assert textparse.is_number("1.5e-3") and textparse.is_number(b"-inf") and textparse.is_number("nan")
+    assert not textparse.is_number("time_s") and not textparse.is_number("1.2.3") and not textparse.is_number("")
 
 
 # --- read_table in blocks: the same table and line numbers whatever the block size ------
@@ -355,7 +356,7 @@ def _block_file(tmp_path, crlf=False):
 @pytest.mark.parametrize("crlf", [False, True])
 def test_read_table_blocks_same_result(tmp_path, block_bytes, crlf):
     p, rows, lines = _block_file(tmp_path, crlf)
-    values, row_line = tx.read_table(p, 7, 7, block_bytes=block_bytes)
+    values, row_line = textfiles.read_table(p, 7, 7, block_bytes=block_bytes)
     np.testing.assert_array_equal(values, rows)
     expect = [i + 1 for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]
     np.testing.assert_array_equal(row_line, expect)
@@ -371,17 +372,17 @@ def test_read_table_blocks_error_lines(tmp_path, block_bytes):
         q = tmp_path / "bad.txt"
         q.write_text("\n".join(mod) + "\n")
         with pytest.raises(InputError) as exc:
-            tx.read_table(q, 7, 64, block_bytes=block_bytes)
+            textfiles.read_table(q, 7, 64, block_bytes=block_bytes)
         assert exc.value.line == k + 1, str(exc.value)
     empty = tmp_path / "comments.txt"
     empty.write_text("# only\n\n# comments\n" * 50)
     with pytest.raises(InputError, match="no data lines"):
-        tx.read_table(empty, 7, 7, block_bytes=block_bytes)
+        textfiles.read_table(empty, 7, 7, block_bytes=block_bytes)
 
 
 def test_read_table_blocks_skip_header(tmp_path):
     p = tmp_path / "h.csv"
     p.write_text("time_s,a,b\n" + "".join(f"{i},{2 * i},{3 * i}\n" for i in range(100)))
-    values, row_line = tx.read_table(p, 3, 3, skip_header_lines=1, block_bytes=7)
+    values, row_line = textfiles.read_table(p, 3, 3, skip_header_lines=1, block_bytes=7)
     np.testing.assert_array_equal(values[:, 1], 2.0 * np.arange(100))
     assert row_line[0] == 2 and row_line[-1] == 101

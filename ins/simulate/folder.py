@@ -37,7 +37,7 @@ from typing import Callable
 import numpy as np
 import tomli_w
 
-from .. import _textio
+from .. import textformat
 from ..errors import InputError
 from ..fileio import atomic_open, check_output_folder, output_folder
 from ..gnss import write_gnss
@@ -88,7 +88,7 @@ def _write_mount(path, truth, rate_hz):
         for k in range(0, len(time), TRUTH_CHUNK):
             t = time[k:k + TRUTH_CHUNK]
             rpy = np.rad2deg(truth.evaluate(t).mount_rpy)
-            f.write(_textio.format_fixed(np.column_stack([t, rpy]), decimals).tobytes())
+            f.write(textformat.format_fixed(np.column_stack([t, rpy]), decimals).tobytes())
 
 
 def _truth_pieces(truth, time, progress, first):

@@ -41,7 +41,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .._textio import read_toml
+from ..textfiles import read_toml
 from ..errors import InputError
 from ..tomlschema import REQUIRED, Table, check_keys
 from .sensor_errors import MANIFEST_KEYS, PRESETS

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins import _textio
+from ins import textfiles
 from ins.errors import InputError
 from ins.tomlschema import Table, check_keys
 
@@ -142,7 +142,7 @@ def read_camera(path):
         Naming the file and the key, for a missing, unknown or malformed value.
     """
     path = str(path)
-    doc = _textio.read_toml(path, "a TOML fisheye camera file with [camera]")
+    doc = textfiles.read_toml(path, "a TOML fisheye camera file with [camera]")
     check_keys(doc, FISHEYE_KEYS, path)
     if "camera" not in doc:
         raise InputError("[camera]: missing required section (model = "

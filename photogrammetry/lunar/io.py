@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from ins import _textio
+from ins import textfiles
 from ins.errors import InputError
 
 __all__ = ["read_times", "read_centres", "load_image", "find_images", "GPS_EPOCH",
@@ -34,7 +34,7 @@ MAX_GPS_WEEK = 11427
 
 def _rows(path):
     """(header, [(line number, fields)]) of a CSV file with ``#`` comments."""
-    text = _textio.read_text(path, "a CSV file with a header line")
+    text = textfiles.read_text(path, "a CSV file with a header line")
     lines = [(k + 1, line) for k, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:

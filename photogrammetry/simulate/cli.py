@@ -11,7 +11,7 @@ import argparse
 import time as wallclock
 from pathlib import Path
 
-from ins import _textio
+from ins import textfiles
 from ins.errors import InputError
 
 EPILOG = """\
@@ -98,7 +98,7 @@ def _cmd_simulate(args):
     plan_path = Path(args.plan)
     if not plan_path.is_file():
         raise InputError("no such plan file", path=args.plan)
-    _textio.read_toml(plan_path, "a TOML flight plan")      # binary data, bad TOML: early
+    textfiles.read_toml(plan_path, "a TOML flight plan")      # binary data, bad TOML: early
     if out.exists() and out.resolve() == plan_path.resolve().parent:
         raise InputError("--output is the plan's own folder; choose a new folder",
                          path=args.output)

@@ -24,7 +24,7 @@ points draw from their own generators (``product_rng(seed, "terrain/<offset>")``
 """
 import numpy as np
 
-from ins import _textio
+from ins import textformat
 from ins.simulate.folder import product_rng, write_bytes
 
 from ..camera import CameraMounting, FrameCamera, write_camera
@@ -107,7 +107,7 @@ def _csv_rows(ids, values, decimals):
     """Lines ``id,v1,v2,...`` (bytes): string ids, fixed-point numbers."""
     if len(ids) == 0:
         return b""
-    text = _textio.format_fixed(values, np.asarray(decimals, np.int64), sep=",").tobytes()
+    text = textformat.format_fixed(values, np.asarray(decimals, np.int64), sep=",").tobytes()
     lines = text.split(b"\n")[:-1]
     return b"".join(i.encode() + b"," + line + b"\n" for i, line in zip(ids, lines))
 
@@ -141,6 +141,6 @@ def _write_tiepoints(path, tp, exposures, pixel_size_mm):
 def _write_ground(path, tp, exposures):
     header = (f"# ground truth of the tie points, mapping frame {_frame_text(exposures)}\n"
               "point_id,X_m,Y_m,Z_m\n")
-    text = _textio.format_fixed(np.column_stack([tp.ground_id, tp.ground_m]),
+    text = textformat.format_fixed(np.column_stack([tp.ground_id, tp.ground_m]),
                                 np.array([0, 6, 6, 6], np.int64), sep=",").tobytes()
     write_bytes(path, header.encode() + text)
