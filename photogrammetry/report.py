@@ -3,7 +3,6 @@
 Angles in the report are arcsec (differences, sigmas) or deg (values); photo residuals
 are the normalized coplanarity misclosures ``g / sigma_g`` (unitless, ~N(0, 1)).
 """
-import io
 import os
 
 import numpy as np
@@ -19,52 +18,51 @@ _AS = 180.0 / np.pi * 3600.0
 
 
 def _plot_residuals(result, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ins.plotstyle import pyplot, save_png
+    plt = pyplot()
     blk = result.block
-    fig, ax = plt.subplots(figsize=(7, 5.5))
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
     xy = np.concatenate([p[1] for p in result.pair_points])
     res = np.abs(np.concatenate([blk.residuals[k, :len(p[1])]
                                  for k, p in enumerate(result.pair_points)]))
     rej = np.concatenate([blk.rejected[k, :len(p[1])] for k, p in enumerate(result.pair_points)])
     sc = ax.scatter(xy[~rej, 0], xy[~rej, 1], c=res[~rej], s=6, cmap="viridis",
                     vmin=0, vmax=3)
-    ax.scatter(xy[rej, 0], xy[rej, 1], marker="x", c="red", s=30, label="rejected")
-    fig.colorbar(sc, ax=ax, label="|normalized coplanarity misclosure|")
-    ax.set_xlabel("x (mm, second image of each pair)")
-    ax.set_ylabel("y (mm)")
+    ax.scatter(xy[rej, 0], xy[rej, 1], marker="x", c="red", s=30,
+               label=f"rejected ({int(rej.sum())})")
+    fig.colorbar(sc, ax=ax, label="|normalized coplanarity misclosure| (sigma units)",
+                 pad=0.02)
+    ax.set_xlabel("image x, mm (second image of each pair)")
+    ax.set_ylabel("image y, mm")
     ax.set_aspect("equal")
-    ax.set_title("Residuals in the image")
-    if rej.any():
-        ax.legend(loc="upper right")
-    _save(fig, path)
+    s = result.settings
+    px = blk.sigma0 * s["sigma_mm"] / s["pixel_size_mm"]
+    ax.set_title(f"Coplanarity residuals in the image\n{int(blk.mask.sum())} conditions used, "
+                 f"{int(rej.sum())} rejected (red x); sigma0 {blk.sigma0:.2f} ({px:.3g} px)",
+                 fontsize=10)
+    save_png(fig, path)
 
 
 def _plot_corrections(result, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ins.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
+    plt = pyplot()
     a = result.assessment
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4.2))
     idx = np.arange(len(a.diff))
     for k, name in enumerate(a.names):
         ax.plot(idx[a.used], a.diff[a.used, k] * _AS, ".-", label=f"{name}")
-    ax.set_xlabel("image (file order, along the strips)")
-    ax.set_ylabel("INS - adjusted (arcsec)")
-    ax.set_title("Angle corrections along the strips")
+        ax.axhline(a.mean[k] * _AS, color=f"C{k}", lw=0.8, ls=":",
+                   label=f"{name} mean, {a.mean[k] * _AS:.0f} arcsec")
+    ax.axhline(0, color="k", lw=0.5)
+    kappa = result.eo.angles[:, 2] if result.eo.angles.ndim == 2 else None
+    starts = strip_starts(list(result.eo.image_id), heading_rad=kappa)
+    mark_strips(ax, starts, len(idx))
+    ax.set_xlabel("image number (file order); dashed lines: strip boundaries")
+    ax.set_ylabel("INS - adjusted, arcsec")
+    ax.set_title("Angle corrections along the strips (INS minus adjusted)", pad=18)
     ax.grid(alpha=0.3)
-    ax.legend()
-    _save(fig, path)
-
-
-def _save(fig, path):
-    import matplotlib.pyplot as plt
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    with atomic_open(path, "wb") as f:
-        f.write(buf.getvalue())
+    legend_right(ax)
+    save_png(fig, path)
 
 
 def _fmt3(v, scale=_AS, digits=1, nan_text="n/a"):

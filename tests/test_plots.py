@@ -161,3 +161,92 @@ def test_strip_starts():
     heading = np.deg2rad([90, 91, 89, 270, 271, 90])
     assert plotstyle.strip_starts([str(i) for i in range(6)], heading_rad=heading) == [3, 5]
     assert plotstyle.strip_starts(time_s=[0, 2, 4, 6, 60, 62, 64]) == [4]
+
+
+# ---- photogrammetry refine report and the demo: strips marked, units, legends outside
+
+@pytest.fixture
+def style_figures(monkeypatch):
+    """The figures saved through ins.plotstyle.save_png (imported at call time)."""
+    saved = {}
+    real = plotstyle.save_png
+
+    def keep(fig, path, **kw):
+        saved[str(path)] = fig
+        return real(fig, path, **kw)
+    monkeypatch.setattr(plotstyle, "save_png", keep)
+    return saved
+
+
+def _eo(n_strips=3, per=5):
+    ids = [f"S{s:02d}_{k:03d}" for s in range(1, n_strips + 1) for k in range(1, per + 1)]
+    kappa = np.repeat(np.deg2rad([0.0, 180.0, 0.0][:n_strips]), per)
+    angles = np.column_stack([np.zeros_like(kappa), np.zeros_like(kappa), kappa])
+    return SimpleNamespace(image_id=ids, angles=angles)
+
+
+def _strip_lines(ax):
+    return sorted(ln.get_xdata()[0] for ln in ax.get_lines()
+                  if ln.get_linestyle() == "--" and np.ptp(ln.get_xdata()) == 0)
+
+
+def test_refine_corrections_plot_marks_strips(tmp_path, style_figures):
+    from photogrammetry.report import _plot_corrections
+    eo = _eo()
+    n = len(eo.image_id)
+    diff = np.tile(np.array([-100.0, 150.0, 20.0]) * ARCSEC, (n, 1))
+    a = SimpleNamespace(diff=diff, used=np.ones(n, bool), names=("phi", "omega", "kappa"),
+                        mean=diff.mean(axis=0))
+    path = str(tmp_path / "corr.png")
+    _plot_corrections(SimpleNamespace(assessment=a, eo=eo), path)
+    assert _png(path)
+    fig = style_figures[path]
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == "INS - adjusted, arcsec"
+    assert "Angle corrections" in ax.get_title()
+    assert _strip_lines(ax) == [4.5, 9.5]                      # between S01/S02, S02/S03
+    assert [t.get_text() for t in ax.texts] == ["strip 1", "strip 2", "strip 3"]
+    assert _outside(fig, ax, ax.get_legend())
+    means = [t.get_text() for t in ax.get_legend().get_texts() if "mean" in t.get_text()]
+    assert means == ["phi mean, -100 arcsec", "omega mean, 150 arcsec", "kappa mean, 20 arcsec"]
+
+
+def test_refine_residual_plot_title_and_units(tmp_path, style_figures):
+    from photogrammetry.report import _plot_residuals
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-30, 30, (50, 2))
+    rejected = np.zeros((1, 50), bool)
+    rejected[0, :3] = True
+    blk = SimpleNamespace(residuals=rng.standard_normal((1, 50)), rejected=rejected,
+                          mask=~rejected, sigma0=1.2)
+    res = SimpleNamespace(block=blk, pair_points=[(xy, xy)],
+                          settings={"sigma_mm": 0.002, "pixel_size_mm": 0.004})
+    path = str(tmp_path / "res.png")
+    _plot_residuals(res, path)
+    assert _png(path)
+    ax = style_figures[path].axes[0]
+    assert ax.get_xlabel().startswith("image x, mm") and ax.get_ylabel() == "image y, mm"
+    title = ax.get_title()
+    assert "47 conditions used, 3 rejected" in title and "(0.6 px)" in title
+
+
+def test_demo_angle_plot_marks_strips(tmp_path, style_figures):
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "demo_tool", Path(__file__).resolve().parents[1] / "tools" / "demo.py")
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    eo = _eo(n_strips=2, per=4)
+    d = np.full((8, 3), 30 * ARCSEC)
+    demo.plot_angles(tmp_path, eo, d, d / 10, ["phi", "omega", "kappa"])
+    fig = style_figures[str(tmp_path / "angles.png")]
+    assert _png(tmp_path / "angles.png")
+    assert [ax.get_ylabel() for ax in fig.axes] == ["phi error, arcsec", "omega error, arcsec",
+                                                    "kappa error, arcsec"]
+    assert "truth" in fig._suptitle.get_text()
+    for ax in fig.axes:
+        assert _strip_lines(ax) == [3.5]
+        assert _outside(fig, ax, ax.get_legend())
+        texts = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert "RMS 30 arcsec" in texts[0] and "RMS 3 arcsec" in texts[1]

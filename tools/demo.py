@@ -207,23 +207,27 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
 
 
 def plot_angles(out, eo, d_ins, d_ref, names):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-    x = np.arange(len(eo))
+    """Exposure angle errors against the truth (arcsec) per image, strips marked."""
+    from ins.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
+    plt = pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    x = np.arange(len(eo.image_id))
+    starts = strip_starts(list(eo.image_id), heading_rad=eo.angles[:, 2])
     for k, ax in enumerate(axes):
-        ax.plot(x, d_ins[:, k] / ARCSEC, "o-", ms=3, label="INS EO (no boresight)")
-        ax.plot(x, d_ref[:, k] / ARCSEC, "s-", ms=3, label="refined")
+        ins_as, ref_as = d_ins[:, k] / ARCSEC, d_ref[:, k] / ARCSEC
+        ax.plot(x, ins_as, "o-", ms=3,
+                label=f"INS EO (no boresight)\nRMS {np.sqrt(np.mean(ins_as ** 2)):.0f} arcsec")
+        ax.plot(x, ref_as, "s-", ms=3,
+                label=f"refined\nRMS {np.sqrt(np.mean(ref_as ** 2)):.0f} arcsec")
         ax.axhline(0, color="k", lw=0.5)
-        ax.set_ylabel(f"{names[k]} error (\")")
-    axes[0].legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel("image (flight order)")
-    fig.suptitle("Exposure angles against the truth, before and after refinement")
+        ax.set_ylabel(f"{names[k]} error, arcsec")
+        ax.grid(alpha=0.3)
+        legend_right(ax)
+    mark_strips(axes, starts, len(x))
+    axes[-1].set_xlabel("image number (flight order); dashed lines: strip boundaries")
+    fig.suptitle("Exposure angles minus the truth, before and after the refinement")
     fig.tight_layout()
-    fig.savefig(out / "angles.png.part", dpi=110, format="png")
-    plt.close(fig)
-    os.replace(out / "angles.png.part", out / "angles.png")
+    save_png(fig, str(out / "angles.png"))
 
 
 def write_report(out, table):
