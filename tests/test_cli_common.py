@@ -60,6 +60,8 @@ BASE = {
     ("photogrammetry", "refine"): ["eo.csv", "tp.csv"],
     ("photogrammetry", "lunar-heading"): ["--centres", "c.csv", "--times", "t.csv",
                                           "--station", "1,2,3", "--camera", "cam.toml"],
+    ("photogrammetry", "lunar-simulate"): ["--station", "1,2,3", "--start",
+                                           "2017-05-02T23:00:00Z", "-o", "moon"],
 }
 NEGATIVE_TRIPLET = ("-33.9,1.5e-1,-5E2", [-33.9, 0.15, -500.0])
 NEGATIVE_SCALAR = ("-2.5e-1", -0.25)

@@ -19,9 +19,10 @@ import numpy as np
 
 from ins import textfiles
 from ins.errors import InputError
+from ins.fileio import atomic_open
 
-__all__ = ["read_times", "read_centres", "load_image", "find_images", "GPS_EPOCH",
-           "GPS_MINUS_UTC_S"]
+__all__ = ["read_times", "write_times", "read_centres", "load_image", "find_images",
+           "GPS_EPOCH", "GPS_MINUS_UTC_S"]
 
 GPS_EPOCH = np.datetime64("1980-01-06T00:00:00", "ns")
 GPS_MINUS_UTC_S = 18          # leap seconds since 2017-01-01 (conventions.md)
@@ -110,6 +111,29 @@ def read_times(path):
         ids.append(row["image_id"])
         times.append(t)
     return ids, np.array(times, dtype="datetime64[ns]")
+
+
+
+def write_times(path, ids, utc):
+    """Write exposure times as ``image_id,utc`` (ISO 8601 UTC with a ``Z``), atomically.
+
+    The times are written to the nanosecond their ``datetime64`` holds (milliseconds when
+    they are whole milliseconds), so `read_times` gives them back exactly.
+
+    Parameters
+    ----------
+    path : str
+    ids : sequence of str
+        Image ids (no commas, unique).
+    utc : array_like of datetime64, shape (n,)
+        Strictly increasing, UTC.
+    """
+    utc = np.asarray(utc, dtype="datetime64[ns]")
+    unit = "ms" if np.all(utc.astype("int64") % 1_000_000 == 0) else "ns"
+    text = np.datetime_as_string(utc, unit=unit)
+    with atomic_open(path, "w") as f:
+        f.write("image_id,utc\n")
+        f.writelines(f"{k},{t}Z\n" for k, t in zip(ids, text))
 
 
 def read_centres(path, default_sigma_px=0.1):

@@ -1,4 +1,5 @@
-"""Synthetic Moon images with phase and a sharp lit limb, for tests and benchmarks.
+"""Synthetic Moon images with phase and a sharp lit limb: ``photogrammetry lunar-simulate``
+(a session of images to try ``lunar-heading`` on), the tests and the benchmarks.
 
 Photometry: Lommel-Seeliger, ``I = mu0 / (mu0 + mu)`` on the lit part of the visible
 hemisphere (``mu0``, ``mu`` the cosines of incidence and emission): the lit limb stays
@@ -10,11 +11,14 @@ tests of the fit are not circular) and given Gaussian read noise.
 Two geometries share the shading: a flat disk of given centre and radius in pixels
 (``render_moon``), and the Moon seen through a fisheye camera, where the disk is the cone
 of the apparent semidiameter around the Moon's direction (``render_moon_fisheye``).
+A session is a series of the latter at the ephemeris' directions for a camera of known
+orientation (``camera_attitude``, ``render_session``).
 """
 import numpy as np
 from scipy import ndimage, signal
 
-__all__ = ["render_moon", "render_moon_fisheye", "shade"]
+__all__ = ["render_moon", "render_moon_fisheye", "render_session", "session_image",
+           "camera_attitude", "shade"]
 
 
 def shade(X, Y, sun3):
@@ -186,3 +190,68 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
     flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
     return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
                    psf)
+
+
+def camera_attitude(heading, tilt, tilt_azimuth):
+    """Orientation ``C_hc`` (camera -> horizon NED) of a camera looking up.
+
+    The optical axis (the camera's ``-z``) makes the angle `tilt` with the zenith and
+    leans towards the azimuth `tilt_azimuth`; the camera x axis has the azimuth
+    `heading` (the heading of ``lunar.solve.heading``) and lies in the plane normal to
+    the optical axis.  Frames as in ``lunar.fisheye``: ``S_h = C_hc S_c``.
+
+    Parameters
+    ----------
+    heading, tilt, tilt_azimuth : float
+        rad; azimuths from north, clockwise; ``0 <= tilt < pi / 2``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``C_hc``, columns the camera axes x, y, z in NED.
+    """
+    if not 0.0 <= tilt < np.pi / 2:
+        raise ValueError(f"tilt must be in [0, 90) deg, got {np.rad2deg(tilt)} deg")
+    axis = np.array([np.sin(tilt) * np.cos(tilt_azimuth), np.sin(tilt) * np.sin(tilt_azimuth),
+                     -np.cos(tilt)])                                  # optical axis, up
+    # x: azimuth `heading`, its vertical part making it normal to the optical axis
+    x = np.array([np.cos(heading), np.sin(heading),
+                  np.tan(tilt) * np.cos(heading - tilt_azimuth)])
+    x /= np.linalg.norm(x)
+    z = -axis
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def session_image(camera, C_hc, sky, k, seed=0, **options):
+    """Image ``k`` of a session (see `render_session`); its noise from
+    ``numpy.random.default_rng([seed, k])``, the same whatever the order of rendering."""
+    C_hc = np.asarray(C_hc, float)
+    return render_moon_fisheye(camera, sky.moon_h[k] @ C_hc, sky.sun_h[k] @ C_hc,
+                               sky.semidiameter[k], rng=np.random.default_rng([seed, k]),
+                               **options)
+
+
+def render_session(camera, C_hc, sky, seed=0, **options):
+    """The images of a session: the Moon of each epoch of `sky` through `camera`.
+
+    Parameters
+    ----------
+    camera : photogrammetry.lunar.fisheye.FisheyeCamera
+    C_hc : array_like, shape (3, 3)
+        Camera -> horizon (NED), fixed over the session (`camera_attitude`).
+    sky : photogrammetry.lunar.ephemeris.SkyDirections
+        The Moon's and the Sun's directions (NED) and the semidiameter per epoch.
+    seed : int
+        Noise of image ``k`` from ``numpy.random.default_rng([seed, k])``: the same
+        images whatever the order or the number rendered (`session_image`).
+    **options
+        Passed to `render_moon_fisheye` (peak, background, psf_sigma_px, noise_sigma,
+        supersample, dtype, psf).
+
+    Yields
+    ------
+    ndarray, shape ``(camera.height_px, camera.width_px)``
+        One image per epoch, in order.
+    """
+    for k in range(len(sky.moon_h)):
+        yield session_image(camera, C_hc, sky, k, seed, **options)
