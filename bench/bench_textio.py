@@ -14,7 +14,52 @@ with one bad field at 80 % of the file, the time to fail and whether the message
 line.  Writing: our fixed-point formatter against ``numpy.savetxt`` and pandas ``to_csv``
 with the same decimals.
 
-Usage: python bench/bench_textio.py [--repeat N]   (needs the bench extras: pandas, pyarrow)
+Also: each streaming reader in a background thread beside GIL-holding work in the main
+thread (the layout of ``ins process``, whose IMU reader thread runs beside the filter),
+and with ``--process`` whole ``ins process --no-plots`` runs with our reader and with
+pandas' C engine in chunks put in its place.
+
+Measured (issue 13 item 4; pandas 3.1.1, 2 cores shared with other jobs, load ~3, warm,
+best of 3; IMU log 47.7 MB, 302 001 x 7):
+
+=================================  ========  =====  ===========================================
+reader                             time s    exact  bad field at line 241 601 (80 %)
+=================================  ========  =====  ===========================================
+ours read_table                    0.121     yes    0.19 s, names the file, line and field
+ours iter_table (stream)           0.112     yes    0.15 s, names the file, line and field
+pandas C, sep=" "                  0.060     yes    0.45 s, "could not convert string to
+                                                    float: '1.2.3'" (no line)
+pandas C, whitespace sep, comment  0.131     yes    (``sep=r"\\s+", comment="#"``: the options
+                                                    our files need; commas as well need the
+                                                    Python engine: ~1.7 s, from 30 000 rows)
+pandas C chunks (stream)           0.097     yes    0.21 s, no line
+pyarrow.csv                        0.145     yes    0.38 s, ACCEPTED the bad field silently
+pyarrow.csv open_csv (stream)      0.146     yes    0.15 s, no line
+numpy.loadtxt                      0.888     yes    0.88 s, row and column (blanks only)
+=================================  ========  =====  ===========================================
+
+Writing 302 001 x 10 values, decimals per column: ours ``format_fixed`` 0.113 s,
+``numpy.savetxt`` 1.165 s (same bytes), pandas ``to_csv`` 2.80 s (one decimals for all
+columns only).  ``import pandas`` costs 0.32 s in a fresh process.
+
+Reader thread beside GIL-holding work (main-thread rate against alone): ours 0.57,
+pandas chunks 0.67, pyarrow stream 0.67, pandas whole 0.61: about the same with every
+reader (on 2 cores loaded by other jobs the loss is mostly CPU contention; our kernel is
+``nogil``), so the thread layout gives no library an edge.
+
+Whole ``ins process --no-plots`` on the shared dataset (median of 3 after a warm-up):
+ours 2.91 s (min 2.63), pandas chunks 3.08 s (min 3.00).
+
+Decision: keep ours.  Pandas is faster only with a single-space separator and no
+comments (0.06 vs 0.12 s, a 0.06 s gain on a 3 s run that reads in a background thread);
+with the options our inputs need it is as fast as ours (0.13 s), it names no line (a
+second pass would be needed to locate a bad field), pyarrow accepts a bad field, the
+formatter has no library match (10x numpy, 25x pandas), and ``ins process`` is not faster
+with pandas (its import alone costs 0.32 s).  A new runtime dependency buys nothing
+measurable.
+
+Usage: python bench/bench_textio.py [--repeat N] [--process]
+(needs the bench extras: pandas, pyarrow)
 """
 import argparse
 import io
@@ -168,9 +213,109 @@ def bench_writes(values, decimals, repeat):
     print(f"{'pandas to_csv (one format)':<32}{t:>8.3f}  (one decimals for every column)")
 
 
+def _gil_work(stop):
+    """Work that holds the GIL (small numpy products in a Python loop, like the filter's
+    per-epoch steps): the number of iterations done until ``stop`` is set."""
+    a = np.eye(3)
+    b = np.full(3, 0.1)
+    n = 0
+    while not stop.is_set():
+        for _ in range(200):
+            b = a @ b + 1e-9
+        n += 200
+    return n
+
+
+def bench_gil(path, ncols):
+    """The IMU log read in a background thread beside GIL-holding work in the main thread:
+    the main thread's work rate against its rate alone (1.00 = the reader never holds the
+    GIL), and the reader's own time."""
+    import threading
+    readers_by_name = dict(readers(ncols))
+    stop = threading.Event()
+    t0 = time.perf_counter()
+    timer = threading.Timer(1.0, stop.set)
+    timer.start()
+    alone = _gil_work(stop) / (time.perf_counter() - t0)
+    print(f"\nreader thread beside GIL-holding work ({path.name}; main-thread rate alone "
+          f"{alone / 1e3:.0f} k steps/s)")
+    print(f"{'reader (background thread)':<32}{'read s':>8}  main-thread rate meanwhile")
+    for name in ("ours iter_table (stream)", "pandas C chunks (stream)",
+                 "pyarrow.csv open_csv (stream)", "pandas C engine"):
+        fn = readers_by_name[name]
+        stop = threading.Event()
+        took = {}
+
+        def run():
+            t = time.perf_counter()
+            fn(path)
+            took["s"] = time.perf_counter() - t
+            stop.set()
+
+        th = threading.Thread(target=run)
+        t0 = time.perf_counter()
+        th.start()
+        n = _gil_work(stop)
+        rate = n / (time.perf_counter() - t0)
+        th.join()
+        print(f"{name:<32}{took['s']:>8.3f}  {rate / alone:.2f} of alone")
+
+
+# The child runs ``ins process`` with the IMU text table read by ours or by pandas' C
+# engine in chunks (ins.textfiles.iter_table replaced; same values, lines approximate).
+_PROCESS_CHILD = """
+import sys, time
+import numpy as np
+reader = sys.argv.pop(1)
+if reader == "pandas":
+    import pandas as pd
+    from ins import textfiles
+    def iter_table(path, ncols_min=1, ncols_max=1 << 30, column_names=None, hint=None,
+                   block_bytes=0, skip_header_lines=0):
+        line = 1
+        with pd.read_csv(path, sep=" ", header=None, engine="c", dtype=np.float64,
+                         chunksize=200_000) as it:
+            for c in it:
+                v = c.to_numpy()
+                yield v, np.arange(line, line + len(v))
+                line += len(v)
+    textfiles.iter_table = iter_table
+from ins.cli import main
+t = time.perf_counter()
+code = main(['process'] + sys.argv[1:])
+sys.stderr.write(f"{time.perf_counter() - t}\\n")
+sys.exit(code)
+"""
+
+
+def bench_process(data, repeat):
+    """Whole ``ins process`` (no plots) on the shared dataset with each reader."""
+    import subprocess
+    cfg = ROOT / "data" / "configs" / "kfgins_like.toml"
+    print("\nins process --no-plots on the shared dataset (fresh process, numba cache warm)")
+    print(f"{'IMU reader':<32}{'wall s':>8}  (median of {repeat}; min)")
+    with tempfile.TemporaryDirectory() as tmp:
+        for reader in ("ours", "pandas"):
+            walls = []
+            for _ in range(repeat + 1):
+                cmd = [sys.executable, "-c", _PROCESS_CHILD, reader, "--imu",
+                       str(data / "imu_noisy.txt"), "--gnss", str(data / "gnss.txt"),
+                       "--config", str(cfg), "-q", "--no-plots", "-o", tmp, "--force"]
+                t = time.perf_counter()
+                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+                if proc.returncode != 0:
+                    print(proc.stderr[-2000:])
+                    raise SystemExit("ins process failed")
+                walls.append(time.perf_counter() - t)
+            walls = walls[1:]                       # the first run warms the caches
+            print(f"{reader:<32}{np.median(walls):>8.2f}  ({min(walls):.2f})")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--process", action="store_true",
+                    help="also time whole `ins process` runs with ours and with pandas")
     args = ap.parse_args()
     data = ensure_bench_data()
     if data is None:
@@ -183,6 +328,9 @@ def main():
         bench_reads(data / "gnss.txt", 7, args.repeat, tmpdir)
     nav = textfiles.read_table(data / "truth.nav", 11, 11)[0]
     bench_writes(nav[:, 1:], [3, 9, 9, 4, 4, 4, 4, 6, 6, 6], args.repeat)
+    bench_gil(data / "imu_noisy.txt", 7)
+    if args.process:
+        bench_process(data, args.repeat)
     return 0
 
 
