@@ -1,6 +1,7 @@
 """``ins allan IMU_FILE``: Allan deviation of a static IMU log, noise terms per axis (a
 moving log is refused: :func:`ins.allan.static_check`)."""
 import argparse
+import os
 import warnings
 
 import numpy as np
@@ -62,7 +63,6 @@ def _span_text(spans, limit=3):
 def _cmd_allan(args):
     from . import imu as imu_mod
     from .allan import allan_deviation, noise_densities, static_check
-    from .fileio import atomic_open
 
     if args.plot:
         from .cli import check_output_file
@@ -103,21 +103,31 @@ def _cmd_allan(args):
         print(f"{name:<6}{np.degrees(arw[i]) * 60:>17.5g}{np.degrees(gbi[i]) * 3600:>15.5g}"
               f"{vrw[i] * 60:>17.5g}{abi[i] / 1e-5:>15.5g}")
     if args.plot:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
-        for i, name in enumerate("xyz"):
-            a1.loglog(tau, np.degrees(ag[:, i]) * 3600, label=f"gyro {name}")
-            a2.loglog(tau, aa[:, i] / 1e-5, label=f"accel {name}")
-        a1.set(xlabel="tau (s)", ylabel="Allan deviation (deg/h)", title="gyroscopes")
-        a2.set(xlabel="tau (s)", ylabel="Allan deviation (mGal)", title="accelerometers")
-        for a in (a1, a2):
-            a.grid(True, which="both", alpha=0.3)
-            a.legend()
-        fig.tight_layout()
-        with atomic_open(args.plot, "wb") as f:
-            fig.savefig(f, format="png", dpi=100)
-        plt.close(fig)
+        plot_allan(args.plot, tau, ag, aa,
+                   f"{os.path.basename(args.imu_file)}: {len(log) * dt:.0f} s static, "
+                   f"{1 / dt:.0f} Hz")
         print(f"wrote {args.plot}")
     return 0
+
+
+def plot_allan(path, tau_s, adev_gyro_rad_s, adev_accel_mps2, what=""):
+    """Log-log plot of the Allan deviations (gyro deg/h, accel mGal) against tau (s)."""
+    from .plotstyle import legend_right, pyplot, save_png
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
+    for i, name in enumerate("xyz"):
+        a1.loglog(tau_s, np.degrees(adev_gyro_rad_s[:, i]) * 3600, label=f"gyro {name}")
+        a2.loglog(tau_s, adev_accel_mps2[:, i] / 1e-5, label=f"accel {name}")
+    a1.set(xlabel="averaging time tau, s", ylabel="Allan deviation, deg/h",
+           title="gyroscopes")
+    a2.set(xlabel="averaging time tau, s", ylabel="Allan deviation, mGal",
+           title="accelerometers")
+    for a in (a1, a2):
+        a.grid(True, which="both", alpha=0.3)
+        a.xaxis.set_major_formatter(lambda v, _: f"{v:g}")
+        a.yaxis.set_major_formatter(lambda v, _: f"{v:g}")
+        legend_right(a)
+    fig.suptitle("Allan deviation" + (f" of {what}" if what else "")
+                 + " (slope -1/2: random walk, flat floor: bias instability)")
+    fig.tight_layout()
+    return save_png(fig, path, dpi=100)

@@ -6,7 +6,6 @@ import numpy as np
 
 from ins.cliutil import Progress, check_output_file, triplet
 from ins.errors import InputError
-from ins.fileio import atomic_open
 
 EPILOG = """\
 frames and units:
@@ -147,23 +146,25 @@ def run(args):
 
 
 def _plot(path, counts, headings, sigmas, final):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """Convergence plot: heading from the first n images minus the heading from all
+    (arcsec) with its 1-sigma band, against n."""
+    from ins.plotstyle import legend_right, pyplot, save_png
+    plt = pyplot()
     arcsec = np.rad2deg(1.0) * 3600
     diff = np.angle(np.exp(1j * (headings - final))) * arcsec
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(counts, diff, "o", ms=3, label="heading - heading(all images)")
-    ax.plot(counts, sigmas * arcsec, "-", label="+1 sigma")
-    ax.plot(counts, -sigmas * arcsec, "-", color="C1", label="-1 sigma")
+    fig, ax = plt.subplots(figsize=(8.5, 4.2))
+    ax.fill_between(counts, -sigmas * arcsec, sigmas * arcsec, color="C1", alpha=0.25,
+                    lw=0, label="+-1 sigma of the heading\nfrom the first n images")
+    ax.plot(counts, diff, "o", ms=3, color="C0",
+            label="heading from the first n images\nminus heading from all")
+    ax.axhline(0, color="k", lw=0.5)
     lim = 5 * np.median(sigmas) * arcsec
     ax.set_ylim(-lim, lim)
-    ax.set_xlabel("number of images")
-    ax.set_ylabel("arcsec")
-    ax.set_title("Lunar heading convergence")
-    ax.legend()
+    ax.set_xlabel("n, number of images used (time order)")
+    ax.set_ylabel("heading difference, arcsec")
+    ax.set_title(f"Lunar heading convergence: heading {np.rad2deg(final) % 360:.6f} deg, "
+                 f"sigma {sigmas[-1] * arcsec:.1f} arcsec with {counts[-1]} images",
+                 fontsize=10)
+    legend_right(ax)
     ax.grid(alpha=0.3)
-    with atomic_open(path, "wb") as f:
-        fig.savefig(f, format="png", dpi=100)
-    plt.close(fig)
+    save_png(fig, path, dpi=100)

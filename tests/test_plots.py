@@ -250,3 +250,41 @@ def test_demo_angle_plot_marks_strips(tmp_path, style_figures):
         assert _outside(fig, ax, ax.get_legend())
         texts = [t.get_text() for t in ax.get_legend().get_texts()]
         assert "RMS 30 arcsec" in texts[0] and "RMS 3 arcsec" in texts[1]
+
+
+def test_allan_plot_units_and_legends(tmp_path, style_figures):
+    from ins.cli_allan import plot_allan
+    tau = np.logspace(-2, 2, 20)
+    gyro = np.column_stack([1e-5 / np.sqrt(tau)] * 3)            # rad/s
+    accel = np.column_stack([1e-3 / np.sqrt(tau)] * 3)           # m/s^2
+    path = str(tmp_path / "allan.png")
+    plot_allan(path, tau, gyro, accel, "imu.txt: 600 s static")
+    assert _png(path)
+    fig = style_figures[path]
+    a1, a2 = fig.axes
+    assert (a1.get_ylabel(), a2.get_ylabel()) == ("Allan deviation, deg/h",
+                                                  "Allan deviation, mGal")
+    assert a1.get_xlabel() == "averaging time tau, s"
+    # 1e-5 rad/s = 2.063 deg/h at tau 1 s; 1e-3 m/s^2 = 100 mGal
+    y1 = a1.get_lines()[0].get_ydata()
+    assert y1[np.argmin(np.abs(tau - 1))] == pytest.approx(
+        1e-5 / np.sqrt(tau[np.argmin(np.abs(tau - 1))]) * 180 / np.pi * 3600)
+    assert a2.get_lines()[0].get_ydata()[0] == pytest.approx(1e-3 / np.sqrt(tau[0]) / 1e-5)
+    assert "600 s static" in fig._suptitle.get_text()
+    assert all(_outside(fig, a, a.get_legend()) for a in (a1, a2))
+
+
+def test_lunar_convergence_plot(tmp_path, style_figures):
+    from photogrammetry.cli_lunar import _plot
+    counts = np.arange(2, 12)
+    sig = np.deg2rad(40 / 3600) / np.sqrt(counts - 1)
+    final = np.deg2rad(-30.0)
+    hdg = final + np.deg2rad(2 / 3600) + 2 * np.pi           # wraps to +2 arcsec
+    path = str(tmp_path / "conv.png")
+    _plot(path, counts, np.full(counts.size, hdg), sig, final)
+    assert _png(path)
+    ax = style_figures[path].axes[0]
+    assert ax.get_ylabel() == "heading difference, arcsec"
+    assert "heading 330.000000 deg" in ax.get_title()
+    assert np.allclose(ax.get_lines()[0].get_ydata(), 2.0)
+    assert _outside(ax.figure, ax, ax.get_legend())
