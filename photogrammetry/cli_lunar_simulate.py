@@ -255,12 +255,13 @@ def _truth_toml(args, C_hc, tilt_azimuth_deg, pressure, utc):
 def run(args):
     from PIL import Image
 
-    from ins.fileio import atomic_open, output_folder
+    from ins.fileio import atomic_open, check_output_folder, output_folder
     from .lunar.ephemeris import moon_sun_directions, standard_pressure_hpa
     from .lunar.io import write_times
     from .lunar.render import camera_attitude, session_image
 
     t0 = wallclock.perf_counter()
+    check_output_folder(args.output, args.force)      # now, not after the rendering
     lat_deg, lon_deg, h = (float(x) for x in args.station)
     if abs(lat_deg) > 90:
         raise InputError(f"--station: latitude {lat_deg} deg is outside +-90 deg")
