@@ -115,7 +115,8 @@ def end_to_end(imu_path, init_args, out_path, repeat):
 
 def one_hour_log(log, path_txt, path_bin):
     """A 1 h 200 Hz log: the benchmark flight's increments repeated, time continued."""
-    from ins.imu import ImuLog, write_kfgins_binary, write_kfgins_text
+    from ins.imu import ImuLog
+    from ins.imu_files import write_kfgins_binary, write_kfgins_text
     n = 720_001
     reps = -(-n // len(log))
     t = log.time[0] + np.arange(n) * 0.005
@@ -140,7 +141,7 @@ def main():
     if data is None:
         raise SystemExit(f"no benchmark data in {args.data} and no shared script under "
                          f"{benchdata.SHARED}")
-    from ins.imu import read_kfgins_text, write_kfgins_binary
+    from ins.imu_files import read_kfgins_text, write_kfgins_binary
     from ins.mechanization import NavState
 
     args.work.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ from .errors import InputError, InputWarning  # noqa: E402
 
 # The rest is imported on first use (PEP 562): ``import ins.cli`` stays light, so that
 # the command-line tools install their Ctrl-C handler before numpy and numba load.
-_LAZY = {"ImuLog": "imu", "compensate": "imu", "read_imu": "imu",
+_LAZY = {"ImuLog": "imu", "compensate": "imu", "read_imu": "imu_files",
          "NavState": "mechanization", "iter_mechanize": "mechanization",
          "mechanize": "mechanization",
          "Trajectory": "trajectory", "read_nav": "trajectory", "write_nav": "trajectory"}

@@ -61,13 +61,13 @@ def _span_text(spans, limit=3):
 
 
 def _cmd_allan(args):
-    from . import imu as imu_mod
+    from . import imu_files
     from .allan import allan_deviation, noise_densities, static_check
 
     if args.plot:
         from .cli import check_output_file
         check_output_file(args.plot)      # an unwritable plot: now, not after the work
-    log = imu_mod.read_imu(args.imu_file, format=args.format, axes=args.axes)
+    log = imu_files.read_imu(args.imu_file, format=args.format, axes=args.axes)
     if args.start is not None or args.end is not None:
         t0, t1 = float(log.time[0]), float(log.time[-1])
         if args.start is not None and args.end is not None and args.start >= args.end:

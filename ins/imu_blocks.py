@@ -16,6 +16,7 @@ import numpy as np
 
 from . import textfiles
 from . import imu as imu_mod
+from . import imu_files
 from .errors import InputError
 
 BLOCK_ROWS = 1 << 18
@@ -25,14 +26,14 @@ def _format_of(path, format):
     if format is None:
         ext = os.path.splitext(os.fspath(path))[1].lower()
         format = {".bin": "kfgins-bin", ".imu": "kfgins-bin", ".csv": "csv"}.get(ext, "kfgins")
-    if format not in imu_mod.FORMATS:
-        raise ValueError(f"format must be one of {', '.join(imu_mod.FORMATS)} or None, "
+    if format not in imu_files.FORMATS:
+        raise ValueError(f"format must be one of {', '.join(imu_files.FORMATS)} or None, "
                          f"got {format!r}")
     return format
 
 
 def _text_tables(path, rates):
-    names = imu_mod._KFGINS_RATE_NAMES if rates else imu_mod._KFGINS_NAMES
+    names = imu_files._KFGINS_RATE_NAMES if rates else imu_files._KFGINS_NAMES
     layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
               else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
     for values, row_line in textfiles.iter_table(path, 7, 1 << 30, column_names=names,
@@ -42,8 +43,8 @@ def _text_tables(path, rates):
 
 def _binary_tables(path, block_rows):
     size = os.path.getsize(path)
-    if size == 0 or size % imu_mod._RECORD_BYTES:
-        imu_mod.read_kfgins_binary(path)          # raises its InputError
+    if size == 0 or size % imu_files._RECORD_BYTES:
+        imu_files.read_kfgins_binary(path)          # raises its InputError
     with open(path, "rb") as f:
         while True:
             table = np.fromfile(f, dtype="<f8", count=7 * block_rows)
@@ -55,19 +56,19 @@ def _binary_tables(path, block_rows):
 def iter_imu(path, format=None, rates=False, axes="FRD", block_rows=BLOCK_ROWS):
     """Consecutive :class:`ins.imu.ImuLog` pieces of the IMU log at ``path``.
 
-    Same arguments as :func:`ins.imu.read_imu`; the concatenation of the pieces is what
-    :func:`ins.imu.read_imu` returns.  Errors name the file and line (or record).
+    Same arguments as :func:`ins.imu_files.read_imu`; the concatenation of the pieces is what
+    :func:`ins.imu_files.read_imu` returns.  Errors name the file and line (or record).
     """
     format = _format_of(path, format)
     if format == "csv":
-        log = imu_mod.read_imu(path, format="csv", rates=rates, axes=axes)
+        log = imu_files.read_imu(path, format="csv", rates=rates, axes=axes)
         for k in range(0, len(log), block_rows):
-            yield imu_mod.ImuLog._adopt(log.time[k:k + block_rows],
-                                        log.dtheta_b[k:k + block_rows],
-                                        log.dvel_b[k:k + block_rows])
+            yield imu_mod.ImuLog.adopt(log.time[k:k + block_rows],
+                                       log.dtheta_b[k:k + block_rows],
+                                       log.dvel_b[k:k + block_rows])
         return
-    axes = imu_mod._check_axes(axes)
-    names = imu_mod._KFGINS_RATE_NAMES if rates else imu_mod._KFGINS_NAMES
+    axes = imu_files._check_axes(axes)
+    names = imu_files._KFGINS_RATE_NAMES if rates else imu_files._KFGINS_NAMES
     tables = (_text_tables(path, rates) if format == "kfgins"
               else _binary_tables(os.fspath(path), block_rows))
     prev = prev_line = None
@@ -83,11 +84,11 @@ def iter_imu(path, format=None, rates=False, axes="FRD", block_rows=BLOCK_ROWS):
             if prev is not None:                  # the previous row: continuity, rates
                 table = np.concatenate([prev, table])
                 row_line = np.concatenate([prev_line, row_line])
-            log = imu_mod._finish(path, table, range(7), names, None, row_line, rates, axes,
-                                  imu_mod._RATES_HINT)
+            log = imu_files._finish(path, table, range(7), names, None, row_line, rates, axes,
+                                    imu_files._RATES_HINT)
             prev_line = row_line[-1:]
         if prev is not None:
-            log = imu_mod.ImuLog._adopt(log.time[1:], log.dtheta_b[1:], log.dvel_b[1:])
+            log = imu_mod.ImuLog.adopt(log.time[1:], log.dtheta_b[1:], log.dvel_b[1:])
         prev = table[-1:].copy()
         if len(log):
             yield log
@@ -95,8 +96,8 @@ def iter_imu(path, format=None, rates=False, axes="FRD", block_rows=BLOCK_ROWS):
 
 def _finish_records(path, table, names, rates, axes, first_record):
     try:
-        return imu_mod._finish(path, table, range(7), names, None, None, rates, axes,
-                               imu_mod._RATES_HINT)
+        return imu_files._finish(path, table, range(7), names, None, None, rates, axes,
+                                 imu_files._RATES_HINT)
     except InputError as exc:
         if first_record and exc.record is not None:
             raise InputError(exc.reason, path=os.fspath(path),

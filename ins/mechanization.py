@@ -167,12 +167,12 @@ def iter_mechanize_blocks(blocks, initial, *, start=None, end=None, every=1, str
             if prev_raw is None:
                 log = compensate(raw, **errors)
             else:
-                ext = ImuLog._adopt(np.concatenate([prev_raw.time, raw.time]),
-                                    np.concatenate([prev_raw.dtheta_b, raw.dtheta_b]),
-                                    np.concatenate([prev_raw.dvel_b, raw.dvel_b]))
+                ext = ImuLog.adopt(np.concatenate([prev_raw.time, raw.time]),
+                                   np.concatenate([prev_raw.dtheta_b, raw.dtheta_b]),
+                                   np.concatenate([prev_raw.dvel_b, raw.dvel_b]))
                 c = compensate(ext, **errors)
-                log = ImuLog._adopt(c.time[1:], c.dtheta_b[1:], c.dvel_b[1:])
-        prev_raw = ImuLog._adopt(raw.time[-1:], raw.dtheta_b[-1:], raw.dvel_b[-1:])
+                log = ImuLog.adopt(c.time[1:], c.dtheta_b[1:], c.dvel_b[1:])
+        prev_raw = ImuLog.adopt(raw.time[-1:], raw.dtheta_b[-1:], raw.dvel_b[-1:])
         time, dth, dv = log.time, log.dtheta_b, log.dvel_b
         stop = len(time) if end is None else int(np.searchsorted(time, end + 1e-9,
                                                                    side="right"))

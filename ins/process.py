@@ -466,8 +466,8 @@ def _start(cfg, blocks, gnss, lever=None):
         if not check_static_heading(cfg.noise, float(lla_w[0]), t_b - t_a, gnss):
             return _in_air(cfg, gnss, t_b, lever, blocks)
         head, blocks = _read_until(blocks, t_b)
-        imu = ImuLog._adopt(*(np.concatenate([getattr(b, k_) for b in head])
-                              for k_ in ("time", "dtheta_b", "dvel_b")))
+        imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
+                             for k_ in ("time", "dtheta_b", "dvel_b")))
         al = align_static(imu, t_a, t_b, lla_w, cfg.noise)
         blocks = itertools.chain(head, blocks)
         if k is None:                                   # the config gave the position

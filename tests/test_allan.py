@@ -5,7 +5,7 @@ import pytest
 
 from ins.allan import allan_deviation, noise_densities
 from ins.cli import main
-from ins.imu import write_kfgins_text
+from ins.imu_files import write_kfgins_text
 from ins.simulate.sensor_errors import DEG_SQRTH, MPS_SQRTH, ImuErrorModel, apply_errors
 from test_sensor_errors import static_log
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from ins import cli, earth
-from ins.imu import ImuLog, write_kfgins_binary
+from ins.imu import ImuLog
+from ins.imu_files import write_kfgins_binary
 from ins.trajectory import read_nav
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -242,7 +242,8 @@ def _commands(flight, out):
     f = flight
     static = f.parent / "static_imu.txt"
     if not static.exists():
-        from ins.imu import ImuLog, write_kfgins_text
+        from ins.imu import ImuLog
+        from ins.imu_files import write_kfgins_text
         from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
         rows = _static_rows(30.5, n=4000)
         log = ImuLog(rows[:, 0], rows[:, 1:4], rows[:, 4:7])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from ins import imu as imu_mod
+from ins import imu_files
 from ins.accuracy import compare
 from ins.filter import FilterSettings, run_forward, schedule_nodes
 from ins.gnss import GnssLog, read_gnss
@@ -151,7 +151,7 @@ def nees_band(n_windows, dof, p=0.001):
 
 
 def forward_and_errors(cfg):
-    imu = imu_mod.read_imu(cfg.imu)
+    imu = imu_files.read_imu(cfg.imu)
     gnss = read_gnss(cfg.gnss)
     mount = read_mount(cfg.mount) if cfg.mount else None
     state, t0, _ = _initial(cfg, imu, gnss)
@@ -216,7 +216,7 @@ def test_outlier_rejected_and_counted(flight):
     k = len(gnss) // 2
     lla[k, 2] += 5.0                                     # a 5 m height blunder
     bad = GnssLog(gnss.time, lla, gnss.std_ned, line=gnss.line)
-    imu = imu_mod.read_imu(cfg.imu)
+    imu = imu_files.read_imu(cfg.imu)
     state, t0, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp, cfg.lever_ap,
                                                               read_mount(cfg.mount)),
@@ -234,7 +234,7 @@ def test_gnss_between_imu_epochs_is_used_at_its_own_time(flight):
     cfg.end_s = tomllib.loads((Path(flight) / "manifest.toml").read_text())["flight"][
         "start_time_s"] + 200.0
     gnss = read_gnss(cfg.gnss)
-    imu = imu_mod.read_imu(cfg.imu)
+    imu = imu_files.read_imu(cfg.imu)
     truth = read_nav(cfg.truth)
     state, t0, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp + cfg.lever_ap),
@@ -289,7 +289,7 @@ def test_missing_mount_data_counted_with_a_warning(flight, tmp_path):
     mount = read_mount(cfg.mount)
     keep = mount.time < t0 + 100.0
     short = MountLog(mount.time[keep], mount.rpy[keep])
-    imu = imu_mod.read_imu(cfg.imu)
+    imu = imu_files.read_imu(cfg.imu)
     gnss = read_gnss(cfg.gnss)
     state, _, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp, cfg.lever_ap, short),
@@ -326,7 +326,7 @@ def test_velocity_updates_with_the_varying_arm(flight):
     dt = truth.time[k + 1] - truth.time[k - 1]
     vel = earth.ned_offset(ant(k - 1), ant(k + 1)) / dt[:, None]
     with_vel = GnssLog(g.time, g.lla, g.std_ned, vel, np.full((len(g), 3), 0.005))
-    imu = imu_mod.read_imu(cfg.imu)
+    imu = imu_files.read_imu(cfg.imu)
     state, _, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=lever, pos_std_ned_m=[0.1] * 3,
                               vel_std_ned_mps=[0.05] * 3, att_std_deg=[0.05, 0.05, 0.2])

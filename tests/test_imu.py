@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins import imu, textparse
+from ins import imu, imu_files, textparse
 from ins.errors import InputError, InputWarning
 from ins.imu import ImuLog
 
@@ -114,57 +114,57 @@ def test_slice_time_inclusive():
 
 # ----------------------------------------------------------------------------- round trips
 
-@pytest.mark.parametrize("ext,writer", [(".txt", imu.write_kfgins_text),
-                                        (".bin", imu.write_kfgins_binary),
-                                        (".csv", imu.write_csv)])
+@pytest.mark.parametrize("ext,writer", [(".txt", imu_files.write_kfgins_text),
+                                        (".bin", imu_files.write_kfgins_binary),
+                                        (".csv", imu_files.write_csv)])
 def test_round_trip_bit_exact(tmp_path, engine, ext, writer):
     log = make_log(n=500, dt=0.005)
     path = tmp_path / ("imu" + ext)
     assert writer(path, log) == 500
-    back = imu.read_imu(path)
+    back = imu_files.read_imu(path)
     assert_same_log(back, log)
     assert [p.name for p in tmp_path.iterdir()] == [path.name]      # no temporary left
 
 
 def test_text_writer_layout(tmp_path):
     log = make_log(n=3)
-    imu.write_kfgins_text(tmp_path / "a.txt", log)
+    imu_files.write_kfgins_text(tmp_path / "a.txt", log)
     first = (tmp_path / "a.txt").read_text().splitlines()[0].split()
     assert first[0] == "300000.000" and len(first) == 7
     assert first[1] == "%.17e" % log.dtheta_b[0, 0]
-    imu.write_csv(tmp_path / "a.csv", log)
+    imu_files.write_csv(tmp_path / "a.csv", log)
     lines = (tmp_path / "a.csv").read_text().splitlines()
     assert lines[0] == ("time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,"
                         "dvel_x_mps,dvel_y_mps,dvel_z_mps")
     # irregular times that no fixed decimals represent are written exactly as well
     t = 1000.0 + np.cumsum(np.full(5, 0.005) + np.arange(5) * 1e-13)
     odd = ImuLog(t, log.dtheta_b[[0, 1, 2, 0, 1]], log.dvel_b[[0, 1, 2, 0, 1]])
-    imu.write_kfgins_text(tmp_path / "odd.txt", odd)
-    assert_same_log(imu.read_kfgins_text(tmp_path / "odd.txt"), odd)
+    imu_files.write_kfgins_text(tmp_path / "odd.txt", odd)
+    assert_same_log(imu_files.read_kfgins_text(tmp_path / "odd.txt"), odd)
 
 
 def test_format_dispatch(tmp_path):
     log = make_log(n=50)
-    imu.write_kfgins_binary(tmp_path / "a.imu", log)
-    imu.write_kfgins_text(tmp_path / "a.dat", log)
-    imu.write_kfgins_binary(tmp_path / "b.raw", log)
-    assert_same_log(imu.read_imu(tmp_path / "a.imu"), log)
-    assert_same_log(imu.read_imu(tmp_path / "a.dat"), log)
-    assert_same_log(imu.read_imu(tmp_path / "b.raw", format="kfgins-bin"), log)
+    imu_files.write_kfgins_binary(tmp_path / "a.imu", log)
+    imu_files.write_kfgins_text(tmp_path / "a.dat", log)
+    imu_files.write_kfgins_binary(tmp_path / "b.raw", log)
+    assert_same_log(imu_files.read_imu(tmp_path / "a.imu"), log)
+    assert_same_log(imu_files.read_imu(tmp_path / "a.dat"), log)
+    assert_same_log(imu_files.read_imu(tmp_path / "b.raw", format="kfgins-bin"), log)
     with pytest.raises(InputError):              # binary read as text: not numbers
-        imu.read_imu(tmp_path / "b.raw")
+        imu_files.read_imu(tmp_path / "b.raw")
     with pytest.raises(ValueError, match="format must be one of kfgins, kfgins-bin, csv"):
-        imu.read_imu(tmp_path / "a.dat", format="xls")
+        imu_files.read_imu(tmp_path / "a.dat", format="xls")
 
 
 def test_writers_are_atomic(tmp_path):
     good = make_log(n=20)
     path = tmp_path / "out.txt"
-    imu.write_kfgins_text(path, good)
+    imu_files.write_kfgins_text(path, good)
     before = path.read_bytes()
     bad = ImuLog(good.time, np.where(np.arange(20)[:, None] == 7, np.nan, good.dtheta_b),
                  good.dvel_b)
-    for writer in (imu.write_kfgins_text, imu.write_csv, imu.write_kfgins_binary):
+    for writer in (imu_files.write_kfgins_text, imu_files.write_csv, imu_files.write_kfgins_binary):
         with pytest.raises(ValueError, match="row 7"):
             writer(path, bad)
         with pytest.raises(ValueError):
@@ -172,9 +172,9 @@ def test_writers_are_atomic(tmp_path):
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
     with pytest.raises(OSError):
-        imu.write_kfgins_text(tmp_path / "missing-dir" / "x.txt", good)
+        imu_files.write_kfgins_text(tmp_path / "missing-dir" / "x.txt", good)
     with pytest.raises(TypeError):
-        imu.write_kfgins_text(path, "not a log")
+        imu_files.write_kfgins_text(path, "not a log")
 
 
 @settings(max_examples=40, deadline=None)
@@ -202,10 +202,10 @@ def test_text_round_trip_property(tmp_path_factory, t0, steps, regular, data):
     dvel = u[:, 3:] * 30.0 * dt_min
     log = ImuLog(t, dtheta, dvel)
     d = tmp_path_factory.mktemp("prop")
-    imu.write_kfgins_text(d / "a.txt", log)
-    assert_same_log(imu.read_kfgins_text(d / "a.txt"), log)
-    imu.write_csv(d / "a.csv", log)
-    assert_same_log(imu.read_csv(d / "a.csv"), log)
+    imu_files.write_kfgins_text(d / "a.txt", log)
+    assert_same_log(imu_files.read_kfgins_text(d / "a.txt"), log)
+    imu_files.write_csv(d / "a.csv", log)
+    assert_same_log(imu_files.read_csv(d / "a.csv"), log)
 
 
 # ----------------------------------------------------------------------------- bad inputs
@@ -241,7 +241,7 @@ def test_text_reader_errors(tmp_path, engine, name, content, line, text):
     path = tmp_path / "bad_imu.txt"
     path.write_bytes(content.encode())
     with pytest.raises(InputError) as e:
-        imu.read_kfgins_text(path)
+        imu_files.read_kfgins_text(path)
     msg = str(e.value)
     assert "\n" not in msg
     assert e.value.path == str(path) and e.value.line == line
@@ -297,7 +297,7 @@ def test_csv_reader_errors(tmp_path, engine, name, content, line, text):
     path = tmp_path / "bad_imu.csv"
     path.write_bytes(content.encode())
     with pytest.raises(InputError) as e:
-        imu.read_csv(path)
+        imu_files.read_csv(path)
     msg = str(e.value)
     assert e.value.path == str(path) and e.value.line == line, msg
     assert msg.startswith(f"{path}:{line}: " if line else f"{path}: "), msg
@@ -308,10 +308,10 @@ def test_csv_rates_argument_must_match_header(tmp_path):
     path = tmp_path / "inc.csv"
     path.write_text(csv_text())
     with pytest.raises(InputError, match="rates=True was asked, but the header names increments"):
-        imu.read_csv(path, rates=True)
+        imu_files.read_csv(path, rates=True)
     with pytest.raises(InputError, match="rates=True"):
-        imu.read_imu(path, rates=True)
-    assert len(imu.read_csv(path, rates=False)) == 4
+        imu_files.read_imu(path, rates=True)
+    assert len(imu_files.read_csv(path, rates=False)) == 4
 
 
 def test_csv_header_variants(tmp_path):
@@ -323,7 +323,7 @@ def test_csv_header_variants(tmp_path):
         b'"dvel_x_mps","dvel_y_mps"\r\n'
         b"20.5,-0.049,300000.000,1e-6,2e-6,3e-6,1e-3,2e-3\r\n"
         b"20.6,-0.048,300000.005,1e-6,2e-6,3e-6,1e-3,2e-3\r\n")
-    log = imu.read_csv(path)
+    log = imu_files.read_csv(path)
     np.testing.assert_array_equal(log.time, [300000.0, 300000.005])
     np.testing.assert_array_equal(log.dvel_b[:, 2], [-0.049, -0.048])
     np.testing.assert_array_equal(log.dtheta_b[0], [1e-6, 2e-6, 3e-6])
@@ -344,25 +344,25 @@ def test_binary_reader_errors(tmp_path):
     path = tmp_path / "bad.bin"
     path.write_bytes(b"")
     with pytest.raises(InputError, match="empty file") as e:
-        imu.read_kfgins_binary(path)
+        imu_files.read_kfgins_binary(path)
     assert str(e.value).startswith(f"{path}: ")
     table = write_records(path, [0.0, 0.005, 0.01])
     path.write_bytes(table.tobytes() + b"\0" * 20)
     with pytest.raises(InputError) as e:
-        imu.read_kfgins_binary(path)
+        imu_files.read_kfgins_binary(path)
     msg = str(e.value)
     assert e.value.record == 4 and f"{path}: record 4: " in msg
     assert "file size 188 bytes is not a multiple of 56" in msg and "byte 168" in msg
     write_records(path, [0.0, 0.005, 0.01, 0.015], nan_at=2)
     with pytest.raises(InputError, match=r"record 3: non-finite value nan in dtheta_z"):
-        imu.read_kfgins_binary(path)
+        imu_files.read_kfgins_binary(path)
     write_records(path, [0.0, 0.005, 0.005, 0.015])
     with pytest.raises(InputError, match=r"record 3: duplicated epoch: time 0.005 s already "
                                          r"on record 2"):
-        imu.read_kfgins_binary(path)
+        imu_files.read_kfgins_binary(path)
     write_records(path, [0.0, 0.005, 0.01, 0.0])
     with pytest.raises(InputError, match=r"record 4: time not increasing"):
-        imu.read_kfgins_binary(path)
+        imu_files.read_kfgins_binary(path)
 
 
 # ----------------------------------------------------------------------------- rates
@@ -375,7 +375,7 @@ def test_rates_to_increments_constant_rates(tmp_path):
     dt_true = np.array([0.01, 0.02, 0.01, 0.01, 0.04, 0.01])  # first row: the median
     path = tmp_path / "rates.txt"
     path.write_text(kfgins_lines(t, np.tile(w, (6, 1)), np.tile(f, (6, 1))))
-    log = imu.read_kfgins_text(path, rates=True)
+    log = imu_files.read_kfgins_text(path, rates=True)
     np.testing.assert_allclose(log.dtheta_b, w * dt_true[:, None], rtol=1e-12)
     np.testing.assert_allclose(log.dvel_b, f * dt_true[:, None], rtol=1e-12)
     np.testing.assert_array_equal(log.find_gaps(), [1, 4])
@@ -386,14 +386,14 @@ def test_rates_to_increments_constant_rates(tmp_path):
     for ti in t:
         lines.append(",".join(repr(float(v)) for v in [ti, *np.rad2deg(w), *(f / G)]))
     (tmp_path / "rates.csv").write_text("\n".join(lines) + "\n")
-    log2 = imu.read_imu(tmp_path / "rates.csv")
+    log2 = imu_files.read_imu(tmp_path / "rates.csv")
     np.testing.assert_allclose(log2.dtheta_b, log.dtheta_b, rtol=1e-13)
     np.testing.assert_allclose(log2.dvel_b, log.dvel_b, rtol=1e-13)
     # deg/h
     lines[0] = "time_s,gyro_x_dph,gyro_y_dph,gyro_z_dph,accel_x_mps2,accel_y_mps2,accel_z_mps2"
     (tmp_path / "dph.csv").write_text(
         lines[0] + "\n" + "".join(f"{float(ti)!r},3600,0,-7200,0,0,-9.8\n" for ti in t))
-    log3 = imu.read_csv(tmp_path / "dph.csv")
+    log3 = imu_files.read_csv(tmp_path / "dph.csv")
     np.testing.assert_allclose(log3.dtheta_b, np.deg2rad([1, 0, -2]) * dt_true[:, None],
                                rtol=1e-12)
 
@@ -403,7 +403,7 @@ def test_rates_binary(tmp_path):
     t = np.arange(5) * 0.01
     table = np.column_stack([t, np.tile(w, (5, 1)), np.tile(f, (5, 1))]).astype("<f8")
     (tmp_path / "r.bin").write_bytes(table.tobytes())
-    log = imu.read_imu(tmp_path / "r.bin", rates=True)
+    log = imu_files.read_imu(tmp_path / "r.bin", rates=True)
     np.testing.assert_allclose(log.dvel_b[:, 2], -G * 0.01, rtol=1e-12)
 
 
@@ -417,39 +417,39 @@ def test_rates_read_as_increments_are_refused(tmp_path):
     path = tmp_path / "rates.txt"
     path.write_text(kfgins_lines(t, gyro, accel))
     with pytest.raises(InputError) as e:
-        imu.read_imu(path)
+        imu_files.read_imu(path)
     msg = str(e.value)
     assert msg.startswith(f"{path}: ") and "implausible velocity increments" in msg
     assert "--rates" in msg and "rates=True" in msg
-    log = imu.read_imu(path, rates=True)                 # accepted as rates
+    log = imu_files.read_imu(path, rates=True)                 # accepted as rates
     np.testing.assert_allclose(log.dvel_b, accel * 0.005, rtol=1e-9)
     # binary too
     table = np.column_stack([t, gyro, accel]).astype("<f8")
     (tmp_path / "rates.bin").write_bytes(table.tobytes())
     with pytest.raises(InputError, match="--rates"):
-        imu.read_imu(tmp_path / "rates.bin")
+        imu_files.read_imu(tmp_path / "rates.bin")
     # a fast-spinning rate file (|w| = 30 rad/s per sample) read as increments
     spin = np.tile([0.0, 0.0, 30.0], (n, 1))
     small = np.tile([0.0, 0.0, -G * 0.005], (n, 1))
     path.write_text(kfgins_lines(t, spin, small))
     with pytest.raises(InputError, match="implausible angle increments.*--rates"):
-        imu.read_imu(path)
+        imu_files.read_imu(path)
     # a CSV whose increment header hides rates gets a header hint
     lines = ["time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dvel_x_mps,dvel_y_mps,dvel_z_mps"]
     lines += [",".join(repr(float(v)) for v in [ti, *g, *a]) for ti, g, a in zip(t, gyro, accel)]
     (tmp_path / "r.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match="accel_z_mps2 in the header"):
-        imu.read_imu(tmp_path / "r.csv")
+        imu_files.read_imu(tmp_path / "r.csv")
 
 
 def test_increments_read_as_rates_warn(tmp_path):
     log = make_log(n=100)
-    imu.write_kfgins_text(tmp_path / "inc.txt", log)
+    imu_files.write_kfgins_text(tmp_path / "inc.txt", log)
     with pytest.warns(InputWarning, match="may hold increments"):
-        imu.read_imu(tmp_path / "inc.txt", rates=True)
+        imu_files.read_imu(tmp_path / "inc.txt", rates=True)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        imu.read_imu(tmp_path / "inc.txt")
+        imu_files.read_imu(tmp_path / "inc.txt")
 
 
 def test_real_log_is_plausible(tmp_path):
@@ -458,8 +458,8 @@ def test_real_log_is_plausible(tmp_path):
         n = 50
         t = np.arange(n) * dt
         log = ImuLog(t, np.full((n, 3), 0.5 * dt), np.tile([0.0, 0.0, -f * dt], (n, 1)))
-        imu.write_kfgins_binary(tmp_path / "ok.bin", log)
-        assert_same_log(imu.read_imu(tmp_path / "ok.bin"), log)
+        imu_files.write_kfgins_binary(tmp_path / "ok.bin", log)
+        assert_same_log(imu_files.read_imu(tmp_path / "ok.bin"), log)
 
 
 # ----------------------------------------------------------------------------- axes
@@ -486,7 +486,7 @@ def test_axes_mapping_physical(tmp_path, axes):
     # rows 0..1: rest + right turn; rows 2..3: forward/down and right accelerations
     path.write_text(kfgins_lines(t, np.array([gyro, gyro, gyro, gyro]),
                                  np.array([accel, accel, rows[2], rows[3]])))
-    log = imu.read_kfgins_text(path, axes=axes.lower() if axes == "FLU" else axes, rates=True)
+    log = imu_files.read_kfgins_text(path, axes=axes.lower() if axes == "FLU" else axes, rates=True)
     np.testing.assert_allclose(log.dtheta_b[1] / 0.01, [0, 0, R], atol=1e-15)  # yaw right: +z
     np.testing.assert_allclose(log.dvel_b[1] / 0.01, [0, 0, -G], atol=1e-12)   # (0, 0, -g)
     # fwd x right = down in a right-handed frame; 2 fwd - 9 down -> (2, 0, -9) in FRD
@@ -505,7 +505,7 @@ def test_axes_matrices():
     with pytest.raises(ValueError, match="axes must be one of FRD, FLU, RFU, FUR"):
         imu.C_frd_axes("NED")
     with pytest.raises(ValueError, match="axes must be one of"):
-        imu.read_imu("does-not-matter.txt", axes="XYZ")
+        imu_files.read_imu("does-not-matter.txt", axes="XYZ")
 
 
 # ----------------------------------------------------------------------------- compensation
@@ -557,9 +557,9 @@ def test_unit_constants():
 def test_reading_leaves_files_untouched(tmp_path):
     log = make_log(n=50)
     paths = [tmp_path / "a.txt", tmp_path / "a.bin", tmp_path / "a.csv"]
-    imu.write_kfgins_text(paths[0], log)
-    imu.write_kfgins_binary(paths[1], log)
-    imu.write_csv(paths[2], log)
+    imu_files.write_kfgins_text(paths[0], log)
+    imu_files.write_kfgins_binary(paths[1], log)
+    imu_files.write_csv(paths[2], log)
     bad = tmp_path / "bad.txt"
     bad.write_text(GOOD + "300000.015 " + ROW + "\n")
     paths.append(bad)
@@ -568,12 +568,12 @@ def test_reading_leaves_files_untouched(tmp_path):
         os.utime(p, ns=(old, old))
     before = {p: (p.read_bytes(), p.stat().st_mtime_ns, p.stat().st_mode) for p in paths}
     for p in paths[:3]:
-        back = imu.read_imu(p)                  # the good files read (and equal the log)
+        back = imu_files.read_imu(p)                  # the good files read (and equal the log)
         np.testing.assert_allclose(back.time, log.time, rtol=0, atol=1e-9)
         np.testing.assert_allclose(back.dvel_b, log.dvel_b, rtol=1e-9, atol=1e-12)
     with pytest.raises(InputError, match=r"bad\.txt:5: duplicated epoch: time 300000\.015 s "
                                          r"already on line 4"):
-        imu.read_imu(bad)
+        imu_files.read_imu(bad)
     for p in paths:
         assert (p.read_bytes(), p.stat().st_mtime_ns, p.stat().st_mode) == before[p]
     assert sorted(q.name for q in tmp_path.iterdir()) == sorted(p.name for p in paths)
@@ -585,10 +585,10 @@ def test_bench_file_head(tmp_path, bench_data):
     with open(src, "rb") as f:
         head = b"".join(f.readline() for _ in range(2000))
     (tmp_path / "head.txt").write_bytes(head)
-    log = imu.read_kfgins_text(tmp_path / "head.txt")
+    log = imu_files.read_kfgins_text(tmp_path / "head.txt")
     ref = np.loadtxt(tmp_path / "head.txt")
     np.testing.assert_array_equal(bits(log.time), bits(ref[:, 0]))
     np.testing.assert_array_equal(bits(log.dvel_b), bits(ref[:, 4:7]))
     assert log.nominal_dt == pytest.approx(0.005)
-    imu.write_kfgins_text(tmp_path / "again.txt", log)
+    imu_files.write_kfgins_text(tmp_path / "again.txt", log)
     assert (tmp_path / "again.txt").read_bytes() == head      # byte-identical rewrite

@@ -9,7 +9,7 @@ arguments of ``importlib.import_module`` / ``__import__``, string constants that
 module of the upper package (a list of command modules, an entry point written in code),
 and attribute access to a private name through an imported module
 (``from ins import rotation; rotation._as_stack``).  Private members of classes
-(``ImuLog._adopt``) are not covered.
+(``Class._member``) are not covered.
 """
 import ast
 from pathlib import Path

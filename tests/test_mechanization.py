@@ -249,7 +249,7 @@ def test_tiny_step_matches_exact_rotation_of_increment():
 
 @pytest.fixture(scope="module")
 def bench_flight(bench_data):
-    from ins.imu import read_kfgins_text
+    from ins.imu_files import read_kfgins_text
     meta = json.loads((bench_data / "meta.json").read_text())
     x = meta["init_exact"]
     init = NavState.from_degrees(x["lat"], x["lon"], x["alt"], [x["VN"], x["VE"], x["VD"]],

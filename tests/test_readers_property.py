@@ -18,8 +18,9 @@ from hypothesis.extra import numpy as hnp
 
 from ins.errors import InputError
 from ins.gnss import GnssLog, read_gnss, write_gnss
-from ins.imu import (ImuLog, read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
-                     write_kfgins_binary, write_kfgins_text)
+from ins.imu import ImuLog
+from ins.imu_files import (read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
+                           write_kfgins_binary, write_kfgins_text)
 from ins.mount import read_mount
 from ins.rotation import euler_to_quat, wrap_to_pi
 from ins.trajectory import Trajectory, read_nav, write_nav

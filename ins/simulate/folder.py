@@ -41,7 +41,7 @@ from .. import textformat
 from ..errors import InputError
 from ..fileio import atomic_open, check_output_folder, output_folder
 from ..gnss import write_gnss
-from ..imu import write_kfgins_text
+from ..imu_files import write_kfgins_text
 from ..trajectory import Trajectory, write_nav
 from .gnss import gnss_times, simulate_gnss
 from .manifest import FORMAT, ins_tables, merge

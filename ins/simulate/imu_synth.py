@@ -84,4 +84,4 @@ def synthesize_imu(truth, rate_hz, t_start=None, t_end=None, progress=None, node
         dtheta[:1], dvel[:1] = _integrate(truth, np.array([t0 - dt]), time[:1], nodes)
     else:
         dtheta[0], dvel[0] = dtheta[1], dvel[1]
-    return ImuLog._adopt(time, dtheta, dvel)
+    return ImuLog.adopt(time, dtheta, dvel)

@@ -229,4 +229,4 @@ def apply_errors(log, model, seed, chunk_rows=CHUNK_ROWS):
             if q > 0:
                 carry = _kernels.quantize(y, q, carry)
             out[k0:k1] = y
-    return ImuLog._adopt(log.time.copy(), out_th, out_dv)
+    return ImuLog.adopt(log.time.copy(), out_th, out_dv)
