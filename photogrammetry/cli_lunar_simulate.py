@@ -66,10 +66,10 @@ _UTC = re.compile(r"^\d{4}-\d\d-\d\d[T ]\d\d:\d\d(?::\d\d(?:\.\d{1,9})?)?Z?$")
 def add_parser(sub):
     p = sub.add_parser(
         "lunar-simulate", help="Moon images, times and a camera file to try lunar-heading on",
-        description="Simulate a lunar-heading session: the Moon (DE421 ephemeris, its "
-                    "phase and apparent size) imaged by a fisheye camera of known heading "
-                    "and tilt at a station, at times from a start date.  Writes the images, "
-                    "their times, the camera file and the truth into a folder.",
+        description="Simulate a lunar-heading session: the Moon (DE421 ephemeris, its phase\n"
+                    "and apparent size) imaged by a fisheye camera of known heading and tilt\n"
+                    "at a station, at times from a start date.  Writes the images, their\n"
+                    "times, the camera file and the truth into a folder.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--station", required=True, type=triplet, metavar="LAT,LON,H",
                    help="station latitude, longitude (deg) and ellipsoidal height (m)")
