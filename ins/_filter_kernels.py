@@ -3,7 +3,9 @@ two filter nodes with the current sensor-error estimates removed, accumulating t
 integrals the covariance step needs, and the application of error-state corrections.
 
 State layout of the navigation vector: that of :mod:`ins._kernels`
-(lat, lon, h, vN, vE, vD, qx, qy, qz, qw).
+(lat, lon, h, vN, vE, vD, qx, qy, qz, qw), named in :data:`ins.error_model.NAV`; the 12
+sensor estimates in the order of :data:`ins.error_model.SENSORS`; error states in that of
+:data:`ins.error_model.STATE` (the loops below index them element by element).
 """
 import math
 

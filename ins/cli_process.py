@@ -198,8 +198,9 @@ def _summary(result, cfg, paths, t_proc, t_write):
               f"{s['bound_m']:.4g} m)", file=out)
     if result.alignment is not None:
         al = result.alignment
+        from .error_model import NAV
         from .rotation import quat_to_euler
-        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, 6:10]))
+        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, NAV.q_nb]))
         print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
               f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)

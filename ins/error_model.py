@@ -53,6 +53,34 @@ from .rotation import skew
 N_STATES = 21
 POS, VEL, ATT = slice(0, 3), slice(3, 6), slice(6, 9)
 BG, BA, SG, SA = slice(9, 12), slice(12, 15), slice(15, 18), slice(18, 21)
+NAV_ERRORS, SENSOR_ERRORS = slice(0, 9), slice(9, 21)
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Named slices of one vector layout (read-only)."""
+
+    def __init__(self, **slices):
+        for name, value in slices.items():
+            object.__setattr__(self, name, value)
+
+    def __repr__(self):
+        return "Layout(" + ", ".join(f"{k}={v.start}:{v.stop}" for k, v in vars(self).items()) + ")"
+
+
+#: The 21-state error vector and covariance by name: ``x[STATE.att]``,
+#: ``P[STATE.gyro_bias, STATE.gyro_bias]``, ``std[:, STATE.pos]``; ``nav`` (0:9) and
+#: ``sensors`` (9:21) are the two groups.
+STATE = _Layout(pos=POS, vel=VEL, att=ATT, gyro_bias=BG, accel_bias=BA, gyro_scale=SG,
+                accel_scale=SA, nav=NAV_ERRORS, sensors=SENSOR_ERRORS)
+#: The 12 sensor estimates (``ForwardResult.sensors``, ``imu_errors.txt``), SI: the
+#: sensor states ``STATE.sensors`` in the same order, so ``sensors += x[STATE.sensors]``.
+SENSORS = _Layout(gyro_bias=slice(0, 3), accel_bias=slice(3, 6), gyro_scale=slice(6, 9),
+                  accel_scale=slice(9, 12))
+#: The 10-element navigation state of the mechanization (``NavState.as_vector``, the
+#: filter's ``node_states``): latitude, longitude (rad), height (m); ``v_n`` (m/s);
+#: ``q_nb`` as ``[qx, qy, qz, qw]``.
+NAV = _Layout(lla=slice(0, 3), vel=slice(3, 6), q_nb=slice(6, 10))
 STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), ("att", "NED"),
                                                ("gyro_bias", "xyz"), ("accel_bias", "xyz"),
                                                ("gyro_scale", "xyz"), ("accel_scale", "xyz"))

@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _filter_kernels, earth
-from .error_model import (ATT, N_STATES, POS, VEL, ImuNoise, checked_std, discretize,
-                          interval_matrix, noise_matrix)
+from .error_model import (ATT, N_STATES, NAV, POS, SENSORS, STATE, VEL, ImuNoise, checked_std,
+                          discretize, interval_matrix, noise_matrix)
 from .errors import InputError, InputWarning
 from .lever_arm import (LeverArm, antenna_lla, antenna_velocity, position_jacobian,
                         velocity_jacobian)
@@ -89,7 +89,7 @@ class FilterSettings:
                               np.broadcast_to(np.asarray(self.att_std_deg, float), 3) * DEG,
                               self.noise.sensor_std])
         if np.any(~np.isfinite(std)) or np.any(std <= 0):
-            raise InputError(f"initial standard deviations must be > 0, got {std[:9]}")
+            raise InputError(f"initial standard deviations must be > 0, got {std[STATE.nav]}")
         return np.diag(std ** 2)
 
 
@@ -312,7 +312,7 @@ class _Updater:
             return P, None, nis
         x, P = self.kf_update(np.zeros(N_STATES), P, z, R, H)
         _filter_kernels.correct_state(state, x)
-        sensors += x[9:21]
+        sensors += x[STATE.sensors]
         self.n_updates += 1
         return P, x, nis
 
@@ -325,8 +325,8 @@ class _Updater:
         l_b, dl_b = l_b[0], dl_b[0]
         if not valid[0]:
             self.n_fallback += 1
-        lla = state[0:3] + earth.lla_rate(state[0], state[2], state[3:6]) * (tg - t_row)
-        C_nb = quat_to_dcm(state[6:10])
+        lla = state[NAV.lla] + earth.lla_rate(state[0], state[2], state[NAV.vel]) * (tg - t_row)
+        C_nb = quat_to_dcm(state[NAV.q_nb])
         z = earth.ned_offset(g.lla[k], antenna_lla(lla, C_nb, l_b))
         R = np.diag(g.std_ned[k] ** 2)
         P, x, nis = self._apply(state, sensors, P, z, R, position_jacobian(C_nb, l_b))
@@ -336,10 +336,10 @@ class _Updater:
         if x is not None:
             dx += x
         if self.s.use_velocity and g.has_velocity:
-            C_nb = quat_to_dcm(state[6:10])
+            C_nb = quat_to_dcm(state[NAV.q_nb])
             w_in_n = (earth.earth_rate_n(state[0])
-                      + earth.transport_rate_n(state[0], state[2], state[3:6]))
-            v_ant = antenna_velocity(state[3:6], C_nb, w_ib_b, w_in_n, l_b, dl_b)
+                      + earth.transport_rate_n(state[0], state[2], state[NAV.vel]))
+            v_ant = antenna_velocity(state[NAV.vel], C_nb, w_ib_b, w_in_n, l_b, dl_b)
             H = velocity_jacobian(C_nb, w_ib_b, w_in_n, l_b, dl_b)
             R = np.diag(g.std_vel_n[k] ** 2)
             P, x, _ = self._apply(state, sensors, P, v_ant - g.vel_n[k], R, H)
@@ -432,7 +432,7 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
                                  f"{end} s")
             state = initial.as_vector().copy()
             if initial_time is not None:
-                state[0:3] += earth.lla_rate(state[0], state[2], state[3:6]) * (
+                state[NAV.lla] += earth.lla_rate(state[0], state[2], state[NAV.vel]) * (
                     t[k0] - initial_time)
             P0 = P
             updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
@@ -507,13 +507,14 @@ def _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes, updat
     records from ``gj`` on whose row is ``r``; stores the node.  Returns P."""
     dt = t[r] - t_a
     mid = 0.5 * (state_a + state)
-    A = interval_matrix(mid[0], mid[2], mid[3:6], acc[9] / dt,
+    A = interval_matrix(mid[0], mid[2], mid[NAV.vel], acc[9] / dt,
                         (acc[0:3], acc[3:6], acc[6:9]), dt, tau)
     Phi, Qd = discretize(A, GQG, dt)
     _, P = updater.kf_predict(np.zeros(N_STATES), P, Phi, Qd)
     P_prior = P
     dt_row = t[r] - t[r - 1]
-    w_ib_b = (th[r] / dt_row - sensors[0:3]) / (1.0 + sensors[6:9])
+    w_ib_b = ((th[r] / dt_row - sensors[SENSORS.gyro_bias])
+              / (1.0 + sensors[SENSORS.gyro_scale]))
     dx = np.zeros(N_STATES)
     g_time = updater.gnss.time
     while gj < len(g_time) and at_node(gj):

@@ -10,6 +10,7 @@ import os
 
 import numpy as np
 
+from .error_model import SENSORS, STATE
 from .plotstyle import (ARCSEC, TRANSIENT_S, legend_right, length_unit, plain_log_ticks, pyplot,
                         robust_limits, save_png, time_label)
 
@@ -41,12 +42,13 @@ def plot_errors(result, path):
     tn = result.node_time - t0
     xlabel, origin = time_label(t0)
     es, ef = result.errors_smoothed, result.errors_forward
-    pos_scale, pos_unit = length_unit(3 * result.smoothed_std[:, 0:3])
+    pos_scale, pos_unit = length_unit(3 * result.smoothed_std[:, STATE.pos])
     for i, ax in enumerate(axes):
         att = i >= 3
         scale, unit = (1.0 / ARCSEC, "arcsec") if att else (pos_scale, pos_unit)
         name = _ATT[i - 3] if att else _POS[i]
-        sig = 3 * scale * result.smoothed_std[:, i + 3 if att else i]
+        sig = 3 * scale * result.smoothed_std[:, STATE.att.start + i - 3 if att
+                                                  else STATE.pos.start + i]
         curves = {}
         for label, e, style, lw in (("forward", ef, "C1", 0.6), ("smoothed", es, "C0", 0.9)):
             if e is None:
@@ -90,12 +92,12 @@ def plot_sigma(result, path):
     t0 = result.node_time[0]
     t = result.node_time - t0
     xlabel, origin = time_label(t0)
-    ps, pu = length_unit(result.smoothed_std[:, 0:3])
-    vs, vu = length_unit(result.smoothed_std[:, 3:6])
+    ps, pu = length_unit(result.smoothed_std[:, STATE.pos])
+    vs, vu = length_unit(result.smoothed_std[:, STATE.vel])
     for ax, sl, scale, label, comps in (
-            (axes[0], slice(0, 3), ps, f"position sigma, {pu}", _POS),
-            (axes[1], slice(3, 6), vs, f"velocity sigma, {vu}/s", _POS),
-            (axes[2], slice(6, 9), 1 / ARCSEC, "attitude sigma, arcsec", _ATT)):
+            (axes[0], STATE.pos, ps, f"position sigma, {pu}", _POS),
+            (axes[1], STATE.vel, vs, f"velocity sigma, {vu}/s", _POS),
+            (axes[2], STATE.att, 1 / ARCSEC, "attitude sigma, arcsec", _ATT)):
         fwd, smo = scale * result.forward_std[:, sl], scale * result.smoothed_std[:, sl]
         for k, comp in enumerate(comps):
             ax.semilogy(t, fwd[:, k], f"C{k}--", lw=0.7, label=f"{comp} forward")
@@ -141,8 +143,8 @@ def plot_biases(result, path, injected=None):
     t = result.node_time - t0
     xlabel, origin = time_label(t0)
     for ax, sl, scale, label, key in (
-            (axes[0], slice(0, 3), 1 / _DPH, "gyro bias, deg/h", "gyro_bias_dph"),
-            (axes[1], slice(3, 6), 1 / _MGAL, "accel bias, mGal", "accel_bias_mgal")):
+            (axes[0], SENSORS.gyro_bias, 1 / _DPH, "gyro bias, deg/h", "gyro_bias_dph"),
+            (axes[1], SENSORS.accel_bias, 1 / _MGAL, "accel bias, mGal", "accel_bias_mgal")):
         fwd = scale * result.forward_sensors[:, sl]
         smo = scale * result.smoothed_sensors[:, sl]
         fit = [fwd, smo]

@@ -53,7 +53,7 @@ import numpy as np
 
 from . import _filter_kernels, earth
 from .alignment import align_gnss_heading, align_static, check_static_heading
-from .error_model import ImuNoise
+from .error_model import NAV, SENSORS, STATE, ImuNoise
 from .errors import InputError, QualityError, QualityWarning
 from .filter import FilterSettings, filterpy_functions, run_forward
 from .imu import ImuLog
@@ -355,12 +355,12 @@ class ProcessResult:
         states = self.fwd.node_states.copy()
         if self.xs is not None:
             for j in range(len(states)):
-                _filter_kernels.correct_state(states[j], self.xs[j, :9])
+                _filter_kernels.correct_state(states[j], self.xs[j, STATE.nav])
         return states
 
     def node_attitude(self):
         """Smoothed attitude quaternions at the nodes, shape (m, 4)."""
-        return self.node_solution()[:, 6:10]
+        return self.node_solution()[:, NAV.q_nb]
 
 
 def _initial(cfg, imu, gnss):
@@ -636,7 +636,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     f_std = np.array(fwd.nodes.post_std)
     if cfg.smooth:
         xs, s_std = rts_errors(fwd, full=False)
-        s_sens = fwd.sensors + xs[:, 9:21]
+        s_sens = fwd.sensors + xs[:, STATE.sensors]
     else:
         xs, s_std, s_sens = None, f_std, fwd.sensors
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
@@ -683,10 +683,10 @@ def fix_residuals(result, gnss, lever):
     j = np.searchsorted(nt, gnss.time[index] + 1e-9, side="right") - 1
     states = result.node_solution()[j]
     tg = gnss.time[index]
-    lla = states[:, 0:3] + earth.lla_rate(states[:, 0], states[:, 2], states[:, 3:6]) * (
+    lla = states[:, NAV.lla] + earth.lla_rate(states[:, 0], states[:, 2], states[:, NAV.vel]) * (
         tg - nt[j])[:, None]
     l_b = lever.at(tg)[0]
-    arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, 6:10]), l_b)
+    arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, NAV.q_nb]), l_b)
     ant = lla + earth.lla_rate(lla[:, 0], lla[:, 2], arm)
     res = earth.ned_offset(gnss.lla[index], ant)
     norm = np.sqrt(np.mean((res / gnss.std_ned[index]) ** 2, axis=1))
@@ -830,7 +830,8 @@ def with_truth(result, truth_path):
 
 
 def _trajectory(time, states):
-    return Trajectory(time=time, lla=states[:, 0:3], v_n=states[:, 3:6], q_nb=states[:, 6:10])
+    return Trajectory(time=time, lla=states[:, NAV.lla], v_n=states[:, NAV.vel],
+                      q_nb=states[:, NAV.q_nb])
 
 
 def euler_std_deg(q_nb, P_att):
@@ -880,15 +881,17 @@ def write_outputs(result, out_dir, week=0, forward=False):
     # attitude sigma from the smoothed covariance diagonal (phi-angle block)
     P_att = np.zeros((len(rows), 3, 3))
     idx = np.arange(3)
-    P_att[:, idx, idx] = result.smoothed_std[:, 6:9] ** 2
+    P_att[:, idx, idx] = result.smoothed_std[:, STATE.att] ** 2
     att = euler_std_deg(result.node_attitude(), P_att)
-    table = np.column_stack([result.node_time, result.smoothed_std[:, 0:6], att])
+    table = np.column_stack([result.node_time, result.smoothed_std[:, STATE.pos],
+                             result.smoothed_std[:, STATE.vel], att])
     header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
               "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
     _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
     s = result.smoothed_sensors
-    table = np.column_stack([result.node_time, s[:, 0:3] / DPH, s[:, 3:6] / MGAL,
-                             s[:, 6:9] / PPM, s[:, 9:12] / PPM])
+    table = np.column_stack([result.node_time, s[:, SENSORS.gyro_bias] / DPH,
+                             s[:, SENSORS.accel_bias] / MGAL, s[:, SENSORS.gyro_scale] / PPM,
+                             s[:, SENSORS.accel_scale] / PPM])
     header = ("# time_s gyro_bias_x_dph gyro_bias_y_dph gyro_bias_z_dph accel_bias_x_mgal "
               "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
               "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _filter_kernels
-from .error_model import STATE_NAMES, checked_std
+from .error_model import STATE, STATE_NAMES, checked_std
 from .errors import QualityError
 
 
@@ -164,4 +164,4 @@ def smooth(fwd):
     return SmoothedResult(time=np.concatenate([p[0] for p in parts]),
                           states=np.concatenate([p[1] for p in parts]),
                           node_rows=fwd.node_rows, x_after=xs, P=Ps,
-                          sensors=fwd.sensors + xs[:, 9:21])
+                          sensors=fwd.sensors + xs[:, STATE.sensors])

@@ -280,3 +280,30 @@ def test_process_noise_against_van_loan():
         P = Phi @ P @ Phi.T + Qd
         P_x = Phi_x @ P_x @ Phi_x.T + Qd_x
     np.testing.assert_allclose(np.diag(P), np.diag(P_x), rtol=0.01)
+
+
+def test_named_layouts_match_the_documented_indices():
+    """The named slices against the documented layout (literal indices, written out
+    here independently) and against what the mechanization and the sensor states hold."""
+    from ins.error_model import NAV, SENSORS, STATE
+    names = {"pos": "pos_", "vel": "vel_", "att": "att_", "gyro_bias": "gyro_bias_",
+             "accel_bias": "accel_bias_", "gyro_scale": "gyro_scale_",
+             "accel_scale": "accel_scale_"}
+    covered = []
+    for field, prefix in names.items():
+        sl = getattr(STATE, field)
+        assert sl.stop - sl.start == 3
+        assert all(n.startswith(prefix) for n in STATE_NAMES[sl])
+        covered += list(range(N_STATES))[sl]
+    assert sorted(covered) == list(range(21))
+    assert (STATE.att.start, STATE.gyro_bias.start, STATE.accel_scale.stop) == (6, 9, 21)
+    assert list(range(21))[STATE.nav] == list(range(9))
+    assert list(range(21))[STATE.sensors] == list(range(9, 21))
+    for field in ("gyro_bias", "accel_bias", "gyro_scale", "accel_scale"):
+        s, full = getattr(SENSORS, field), getattr(STATE, field)
+        assert (s.start + 9, s.stop + 9) == (full.start, full.stop)
+    nav = NavState.from_degrees(30, 114, 1000, [1, 2, 3], [2, 3, 45])
+    v = nav.as_vector()
+    np.testing.assert_array_equal(v[NAV.vel], [1, 2, 3])
+    np.testing.assert_array_equal(v[NAV.q_nb], nav.q_nb)
+    np.testing.assert_allclose(v[NAV.lla], [np.radians(30), np.radians(114), 1000])
