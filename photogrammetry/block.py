@@ -258,6 +258,172 @@ def _position_cov(WJ, N, img, m, n_ang, position_sigma):
     return (T * (position_sigma.ravel() ** 2)[None, :]) @ T.T
 
 
+def _check_options(system, method, datum):
+    """The internal mode of `method` ("known", "relative", "free"), the options checked."""
+    check_system(system)
+    mode = {"known-base": "known", "relative": "relative", "base-free": "free"}.get(method)
+    if mode is None:
+        raise InputError(f"--method {method!r}: expected known-base, relative or base-free")
+    if datum not in DATUMS:
+        raise InputError(f"--datum {datum!r}: expected one of {', '.join(DATUMS)}")
+    if datum == "none" and mode != "known":
+        raise InputError("--datum none needs --method known-base (the bases orient the block)")
+    return mode
+
+
+def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigma_mm,
+                  snooping, max_iter):
+    """Pair-wise screening (image i held at its prior): outliers and failed pairs.
+
+    Base-free, so the INS errors of image i and the GNSS base do not enter the tests.  A
+    pair whose screening did not converge has no valid outlier tests (and, for the
+    relative methods, no starting base direction): it is left out, with a warning.
+
+    Returns
+    -------
+    screen : dict (from :func:`photogrammetry.coplanarity.adjust_pairs`)
+    status : ndarray of int (P,); good : ndarray of bool (P,)
+    mask : ndarray of bool (P, n)
+        The points kept (not rejected, of a good pair).
+    """
+    screen = adjust_pairs(xy_i, xy_j, f_mm, prior[pairs[:, 0]], prior[pairs[:, 1]], system,
+                          "base-free", mask=mask, sigma_mm=sigma_mm, snooping=snooping,
+                          max_iter=max_iter)
+    status = screen["status"]
+    if mode == "known":     # 3 or 4 points: no base-free screening, the known base suffices
+        few = (status == K.STATUS_TOO_FEW) & (mask.sum(axis=1) >= 3)
+        status = np.where(few, K.STATUS_OK, status)
+        norm = np.linalg.norm(base, axis=1)
+        status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
+    good = status == K.STATUS_OK
+    for k in np.flatnonzero(~good):
+        what = ("its pair-wise screening did not converge"
+                if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT[status[k]])
+        warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {what}",
+                      QualityWarning if status[k] == K.STATUS_NOT_CONVERGED else InputWarning,
+                      stacklevel=3)
+    return screen, status, good, screen["mask"] & good[:, None]
+
+
+def _free_images(pairs, good, m, datum):
+    """Images that take part (`adjusted`: in a good pair) and whose angles are unknowns
+    (`free`: adjusted, less the datum image of ``"first"``); warns of the images left out."""
+    adjusted = np.zeros(m, bool)
+    adjusted[pairs[good].ravel()] = True
+    for i in np.flatnonzero(~adjusted):
+        warnings.warn(f"image {i} has no usable pair: left at its prior angles",
+                      InputWarning, stacklevel=3)
+    free = adjusted.copy()
+    if datum == "first":
+        first = int(np.flatnonzero(adjusted)[0]) if adjusted.any() else 0
+        free[first] = False
+    return adjusted, free
+
+
+@dataclass
+class _Conditions:
+    """The coplanarity conditions (one per used tie point of a good pair) and the two
+    groupings of their weights: joint per tie point, and one by one."""
+    p: np.ndarray           # (C,) pair of every condition
+    s: np.ndarray           # (C,) slot (point index in the pair)
+    img: np.ndarray         # (C, 2) the two images
+    U: np.ndarray           # (C, 2, 3) rays in the two images, mm
+    obs: np.ndarray         # joint grouping (see _condition_index)
+    buckets: list
+    obs_1: np.ndarray       # one by one
+    buckets_1: list
+
+
+def _conditions(pairs, mask, point_ids, m, xy_i, xy_j, f_mm):
+    """Index the conditions of the kept points and build their rays."""
+    p_c, s_c, obs, buckets = _condition_index(pairs, mask, point_ids, m)
+    obs_1, buckets_1 = _condition_index(pairs, mask, None, m)[2:]
+    U = np.stack([np.concatenate([xy[p_c, s_c], np.full((len(p_c), 1), -f_mm)], axis=1)
+                  for xy in (xy_i, xy_j)], axis=1)
+    return _Conditions(p_c, s_c, pairs[p_c], U, obs, buckets, obs_1, buckets_1)
+
+
+def _check_variance(var, cond, point_ids, sigma_mm):
+    """Refuse a condition of zero or non-finite variance, naming its pair and tie point."""
+    if np.all(var > 0):
+        return
+    c = int(np.flatnonzero(~(var > 0))[0])
+    pid = int(cond.s[c]) if point_ids is None else point_ids[cond.p[c]][cond.s[c]]
+    pid = pid.item() if isinstance(pid, np.generic) else pid
+    raise InputError(f"pair {cond.img[c, 0]}-{cond.img[c, 1]}, tie point {pid!r}: the "
+                     f"coplanarity condition has variance {float(var[c])!r} (photo "
+                     f"sigma {float(sigma_mm)!r} mm); a zero or non-finite variance "
+                     "has no weight")
+
+
+@dataclass
+class _Linearized:
+    """The block linearized at the current angles and bases (one iteration)."""
+    g: np.ndarray           # (C,) misclosures
+    var: np.ndarray         # (C,) variance of each condition
+    rank: int               # independent conditions
+    N: np.ndarray           # (C, 3) dg/db
+    E: np.ndarray           # (P, 3, 2) tangent basis of the bases (None for known-base)
+    WJ: object              # W @ J (sparse)
+    grad: np.ndarray        # J^T W g + the prior's gradient
+    H: object               # normal matrix with the prior's weights (sparse)
+    vtpv: float             # weighted sum of squares (conditions and prior)
+
+
+def _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot, prior_w,
+               system, mode, sigma_mm, point_ids):
+    """Misclosures, weights, Jacobian and normal equations at `angles` and bases `b`."""
+    R, M = K.rotation_and_axes(angles, system)
+    g, d, J_ang, N = _condition_terms(cond.U, cond.img, cond.p, R, M, b)
+    W, rank, var = _joint_weights(cond.buckets if joint else cond.buckets_1,
+                                  cond.obs if joint else cond.obs_1,
+                                  d, sigma_mm ** 2, len(g), RANK_TOL[mode])
+    _check_variance(var, cond, point_ids, sigma_mm)
+    E = None if mode == "known" else K.tangent_basis(b)
+    NE = None if E is None else np.einsum("ca,cak->ck", N, E[cond.p])
+    J = _jacobian(J_ang, NE, cond.img, bslot[cond.p], col, n_ang, n_ang + n_base)
+    WJ = W @ J
+    Wg = W @ g
+    H = (J.T @ WJ).tocsr()
+    grad = J.T @ Wg
+    dl = (angles[free] - prior[free]).ravel()
+    vtpv = float(g @ Wg + np.sum(prior_w * dl ** 2))
+    grad[:n_ang] += prior_w * dl
+    H = H + sparse.diags(np.concatenate([prior_w, np.zeros(n_base)]))
+    return _Linearized(g, var, rank, N, E, WJ, grad, H, vtpv)
+
+
+def _solve_step(lin, n_ang):
+    """Gauss-Newton step of the free angles: ``(step, S, back)`` with S the reduced
+    normal matrix and `back` the base back-substitution (see :func:`_reduced_normals`)."""
+    S, rhs, back = _reduced_normals(lin.H.tocsr(), lin.grad, n_ang)
+    step, ok = K._solve(S[None], rhs[None])
+    if not ok[0]:
+        raise InputError("block normal equations are singular: part of the block is not "
+                         "connected to the datum image, or the geometry is degenerate "
+                         "(try --datum ins)")
+    return step[0], S, back
+
+
+def _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
+                position_sigma):
+    """A-posteriori covariance of all angles (3m, 3m): ``sigma0^2 S^-1`` for the free
+    images, plus the EO position errors (known-base with `position_sigma`), the prior for
+    the images left out, 0 for the datum image."""
+    cov = np.zeros((3 * m, 3 * m))
+    if n_ang:
+        fidx = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
+        Hi = np.linalg.inv(S)
+        cov[np.ix_(fidx, fidx)] = sigma0 ** 2 * Hi
+        if mode == "known" and position_sigma is not None and np.any(position_sigma):
+            ps = np.broadcast_to(np.asarray(position_sigma, float), (m, 3))
+            Sx = _position_cov(lin.WJ, lin.N, cond.img, m, n_ang, ps)
+            cov[np.ix_(fidx, fidx)] += Hi @ Sx @ Hi
+    for i in np.flatnonzero(~adjusted):
+        cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(prior_sigma[i] ** 2)
+    return cov
+
+
 def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-free",
                  datum="first", positions=None, prior_sigma=None, sigma_mm=0.005,
                  position_sigma=None, point_ids=None, snooping=True, max_iter=30, tol=1e-11,
@@ -314,14 +480,7 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         A pair left out because its pair-wise screening did not converge; the block
         adjustment itself not converged.
     """
-    check_system(system)
-    mode = {"known-base": "known", "relative": "relative", "base-free": "free"}.get(method)
-    if mode is None:
-        raise InputError(f"--method {method!r}: expected known-base, relative or base-free")
-    if datum not in DATUMS:
-        raise InputError(f"--datum {datum!r}: expected one of {', '.join(DATUMS)}")
-    if datum == "none" and mode != "known":
-        raise InputError("--datum none needs --method known-base (the bases orient the block)")
+    mode = _check_options(system, method, datum)
     prior = np.array(angles_prior, dtype=float).reshape(-1, 3)
     m = len(prior)
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
@@ -336,101 +495,46 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         raise ValueError("point_ids must give one id per point of every pair")
     base = None if positions is None else (np.asarray(positions, float)[pairs[:, 1]]
                                            - np.asarray(positions, float)[pairs[:, 0]])
-    # pair-wise screening: outliers and failed pairs (image i held at its prior)
-    # (base-free: the INS errors of image i and the GNSS base do not enter the tests)
-    screen = adjust_pairs(xy_i, xy_j, f_mm, prior[pairs[:, 0]], prior[pairs[:, 1]], system,
-                          "base-free", mask=mask, sigma_mm=sigma_mm, snooping=snooping,
-                          max_iter=max_iter)
-    status = screen["status"]
-    if mode == "known":     # 3 or 4 points: no base-free screening, the known base suffices
-        few = (status == K.STATUS_TOO_FEW) & (mask.sum(axis=1) >= 3)
-        status = np.where(few, K.STATUS_OK, status)
-        norm = np.linalg.norm(base, axis=1)
-        status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
-    # a pair whose screening did not converge has no valid outlier tests (and, for the
-    # relative methods, no starting base direction): it is left out, and said so
-    good = status == K.STATUS_OK
-    for k in np.flatnonzero(~good):
-        what = ("its pair-wise screening did not converge"
-                if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT[status[k]])
-        warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {what}",
-                      QualityWarning if status[k] == K.STATUS_NOT_CONVERGED else InputWarning,
-                      stacklevel=2)
-    mask = screen["mask"] & good[:, None]
-    adjusted = np.zeros(m, bool)
-    adjusted[pairs[good].ravel()] = True
-    for i in np.flatnonzero(~adjusted):
-        warnings.warn(f"image {i} has no usable pair: left at its prior angles",
-                      InputWarning, stacklevel=2)
-    free = adjusted.copy()
-    if datum == "first":
-        first = int(np.flatnonzero(adjusted)[0]) if adjusted.any() else 0
-        free[first] = False
+    screen, status, good, mask = _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm,
+                                               system, mode, sigma_mm, snooping, max_iter)
+    adjusted, free = _free_images(pairs, good, m, datum)
     if prior_sigma is None:
         prior_sigma = np.full((m, 3), 0.005)
     prior_sigma = np.broadcast_to(np.asarray(prior_sigma, float), (m, 3))
+    prior_w = np.where(datum == "ins", 1.0 / prior_sigma[free].ravel() ** 2, 0.0)
+
+    # unknowns: 3 angles per free image, then 2 base-direction parameters per good pair
     col = -np.ones(m, dtype=int)
     col[free] = np.arange(free.sum())
     n_ang = 3 * int(free.sum())
     n_base = 0 if mode == "known" else 2 * int(good.sum())
+    bslot = np.cumsum(good) - 1
     angles = prior.copy()
     # base per pair: the GNSS base (known-base), else the screening's unit direction
     b = base.copy() if mode == "known" else screen["base"].copy()
     b[~good] = (1.0, 0.0, 0.0)                       # not used
-    bslot = np.cumsum(good) - 1                      # base parameters of the good pairs
-    p_c, s_c, obs, buckets = _condition_index(pairs, mask, point_ids, m)
-    # the base directions (relative, base-free) start from each pair's own screening, in
-    # frames of different INS errors: converge first with the conditions weighted one by
-    # one, then jointly (the joint weights depend on the bases through the near-repeated
-    # combinations)
+    cond = _conditions(pairs, mask, point_ids, m, xy_i, xy_j, f_mm)
+
+    # Gauss-Newton.  The base directions (relative, base-free) start from each pair's
+    # own screening, in frames of different INS errors: converge first with the
+    # conditions weighted one by one, then jointly (the joint weights depend on the bases
+    # through the near-repeated combinations)
     joint = mode == "known" or point_ids is None
-    obs_1, buckets_1 = _condition_index(pairs, mask, None, m)[2:]
-    img = pairs[p_c]
-    U = np.stack([np.concatenate([xy[p_c, s_c], np.full((len(p_c), 1), -f_mm)], axis=1)
-                  for xy in (xy_i, xy_j)], axis=1)   # (C, 2, 3) rays in the two images
-    prior_w = np.where(datum == "ins", 1.0 / prior_sigma[free].ravel() ** 2, 0.0)
-    converged, iterations = False, 0
+    converged, iterations, S = False, 0, None
     for it in range(max_iter + 1):
-        R, M = K.rotation_and_axes(angles, system)
-        g, d, J_ang, N = _condition_terms(U, img, p_c, R, M, b)
-        W, rank, var = _joint_weights(buckets if joint else buckets_1, obs if joint else obs_1,
-                                      d, sigma_mm ** 2, len(g), RANK_TOL[mode])
-        if not np.all(var > 0):
-            c = int(np.flatnonzero(~(var > 0))[0])
-            pid = int(s_c[c]) if point_ids is None else point_ids[p_c[c]][s_c[c]]
-            pid = pid.item() if isinstance(pid, np.generic) else pid
-            raise InputError(f"pair {img[c, 0]}-{img[c, 1]}, tie point {pid!r}: the "
-                             f"coplanarity condition has variance {float(var[c])!r} (photo "
-                             f"sigma {float(sigma_mm)!r} mm); a zero or non-finite variance "
-                             "has no weight")
-        E = None if mode == "known" else K.tangent_basis(b)
-        NE = None if E is None else np.einsum("ca,cak->ck", N, E[p_c])
-        J = _jacobian(J_ang, NE, img, bslot[p_c], col, n_ang, n_ang + n_base)
-        WJ = W @ J
-        Wg = W @ g
-        H = (J.T @ WJ).tocsr()
-        grad = J.T @ Wg
-        dl = (angles[free] - prior[free]).ravel()
-        vtpv_total = float(g @ Wg + np.sum(prior_w * dl ** 2))
-        grad[:n_ang] += prior_w * dl
+        lin = _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot,
+                         prior_w, system, mode, sigma_mm, point_ids)
         if n_ang == 0:
             converged = True
             break
-        H = H + sparse.diags(np.concatenate([prior_w, np.zeros(n_base)]))
-        S, rhs, back = _reduced_normals(H.tocsr(), grad, n_ang)
-        step, ok = K._solve(S[None], rhs[None])
-        if not ok[0]:
-            raise InputError("block normal equations are singular: part of the block is not "
-                             "connected to the datum image, or the geometry is degenerate "
-                             "(try --datum ins)")
-        step = step[0]
+        step, S, back = _solve_step(lin, n_ang)
         if it == max_iter:
             break
         angles[free] += step.reshape(-1, 3)
         big = np.max(np.abs(step))
         if back is not None:                    # back-substitute the base directions
             d_b = -(back[1] + back[0] @ step)
-            b[good] = b[good] + np.einsum("pab,pb->pa", E[good], d_b.reshape(-1, 2))
+            b[good] = b[good] + np.einsum("pab,pb->pa", lin.E[good], d_b.reshape(-1, 2))
             b /= np.linalg.norm(b, axis=1, keepdims=True)
             big = max(big, np.max(np.abs(d_b)))
         iterations = it + 1
@@ -440,28 +544,20 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
             converged = True
             break
         joint = joint or big < 1e-6
+
     n_prior = n_ang if datum == "ins" else 0
-    redundancy = rank + n_prior - n_ang - n_base
+    redundancy = lin.rank + n_prior - n_ang - n_base
     if redundancy <= 0:
-        raise InputError(f"block has no redundancy ({rank} independent conditions for "
+        raise InputError(f"block has no redundancy ({lin.rank} independent conditions for "
                          f"{n_ang} angles and {n_base} base-direction parameters)")
-    sigma0 = float(np.sqrt(vtpv_total / redundancy))
-    cov = np.zeros((3 * m, 3 * m))
-    if n_ang:
-        fidx = (3 * np.flatnonzero(free)[:, None] + np.arange(3)).ravel()
-        Hi = np.linalg.inv(S)
-        cov[np.ix_(fidx, fidx)] = sigma0 ** 2 * Hi
-        if mode == "known" and position_sigma is not None and np.any(position_sigma):
-            ps = np.broadcast_to(np.asarray(position_sigma, float), (m, 3))
-            Sx = _position_cov(WJ, N, img, m, n_ang, ps)
-            cov[np.ix_(fidx, fidx)] += Hi @ Sx @ Hi
-    for i in np.flatnonzero(~adjusted):
-        cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] = np.diag(prior_sigma[i] ** 2)
+    sigma0 = float(np.sqrt(lin.vtpv / redundancy))
+    cov = _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
+                      position_sigma)
     if not converged:
         warnings.warn(f"block adjustment did not converge in {max_iter} iterations",
                       QualityWarning, stacklevel=2)
     sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     res = np.zeros(mask.shape)
-    res[p_c, s_c] = g / np.sqrt(np.where(var > 0, var, np.inf))
+    res[cond.p, cond.s] = lin.g / np.sqrt(np.where(lin.var > 0, lin.var, np.inf))
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
                        adjusted, status, screen["rejected"], res, mask)
