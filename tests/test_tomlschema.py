@@ -237,7 +237,7 @@ def test_plan_keys_are_the_keys_the_reader_reads(demo_plan, monkeypatch):
     undeclared key is a bug the Table catches (KeyError), and every declared key is
     looked at by the reader (a declared key nobody reads would be accepted and ignored:
     the silent default this issue is about)."""
-    import ins.simulate.plan as plan_mod
+    import ins.simulate.plan_read as plan_mod
     tables = []
 
     class Recording(Table):
