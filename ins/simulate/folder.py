@@ -271,8 +271,8 @@ def _write_gnss_and_mount(plan, truth, folder, seed):
     """gnss.txt and (mount enabled) mount.txt; returns the manifest's [files]."""
     m, g = plan.mount, plan.gnss
     gnss = simulate_gnss(truth, gnss_times(truth.t_start, truth.t_end, g.rate_hz, g.outages),
-                         m.l_bp, m.l_ap, g.sigma_ned, product_rng(seed, "gnss"),
-                         velocity=g.velocity, sigma_vel_mps=g.sigma_vel)
+                         m.l_bp, m.l_ap, g.sigma_ned_m, product_rng(seed, "gnss"),
+                         velocity=g.velocity, sigma_vel_mps=g.sigma_vel_mps)
     write_gnss(folder / FILES["gnss"], gnss)
     files = dict(FILES)
     if m.enabled:

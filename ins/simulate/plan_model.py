@@ -109,9 +109,9 @@ class ImuSettings:
 class GnssSettings:
     """GNSS antenna log settings."""
     rate_hz: float = 1.0
-    sigma_ned: tuple = (0.02, 0.02, 0.04)     # m
+    sigma_ned_m: tuple = (0.02, 0.02, 0.04)   # m
     velocity: bool = False
-    sigma_vel: float = 0.01                   # m/s
+    sigma_vel_mps: float = 0.01               # m/s
     outages: tuple = ()                       # ((start s from flight start, duration s), ...)
 
 

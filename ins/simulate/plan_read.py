@@ -170,8 +170,8 @@ def _gnss(sec):
         raise sec.error("sigma_ned_m", f"expected 1 or 3 numbers, got {len(sigma)}", "m")
     return GnssSettings(
         rate_hz=sec.number("rate_hz", 1.0, "Hz in (0, 100]", 0.0, 100.0, lo_open=True),
-        sigma_ned=sigma, velocity=sec.boolean("velocity", False),
-        sigma_vel=sec.number("sigma_vel_mps", 0.01, "m/s >= 0", 0.0),
+        sigma_ned_m=sigma, velocity=sec.boolean("velocity", False),
+        sigma_vel_mps=sec.number("sigma_vel_mps", 0.01, "m/s >= 0", 0.0),
         outages=outages)
 
 
