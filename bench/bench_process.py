@@ -44,7 +44,7 @@ def _peerlib(shared):
 
 def config_for(data, gnss_file, node_interval_s=1.0):
     from ins.error_model import ImuNoise
-    from ins.process import ProcessConfig
+    from ins.process_config import ProcessConfig
     meta = json.loads((data / "meta.json").read_text())
     fn, ini, st = meta["filter_noise"], meta["init_filter"], meta["init_std"]
     noise = ImuNoise(fn["arw_dpsh"], fn["vrw_mpsph"], fn["gyro_bias_std_dph"],

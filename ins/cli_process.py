@@ -98,7 +98,7 @@ def add_parser(sub):
 
 
 def _config(args):
-    from .process import config_from_manifest, load_config
+    from .process_config import config_from_manifest, load_config
     if args.flight_dir:
         if args.imu or args.gnss:
             raise InputError("give either FLIGHT_DIR or --imu/--gnss, not both")
@@ -131,7 +131,8 @@ def _from_args(args, load_config, path):
 def _cmd_process(args):
     from .cliutil import Progress
     from .fileio import output_folder
-    from .process import process, write_outputs
+    from .process import process
+    from .process_outputs import write_outputs
     t0 = wallclock.perf_counter()
     cfg = _config(args)
     progress = Progress("process", not args.quiet)

@@ -1,24 +1,8 @@
 """GNSS/INS post-processing pipeline: configuration or flight manifest -> files -> forward
 filter -> RTS smoother -> results (and the output files).
 
-Configuration (TOML; ``data/configs/kfgins_like.toml``), keys named like KF-GINS's YAML
-with the unit in the name::
-
-    [files]      imu, gnss, mount (optional), truth (optional): paths relative to the file
-    [imu]        format = "kfgins"|"kfgins-bin"|"csv", rates = false, axes = "FRD"
-    [initial]    lat_deg, lon_deg, h_m, vel_ned_mps, rpy_deg, time_s (optional),
-                 pos_std_ned_m, vel_std_ned_mps, att_std_deg
-    [imu_noise]  arw_deg_sqrth, vrw_mps_sqrth, gyro_bias_std_dph, accel_bias_std_mgal,
-                 gyro_scale_std_ppm, accel_scale_std_ppm, corr_time_h
-    [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5
-    [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
-    [alignment]  method = "given"|"static"|"gnss-heading", static_window_s = [t0, t1]
-    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true
-
-With a mount, ``[mount]`` replaces ``[gnss] lever_arm_b_m``.  A flight folder's
-``manifest.toml`` (``docs/interfaces.md``) gives the files, lever arms, IMU error values
-and the stationary segment; the manifest's true initial state is NOT used (it would be
-cheating): the alignment is static when there is a stationary segment, else in-air.
+The configuration (TOML keys, the flight manifest) is read by :mod:`ins.process_config`;
+the output files are written by :mod:`ins.process_outputs`.
 Library code: nothing is printed; progress goes to ``progress(done, total)``.
 
 Trust
@@ -45,7 +29,6 @@ the likely cause (start state, IMU noise settings, lever arm, time base), unless
 the smoother cannot factor, is a ``QualityError`` naming the time and the state.
 """
 import itertools
-import os
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -53,7 +36,7 @@ import numpy as np
 
 from . import _filter_kernels, earth
 from .alignment import align_gnss_heading, align_static, check_static_heading
-from .error_model import NAV, SENSORS, STATE, ImuNoise
+from .error_model import NAV, STATE
 from .errors import InputError, QualityError, QualityWarning
 from .filter import FilterSettings, filterpy_functions, run_forward
 from .imu import ImuLog
@@ -62,25 +45,13 @@ from .gnss import read_gnss
 from .lever_arm import LeverArm, antenna_lla
 from .mechanization import NavState
 from .mount import read_mount
+# the configuration and the output files, importable from here as before
+from .process_config import (METHODS, POSITION_KEYS, ProcessConfig,  # noqa: F401
+                             config_from_manifest, load_config)
+from .process_outputs import euler_std_deg, write_outputs  # noqa: F401
 from .smoother import iter_smoothed, rts_errors
-from .tomlschema import check_keys
 from .trajectory import Trajectory
 
-_NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
-               "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h")
-_SECTIONS = {
-    "files": {"imu", "gnss", "mount", "truth"},
-    "imu": {"format", "rates", "axes"},
-    "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
-                "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
-    "imu_noise": set(_NOISE_KEYS),
-    "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability"},
-    "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
-    "alignment": {"method", "static_window_s"},
-    "filter": {"start_s", "end_s", "node_interval_s", "smooth"},
-}
-METHODS = ("given", "static", "gnss-heading")
-_POSITION_KEYS = ("lat_deg", "lon_deg", "h_m")
 
 #: Start-position check (module notes): refused beyond START_SIGMAS x sigma + START_SLACK_M.
 START_SIGMAS = 5.0
@@ -101,204 +72,6 @@ DEPART_SPAN_S = 30.0
 #: IMU noise settings (healthy test and benchmark runs: at most 2.8 sigma, NIS 2.8-3.0).
 SENSOR_SIGMAS = 3.0
 NIS_FACTOR = 2.0
-
-
-@dataclass
-class ProcessConfig:
-    """Everything a run needs (paths and settings); see the module notes for the keys."""
-
-    imu: str
-    gnss: str
-    mount: str = None
-    truth: str = None
-    imu_format: str = None
-    imu_rates: bool = False
-    imu_axes: str = "FRD"
-    noise: ImuNoise = field(default_factory=ImuNoise)
-    lever_bp: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    lever_ap: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    initial: dict = field(default_factory=dict)
-    method: str = "given"
-    static_window_s: tuple = None
-    start_s: float = None
-    end_s: float = None
-    node_interval_s: float = 1.0
-    use_velocity: bool = True
-    reject_probability: float = 1e-5
-    smooth: bool = True
-    source: str = "config"
-    initial_source: str = None
-
-
-def _vector(value, where, n=3):
-    try:
-        v = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: expected {n} numbers, got {value!r}") from None
-    if v.ndim == 0:
-        v = np.full(n, float(v))
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise InputError(f"{where}: expected {n} finite numbers, got {value!r}")
-    return v
-
-
-def _number(value, where, positive=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise InputError(f"{where}: expected a number, got {value!r}")
-    if positive and value <= 0:
-        raise InputError(f"{where}: expected a number > 0, got {value!r}")
-    return float(value)
-
-
-def _read_toml(path, expected="a processing config (TOML)"):
-    from .textfiles import read_toml
-    return read_toml(path, expected)
-
-
-def _noise(section, where):
-    kw = {}
-    for key in _NOISE_KEYS:
-        if key in section:
-            kw[key] = (_number(section[key], f"{where} {key}", positive=True)
-                       if key == "corr_time_h" else _vector(section[key], f"{where} {key}"))
-            if key != "corr_time_h" and np.any(kw[key] < 0):
-                raise InputError(f"{where} {key}: expected values >= 0, got {section[key]!r}")
-    return ImuNoise(**kw)
-
-
-def load_config(path, base=None, files=None):
-    """Read a processing config (TOML).  Paths in ``[files]`` are relative to the file;
-    ``files`` (e.g. ``{"imu": ..., "gnss": ...}`` from the command line) replaces them.
-
-    Raises
-    ------
-    InputError
-        Naming the file and the ``[section] key`` on an unknown key or a bad value.
-    """
-    path = os.fspath(path)
-    data = _read_toml(path)
-    where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
-    check_keys(data, _SECTIONS, path)
-    base = os.path.dirname(os.path.abspath(path)) if base is None else base
-    rel = {k: os.path.join(base, v) for k, v in data.get("files", {}).items()}
-    rel.update({k: v for k, v in (files or {}).items() if v is not None})
-    for key in ("imu", "gnss"):
-        if key not in rel:
-            raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
-                             f"or give --{key})")
-    return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
-                               truth=rel.get("truth")), data, where, path)
-
-
-def _fill(cfg, data, where, path=None):
-    """Settings of a parsed TOML table into ``cfg`` (shared by config and overrides)."""
-    imu = data.get("imu", {})
-    cfg.imu_format = imu.get("format", cfg.imu_format)
-    cfg.imu_rates = bool(imu.get("rates", cfg.imu_rates))
-    cfg.imu_axes = imu.get("axes", cfg.imu_axes)
-    if "imu_noise" in data:
-        cfg.noise = _noise(data["imu_noise"], where("imu_noise"))
-    gnss = data.get("gnss", {})
-    if "lever_arm_b_m" in gnss:
-        cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"))
-        cfg.lever_ap = np.zeros(3)
-    cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
-    if "reject_probability" in gnss:
-        p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
-        if p >= 1:
-            raise InputError(f"{where('gnss', 'reject_probability')}: expected 0 < p < 1")
-        cfg.reject_probability = p
-    mount = data.get("mount", {})
-    for key, attr in (("imu_to_platform_centre_b_m", "lever_bp"),
-                      ("platform_centre_to_antenna_a_m", "lever_ap")):
-        if key in mount:
-            setattr(cfg, attr, _vector(mount[key], where("mount", key)))
-    init = data.get("initial", {})
-    if any(k in init for k in _POSITION_KEYS + ("time_s",)):
-        cfg.initial_source = None if path is None else os.fspath(path)
-    for key, value in init.items():
-        n = 3 if key not in ("lat_deg", "lon_deg", "h_m", "time_s") else None
-        cfg.initial[key] = (_vector(value, where("initial", key)) if n
-                            else _number(value, where("initial", key)))
-    align = data.get("alignment", {})
-    if "method" in align:
-        if align["method"] not in METHODS:
-            raise InputError(f"{where('alignment', 'method')}: expected one of "
-                             f"{', '.join(METHODS)}, got {align['method']!r}")
-        cfg.method = align["method"]
-    if "static_window_s" in align:
-        cfg.static_window_s = tuple(_vector(align["static_window_s"],
-                                            where("alignment", "static_window_s"), 2))
-    filt = data.get("filter", {})
-    for key in ("start_s", "end_s"):
-        if key in filt:
-            setattr(cfg, key, _number(filt[key], where("filter", key)))
-    if "node_interval_s" in filt:
-        cfg.node_interval_s = _number(filt["node_interval_s"], where("filter", "node_interval_s"),
-                                      True)
-    cfg.smooth = bool(filt.get("smooth", cfg.smooth))
-    return cfg
-
-
-def config_from_manifest(flight_dir, overrides=None):
-    """Processing config of a simulator flight folder (``manifest.toml``).
-
-    ``overrides`` (a config TOML path) may replace any setting.
-    """
-    path = os.path.join(flight_dir, "manifest.toml")
-    if not os.path.isfile(path):
-        raise InputError(f"{flight_dir}: no manifest.toml (a flight folder of "
-                         f"'ins simulate' is expected)")
-    man = _read_toml(path)
-    where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
-    files = man.get("files", {})
-    for key in ("imu", "gnss"):
-        if key not in files:
-            raise InputError(f"{where('files', key)}: missing")
-
-    def rel(key):
-        return os.path.join(flight_dir, files[key]) if files.get(key) else None
-    mount = rel("mount")
-    cfg = ProcessConfig(imu=rel("imu"), gnss=rel("gnss"),
-                        mount=mount if mount and os.path.isfile(mount) else None,
-                        truth=rel("truth"), source="manifest")
-    arm = man.get("lever_arm", {})
-    cfg.lever_bp = _vector(arm.get("imu_to_platform_centre_b_m", [0, 0, 0]),
-                           where("lever_arm", "imu_to_platform_centre_b_m"))
-    cfg.lever_ap = _vector(arm.get("platform_centre_to_antenna_a_m", [0, 0, 0]),
-                           where("lever_arm", "platform_centre_to_antenna_a_m"))
-    cfg.noise = _manifest_noise(man.get("imu", {}), where("imu"))
-    stationary = man.get("stationary", {})
-    segments = stationary.get("segments_s", stationary.get("segments")) \
-        if isinstance(stationary, dict) else stationary
-    at_rest = bool(stationary.get("static", True)) if isinstance(stationary, dict) else True
-    if isinstance(segments, list) and segments and len(segments[0]) == 2:
-        cfg.static_window_s = (float(segments[0][0]), float(segments[0][1]))
-    # at rest: levelling + gyrocompassing on the segment; in the air (static = false, the
-    # segment is a straight level line): heading from the GNSS track at its start
-    cfg.method = "static" if at_rest and cfg.static_window_s is not None else "gnss-heading"
-    if overrides is not None:
-        data = check_keys(_read_toml(overrides), _SECTIONS, overrides)
-        _fill(cfg, data, lambda sec, key="": f"{overrides}: [{sec}]" + (f" {key}" if key else ""),
-              overrides)
-    return cfg
-
-
-def _manifest_noise(imu, where):
-    """Filter noise from the injected error values of the manifest (same units)."""
-    def get(key, default):
-        v = imu.get(key, default)
-        return np.abs(_vector(v, f"{where} {key}"))
-    bias_g = np.hypot(get("gyro_bias_dph", 0.0), get("gyro_bias_instability_dph", 0.0))
-    bias_a = np.hypot(get("accel_bias_mgal", 0.0), get("accel_bias_instability_mgal", 0.0))
-    return ImuNoise(
-        arw_deg_sqrth=np.maximum(get("arw_deg_sqrth", 0.003), 1e-6),
-        vrw_mps_sqrth=np.maximum(get("vrw_mps_sqrth", 0.03), 1e-6),
-        gyro_bias_std_dph=np.maximum(bias_g, 1e-4),
-        accel_bias_std_mgal=np.maximum(bias_a, 1.0),
-        gyro_scale_std_ppm=np.maximum(get("gyro_scale_ppm", 1.0), 1.0),
-        accel_scale_std_ppm=np.maximum(get("accel_scale_ppm", 1.0), 1.0),
-        corr_time_h=float(imu.get("corr_time_h", 4.0)))
 
 
 @dataclass
@@ -426,9 +199,9 @@ def _start(cfg, blocks, gnss, lever=None):
     if cfg.method == "given":
         need = ("vel_ned_mps", "rpy_deg")
         missing = [k for k in need if k not in init]
-        have = [k for k in _POSITION_KEYS if k in init]
+        have = [k for k in POSITION_KEYS if k in init]
         if 0 < len(have) < 3:
-            missing += [k for k in _POSITION_KEYS if k not in init]
+            missing += [k for k in POSITION_KEYS if k not in init]
         if missing:
             where = f"{cfg.initial_source}: " if cfg.initial_source else ""
             raise InputError(f"{where}[initial] {', '.join(missing)}: needed with alignment "
@@ -832,76 +605,3 @@ def with_truth(result, truth_path):
 def _trajectory(time, states):
     return Trajectory(time=time, lla=states[:, NAV.lla], v_n=states[:, NAV.vel],
                       q_nb=states[:, NAV.q_nb])
-
-
-def euler_std_deg(q_nb, P_att):
-    """Roll, pitch, yaw standard deviations (deg) from the phi-angle covariance (rad^2).
-
-    ``phi = E d(roll, pitch, yaw)`` with the columns of ``E`` the roll axis
-    ``Rz(yaw) Ry(pitch) e_x``, the pitch axis ``Rz(yaw) e_y`` and the yaw axis ``e_z``
-    (in n), so ``Cov(rpy) = E^-1 P E^-T``.
-    """
-    from .rotation import quat_to_euler
-    rpy = quat_to_euler(q_nb)
-    _, p, y = rpy.T
-    E = np.zeros((len(rpy), 3, 3))
-    E[:, :, 0] = np.column_stack([np.cos(y) * np.cos(p), np.sin(y) * np.cos(p), -np.sin(p)])
-    E[:, :, 1] = np.column_stack([-np.sin(y), np.cos(y), np.zeros_like(y)])
-    E[:, 2, 2] = 1.0
-    Ei = np.linalg.inv(E)
-    cov = Ei @ P_att @ np.swapaxes(Ei, 1, 2)
-    # with P_att positive semi-definite the diagonal is >= 0 up to rounding; a variance
-    # below -1e-9 of the sum of the terms that make it is a failure, not rounding
-    from .error_model import checked_std
-    scale = np.einsum("mij,mjk,mik->mi", np.abs(Ei), np.abs(P_att), np.abs(Ei))
-    return np.rad2deg(checked_std(np.einsum("mii->mi", cov), scale,
-                                  names=("roll", "pitch", "yaw"),
-                                  what="attitude (roll, pitch, yaw) covariance"))
-
-
-def write_outputs(result, out_dir, week=0, forward=False):
-    """Write solution.nav (smoothed), solution_std.txt, imu_errors.txt and, with
-    ``forward=True``, forward.nav (the forward filter's trajectory, a diagnostic).
-
-    The .nav files are written piece by piece as the trajectory is streamed (bounded
-    memory).  Returns the list of written paths.  Every file is written atomically.
-    """
-    from . import textformat
-    from .error_model import DPH, MGAL, PPM
-    from .fileio import atomic_open
-    from .trajectory import write_nav
-    os.makedirs(out_dir, exist_ok=True)
-    paths = [os.path.join(out_dir, n) for n in
-             ("solution.nav", "solution_std.txt", "imu_errors.txt")]
-    write_nav(paths[0], result.iter_smoothed(), week=week)
-    if forward:
-        paths.append(os.path.join(out_dir, "forward.nav"))
-        write_nav(paths[-1], result.iter_forward(), week=week)
-    rows = np.arange(len(result.node_time))
-    # attitude sigma from the smoothed covariance diagonal (phi-angle block)
-    P_att = np.zeros((len(rows), 3, 3))
-    idx = np.arange(3)
-    P_att[:, idx, idx] = result.smoothed_std[:, STATE.att] ** 2
-    att = euler_std_deg(result.node_attitude(), P_att)
-    table = np.column_stack([result.node_time, result.smoothed_std[:, STATE.pos],
-                             result.smoothed_std[:, STATE.vel], att])
-    header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
-              "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
-    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
-    s = result.smoothed_sensors
-    table = np.column_stack([result.node_time, s[:, SENSORS.gyro_bias] / DPH,
-                             s[:, SENSORS.accel_bias] / MGAL, s[:, SENSORS.gyro_scale] / PPM,
-                             s[:, SENSORS.accel_scale] / PPM])
-    header = ("# time_s gyro_bias_x_dph gyro_bias_y_dph gyro_bias_z_dph accel_bias_x_mgal "
-              "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
-              "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
-              "(smoothed estimates)\n")
-    _write_table(paths[2], header, table, [6] + [5] * 12, textformat, atomic_open)
-    return paths
-
-
-def _write_table(path, header, table, decimals, textformat, atomic_open):
-    text = textformat.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
-    with atomic_open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(text)

@@ -14,7 +14,8 @@ from ins.filter import FilterSettings, run_forward, schedule_nodes
 from ins.gnss import GnssLog, read_gnss
 from ins.lever_arm import LeverArm
 from ins.mount import read_mount
-from ins.process import ProcessConfig, _initial, config_from_manifest
+from ins.process import _initial
+from ins.process_config import ProcessConfig, config_from_manifest
 from ins.smoother import smooth
 from ins.trajectory import Trajectory, read_nav
 

@@ -1,0 +1,244 @@
+"""Processing configuration of ``ins process``: :class:`ProcessConfig`, read from a TOML
+config (:func:`load_config`) or from a flight folder's manifest (:func:`config_from_manifest`).
+
+Configuration (TOML; ``data/configs/kfgins_like.toml``), keys named like KF-GINS's YAML
+with the unit in the name::
+
+    [files]      imu, gnss, mount (optional), truth (optional): paths relative to the file
+    [imu]        format = "kfgins"|"kfgins-bin"|"csv", rates = false, axes = "FRD"
+    [initial]    lat_deg, lon_deg, h_m, vel_ned_mps, rpy_deg, time_s (optional),
+                 pos_std_ned_m, vel_std_ned_mps, att_std_deg
+    [imu_noise]  arw_deg_sqrth, vrw_mps_sqrth, gyro_bias_std_dph, accel_bias_std_mgal,
+                 gyro_scale_std_ppm, accel_scale_std_ppm, corr_time_h
+    [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5
+    [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
+    [alignment]  method = "given"|"static"|"gnss-heading", static_window_s = [t0, t1]
+    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true
+
+With a mount, ``[mount]`` replaces ``[gnss] lever_arm_b_m``.  A flight folder's
+``manifest.toml`` (``docs/interfaces.md``) gives the files, lever arms, IMU error values
+and the stationary segment; the manifest's true initial state is NOT used (it would be
+cheating): the alignment is static when there is a stationary segment, else in-air.
+"""
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .error_model import ImuNoise
+from .errors import InputError
+from .tomlschema import check_keys
+
+_NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
+               "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h")
+_SECTIONS = {
+    "files": {"imu", "gnss", "mount", "truth"},
+    "imu": {"format", "rates", "axes"},
+    "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
+                "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
+    "imu_noise": set(_NOISE_KEYS),
+    "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability"},
+    "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
+    "alignment": {"method", "static_window_s"},
+    "filter": {"start_s", "end_s", "node_interval_s", "smooth"},
+}
+METHODS = ("given", "static", "gnss-heading")
+POSITION_KEYS = ("lat_deg", "lon_deg", "h_m")
+
+
+@dataclass
+class ProcessConfig:
+    """Everything a run needs (paths and settings); see the module notes for the keys."""
+
+    imu: str
+    gnss: str
+    mount: str = None
+    truth: str = None
+    imu_format: str = None
+    imu_rates: bool = False
+    imu_axes: str = "FRD"
+    noise: ImuNoise = field(default_factory=ImuNoise)
+    lever_bp: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    lever_ap: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    initial: dict = field(default_factory=dict)
+    method: str = "given"
+    static_window_s: tuple = None
+    start_s: float = None
+    end_s: float = None
+    node_interval_s: float = 1.0
+    use_velocity: bool = True
+    reject_probability: float = 1e-5
+    smooth: bool = True
+    source: str = "config"
+    initial_source: str = None
+
+
+def _vector(value, where, n=3):
+    try:
+        v = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: expected {n} numbers, got {value!r}") from None
+    if v.ndim == 0:
+        v = np.full(n, float(v))
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise InputError(f"{where}: expected {n} finite numbers, got {value!r}")
+    return v
+
+
+def _number(value, where, positive=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise InputError(f"{where}: expected a number, got {value!r}")
+    if positive and value <= 0:
+        raise InputError(f"{where}: expected a number > 0, got {value!r}")
+    return float(value)
+
+
+def _read_toml(path, expected="a processing config (TOML)"):
+    from .textfiles import read_toml
+    return read_toml(path, expected)
+
+
+def _noise(section, where):
+    kw = {}
+    for key in _NOISE_KEYS:
+        if key in section:
+            kw[key] = (_number(section[key], f"{where} {key}", positive=True)
+                       if key == "corr_time_h" else _vector(section[key], f"{where} {key}"))
+            if key != "corr_time_h" and np.any(kw[key] < 0):
+                raise InputError(f"{where} {key}: expected values >= 0, got {section[key]!r}")
+    return ImuNoise(**kw)
+
+
+def load_config(path, base=None, files=None):
+    """Read a processing config (TOML).  Paths in ``[files]`` are relative to the file;
+    ``files`` (e.g. ``{"imu": ..., "gnss": ...}`` from the command line) replaces them.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the ``[section] key`` on an unknown key or a bad value.
+    """
+    path = os.fspath(path)
+    data = _read_toml(path)
+    where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
+    check_keys(data, _SECTIONS, path)
+    base = os.path.dirname(os.path.abspath(path)) if base is None else base
+    rel = {k: os.path.join(base, v) for k, v in data.get("files", {}).items()}
+    rel.update({k: v for k, v in (files or {}).items() if v is not None})
+    for key in ("imu", "gnss"):
+        if key not in rel:
+            raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
+                             f"or give --{key})")
+    return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
+                               truth=rel.get("truth")), data, where, path)
+
+
+def _fill(cfg, data, where, path=None):
+    """Settings of a parsed TOML table into ``cfg`` (shared by config and overrides)."""
+    imu = data.get("imu", {})
+    cfg.imu_format = imu.get("format", cfg.imu_format)
+    cfg.imu_rates = bool(imu.get("rates", cfg.imu_rates))
+    cfg.imu_axes = imu.get("axes", cfg.imu_axes)
+    if "imu_noise" in data:
+        cfg.noise = _noise(data["imu_noise"], where("imu_noise"))
+    gnss = data.get("gnss", {})
+    if "lever_arm_b_m" in gnss:
+        cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"))
+        cfg.lever_ap = np.zeros(3)
+    cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
+    if "reject_probability" in gnss:
+        p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
+        if p >= 1:
+            raise InputError(f"{where('gnss', 'reject_probability')}: expected 0 < p < 1")
+        cfg.reject_probability = p
+    mount = data.get("mount", {})
+    for key, attr in (("imu_to_platform_centre_b_m", "lever_bp"),
+                      ("platform_centre_to_antenna_a_m", "lever_ap")):
+        if key in mount:
+            setattr(cfg, attr, _vector(mount[key], where("mount", key)))
+    init = data.get("initial", {})
+    if any(k in init for k in POSITION_KEYS + ("time_s",)):
+        cfg.initial_source = None if path is None else os.fspath(path)
+    for key, value in init.items():
+        n = 3 if key not in ("lat_deg", "lon_deg", "h_m", "time_s") else None
+        cfg.initial[key] = (_vector(value, where("initial", key)) if n
+                            else _number(value, where("initial", key)))
+    align = data.get("alignment", {})
+    if "method" in align:
+        if align["method"] not in METHODS:
+            raise InputError(f"{where('alignment', 'method')}: expected one of "
+                             f"{', '.join(METHODS)}, got {align['method']!r}")
+        cfg.method = align["method"]
+    if "static_window_s" in align:
+        cfg.static_window_s = tuple(_vector(align["static_window_s"],
+                                            where("alignment", "static_window_s"), 2))
+    filt = data.get("filter", {})
+    for key in ("start_s", "end_s"):
+        if key in filt:
+            setattr(cfg, key, _number(filt[key], where("filter", key)))
+    if "node_interval_s" in filt:
+        cfg.node_interval_s = _number(filt["node_interval_s"], where("filter", "node_interval_s"),
+                                      True)
+    cfg.smooth = bool(filt.get("smooth", cfg.smooth))
+    return cfg
+
+
+def config_from_manifest(flight_dir, overrides=None):
+    """Processing config of a simulator flight folder (``manifest.toml``).
+
+    ``overrides`` (a config TOML path) may replace any setting.
+    """
+    path = os.path.join(flight_dir, "manifest.toml")
+    if not os.path.isfile(path):
+        raise InputError(f"{flight_dir}: no manifest.toml (a flight folder of "
+                         f"'ins simulate' is expected)")
+    man = _read_toml(path)
+    where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
+    files = man.get("files", {})
+    for key in ("imu", "gnss"):
+        if key not in files:
+            raise InputError(f"{where('files', key)}: missing")
+
+    def rel(key):
+        return os.path.join(flight_dir, files[key]) if files.get(key) else None
+    mount = rel("mount")
+    cfg = ProcessConfig(imu=rel("imu"), gnss=rel("gnss"),
+                        mount=mount if mount and os.path.isfile(mount) else None,
+                        truth=rel("truth"), source="manifest")
+    arm = man.get("lever_arm", {})
+    cfg.lever_bp = _vector(arm.get("imu_to_platform_centre_b_m", [0, 0, 0]),
+                           where("lever_arm", "imu_to_platform_centre_b_m"))
+    cfg.lever_ap = _vector(arm.get("platform_centre_to_antenna_a_m", [0, 0, 0]),
+                           where("lever_arm", "platform_centre_to_antenna_a_m"))
+    cfg.noise = _manifest_noise(man.get("imu", {}), where("imu"))
+    stationary = man.get("stationary", {})
+    segments = stationary.get("segments_s", stationary.get("segments")) \
+        if isinstance(stationary, dict) else stationary
+    at_rest = bool(stationary.get("static", True)) if isinstance(stationary, dict) else True
+    if isinstance(segments, list) and segments and len(segments[0]) == 2:
+        cfg.static_window_s = (float(segments[0][0]), float(segments[0][1]))
+    # at rest: levelling + gyrocompassing on the segment; in the air (static = false, the
+    # segment is a straight level line): heading from the GNSS track at its start
+    cfg.method = "static" if at_rest and cfg.static_window_s is not None else "gnss-heading"
+    if overrides is not None:
+        data = check_keys(_read_toml(overrides), _SECTIONS, overrides)
+        _fill(cfg, data, lambda sec, key="": f"{overrides}: [{sec}]" + (f" {key}" if key else ""),
+              overrides)
+    return cfg
+
+
+def _manifest_noise(imu, where):
+    """Filter noise from the injected error values of the manifest (same units)."""
+    def get(key, default):
+        v = imu.get(key, default)
+        return np.abs(_vector(v, f"{where} {key}"))
+    bias_g = np.hypot(get("gyro_bias_dph", 0.0), get("gyro_bias_instability_dph", 0.0))
+    bias_a = np.hypot(get("accel_bias_mgal", 0.0), get("accel_bias_instability_mgal", 0.0))
+    return ImuNoise(
+        arw_deg_sqrth=np.maximum(get("arw_deg_sqrth", 0.003), 1e-6),
+        vrw_mps_sqrth=np.maximum(get("vrw_mps_sqrth", 0.03), 1e-6),
+        gyro_bias_std_dph=np.maximum(bias_g, 1e-4),
+        accel_bias_std_mgal=np.maximum(bias_a, 1.0),
+        gyro_scale_std_ppm=np.maximum(get("gyro_scale_ppm", 1.0), 1.0),
+        accel_scale_std_ppm=np.maximum(get("accel_scale_ppm", 1.0), 1.0),
+        corr_time_h=float(imu.get("corr_time_h", 4.0)))

@@ -1,0 +1,81 @@
+"""Output files of ``ins process``: solution.nav, solution_std.txt, imu_errors.txt and
+forward.nav (:func:`write_outputs`), and the roll, pitch, yaw sigmas of a phi-angle covariance
+(:func:`euler_std_deg`)."""
+import os
+
+import numpy as np
+
+from .error_model import SENSORS, STATE
+
+
+def euler_std_deg(q_nb, P_att):
+    """Roll, pitch, yaw standard deviations (deg) from the phi-angle covariance (rad^2).
+
+    ``phi = E d(roll, pitch, yaw)`` with the columns of ``E`` the roll axis
+    ``Rz(yaw) Ry(pitch) e_x``, the pitch axis ``Rz(yaw) e_y`` and the yaw axis ``e_z``
+    (in n), so ``Cov(rpy) = E^-1 P E^-T``.
+    """
+    from .rotation import quat_to_euler
+    rpy = quat_to_euler(q_nb)
+    _, p, y = rpy.T
+    E = np.zeros((len(rpy), 3, 3))
+    E[:, :, 0] = np.column_stack([np.cos(y) * np.cos(p), np.sin(y) * np.cos(p), -np.sin(p)])
+    E[:, :, 1] = np.column_stack([-np.sin(y), np.cos(y), np.zeros_like(y)])
+    E[:, 2, 2] = 1.0
+    Ei = np.linalg.inv(E)
+    cov = Ei @ P_att @ np.swapaxes(Ei, 1, 2)
+    # with P_att positive semi-definite the diagonal is >= 0 up to rounding; a variance
+    # below -1e-9 of the sum of the terms that make it is a failure, not rounding
+    from .error_model import checked_std
+    scale = np.einsum("mij,mjk,mik->mi", np.abs(Ei), np.abs(P_att), np.abs(Ei))
+    return np.rad2deg(checked_std(np.einsum("mii->mi", cov), scale,
+                                  names=("roll", "pitch", "yaw"),
+                                  what="attitude (roll, pitch, yaw) covariance"))
+
+
+def write_outputs(result, out_dir, week=0, forward=False):
+    """Write solution.nav (smoothed), solution_std.txt, imu_errors.txt and, with
+    ``forward=True``, forward.nav (the forward filter's trajectory, a diagnostic).
+
+    The .nav files are written piece by piece as the trajectory is streamed (bounded
+    memory).  Returns the list of written paths.  Every file is written atomically.
+    """
+    from . import textformat
+    from .error_model import DPH, MGAL, PPM
+    from .fileio import atomic_open
+    from .trajectory import write_nav
+    os.makedirs(out_dir, exist_ok=True)
+    paths = [os.path.join(out_dir, n) for n in
+             ("solution.nav", "solution_std.txt", "imu_errors.txt")]
+    write_nav(paths[0], result.iter_smoothed(), week=week)
+    if forward:
+        paths.append(os.path.join(out_dir, "forward.nav"))
+        write_nav(paths[-1], result.iter_forward(), week=week)
+    rows = np.arange(len(result.node_time))
+    # attitude sigma from the smoothed covariance diagonal (phi-angle block)
+    P_att = np.zeros((len(rows), 3, 3))
+    idx = np.arange(3)
+    P_att[:, idx, idx] = result.smoothed_std[:, STATE.att] ** 2
+    att = euler_std_deg(result.node_attitude(), P_att)
+    table = np.column_stack([result.node_time, result.smoothed_std[:, STATE.pos],
+                             result.smoothed_std[:, STATE.vel], att])
+    header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
+              "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
+    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
+    s = result.smoothed_sensors
+    table = np.column_stack([result.node_time, s[:, SENSORS.gyro_bias] / DPH,
+                             s[:, SENSORS.accel_bias] / MGAL, s[:, SENSORS.gyro_scale] / PPM,
+                             s[:, SENSORS.accel_scale] / PPM])
+    header = ("# time_s gyro_bias_x_dph gyro_bias_y_dph gyro_bias_z_dph accel_bias_x_mgal "
+              "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
+              "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
+              "(smoothed estimates)\n")
+    _write_table(paths[2], header, table, [6] + [5] * 12, textformat, atomic_open)
+    return paths
+
+
+def _write_table(path, header, table, decimals, textformat, atomic_open):
+    text = textformat.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
+    with atomic_open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(text)
