@@ -141,7 +141,7 @@ def flight(folder, eo_path=None, boresight_deg=(0.1, -0.15, 0.2), ins_sigma_deg=
     e_ins = sc.rotation_error(ins.matrices(), truth.matrices())
     print(f"\nflight {folder}: {len(truth)} images, exit {code}, {dt:.1f} s (CLI, files to report)")
     print(f"  RMS per axis vs truth: INS {rms_axis(e_ins):.1f}\", refined {rms_axis(e_ref):.2f}\"; "
-          f"mean refined sigma {np.sqrt(np.mean(refined.sigma_angles ** 2)) * AS:.2f}\"")
+          f"mean refined sigma {np.sqrt(np.mean(refined.angle_sigma ** 2)) * AS:.2f}\"")
     print(f"  report: {rep}")
     for line in open(rep).read().splitlines()[:16]:
         print("  | " + line)

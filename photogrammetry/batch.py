@@ -89,9 +89,9 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
         sigma_mm = (tiepoints.sigma_mm if tiepoints.sigma_mm is not None
                     else 0.5 * camera.pixel_size_mm)
     if prior_sigma_rad is None:
-        prior_sigma_rad = eo.sigma_angles if eo.sigma_angles is not None else 0.005
-    if position_sigma_m is None and eo.sigma_position is not None:
-        position_sigma_m = eo.sigma_position
+        prior_sigma_rad = eo.angle_sigma if eo.angle_sigma is not None else 0.005
+    if position_sigma_m is None and eo.position_sigma is not None:
+        position_sigma_m = eo.position_sigma
     min_common = 3 if method == "known-base" else 5
     pairs, points, point_ids = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
     if len(pairs) == 0:
@@ -103,8 +103,8 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                          snooping=snooping, progress=progress)
     # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
     # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
-    result_eo = replace(eo, angles=wrap_to_pi(block.angles), sigma_angles=block.sigma,
-                        sigma_position=(eo.sigma_position if eo.sigma_position is not None
+    result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
+                        position_sigma=(eo.position_sigma if eo.position_sigma is not None
                                         else np.zeros((len(eo), 3))))
     settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,
                 "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,

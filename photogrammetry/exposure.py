@@ -65,9 +65,9 @@ class ExposureOrientation:
         ``"phi-omega-kappa"`` or ``"omega-phi-kappa"``.
     frame : str
         Mapping-frame description (the EO CSV ``# frame =`` value).
-    sigma_position : ndarray (n, 3) or None
+    position_sigma : ndarray (n, 3) or None
         Standard deviations of the position, m.
-    sigma_angles : ndarray (n, 3) or None
+    angle_sigma : ndarray (n, 3) or None
         Standard deviations of the angles (same order), rad.
     """
 
@@ -77,15 +77,15 @@ class ExposureOrientation:
     angles: np.ndarray
     system: str
     frame: str
-    sigma_position: np.ndarray = None
-    sigma_angles: np.ndarray = None
+    position_sigma: np.ndarray = None
+    angle_sigma: np.ndarray = None
 
     def __post_init__(self):
         check_system(self.system)
         n = len(self.image_id)
         object.__setattr__(self, "image_id", tuple(str(i) for i in self.image_id))
         for name, shape in (("time", (n,)), ("position", (n, 3)), ("angles", (n, 3)),
-                            ("sigma_position", (n, 3)), ("sigma_angles", (n, 3))):
+                            ("position_sigma", (n, 3)), ("angle_sigma", (n, 3))):
             v = getattr(self, name)
             if v is None:
                 continue
@@ -100,7 +100,7 @@ class ExposureOrientation:
 
     @property
     def has_sigmas(self):
-        return self.sigma_position is not None and self.sigma_angles is not None
+        return self.position_sigma is not None and self.angle_sigma is not None
 
     def matrices(self):
         """``C_mc`` of every exposure, (n, 3, 3)."""
@@ -113,11 +113,11 @@ class ExposureOrientation:
             return self
         angles = matrix_to_angles(self.matrices(), system)
         sig = None
-        if self.sigma_angles is not None:
+        if self.angle_sigma is not None:
             J = _angle_jacobian(self.angles, lambda a: matrix_to_angles(
                 angles_to_matrix(a, self.system), system))
-            sig = _propagate(J, self.sigma_angles)
-        return replace(self, angles=angles, system=system, sigma_angles=sig)
+            sig = _propagate(J, self.angle_sigma)
+        return replace(self, angles=angles, system=system, angle_sigma=sig)
 
 
 def _angle_jacobian(x, func, step=1e-7):
@@ -314,8 +314,8 @@ def write_eo_csv(path, eo, system=None, comments=()):
         fields = [eo.image_id[i], _fmt(eo.time[i], 6)]
         fields += [_fmt(v, 6) for v in eo.position[i]] + [_fmt(v, 10) for v in deg[i]]
         if eo.has_sigmas:
-            fields += [_fmt(v, 6) for v in eo.sigma_position[i]]
-            fields += [_fmt(v, 10) for v in np.rad2deg(eo.sigma_angles[i])]
+            fields += [_fmt(v, 6) for v in eo.position_sigma[i]]
+            fields += [_fmt(v, 10) for v in np.rad2deg(eo.angle_sigma[i])]
         out.write(",".join(fields) + "\n")
     with atomic_open(path, "w") as f:
         f.write(out.getvalue())

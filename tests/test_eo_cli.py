@@ -64,7 +64,7 @@ def test_explicit_inputs_formats_sigma(flight, tmp_path):
     e, n = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32650",
                                        always_xy=True).transform(lon, lat)
     assert np.abs(eo.position - np.column_stack([e, n, h])).max() < 1e-5
-    assert np.all(eo.sigma_position > 0.019) and np.all(eo.sigma_position < 0.051)
+    assert np.all(eo.position_sigma > 0.019) and np.all(eo.position_sigma < 0.051)
     # the same via the Applanix and PATB writers
     for fmt, reader in (("applanix", read_eo_applanix), ("patb", read_eo_patb)):
         p = tmp_path / f"eo.{fmt}"

@@ -119,9 +119,9 @@ def test_sigmas_level_flight():
     eo = ex.compute_eo(traj, ["a"], [1.0], CameraMounting(), frame, "omega-phi-kappa",
                        sigma=(s_time, std))
     # ENU: X = east, Y = north, Z = up
-    assert_allclose(eo.sigma_position[0], [0.03, 0.02, 0.05], rtol=1e-9)
+    assert_allclose(eo.position_sigma[0], [0.03, 0.02, 0.05], rtol=1e-9)
     # nadir camera, x_c forward = north: omega is about east (pitch), phi about north (roll)
-    assert_allclose(eo.sigma_angles[0], np.deg2rad([0.003, 0.002, 0.01]), rtol=1e-5)
+    assert_allclose(eo.angle_sigma[0], np.deg2rad([0.003, 0.002, 0.01]), rtol=1e-5)
 
 
 def test_csv_round_trip(tmp_path):
@@ -222,4 +222,4 @@ def test_position_sigmas_rotated_into_a_projected_frame():
     assert np.deg2rad(2.0) < abs(g) < np.deg2rad(2.2)
     ref = [np.sqrt(np.sin(g) ** 2 * sN ** 2 + np.cos(g) ** 2 * sE ** 2),
            np.sqrt(np.cos(g) ** 2 * sN ** 2 + np.sin(g) ** 2 * sE ** 2), sD]
-    assert_allclose(eo.sigma_position[0], ref, rtol=1e-6)
+    assert_allclose(eo.position_sigma[0], ref, rtol=1e-6)

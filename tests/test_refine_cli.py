@@ -34,7 +34,7 @@ def test_cli_end_to_end(files, capsys):
                  "-o", out, "--report", rep, "--system", "omega-phi-kappa"])
     assert code == 0
     refined = read_eo_csv(out).in_system("phi-omega-kappa")
-    assert refined.has_sigmas and np.all(refined.sigma_angles > 0)
+    assert refined.has_sigmas and np.all(refined.angle_sigma > 0)
     assert _rms_error(B, refined.angles) < 0.03 * _rms_error(B, B["prior"])
     text = open(rep).read()
     assert "sigma0" in text and "Boresight misalignment" in text and "nan" not in text.lower()
