@@ -31,160 +31,19 @@ starts (:func:`filterpy_functions`), not with this module: its package imports
 used: the transition and noise change at every node and the state is reset after each
 update, so the object would only hold what the functions are given.
 """
-import os
-import tempfile
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import _filter_kernels, earth
-from .error_model import (ATT, N_STATES, NAV, POS, SENSORS, STATE, VEL, ImuNoise, checked_std,
-                          discretize, interval_matrix, noise_matrix)
+from .error_model import (ATT, N_STATES, NAV, POS, SENSORS, STATE, VEL,  # noqa: F401
+                          checked_std, discretize, interval_matrix, noise_matrix)
 from .errors import InputError, InputWarning
-from .lever_arm import (LeverArm, antenna_lla, antenna_velocity, position_jacobian,
-                        velocity_jacobian)
+# the settings and the stores have their own modules; importable from here as before
+from .filter_settings import FilterSettings  # noqa: F401
+from .filter_stores import NodeStore, TrajectoryStore
+from .lever_arm import antenna_lla, antenna_velocity, position_jacobian, velocity_jacobian
 from .rotation import quat_to_dcm
-
-DEG = np.pi / 180.0
-
-
-@dataclass
-class FilterSettings:
-    """Settings of the forward filter.
-
-    Parameters
-    ----------
-    noise : ImuNoise
-        IMU noise (also gives the initial sigma of the sensor states).
-    lever : LeverArm
-        Antenna lever arm.
-    pos_std_ned_m, vel_std_ned_mps : array_like, shape (3,)
-        Initial position (m) and velocity (m/s) standard deviations, NED.
-    att_std_deg : array_like, shape (3,)
-        Initial attitude standard deviations (roll, pitch, heading), deg.
-    initial_sensors : array_like, shape (12,)
-        Initial gyro bias (rad/s), accel bias (m/s^2), gyro and accel scale (1).
-    use_velocity : bool
-        Use the GNSS velocity columns when the file has them.
-    reject_probability : float
-        Innovation-test false-rejection probability (chi-square with 3 dof).
-    node_interval_s : float
-        Longest interval between two covariance steps, s.
-    """
-
-    noise: ImuNoise = field(default_factory=ImuNoise)
-    lever: LeverArm = field(default_factory=lambda: LeverArm(np.zeros(3)))
-    pos_std_ned_m: object = (0.05, 0.05, 0.05)
-    vel_std_ned_mps: object = (0.02, 0.02, 0.02)
-    att_std_deg: object = (0.01, 0.01, 0.1)
-    initial_sensors: object = None
-    use_velocity: bool = True
-    reject_probability: float = 1e-5
-    node_interval_s: float = 1.0
-
-    def initial_covariance(self):
-        std = np.concatenate([np.broadcast_to(np.asarray(self.pos_std_ned_m, float), 3),
-                              np.broadcast_to(np.asarray(self.vel_std_ned_mps, float), 3),
-                              np.broadcast_to(np.asarray(self.att_std_deg, float), 3) * DEG,
-                              self.noise.sensor_std])
-        if np.any(~np.isfinite(std)) or np.any(std <= 0):
-            raise InputError(f"initial standard deviations must be > 0, got {std[STATE.nav]}")
-        return np.diag(std ** 2)
-
-
-class NodeStore:
-    """``P_prior``, ``P_post`` and ``Phi`` (21 x 21 each) of every node, kept for the RTS pass.
-
-    In memory, or, with ``workdir``, appended to an anonymous temporary file there (10.6
-    kB a node: 380 MB for a 10 h flight at 1 Hz, on disk, not in memory) and read back
-    backwards in blocks.  They stay float64: after long GNSS tracking ``P_prior`` has
-    correlations close to 1 and a condition number near 1e12, which the 1e-7 rounding of
-    float32 would turn indefinite (the smoother's Cholesky step then fails).
-    """
-
-    def __init__(self, workdir=None):
-        self.count = 0
-        self.post_std = []                 # sqrt(diag(P_post)) of every node (small)
-        self._mem = [] if workdir is None else None
-        self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
-
-    def append(self, P_prior, P_post, Phi, time=None):
-        """Store one node; a negative variance (beyond rounding) in either covariance
-        raises :class:`~ins.errors.QualityError` naming ``time`` (s) and the state."""
-        d_prior, d_post = np.diag(P_prior), np.diag(P_post)
-        scale = np.maximum(np.abs(d_prior), np.abs(d_post))
-        checked_std(d_prior, scale, time, what="forward filter's prior covariance")
-        self.post_std.append(checked_std(d_post, scale, time,
-                                         what="forward filter's posterior covariance"))
-        rec = np.stack([P_prior, P_post, Phi])
-        if self._mem is not None:
-            self._mem.append(rec)
-        else:
-            self._file.write(rec.tobytes())
-        self.count += 1
-
-    def block(self, j0, j1):
-        """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, 21, 21) of P_prior, P_post, Phi."""
-        if self._mem is not None:
-            return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, N_STATES, N_STATES)
-        rec = 3 * N_STATES * N_STATES
-        self._file.flush()
-        self._file.seek(j0 * rec * 8)
-        data = np.fromfile(self._file, dtype=np.float64, count=(j1 - j0) * rec)
-        self._file.seek(0, os.SEEK_END)
-        return data.reshape(j1 - j0, 3, N_STATES, N_STATES)
-
-    def blocks_reversed(self, size=512):
-        """``(j0, block)`` from the last nodes to the first."""
-        j1 = self.count
-        while j1 > 0:
-            j0 = max(0, j1 - size)
-            yield j0, self.block(j0, j1)
-            j1 = j0
-
-
-class TrajectoryStore:
-    """The forward trajectory (time and ``ins._kernels`` states) in memory or spilled to
-    an anonymous temporary file in ``workdir``; read back chunk by chunk in time order."""
-
-    def __init__(self, workdir=None):
-        self._mem = [] if workdir is None else None
-        self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
-        self._sizes = []
-
-    def append(self, time, states):
-        rows = np.column_stack([time, states])
-        if self._mem is not None:
-            self._mem.append(rows)
-        else:
-            self._file.write(rows.tobytes())
-        self._sizes.append(len(rows))
-
-    def __len__(self):
-        return int(sum(self._sizes))
-
-    def chunks(self, rows=1 << 16):
-        """``(row0, time, states)`` pieces in time order (copies; at most ~``rows`` rows)."""
-        if self._mem is not None:
-            row0 = 0
-            for rows_ in self._mem:
-                yield row0, rows_[:, 0].copy(), rows_[:, 1:].copy()
-                row0 += len(rows_)
-            return
-        self._file.flush()
-        self._file.seek(0)
-        total, row0 = len(self), 0
-        while row0 < total:
-            k = min(rows, total - row0)
-            data = np.fromfile(self._file, dtype=np.float64, count=11 * k).reshape(k, 11)
-            yield row0, data[:, 0].copy(), data[:, 1:].copy()
-            row0 += k
-
-    def whole(self):
-        """``(time, states)`` of the whole trajectory (in memory)."""
-        parts = [(t, x) for _, t, x in self.chunks()]
-        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
 
 
 class ForwardResult:
@@ -537,5 +396,6 @@ def std_of(P, time=None):
     return checked_std(var, np.max(np.abs(var), axis=0), time)
 
 
-__all__ = ["FilterSettings", "ForwardResult", "run_forward", "schedule_nodes", "std_of",
+__all__ = ["FilterSettings", "ForwardResult", "NodeStore", "TrajectoryStore", "run_forward",
+           "schedule_nodes", "std_of",
            "POS", "VEL", "ATT"]

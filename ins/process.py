@@ -38,7 +38,8 @@ from . import _filter_kernels, earth
 from .alignment import align_gnss_heading, align_static, check_static_heading
 from .error_model import NAV, STATE
 from .errors import InputError, QualityError, QualityWarning
-from .filter import FilterSettings, filterpy_functions, run_forward
+from .filter import filterpy_functions, run_forward
+from .filter_settings import FilterSettings
 from .imu import ImuLog
 from .imu_blocks import iter_imu, prefetch
 from .gnss import read_gnss

@@ -22,7 +22,7 @@ the error just before it.
 Between two nodes the forward trajectory is one continuous mechanization, so its error
 varies smoothly: every IMU epoch gets the linear interpolation in time of ``xs+_j`` and
 ``xs-_{j+1}`` (:func:`ins._filter_kernels.correct_rows`).  The recursion needs only
-the node matrices (read backwards from :class:`ins.filter.NodeStore`, in memory or a
+the node matrices (read backwards from :class:`ins.filter_stores.NodeStore`, in memory or a
 temporary file); the corrections are then applied in a forward sweep over the stored
 forward trajectory, piece by piece (:func:`iter_smoothed`), so that the smoothed
 solution is written in time order with bounded memory.  Over a 1 s node
@@ -58,7 +58,7 @@ def _backward_nodes(fwd):
 def rts_errors(fwd, full=True):
     """The backward recursion: smoothed errors ``xs+`` (m, 21) and covariances.
 
-    ``fwd`` has ``dx`` and either ``nodes`` (:class:`ins.filter.NodeStore`, read
+    ``fwd`` has ``dx`` and either ``nodes`` (:class:`ins.filter_stores.NodeStore`, read
     backwards block by block) or the sequences ``P_prior``, ``P_post``, ``Phi``.
     Returns ``(xs, Ps)`` with ``Ps`` (m, 21, 21), or with ``full=False`` ``(xs, std)``
     with the smoothed standard deviations (m, 21) only (bounded memory).

@@ -10,7 +10,8 @@ from scipy.stats import chi2
 
 from ins import imu_files
 from ins.accuracy import compare
-from ins.filter import FilterSettings, run_forward, schedule_nodes
+from ins.filter import run_forward, schedule_nodes
+from ins.filter_settings import FilterSettings
 from ins.gnss import GnssLog, read_gnss
 from ins.lever_arm import LeverArm
 from ins.mount import read_mount
@@ -349,7 +350,8 @@ def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
     """A negative variance in a node's covariance raises (it used to print as sigma 0),
     naming the node time and the state; rounding-level negatives give 0."""
     from ins.errors import QualityError
-    from ins.filter import NodeStore, std_of
+    from ins.filter import std_of
+    from ins.filter_stores import NodeStore
     store = NodeStore()
     P = np.eye(21) * 1e-2
     store.append(P, 0.5 * P, np.eye(21), 10.0)
