@@ -260,104 +260,154 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     -------
     ForwardResult
     """
-    GQG = noise_matrix(settings.noise)
-    tau = settings.noise.corr_time_s
-    interval = settings.node_interval_s
-    sensors = (np.zeros(12) if settings.initial_sensors is None
-               else np.array(settings.initial_sensors, dtype=float).reshape(12))
-    P = settings.initial_covariance()
-    traj, nodes = TrajectoryStore(workdir), NodeStore(workdir)
-    node_rows, node_time, dxs, sens, node_states = [], [], [], [], []
-    updater = _Updater(settings, gnss)
-    g_time = gnss.time
-    acc = np.zeros((10, 3))
-    state = state_a = None
-    gj = row_base = n_rows = 0
-    t_a = None
-    carry = None
+    run = _ForwardRun(gnss, settings, workdir)
     for t, th, dv, k0, before, last in _pieces(imu, start, end):
-        if carry is not None:                      # rows held back from the last block
-            t, th, dv = (np.concatenate([c, x]) for c, x in zip(carry, (t, th, dv)))
-            cur = carry_cur                        # the current state's row
-        else:
-            if before is not None:
-                t, th, dv = (np.concatenate([c, x]) for c, x in zip(before, (t, th, dv)))
-                k0 += len(before[0])
-            cut = max(k0 - 2, 0)
-            t, th, dv, k0 = t[cut:], th[cut:], dv[cut:], k0 - cut
-            cur = k0
-            if k0 + 1 >= len(t) and last:
+        if run.state is None:                      # the first block: the first node
+            t, th, dv, cur = _first_rows(t, th, dv, k0, before)
+            if cur + 1 >= len(t) and last:
                 raise InputError(f"fewer than 2 IMU epochs between start {start} and end "
                                  f"{end} s")
-            state = initial.as_vector().copy()
-            if initial_time is not None:
-                state[NAV.lla] += earth.lla_rate(state[0], state[2], state[NAV.vel]) * (
-                    t[k0] - initial_time)
-            P0 = P
-            updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
-            gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
-            while gj < len(g_time) and _row_known(g_time[gj], t, k0):
-                P, _ = updater.update(gj, t[k0], state, sensors, P, np.zeros(3))
-                gj += 1
-            nodes.append(P0, P, np.eye(N_STATES), t[k0])
-            node_rows.append(0), node_time.append(t[k0]), dxs.append(np.zeros(N_STATES))
-            sens.append(sensors.copy())
-            traj.append(t[k0:k0 + 1], state[None, :])
-            node_states.append(state.copy())
-            state_a, t_a, row_base, n_rows = state.copy(), t[k0], -k0, 1
-            t_first = t[k0]
-            t_total = max((g_time[-1] if len(g_time) else t[-1]) - t_first, 1e-9)
+            run.first_node(t, cur, initial, initial_time)
+        else:                                      # rows held back from the last block
+            t, th, dv, cur = run.join_carry(t, th, dv)
+        run.block(t, th, dv, cur, last)
+        if progress is not None:
+            progress(*run.progress(t, last))
+    if run.state is None:
+        raise InputError(f"start time {start} s is after the last IMU epoch")
+    if run.n_rows < 2:
+        raise InputError(f"fewer than 2 IMU epochs between start {start} and end {end} s")
+    out = run.result()
+    if out.n_mount_fallback:
+        warnings.warn(f"{out.n_mount_fallback} GNSS record(s) without mount data: the static "
+                      f"lever arm l_bp + l_ap was used", InputWarning, stacklevel=2)
+    return out
+
+
+def _first_rows(t, th, dv, k0, before):
+    """The first block from two rows before the start row ``k0`` (the two-sample
+    corrections' previous samples, from the block before when ``before``); returns
+    ``(t, th, dv, k0)`` with ``k0`` the start row in the trimmed arrays."""
+    if before is not None:
+        t, th, dv = (np.concatenate([c, x]) for c, x in zip(before, (t, th, dv)))
+        k0 += len(before[0])
+    cut = max(k0 - 2, 0)
+    return t[cut:], th[cut:], dv[cut:], k0 - cut
+
+
+class _ForwardRun:
+    """What the forward pass carries from one IMU block to the next: the state, sensor
+    estimates and covariance, the integrals since the last node, the stores and the
+    per-node records, the next GNSS record ``gj`` and the rows held back."""
+
+    def __init__(self, gnss, settings, workdir):
+        self.GQG = noise_matrix(settings.noise)
+        self.tau = settings.noise.corr_time_s
+        self.interval = settings.node_interval_s
+        self.sensors = (np.zeros(12) if settings.initial_sensors is None
+                        else np.array(settings.initial_sensors, dtype=float).reshape(12))
+        self.P = settings.initial_covariance()
+        self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
+        self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
+            [], [], [], [], []
+        self.updater = _Updater(settings, gnss)
+        self.g_time = gnss.time
+        self.acc = np.zeros((10, 3))
+        self.state = self.state_a = self.t_a = None
+        self.gj = self.row_base = self.n_rows = 0
+        self.carry = None
+        self.t_total = None
+
+    def first_node(self, t, k0, initial, initial_time):
+        """The initial state at row ``k0`` (moved from ``initial_time`` along its velocity),
+        the GNSS records of that row, and the first node."""
+        g_time = self.g_time
+        state = self.state = initial.as_vector().copy()
+        if initial_time is not None:
+            state[NAV.lla] += earth.lla_rate(state[0], state[2], state[NAV.vel]) * (
+                t[k0] - initial_time)
+        P0 = self.P
+        self.updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
+        self.gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
+        while self.gj < len(g_time) and _row_known(g_time[self.gj], t, k0):
+            self.P, _ = self.updater.update(self.gj, t[k0], state, self.sensors, self.P,
+                                            np.zeros(3))
+            self.gj += 1
+        self.nodes.append(P0, self.P, np.eye(N_STATES), t[k0])
+        self.dxs.append(np.zeros(N_STATES))
+        self.traj.append(t[k0:k0 + 1], state[None, :])
+        self.row_base, self.n_rows = -k0, 1
+        self._keep_node(k0, t[k0])
+        self.t_total = max((g_time[-1] if len(g_time) else t[-1]) - t[k0], 1e-9)
+
+    def join_carry(self, t, th, dv):
+        """The rows held back from the last block before this one; returns
+        ``(t, th, dv, cur)`` with ``cur`` the row of the current state."""
+        carry, cur = self.carry
+        t, th, dv = (np.concatenate([c, x]) for c, x in zip(carry, (t, th, dv)))
+        return t, th, dv, cur
+
+    def block(self, t, th, dv, cur, last):
+        """Mechanize from row ``cur`` to the end of the block (all but the last row unless
+        ``last``), with a covariance step and the GNSS updates at each node; store the
+        rows and hold back the last two."""
+        g_time = self.g_time
         p, stop = cur + 1, len(t) if last else len(t) - 1
         out = np.empty((max(stop - p, 0), 10))
         while cur < stop - 1:
-            r = _next_node(t, cur, t_a, g_time[gj] if gj < len(g_time) else None, stop, last,
-                           interval)
+            r = _next_node(t, cur, self.t_a, g_time[self.gj] if self.gj < len(g_time) else None,
+                           stop, last, self.interval)
             hi = stop if r < 0 else r + 1
-            _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, state, sensors,
-                                           out[cur + 1 - p:hi - p], acc)
-            if not np.all(np.isfinite(state)):
+            _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, self.state, self.sensors,
+                                           out[cur + 1 - p:hi - p], self.acc)
+            if not np.all(np.isfinite(self.state)):
                 raise InputError(f"the solution became non-finite before t = {t[hi - 1]!r} s "
                                  f"(implausible increments, initial state or GNSS)")
             cur = hi - 1
             if r < 0:
                 break
-            P = _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes,
-                      updater, gj, dxs, lambda k: _row_known(g_time[k], t, r))
-            while gj < len(g_time) and _row_known(g_time[gj], t, r):
-                gj += 1
-            out[r - p] = state
-            node_states.append(state.copy())
-            node_rows.append(r + row_base), node_time.append(t[r])
-            sens.append(sensors.copy())
-            state_a, t_a = state.copy(), t[r]
-            acc[:] = 0.0
-        traj.append(t[p:stop], out)
-        n_rows += stop - p
+            self.P = _node(t, th, r, self.state, self.state_a, self.t_a, self.sensors, self.P,
+                           self.acc, self.GQG, self.tau, self.nodes, self.updater, self.gj,
+                           self.dxs, lambda k: _row_known(g_time[k], t, r))
+            while self.gj < len(g_time) and _row_known(g_time[self.gj], t, r):
+                self.gj += 1
+            out[r - p] = self.state
+            self._keep_node(r, t[r])
+            self.acc[:] = 0.0
+        self.traj.append(t[p:stop], out)
+        self.n_rows += stop - p
         keep = max(cur - 1, 0)                     # the next block starts here
-        carry, carry_cur = (t[keep:], th[keep:], dv[keep:]), cur - keep
-        row_base += keep
-        if progress is not None:
-            total = int(round(t_total / max(float(np.median(np.diff(t[-64:]))), 1e-9))) + 1
-            progress(n_rows, max(total, n_rows) if not last else n_rows)
-    if state is None:
-        raise InputError(f"start time {start} s is after the last IMU epoch")
-    if n_rows < 2:
-        raise InputError(f"fewer than 2 IMU epochs between start {start} and end {end} s")
-    out = ForwardResult(traj, nodes, np.array(node_rows), np.array(node_time),
-                        np.array(dxs), np.array(sens))
-    out.node_states = np.array(node_states)
-    out.n_updates = updater.n_updates
-    out.n_rejected = updater.n_rejected
-    out.n_outside = updater.n_outside + (len(g_time) - gj)
-    out.n_mount_fallback = updater.n_fallback
-    out.nis = np.array(updater.nis)
-    out.nis_record = np.array(updater.nis_record, dtype=np.int64)
-    out.innovation_m = np.array(updater.innovation).reshape(-1, 3)
-    out.nis_threshold = updater.threshold
-    if updater.n_fallback:
-        warnings.warn(f"{updater.n_fallback} GNSS record(s) without mount data: the static "
-                      f"lever arm l_bp + l_ap was used", InputWarning, stacklevel=2)
-    return out
+        self.carry = (t[keep:], th[keep:], dv[keep:]), cur - keep
+        self.row_base += keep
+
+    def _keep_node(self, r, t_r):
+        """Record the node at row ``r`` (of this block) after its updates."""
+        self.node_states.append(self.state.copy())
+        self.node_rows.append(r + self.row_base)
+        self.node_time.append(t_r)
+        self.sens.append(self.sensors.copy())
+        self.state_a, self.t_a = self.state.copy(), t_r
+
+    def progress(self, t, last):
+        """``(done, total)`` epochs; the total estimated from the GNSS span and the IMU
+        interval until the last block."""
+        total = int(round(self.t_total / max(float(np.median(np.diff(t[-64:]))), 1e-9))) + 1
+        return self.n_rows, (max(total, self.n_rows) if not last else self.n_rows)
+
+    def result(self):
+        up = self.updater
+        out = ForwardResult(self.traj, self.nodes, np.array(self.node_rows),
+                            np.array(self.node_time), np.array(self.dxs), np.array(self.sens))
+        out.node_states = np.array(self.node_states)
+        out.n_updates = up.n_updates
+        out.n_rejected = up.n_rejected
+        out.n_outside = up.n_outside + (len(self.g_time) - self.gj)
+        out.n_mount_fallback = up.n_fallback
+        out.nis = np.array(up.nis)
+        out.nis_record = np.array(up.nis_record, dtype=np.int64)
+        out.innovation_m = np.array(up.innovation).reshape(-1, 3)
+        out.nis_threshold = up.threshold
+        return out
 
 
 def _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes, updater, gj,
