@@ -9,11 +9,11 @@ and its exit codes are :func:`ins.cli.run_main` / :func:`ins.cli.run_command`.  
 install their Ctrl-C handler before the heavy imports.
 """
 import argparse
-import errno
-import os
 import re
 import sys
 import time as wallclock
+
+from .fileio import check_output_file  # noqa: F401  (re-exported for the CLIs)
 
 __all__ = ["EXIT_BAD_INPUT", "NEGATIVE_VALUE", "Parser", "Progress", "check_output_file",
            "positive_int", "triplet"]
@@ -71,25 +71,6 @@ def positive_int(text):
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
     return value
-
-
-def check_output_file(path):
-    """Raise before the work the OSError that writing the output file ``path`` would
-    raise at its end (``ins.fileio.atomic_open``): ``path`` a directory, its directory
-    missing or a regular file in the way (``-o FILE/sub/out.csv``), naming ``path``."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
-    if not os.path.isdir(directory):
-        probe = directory
-        while probe and not os.path.exists(probe):
-            probe = os.path.dirname(probe)
-        if probe and not os.path.isdir(probe):
-            raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory",
-                                     path)
-        raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
-                                directory)
 
 
 class Progress:

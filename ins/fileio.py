@@ -63,6 +63,35 @@ def _fs_error(exc, user_path):
     return type(exc)(exc.errno, exc.strerror, os.fspath(user_path))
 
 
+def check_parent_directory(path, missing="the output's directory does not exist"):
+    """Raise unless the directory that would hold ``path`` exists.
+
+    A regular file in the way (``-o FILE/sub/out.csv``) gives NotADirectoryError naming
+    that file; a missing directory gives FileNotFoundError with the text ``missing``.
+    Both name ``path`` (the user's spelling).
+    """
+    path = os.fspath(path)
+    parent = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(parent):
+        return
+    probe = parent
+    while probe and not os.path.exists(probe):
+        probe = os.path.dirname(probe)
+    if probe and not os.path.isdir(probe):
+        raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory", path)
+    raise FileNotFoundError(errno.ENOENT, missing, path)
+
+
+def check_output_file(path):
+    """Raise before the work the OSError that writing the output file ``path`` would
+    raise at its end (:func:`atomic_open`): ``path`` a directory, its directory missing
+    or a regular file in the way (``-o FILE/sub/out.csv``), naming ``path``."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, "is a directory, not an output file", path)
+    check_parent_directory(path)
+
+
 def check_output_folder(path, force=False):
     """Raise if ``path`` cannot become a new output folder.
 
@@ -75,16 +104,7 @@ def check_output_folder(path, force=False):
         Naming ``path`` (the user's spelling).
     """
     path = os.fspath(path)
-    parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        probe = parent
-        while probe and not os.path.exists(probe):
-            probe = os.path.dirname(probe)
-        if probe and not os.path.isdir(probe):
-            raise NotADirectoryError(errno.ENOTDIR, f"{probe} is a file, not a directory",
-                                     path)
-        raise FileNotFoundError(errno.ENOENT, "the output's parent directory does not exist",
-                                path)
+    check_parent_directory(path, "the output's parent directory does not exist")
     if os.path.exists(path) and not os.path.isdir(path):
         raise NotADirectoryError(errno.ENOTDIR, "exists and is not a directory", path)
     if os.path.isdir(path) and os.listdir(path) and not force:
