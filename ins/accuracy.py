@@ -21,7 +21,7 @@ class TrajectoryErrors:
         Common epochs, s.
     pos_n : ndarray, shape (n, 3)
         Position error NED, m (estimate relative to the reference, in the reference's n).
-    vel_n : ndarray, shape (n, 3)
+    v_n : ndarray, shape (n, 3)
         Velocity error NED, m/s.
     att_n : ndarray, shape (n, 3)
         Attitude error as a small rotation of the estimated n frame: the rotation vector
@@ -30,7 +30,7 @@ class TrajectoryErrors:
 
     time: np.ndarray
     pos_n: np.ndarray
-    vel_n: np.ndarray
+    v_n: np.ndarray
     att_n: np.ndarray
 
     @property
@@ -44,7 +44,7 @@ class TrajectoryErrors:
                "t_to": float(self.time[-1])}
         series = {"horizontal_m": self.horizontal, "down_m": self.pos_n[:, 2],
                   "north_m": self.pos_n[:, 0], "east_m": self.pos_n[:, 1],
-                  "vel_3d_mps": np.linalg.norm(self.vel_n, axis=1),
+                  "vel_3d_mps": np.linalg.norm(self.v_n, axis=1),
                   "tilt_n_arcsec": self.att_n[:, 0] / ARCSEC,
                   "tilt_e_arcsec": self.att_n[:, 1] / ARCSEC,
                   "heading_arcsec": self.att_n[:, 2] / ARCSEC}
@@ -63,7 +63,7 @@ def compare(estimate, reference):
     pos = earth.ned_offset(reference.lla[j], estimate.lla[i])
     vel = estimate.v_n[i] - reference.v_n[j]
     dq = quat_multiply(estimate.q_nb[i], quat_conjugate(reference.q_nb[j]))
-    return TrajectoryErrors(time=reference.time[j], pos_n=pos, vel_n=vel,
+    return TrajectoryErrors(time=reference.time[j], pos_n=pos, v_n=vel,
                             att_n=quat_to_rotvec(dq))
 
 

@@ -255,7 +255,7 @@ def check_static_heading(noise, lat, duration_s, gnss=None):
 
 def _gnss_velocity(gnss, k):
     if gnss.has_velocity:
-        return np.asarray(gnss.vel_n[k], dtype=float)
+        return np.asarray(gnss.v_n[k], dtype=float)
     dt = gnss.time[k + 1] - gnss.time[k]
     return earth.ned_offset(gnss.lla[k], gnss.lla[k + 1]) / dt
 
@@ -276,11 +276,11 @@ def _track_std(gnss, k, speed):
     """1-sigma noise (rad) of the track angle at epoch ``k`` from the GNSS noise: the
     cross-track velocity noise over the ground speed."""
     if gnss.has_velocity:
-        sv = float(np.hypot(gnss.std_vel_n[k, 0], gnss.std_vel_n[k, 1])) / np.sqrt(2.0)
+        sv = float(np.hypot(gnss.sigma_vel_ned_mps[k, 0], gnss.sigma_vel_ned_mps[k, 1])) / np.sqrt(2.0)
     else:
         dt = gnss.time[k + 1] - gnss.time[k]
-        sv = float(np.hypot(np.hypot(*gnss.std_ned[k, :2]),
-                            np.hypot(*gnss.std_ned[k + 1, :2]))) / np.sqrt(2.0) / dt
+        sv = float(np.hypot(np.hypot(*gnss.sigma_ned_m[k, :2]),
+                            np.hypot(*gnss.sigma_ned_m[k + 1, :2]))) / np.sqrt(2.0) / dt
     return sv / speed
 
 

@@ -187,7 +187,7 @@ class _Updater:
         lla = state[NAV.lla] + earth.lla_rate(state[0], state[2], state[NAV.vel]) * (tg - t_row)
         C_nb = quat_to_dcm(state[NAV.q_nb])
         z = earth.ned_offset(g.lla[k], antenna_lla(lla, C_nb, l_b))
-        R = np.diag(g.std_ned[k] ** 2)
+        R = np.diag(g.sigma_ned_m[k] ** 2)
         P, x, nis = self._apply(state, sensors, P, z, R, position_jacobian(C_nb, l_b))
         self.nis.append(nis)
         self.nis_record.append(k)
@@ -200,8 +200,8 @@ class _Updater:
                       + earth.transport_rate_n(state[0], state[2], state[NAV.vel]))
             v_ant = antenna_velocity(state[NAV.vel], C_nb, w_ib_b, w_in_n, l_b, dl_b)
             H = velocity_jacobian(C_nb, w_ib_b, w_in_n, l_b, dl_b)
-            R = np.diag(g.std_vel_n[k] ** 2)
-            P, x, _ = self._apply(state, sensors, P, v_ant - g.vel_n[k], R, H)
+            R = np.diag(g.sigma_vel_ned_mps[k] ** 2)
+            P, x, _ = self._apply(state, sensors, P, v_ant - g.v_n[k], R, H)
             if x is not None:
                 dx += x
         return P, dx

@@ -31,11 +31,11 @@ class GnssLog:
         s.
     lla : ndarray, shape (n, 3)
         Latitude, longitude (rad), ellipsoidal height (m).
-    std_ned : ndarray, shape (n, 3)
+    sigma_ned_m : ndarray, shape (n, 3)
         Position standard deviations N, E, D, m.
-    vel_n : ndarray, shape (n, 3) or None
+    v_n : ndarray, shape (n, 3) or None
         Antenna velocity NED, m/s.
-    std_vel_n : ndarray, shape (n, 3) or None
+    sigma_vel_ned_mps : ndarray, shape (n, 3) or None
         Velocity standard deviations, m/s.
     line : ndarray, shape (n,) of int
         1-based line of each record in the file (0 when not from a file).
@@ -45,9 +45,9 @@ class GnssLog:
 
     time: np.ndarray
     lla: np.ndarray
-    std_ned: np.ndarray
-    vel_n: np.ndarray = None
-    std_vel_n: np.ndarray = None
+    sigma_ned_m: np.ndarray
+    v_n: np.ndarray = None
+    sigma_vel_ned_mps: np.ndarray = None
     line: np.ndarray = None
     path: str = None
 
@@ -56,14 +56,14 @@ class GnssLog:
 
     @property
     def has_velocity(self):
-        return self.vel_n is not None
+        return self.v_n is not None
 
     def select(self, keep):
         """The records where the boolean mask or index array ``keep`` selects."""
         def take(a):
             return None if a is None else a[keep]
-        return GnssLog(self.time[keep], self.lla[keep], self.std_ned[keep], take(self.vel_n),
-                       take(self.std_vel_n), take(self.line), self.path)
+        return GnssLog(self.time[keep], self.lla[keep], self.sigma_ned_m[keep], take(self.v_n),
+                       take(self.sigma_vel_ned_mps), take(self.line), self.path)
 
 
 def read_gnss(path):
@@ -106,10 +106,10 @@ def write_gnss(path, log):
     """Write ``log`` in the KF-GINS text layout (13 columns when it has velocities),
     atomically.  Returns the number of records."""
     cols = [log.time, np.rad2deg(log.lla[:, 0]), np.rad2deg(log.lla[:, 1]), log.lla[:, 2],
-            log.std_ned]
+            log.sigma_ned_m]
     decimals = [6, 12, 12, 5, 5, 5, 5]
     if log.has_velocity:
-        cols += [log.vel_n, log.std_vel_n]
+        cols += [log.v_n, log.sigma_vel_ned_mps]
         decimals += [6, 6, 6, 6, 6, 6]
     table = np.column_stack(cols)
     if not np.all(np.isfinite(table)):

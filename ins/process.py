@@ -186,7 +186,7 @@ def _start(cfg, blocks, gnss, lever=None):
         lla = _less_lever_arm(gnss.lla[k], q, lever, gnss.time[k])
         lla = lla - earth.lla_rate(lla[0], lla[2], v_n) * dt           # back to t0
         vel_std = np.broadcast_to(np.asarray(init.get("vel_std_ned_mps", 0.02), float), 3)
-        std = {"pos_std_ned_m": np.hypot(np.hypot(gnss.std_ned[k], 0.01), vel_std * dt)}
+        std = {"pos_std_ned_m": np.hypot(np.hypot(gnss.sigma_ned_m[k], 0.01), vel_std * dt)}
         return _Start(NavState(lla, v_n, q), t0, None, blocks, initial_time=t0, std=std,
                       position_source=f"the start position from {fix_name(gnss, k)}")
     if cfg.method == "static":
@@ -352,7 +352,7 @@ def with_truth(result, truth_path):
             raise InputError(f"{truth_path}: the trajectories share no epoch (times must "
                              f"match within 1 us)")
         return TrajectoryErrors(*(np.concatenate([getattr(p, f) for p in parts])
-                                  for f in ("time", "pos_n", "vel_n", "att_n")))
+                                  for f in ("time", "pos_n", "v_n", "att_n")))
     return replace(result, errors_forward=errors(result.iter_forward()),
                    errors_smoothed=errors(result.iter_smoothed()))
 

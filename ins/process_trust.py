@@ -102,7 +102,7 @@ def check_start(state, t0, gnss, lever, std, source="the start position"):
     d = float(np.linalg.norm(offset))
     pos = np.broadcast_to(np.asarray(std["pos_std_ned_m"], float), 3)
     vel = np.broadcast_to(np.asarray(std["vel_std_ned_mps"], float), 3)
-    sigma = float(np.sqrt(np.sum(gnss.std_ned[k] ** 2) + np.sum(pos ** 2)
+    sigma = float(np.sqrt(np.sum(gnss.sigma_ned_m[k] ** 2) + np.sum(pos ** 2)
                           + np.sum(vel ** 2) * dt ** 2))
     bound = START_SIGMAS * sigma + START_SLACK_M
     if d > bound:
@@ -130,7 +130,7 @@ def fix_residuals(result, gnss, lever):
     residual_m : ndarray, shape (len(index), 3)
         Solution's antenna minus fix, NED, m.
     normalized : ndarray, shape (len(index),)
-        RMS over north, east, down of ``residual / std_ned`` of each fix.
+        RMS over north, east, down of ``residual / sigma_ned_m`` of each fix.
     """
     from .rotation import quat_to_dcm
     nt = result.node_time
@@ -146,7 +146,7 @@ def fix_residuals(result, gnss, lever):
     arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, NAV.q_nb]), l_b)
     ant = lla + earth.lla_rate(lla[:, 0], lla[:, 2], arm)
     res = earth.ned_offset(gnss.lla[index], ant)
-    norm = np.sqrt(np.mean((res / gnss.std_ned[index]) ** 2, axis=1))
+    norm = np.sqrt(np.mean((res / gnss.sigma_ned_m[index]) ** 2, axis=1))
     return index, res, norm
 
 

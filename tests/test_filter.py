@@ -169,7 +169,7 @@ def forward_and_errors(cfg):
         tr = Trajectory(fwd.time[rows], states[rows, 0:3], states[rows, 3:6], states[rows, 6:10])
         e = compare(tr, truth)
         # compare gives rotvec(C_est C_true^T) = -phi
-        return np.hstack([e.pos_n, e.vel_n, -e.att_n])
+        return np.hstack([e.pos_n, e.v_n, -e.att_n])
     return fwd, errors
 
 
@@ -217,7 +217,7 @@ def test_outlier_rejected_and_counted(flight):
     lla = gnss.lla.copy()
     k = len(gnss) // 2
     lla[k, 2] += 5.0                                     # a 5 m height blunder
-    bad = GnssLog(gnss.time, lla, gnss.std_ned, line=gnss.line)
+    bad = GnssLog(gnss.time, lla, gnss.sigma_ned_m, line=gnss.line)
     imu = imu_files.read_imu(cfg.imu)
     state, t0, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp, cfg.lever_ap,
@@ -247,7 +247,7 @@ def test_gnss_between_imu_epochs_is_used_at_its_own_time(flight):
     k = np.clip(k, 0, len(truth.time) - 1)
     shift = 0.0025
     rate = earth.lla_rate(truth.lla[k, 0], truth.lla[k, 2], truth.v_n[k])
-    moved = GnssLog(gnss.time + shift, gnss.lla + rate * shift, gnss.std_ned)
+    moved = GnssLog(gnss.time + shift, gnss.lla + rate * shift, gnss.sigma_ned_m)
     a = run_forward(imu, gnss, state, settings, start=t0, end=cfg.end_s)
     b = run_forward(imu, moved, state, settings, start=t0, end=cfg.end_s)
     mid = slice(4000, len(a.time) - 2000)                # 20 s .. end - 10 s
@@ -257,7 +257,7 @@ def test_gnss_between_imu_epochs_is_used_at_its_own_time(flight):
                                                        y.states[mid, :3]) ** 2, axis=1)))
     assert rms(a, b) < 1e-3, rms(a, b)
     # a record stamped 2.5 ms late but used as if on the IMU epoch is ~0.15 m off
-    c = run_forward(imu, GnssLog(gnss.time + shift, gnss.lla, gnss.std_ned), state, settings,
+    c = run_forward(imu, GnssLog(gnss.time + shift, gnss.lla, gnss.sigma_ned_m), state, settings,
                     start=t0, end=cfg.end_s)
     assert rms(a, c) > 0.05
 
@@ -327,7 +327,7 @@ def test_velocity_updates_with_the_varying_arm(flight):
                          for n, j in enumerate(i)])
     dt = truth.time[k + 1] - truth.time[k - 1]
     vel = earth.ned_offset(ant(k - 1), ant(k + 1)) / dt[:, None]
-    with_vel = GnssLog(g.time, g.lla, g.std_ned, vel, np.full((len(g), 3), 0.005))
+    with_vel = GnssLog(g.time, g.lla, g.sigma_ned_m, vel, np.full((len(g), 3), 0.005))
     imu = imu_files.read_imu(cfg.imu)
     state, _, _ = _initial(cfg, imu, gnss)
     settings = FilterSettings(noise=cfg.noise, lever=lever, pos_std_ned_m=[0.1] * 3,
@@ -342,7 +342,7 @@ def test_velocity_updates_with_the_varying_arm(flight):
         tr = Trajectory(f.time, f.states[:, :3], f.states[:, 3:6], f.states[:, 6:10])
         e = compare(tr, truth)
         late = e.time > t0 + 60
-        return np.sqrt(np.mean(e.vel_n[late] ** 2))
+        return np.sqrt(np.mean(e.v_n[late] ** 2))
     assert vel_rms(a) < 0.8 * vel_rms(b)
 
 

@@ -22,7 +22,7 @@ def test_read_kfgins_layout(tmp_path):
     np.testing.assert_allclose(np.rad2deg(log.lla[0, :2]), [30.440548159583, 114.470002215064],
                                rtol=0, atol=1e-12)
     assert log.lla[2, 2] == 1001.55790
-    np.testing.assert_array_equal(log.std_ned[2], [0.02, 0.03, 0.05])
+    np.testing.assert_array_equal(log.sigma_ned_m[2], [0.02, 0.03, 0.05])
     assert list(log.line) == [2, 3, 4]
 
 
@@ -39,7 +39,7 @@ def test_round_trip_with_velocity(tmp_path):
     assert back.has_velocity
     np.testing.assert_allclose(back.time, log.time)
     np.testing.assert_allclose(back.lla[:, :2], log.lla[:, :2], atol=1e-13)
-    np.testing.assert_allclose(back.vel_n, log.vel_n, atol=1e-6)
+    np.testing.assert_allclose(back.v_n, log.v_n, atol=1e-6)
 
 
 @pytest.mark.parametrize("line, pattern", [

@@ -193,7 +193,7 @@ def _gnss_with(flight, tmp_path, edit, name="gnss_edit.txt"):
     lla = g.lla.copy()
     edit(g, lla)
     path = tmp_path / name
-    write_gnss(path, GnssLog(g.time, lla, g.std_ned))
+    write_gnss(path, GnssLog(g.time, lla, g.sigma_ned_m))
     return path
 
 
@@ -238,7 +238,7 @@ def test_gnss_on_another_time_scale_names_the_time_base(flight, tmp_path, capsys
     no fix in the processed span, exit 3 naming the time base."""
     g = read_gnss(flight / "gnss.txt")
     path = tmp_path / "late.txt"
-    write_gnss(path, GnssLog(g.time + 1000.0, g.lla, g.std_ned))
+    write_gnss(path, GnssLog(g.time + 1000.0, g.lla, g.sigma_ned_m))
     out = tmp_path / "out"
     assert _run(flight, _config(tmp_path, flight, noise=TACTICAL), out, gnss=path) == 3
     err = capsys.readouterr().err

@@ -210,10 +210,10 @@ def test_gnss_round_trip(scratch, log):
     assert back.time.tolist() == rows[:, 0].tolist()
     assert back.lla[:, 0].tolist() == np.deg2rad(rows[:, 1]).tolist()
     assert back.lla[:, 2].tolist() == rows[:, 3].tolist()
-    assert back.std_ned.tolist() == rows[:, 4:7].tolist()
+    assert back.sigma_ned_m.tolist() == rows[:, 4:7].tolist()
     assert back.has_velocity == log.has_velocity
     if log.has_velocity:
-        assert back.vel_n.tolist() == rows[:, 7:10].tolist()
+        assert back.v_n.tolist() == rows[:, 7:10].tolist()
     # the written values are the given ones to the printed decimals
     np.testing.assert_allclose(back.time, log.time, atol=5e-7, rtol=0)
     np.testing.assert_allclose(np.rad2deg(back.lla[:, :2]), np.rad2deg(log.lla[:, :2]),

@@ -150,11 +150,11 @@ def test_noise_statistics_and_file_round_trip(truth, tmp_path):
     assert len(time) > 1000
     assert np.allclose(err.std(axis=0), sigma, rtol=0.1)
     assert np.all(np.abs(err.mean(axis=0)) < 4 * sigma / np.sqrt(len(time)))
-    assert np.allclose((log.vel_n - v_true).std(axis=0), 0.01, rtol=0.1)
-    assert np.array_equal(log.std_ned, np.tile(sigma, (len(time), 1)))
+    assert np.allclose((log.v_n - v_true).std(axis=0), 0.01, rtol=0.1)
+    assert np.array_equal(log.sigma_ned_m, np.tile(sigma, (len(time), 1)))
     path = tmp_path / "gnss.txt"
     write_gnss(path, log)
     back = read_gnss(path)
     assert np.allclose(back.time, log.time, atol=1e-9)
     assert np.abs(ned_offset(log.lla, back.lla)).max() < 1e-4
-    assert np.allclose(back.vel_n, log.vel_n, atol=1e-6)
+    assert np.allclose(back.v_n, log.v_n, atol=1e-6)
