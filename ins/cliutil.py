@@ -16,7 +16,7 @@ import time as wallclock
 from .fileio import check_output_file  # noqa: F401  (re-exported for the CLIs)
 
 __all__ = ["EXIT_BAD_INPUT", "NEGATIVE_VALUE", "Parser", "Progress", "check_output_file",
-           "positive_int", "triplet"]
+           "nonnegative_int", "positive_int", "triplet"]
 
 #: Exit code of bad input (and of bad arguments, which argparse reports).
 EXIT_BAD_INPUT = 2
@@ -62,15 +62,24 @@ def triplet(text, name="value"):
     return values
 
 
-def positive_int(text):
-    """Option type: an integer >= 1."""
+def _int_at_least(text, minimum, expected):
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
     return value
+
+
+def positive_int(text):
+    """Option type: an integer >= 1."""
+    return _int_at_least(text, 1, "a positive integer")
+
+
+def nonnegative_int(text):
+    """Option type: an integer >= 0 (e.g. a random seed)."""
+    return _int_at_least(text, 0, "an integer >= 0")
 
 
 class Progress:

@@ -46,6 +46,16 @@ output streams: the table goes to stdout (| head is fine: the rest is dropped, e
 OUTLIER = 3.5
 
 
+def add_sky_options(p):
+    """The refraction and UT1 options shared by lunar-heading and lunar-simulate."""
+    p.add_argument("--pressure", type=float, metavar="hPa",
+                   help="air pressure for refraction, hPa (default: standard atmosphere; "
+                        "0 = no refraction)")
+    p.add_argument("--temperature", type=float, default=10.0, metavar="C",
+                   help="air temperature, deg C (default 10)")
+    p.add_argument("--dut1", type=float, metavar="S", help="UT1 - UTC, s (overrides the IERS table)")
+
+
 def add_parser(sub):
     p = sub.add_parser(
         "lunar-heading", help="heading of a fisheye camera from Moon images and their times",
@@ -61,12 +71,7 @@ def add_parser(sub):
     p.add_argument("--station", required=True, type=triplet, metavar="LAT,LON,H",
                    help="station latitude, longitude (deg) and ellipsoidal height (m)")
     p.add_argument("--camera", required=True, metavar="CAM.toml", help="fisheye camera file")
-    p.add_argument("--pressure", type=float, metavar="hPa",
-                   help="air pressure for refraction, hPa (default: standard atmosphere; "
-                        "0 = no refraction)")
-    p.add_argument("--temperature", type=float, default=10.0, metavar="C",
-                   help="air temperature, deg C (default 10)")
-    p.add_argument("--dut1", type=float, metavar="S", help="UT1 - UTC, s (overrides the IERS table)")
+    add_sky_options(p)
     p.add_argument("--plot", metavar="OUT.png", help="write the convergence plot here")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)

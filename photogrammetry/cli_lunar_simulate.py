@@ -10,6 +10,8 @@ import numpy as np
 from ins.cliutil import Progress, positive_int, triplet
 from ins.errors import InputError
 
+from .cli_lunar import add_sky_options
+
 EPILOG = """\
 frames and units:
   Horizon frame h = NED at the station (north, east, down); azimuths from north,
@@ -94,12 +96,7 @@ def add_parser(sub):
     p.add_argument("--tilt-azimuth", default="moon", metavar="DEG|moon",
                    help="azimuth the optical axis leans towards, deg (default: the Moon's "
                         "at mid-session)")
-    p.add_argument("--pressure", type=float, metavar="hPa",
-                   help="air pressure for refraction, hPa (default: standard atmosphere; "
-                        "0 = no refraction)")
-    p.add_argument("--temperature", type=float, default=10.0, metavar="C",
-                   help="air temperature, deg C (default 10)")
-    p.add_argument("--dut1", type=float, metavar="S", help="UT1 - UTC, s (overrides the IERS table)")
+    add_sky_options(p)
     p.add_argument("--min-altitude", type=float, default=10.0, metavar="DEG",
                    help="refuse a Moon lower than this, deg (default 10)")
     p.add_argument("--noise", type=float, default=5.0, metavar="COUNTS",

@@ -12,6 +12,7 @@ import time as wallclock
 from pathlib import Path
 
 from ins import textfiles
+from ins.cliutil import nonnegative_int
 from ins.errors import InputError
 
 EPILOG = """\
@@ -52,16 +53,6 @@ example:
 """
 
 
-def _seed(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
 def add_parser(sub):
     """Register ``ins simulate`` on the ``ins`` tool's sub-parsers ``sub``."""
     from ins.simulate.sensor_errors import PRESETS
@@ -76,7 +67,7 @@ def add_parser(sub):
     p.add_argument("plan", metavar="PLAN.toml", help="flight plan (TOML)")
     p.add_argument("-o", "--output", required=True, metavar="FLIGHT_DIR",
                    help="flight folder to create (its parent must exist)")
-    p.add_argument("--seed", type=_seed, default=0, metavar="N",
+    p.add_argument("--seed", type=nonnegative_int, default=0, metavar="N",
                    help="seed of all random errors (integer >= 0, default 0)")
     p.add_argument("--grade", choices=sorted(PRESETS), default=None,
                    help="IMU grade, replacing the plan's [imu] grade (its overrides still "
