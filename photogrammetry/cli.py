@@ -16,6 +16,7 @@ from . import __version__
 COMMAND_MODULES = [
     "photogrammetry.cli_eo",
     "photogrammetry.cli_refine",
+    "photogrammetry.cli_tiepoints",
     "photogrammetry.cli_lunar",
     "photogrammetry.cli_lunar_simulate",
 ]

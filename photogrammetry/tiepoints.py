@@ -14,8 +14,9 @@ import numpy as np
 
 from ins import textfiles
 from ins.errors import InputError
+from ins.fileio import atomic_open
 
-__all__ = ["TiePoints", "read_tiepoints"]
+__all__ = ["TiePoints", "read_tiepoints", "write_tiepoints"]
 
 _HEADERS = {("image_id", "point_id", "x_mm", "y_mm"): "mm",
             ("image_id", "point_id", "u_px", "v_px"): "px"}
@@ -197,3 +198,37 @@ def read_tiepoints(path, camera=None):
         xy = camera.pixel_to_photo(xy)
     xy.setflags(write=False)
     return TiePoints(path, tuple(ids), tuple(pids), xy, np.array(lines), sigma)
+
+
+def write_tiepoints(path, image_ids, point_ids, xy_mm, sigma_px=None, pixel_size_mm=None,
+                    comments=()):
+    """Write a tie-point CSV (``image_id,point_id,x_mm,y_mm``, atomically).
+
+    Parameters
+    ----------
+    path : str
+    image_ids, point_ids : sequence of str (k,)
+    xy_mm : array_like (k, 2)
+        Observed (distorted) photo coordinates, mm.
+    sigma_px : float, optional
+        Photo-coordinate sigma stated in the header (``sigma_px = ...``, and
+        ``sigma_mm = ...`` with `pixel_size_mm`), which ``refine`` takes as the weight.
+    pixel_size_mm : float, optional
+    comments : iterable of str
+        Further ``# ...`` lines.
+    """
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    if not (len(image_ids) == len(point_ids) == len(xy)):
+        raise ValueError("image_ids, point_ids and xy_mm must have the same length")
+    lines = ["# tie points: observed photo coordinates (mm, origin at the principal point, "
+             "x right, y up, distorted as the camera file states)"]
+    if sigma_px is not None:
+        s = f"# sigma_px = {sigma_px:.4g}"
+        if pixel_size_mm is not None:
+            s += f" (sigma_mm = {sigma_px * pixel_size_mm:.6g}) per coordinate"
+        lines.append(s)
+    lines += [f"# {c}" for c in comments]
+    lines.append("image_id,point_id,x_mm,y_mm")
+    lines += [f"{i},{p},{x:.7f},{y:.7f}" for i, p, (x, y) in zip(image_ids, point_ids, xy)]
+    with atomic_open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
