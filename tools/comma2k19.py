@@ -1,0 +1,333 @@
+"""comma2k19 segment -> the toolkit's files, and the comparison with comma.ai's pose.
+
+The real-data path of issue 15 item 5 in two commands (and a comparison)::
+
+    python tools/comma2k19.py SEGMENT -o seg              # convert (this script)
+    ins process --config seg/config.toml --preset land -o seg/out
+    python tools/comma2k19.py --compare seg/out/solution.nav seg   # the figures
+
+``SEGMENT`` is a comma2k19 segment folder (``IMU/``, ``GNSS/live_gnss_ublox``,
+``global_pose/``: numpy ``t.npy``/``value.npy`` pairs; ``../shared/real/README.md``).
+
+What the conversion writes into ``-o DIR`` (a new or empty folder, ``--force`` replaces):
+
+``imu.txt``
+    KF-GINS IMU text (``time dtheta_xyz[rad] dvel_xyz[m/s]``), FRD (the phone's axes are
+    forward, right, down already).  The phone reports RATES (gyro rad/s, calibrated by
+    the phone; specific force m/s^2) at jittered stamps (about 104 Hz); each increment
+    over ``(t[k-1], t[k]]`` is the trapezoid of the two samples times the REAL interval
+    (samples taken as instantaneous), stamped at ``t[k]``.
+``gnss.txt``
+    KF-GINS GNSS text (13 columns): the u-blox fixes with their velocity from speed and
+    bearing (``vd = 0``).  The u-blox log has no accuracy field: the sigmas are ASSUMED
+    (``--sigma-h``, ``--sigma-v``, ``--sigma-vel``, ``--sigma-vd``, defaults below) and
+    written into ``conversion.toml``.
+``reference.nav``
+    comma.ai's pose (a tightly coupled INS/GNSS/vision estimate) at the video frames
+    (20 Hz), ``.nav`` layout: the CAMERA's position and velocity, and the attitude of the
+    camera's forward-right-down axes (roll, pitch, yaw of ``C_nc``).  The IMU, the
+    camera and the u-blox antenna are in one device (comma EON): the camera-IMU and
+    antenna-IMU offsets are taken as zero (a few cm); the camera-to-IMU ROTATION is not
+    given and is estimated by ``--compare``.
+``config.toml``
+    processing config for ``ins process`` (files, alignment from the GNSS track, zero
+    lever arm); the IMU noise comes from the preset (``--preset mems`` or ``land``).
+``conversion.toml``
+    the time base, the assumptions and the figures of the conversion.
+
+Time base: every file is stamped in GPS seconds of week.  The IMU's boot-clock stamps
+are carried over by ``global_pose/frame_times`` and ``frame_gps_times`` (one constant
+offset, fitted; the residual is stated).  The fixes have two stamps: their UTC epoch
+(ms since 1970, GPS = UTC + 18 s) and their arrival on the boot clock, 0.2 s apart;
+``--gnss-time utc`` (default: the epoch of the measurement) or ``arrival``.
+``ins time-offset`` estimates the IMU-GNSS offset from the data to decide.
+"""
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+#: GPS - UTC in 2018 (leap seconds), s.
+LEAP_SECONDS = 18.0
+#: Unix time of the GPS epoch 1980-01-06 00:00:00 UTC, s.
+GPS_EPOCH_UNIX = 315964800.0
+WEEK_S = 604800.0
+#: Assumed u-blox sigmas (no accuracy field in the log): horizontal, vertical position
+#: (m), horizontal velocity, vertical velocity (m/s; the log has no vertical velocity).
+SIGMA_H_M = 2.0
+SIGMA_V_M = 4.0
+SIGMA_VEL_MPS = 0.1
+SIGMA_VD_MPS = 0.5
+
+
+def _load(segment, name):
+    d = Path(segment) / name
+    try:
+        return np.load(d / "t.npy"), np.load(d / "value.npy")
+    except OSError as exc:
+        from ins.errors import InputError
+        raise InputError(f"{d}: {exc.strerror or exc} (a comma2k19 segment folder is "
+                         f"expected: IMU/, GNSS/live_gnss_ublox/, global_pose/)") from None
+
+
+def boot_to_gps(segment):
+    """GPS week and the offset ``tow - boot`` (s) from the frames' two stamps, with the
+    RMS residual of the fit (s)."""
+    ft = np.load(Path(segment) / "global_pose" / "frame_times.npy")
+    g = np.load(Path(segment) / "global_pose" / "frame_gps_times.npy")
+    weeks = np.unique(g[:, 0])
+    if len(weeks) != 1:
+        raise ValueError("the segment crosses a GPS week")
+    d = g[:, 1] - ft
+    offset = float(np.mean(d))
+    return int(weeks[0]), offset, float(np.sqrt(np.mean((d - offset) ** 2)))
+
+
+def imu_increments(t, gyro, accel):
+    """Trapezoid increments over ``(t[k-1], t[k]]`` of instantaneous rate samples.
+
+    Returns the stamps ``t[1:]``, ``dtheta`` (rad) and ``dvel`` (m/s), shape (n-1, 3).
+    """
+    dt = np.diff(t)[:, None]
+    return t[1:], 0.5 * (gyro[1:] + gyro[:-1]) * dt, 0.5 * (accel[1:] + accel[:-1]) * dt
+
+
+def read_imu(segment, offset):
+    """The segment's IMU as an :class:`ins.imu.ImuLog` in GPS seconds of week."""
+    from ins.imu import ImuLog
+    tg, gyro = _load(segment, "IMU/gyro")
+    ta, accel = _load(segment, "IMU/accelerometer")
+    if len(tg) != len(ta) or np.max(np.abs(tg - ta)) > 1e-6:
+        raise ValueError("gyro and accelerometer stamps differ")
+    t, dth, dv = imu_increments(tg + offset, gyro, accel)
+    return ImuLog(t, dth, dv)
+
+
+def read_ublox(segment, offset, week, stamp="utc", sigma_h=SIGMA_H_M, sigma_v=SIGMA_V_M,
+               sigma_vel=SIGMA_VEL_MPS, sigma_vd=SIGMA_VD_MPS):
+    """The u-blox fixes as an :class:`ins.gnss.GnssLog` (GPS seconds of week).
+
+    ``stamp`` = ``"utc"`` (the fix epoch) or ``"arrival"`` (boot clock of arrival).
+    Returns the log and the mean of (arrival - epoch), s.
+    """
+    from ins.gnss import GnssLog
+    t_boot, v = _load(segment, "GNSS/live_gnss_ublox")
+    t_utc = v[:, 3] / 1e3 + LEAP_SECONDS - GPS_EPOCH_UNIX - week * WEEK_S
+    t_arr = t_boot + offset
+    t = t_utc if stamp == "utc" else t_arr
+    keep = np.concatenate([[True], np.diff(t) > 0])
+    speed, bearing = v[:, 2], np.deg2rad(v[:, 5])
+    v_n = np.column_stack([speed * np.cos(bearing), speed * np.sin(bearing),
+                           np.zeros(len(t))])
+    n = len(t)
+    log = GnssLog(time=t, lla=np.column_stack([np.deg2rad(v[:, 0]), np.deg2rad(v[:, 1]),
+                                                v[:, 4]]),
+                  sigma_ned_m=np.tile([sigma_h, sigma_h, sigma_v], (n, 1)), v_n=v_n,
+                  sigma_vel_ned_mps=np.tile([sigma_vel, sigma_vel, sigma_vd], (n, 1)))
+    return log.select(keep), float(np.mean(t_arr - t_utc))
+
+
+def read_reference(segment, offset):
+    """comma.ai's camera pose as an :class:`ins.trajectory.Trajectory` (GPS seconds of
+    week): position and velocity of the camera, attitude ``C_nc`` of the camera's
+    forward-right-down axes."""
+    import pymap3d
+    from scipy.spatial.transform import Rotation
+
+    from ins import earth
+    from ins.trajectory import Trajectory
+    gp = Path(segment) / "global_pose"
+    t = np.load(gp / "frame_times.npy") + offset
+    r_e = np.load(gp / "frame_positions.npy")
+    v_e = np.load(gp / "frame_velocities.npy")
+    q_wxyz = np.load(gp / "frame_orientations.npy")
+    lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
+    C_en = earth.dcm_en(lat, lon)
+    v_n = np.einsum("nji,nj->ni", C_en, v_e)
+    C_ec = Rotation.from_quat(q_wxyz[:, [1, 2, 3, 0]]).as_matrix()
+    C_nc = np.einsum("nji,njk->nik", C_en, C_ec)
+    q_nc = Rotation.from_matrix(C_nc).as_quat()
+    return Trajectory(time=t, lla=np.column_stack([lat, lon, h]), v_n=v_n, q_nb=q_nc)
+
+
+CONFIG = """\
+# ins process config of a comma2k19 segment (written by tools/comma2k19.py).
+# IMU noise: from the preset (ins process --preset mems | land).
+[files]
+imu = "imu.txt"
+gnss = "gnss.txt"
+
+[imu]
+format = "kfgins"
+axes = "FRD"
+
+[gnss]
+lever_arm_b_m = [0.0, 0.0, 0.0]   # IMU and u-blox antenna in one device (comma EON)
+
+[alignment]
+method = "gnss-heading"           # the car drives from the first fix: heading from the track
+"""
+
+
+def convert(segment, out_dir, force=False, stamp="utc", time_shift_s=0.0, **sigmas):
+    """Write ``imu.txt``, ``gnss.txt``, ``reference.nav``, ``config.toml`` and
+    ``conversion.toml`` (module notes) into ``out_dir``; returns a dict of figures.
+
+    ``time_shift_s`` is added to the GNSS stamps (e.g. the opposite of the offset
+    estimated by ``ins time-offset``).
+    """
+    from dataclasses import replace
+
+    from ins.fileio import atomic_open, output_folder
+    from ins.gnss import write_gnss
+    from ins.imu_files import write_kfgins_text
+    from ins.trajectory import write_nav
+    week, offset, fit_rms = boot_to_gps(segment)
+    imu = read_imu(segment, offset)
+    gnss, arrival_lag = read_ublox(segment, offset, week, stamp, **sigmas)
+    if time_shift_s:
+        gnss = replace(gnss, time=gnss.time + time_shift_s)
+    ref = read_reference(segment, offset)
+    dt = np.diff(imu.time)
+    info = {"gps_week": week, "boot_to_gps_tow_s": offset, "boot_fit_rms_s": fit_rms,
+            "imu_epochs": len(imu), "imu_rate_hz": float(1 / np.median(dt)),
+            "imu_dt_min_s": float(dt.min()), "imu_dt_max_s": float(dt.max()),
+            "gnss_records": len(gnss), "gnss_stamp": stamp,
+            "gnss_arrival_minus_epoch_s": arrival_lag, "gnss_time_shift_s": time_shift_s,
+            "reference_epochs": len(ref)}
+    with output_folder(out_dir, force=force) as stage:
+        write_kfgins_text(os.path.join(stage, "imu.txt"), imu)
+        write_gnss(os.path.join(stage, "gnss.txt"), gnss)
+        write_nav(os.path.join(stage, "reference.nav"), ref, week=week)
+        with atomic_open(os.path.join(stage, "config.toml"), "w") as f:
+            f.write(CONFIG)
+        with atomic_open(os.path.join(stage, "conversion.toml"), "w") as f:
+            f.write(_conversion_text(segment, info, gnss))
+    return info
+
+
+def _conversion_text(segment, info, gnss):
+    s, sv = gnss.sigma_ned_m[0], gnss.sigma_vel_ned_mps[0]
+    lines = [f"# tools/comma2k19.py of {os.path.abspath(segment)}",
+             "[time]",
+             f"gps_week = {info['gps_week']}",
+             f"boot_to_gps_tow_s = {info['boot_to_gps_tow_s']:.6f}   # tow = boot + this "
+             f"(frame_times vs frame_gps_times, RMS {info['boot_fit_rms_s']:.1e} s)",
+             f"gnss_stamp = \"{info['gnss_stamp']}\"   # utc: fix epoch; arrival: boot clock",
+             f"gnss_arrival_minus_epoch_s = {info['gnss_arrival_minus_epoch_s']:.4f}",
+             f"gnss_time_shift_s = {info['gnss_time_shift_s']:.4f}",
+             "[imu]",
+             f"epochs = {info['imu_epochs']}",
+             f"rate_hz = {info['imu_rate_hz']:.3f}",
+             f"interval_s = [{info['imu_dt_min_s']:.6f}, {info['imu_dt_max_s']:.6f}]",
+             "increments = \"trapezoid of the rate samples times the real interval\"",
+             "[gnss]   # ASSUMED sigmas: the u-blox log has no accuracy field",
+             f"records = {info['gnss_records']}",
+             f"sigma_ned_m = [{s[0]:g}, {s[1]:g}, {s[2]:g}]",
+             f"sigma_vel_ned_mps = [{sv[0]:g}, {sv[1]:g}, {sv[2]:g}]   # vd = 0 (not logged)",
+             "[reference]",
+             f"epochs = {info['reference_epochs']}",
+             "what = \"comma.ai global_pose: camera position, velocity, C_nc of the "
+             "camera's FRD axes\"",
+             "camera_imu_offset_m = [0.0, 0.0, 0.0]   # one device; rotation estimated"]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------
+# comparison with the reference
+
+def interpolate(traj, t):
+    """``traj`` at times ``t`` (inside its span): position and velocity linear, attitude
+    by slerp (scipy); a :class:`ins.trajectory.Trajectory`."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    from ins.trajectory import Trajectory
+    lla = np.column_stack([np.interp(t, traj.time, traj.lla[:, i]) for i in range(3)])
+    v_n = np.column_stack([np.interp(t, traj.time, traj.v_n[:, i]) for i in range(3)])
+    q = Slerp(traj.time, Rotation.from_quat(traj.q_nb))(t).as_quat()
+    return Trajectory(time=np.asarray(t, float), lla=lla, v_n=v_n, q_nb=q)
+
+
+def mount_rotation(q_nb, q_nc, block_s=5.0, time=None):
+    """The constant rotation ``C_bc`` from the body (IMU) to the camera axes, least
+    squares on SO(3) (the chordal mean of ``C_nb^T C_nc``, scipy ``Rotation.mean``),
+    with its 1-sigma per axis (rad) from the scatter of ``block_s`` block means (the
+    residuals are correlated over seconds: one block one independent sample).
+
+    Returns ``(C_bc, sigma_rad (3,), residual rotation vectors (n, 3) in b, rad)``.
+    """
+    from scipy.spatial.transform import Rotation
+    R = Rotation.from_quat(q_nb).inv() * Rotation.from_quat(q_nc)
+    mean = R.mean()
+    res = (R * mean.inv()).as_rotvec()
+    if time is None:
+        time = np.arange(len(res), dtype=float)
+    blocks = np.floor((time - time[0]) / block_s).astype(int)
+    means = np.array([res[blocks == b].mean(axis=0) for b in np.unique(blocks)])
+    sigma = means.std(axis=0, ddof=1) / np.sqrt(len(means)) if len(means) > 1 \
+        else np.full(3, np.nan)
+    return mean.as_matrix(), sigma, res
+
+
+def compare(solution, reference, gnss=None):
+    """Figures of a solution (IMU) against the reference camera pose (module notes).
+
+    Returns a dict: ``horizontal_rms_m``, ``down_rms_m``, ``vel_rms_ned_mps`` (3,),
+    ``C_bc`` and ``mount_rpy_deg`` (the estimated camera-to-IMU rotation as roll, pitch,
+    yaw of ``C_bc``) with ``mount_sigma_deg`` (3,), ``att_std_deg`` (tilt N, tilt E,
+    heading after removing ``C_bc``), ``att_rms_deg`` and, with ``gnss``, the fixes'
+    ``fixes_horizontal_rms_m`` against the reference (interpolated at the fix times).
+    """
+    from scipy.spatial.transform import Rotation
+
+    from ins import earth
+    inside = (reference.time >= solution.time[0]) & (reference.time <= solution.time[-1])
+    t = reference.time[inside]
+    sol = interpolate(solution, t)
+    lla_ref = reference.lla[inside]
+    d_n = earth.ned_offset(lla_ref, sol.lla)
+    dv = sol.v_n - reference.v_n[inside]
+    q_nc = reference.q_nb[inside]
+    C_bc, sigma, _ = mount_rotation(sol.q_nb, q_nc, time=t)
+    q_nb_ref = (Rotation.from_quat(q_nc) * Rotation.from_matrix(C_bc).inv()).as_quat()
+    att = (Rotation.from_quat(sol.q_nb) * Rotation.from_quat(q_nb_ref).inv()).as_rotvec()
+    out = {"epochs": int(len(t)), "span_s": float(t[-1] - t[0]),
+           "horizontal_rms_m": float(np.sqrt(np.mean(np.sum(d_n[:, :2] ** 2, axis=1)))),
+           "down_rms_m": float(np.sqrt(np.mean(d_n[:, 2] ** 2))),
+           "vel_rms_ned_mps": np.sqrt(np.mean(dv ** 2, axis=0)),
+           "C_bc": C_bc,
+           "mount_rpy_deg": Rotation.from_matrix(C_bc).as_euler("ZYX", degrees=True)[::-1],
+           "mount_sigma_deg": np.rad2deg(sigma),
+           "att_std_deg": np.rad2deg(att.std(axis=0)),
+           "att_rms_deg": np.rad2deg(np.sqrt(np.mean(att ** 2, axis=0)))}
+    if gnss is not None:
+        ok = (gnss.time >= reference.time[0]) & (gnss.time <= reference.time[-1])
+        at = interpolate(reference, gnss.time[ok])
+        e = earth.ned_offset(at.lla, gnss.lla[ok])
+        out["fixes_horizontal_rms_m"] = float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, 1))))
+    return out
+
+
+def format_figures(fig):
+    """Lines of text stating the figures of :func:`compare`."""
+    v, m, ms = fig["vel_rms_ned_mps"], fig["mount_rpy_deg"], fig["mount_sigma_deg"]
+    a, ar = fig["att_std_deg"], fig["att_rms_deg"]
+    lines = [f"{fig['epochs']} reference epochs over {fig['span_s']:.1f} s",
+             f"horizontal position RMS {fig['horizontal_rms_m']:.3f} m (down "
+             f"{fig['down_rms_m']:.3f} m)"]
+    if "fixes_horizontal_rms_m" in fig:
+        lines.append(f"  the GNSS fixes alone: horizontal RMS "
+                     f"{fig['fixes_horizontal_rms_m']:.3f} m")
+    lines += [f"velocity RMS N/E/D {v[0]:.3f} / {v[1]:.3f} / {v[2]:.3f} m/s",
+              f"camera-to-IMU rotation C_bc (roll, pitch, yaw of the camera's FRD axes in "
+              f"b): {m[0]:.3f} / {m[1]:.3f} / {m[2]:.3f} deg, sigma about x/y/z "
+              f"{ms[0]:.3f} / {ms[1]:.3f} / {ms[2]:.3f} deg",
+              f"attitude after removing C_bc: std tilt N {a[0]:.3f}, tilt E {a[1]:.3f}, "
+              f"heading {a[2]:.3f} deg (RMS {ar[0]:.3f} / {ar[1]:.3f} / {ar[2]:.3f})"]
+    return lines
