@@ -21,6 +21,60 @@ def _compensate(raw, k, bias, scale, dt, out):
         out[i] = (raw[k, i] - bias[i] * dt) / (1.0 + scale[i])
 
 
+@nb.njit(cache=True, inline="always")
+def _unskew(th, m):
+    """``th <- th - N(m) th`` (first-order removal of the non-orthogonality ``m``)."""
+    a = th[0] - (m[2] * th[1] + m[1] * th[2])
+    b = th[1] - (m[2] * th[0] + m[0] * th[2])
+    c = th[2] - (m[1] * th[0] + m[0] * th[1])
+    th[0], th[1], th[2] = a, b, c
+
+
+@nb.njit(cache=True, inline="always")
+def _propagate(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc, mis, use_mis):
+    c = np.empty(9)
+    th_p = np.empty(3)
+    dv_p = np.empty(3)
+    th = np.empty(3)
+    dv = np.empty(3)
+    bg, ba, sg, sa = sensors[0:3], sensors[3:6], sensors[6:9], sensors[9:12]
+    mg, ma = mis[0:3], mis[3:6]
+    for k in range(k0, k1):
+        dt = time[k] - time[k - 1]
+        dt_p = time[k - 1] - time[k - 2] if k >= 2 else dt
+        _compensate(dtheta_b, k - 1, bg, sg, dt_p, th_p)
+        _compensate(dvel_b, k - 1, ba, sa, dt_p, dv_p)
+        _compensate(dtheta_b, k, bg, sg, dt, th)
+        _compensate(dvel_b, k, ba, sa, dt, dv)
+        if use_mis:
+            _unskew(th_p, mg)
+            _unskew(dv_p, ma)
+            _unskew(th, mg)
+            _unskew(dv, ma)
+        qx, qy, qz, qw = state[6], state[7], state[8], state[9]
+        _kernels.quat_to_dcm_rows(qx, qy, qz, qw, c)
+        for i in range(3):
+            for j in range(3):
+                cij = c[3 * i + j]
+                acc[i, j] += cij * dt
+                acc[3 + i, j] += cij * th[j]
+                acc[6 + i, j] += cij * dv[j]
+                acc[9, i] += cij * dv[j]
+        if use_mis:
+            # C N(v): column j of N(v) is (v_z, 0, v_x)... (N symmetric, zero diagonal)
+            for i in range(3):
+                c0, c1, c2 = c[3 * i], c[3 * i + 1], c[3 * i + 2]
+                acc[10 + i, 0] += c1 * th[2] + c2 * th[1]
+                acc[10 + i, 1] += c0 * th[2] + c2 * th[0]
+                acc[10 + i, 2] += c0 * th[1] + c1 * th[0]
+                acc[13 + i, 0] += c1 * dv[2] + c2 * dv[1]
+                acc[13 + i, 1] += c0 * dv[2] + c2 * dv[0]
+                acc[13 + i, 2] += c0 * dv[1] + c1 * dv[0]
+        _kernels._step(state, c, th_p, dv_p, th, dv, dt)
+        for i in range(_kernels.N_STATE):
+            out[k - k0, i] = state[i]
+
+
 @nb.njit(cache=True)
 def propagate_rows(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc):
     """Mechanize rows ``k0 .. k1-1`` (in place on ``state``, the state at ``time[k0-1]``).
@@ -33,31 +87,17 @@ def propagate_rows(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc):
     diag(dtheta)`` (rows 3-5), ``S_Cf = sum C_nb diag(dvel)`` (rows 6-8) and the sum of
     ``C_nb dvel`` (row 9), with ``C_nb`` at the start of each row's interval.
     """
-    c = np.empty(9)
-    th_p = np.empty(3)
-    dv_p = np.empty(3)
-    th = np.empty(3)
-    dv = np.empty(3)
-    bg, ba, sg, sa = sensors[0:3], sensors[3:6], sensors[6:9], sensors[9:12]
-    for k in range(k0, k1):
-        dt = time[k] - time[k - 1]
-        dt_p = time[k - 1] - time[k - 2] if k >= 2 else dt
-        _compensate(dtheta_b, k - 1, bg, sg, dt_p, th_p)
-        _compensate(dvel_b, k - 1, ba, sa, dt_p, dv_p)
-        _compensate(dtheta_b, k, bg, sg, dt, th)
-        _compensate(dvel_b, k, ba, sa, dt, dv)
-        qx, qy, qz, qw = state[6], state[7], state[8], state[9]
-        _kernels.quat_to_dcm_rows(qx, qy, qz, qw, c)
-        for i in range(3):
-            for j in range(3):
-                cij = c[3 * i + j]
-                acc[i, j] += cij * dt
-                acc[3 + i, j] += cij * th[j]
-                acc[6 + i, j] += cij * dv[j]
-                acc[9, i] += cij * dv[j]
-        _kernels._step(state, c, th_p, dv_p, th, dv, dt)
-        for i in range(_kernels.N_STATE):
-            out[k - k0, i] = state[i]
+    _propagate(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc, np.zeros(6), False)
+
+
+@nb.njit(cache=True)
+def propagate_rows_mis(time, dtheta_b, dvel_b, k0, k1, state, sensors, mis, out, acc):
+    """:func:`propagate_rows` with the non-orthogonality ``mis`` (gyro m_x, m_y, m_z,
+    accel m_x, m_y, m_z, rad) also removed, after the bias and scale:
+    ``dtheta <- dtheta - N(m_g) dtheta`` (``N`` of :func:`ins.error_model.sym_matrix`);
+    ``acc`` (16, 3) also receives ``S_CNw = sum C_nb N(dtheta)`` (rows 10-12) and
+    ``S_CNf = sum C_nb N(dvel)`` (rows 13-15)."""
+    _propagate(time, dtheta_b, dvel_b, k0, k1, state, sensors, out, acc, mis, True)
 
 
 @nb.njit(cache=True, inline="always")

@@ -86,6 +86,86 @@ STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), (
                                                ("gyro_scale", "xyz"), ("accel_scale", "xyz"))
                     for a in axes)
 
+#: Optional state groups after the 21 KF-GINS states, in this order, with their sizes:
+#: gyro and accelerometer non-orthogonality (rad, the symmetric model
+#: ``N(m) = [[0, m_z, m_y], [m_z, 0, m_x], [m_y, m_x, 0]]`` of the simulator), the GNSS lever
+#: arm correction (m, b frame, added to the configured arm) and the IMU-GNSS time offset
+#: (s: a GNSS record stamped ``t`` holds the antenna at IMU time ``t + offset``).  All four
+#: are random constants (no process noise), truth minus estimate, fed back like the sensor
+#: errors (``estimate += dx``).
+OPTIONAL_GROUPS = {"gyro_misalignment": 3, "accel_misalignment": 3, "lever_arm": 3,
+                   "time_offset": 1}
+_OPTIONAL_AXES = {"gyro_misalignment": "xyz", "accel_misalignment": "xyz", "lever_arm": "xyz",
+                  "time_offset": ("",)}
+
+
+class StateLayout:
+    """The error-state layout of one run: the 21 KF-GINS states, then the optional groups
+    (:data:`OPTIONAL_GROUPS`) that are switched on, in the order of that table.
+
+    Attributes
+    ----------
+    n : int
+        Number of states.
+    groups : tuple of str
+        The optional groups present.
+    names : tuple of str
+        One name per state (``pos_N`` .. ``accel_scale_z``, ``gyro_misalignment_x`` ..).
+    pos, vel, att, gyro_bias, accel_bias, gyro_scale, accel_scale : slice
+        As in :data:`STATE`.
+    nav : slice
+        0:9.
+    sensors : slice
+        9:n, the states fed back into the sensor estimates (``sensors += x[sensors]``):
+        the estimate vector of a run has ``n - 9`` elements in this order.
+    gyro_misalignment, accel_misalignment, lever_arm, time_offset : slice or None
+        The optional groups (``None`` when absent).
+    """
+
+    def __init__(self, groups=()):
+        unknown = [g for g in groups if g not in OPTIONAL_GROUPS]
+        if unknown:
+            raise ValueError(f"unknown state group(s) {unknown} (known: "
+                             f"{', '.join(OPTIONAL_GROUPS)})")
+        self.groups = tuple(g for g in OPTIONAL_GROUPS if g in groups)
+        for name, value in vars(STATE).items():
+            setattr(self, name, value)
+        names = list(STATE_NAMES)
+        k = 21
+        for g in OPTIONAL_GROUPS:
+            if g in self.groups:
+                setattr(self, g, slice(k, k + OPTIONAL_GROUPS[g]))
+                names += [f"{g}_{a}" if a else g for a in _OPTIONAL_AXES[g]]
+                k += OPTIONAL_GROUPS[g]
+            else:
+                setattr(self, g, None)
+        self.n = k
+        self.sensors = slice(9, k)
+        self.names = tuple(names)
+
+    def estimate(self, sensors, group):
+        """The estimate of an optional ``group`` in a sensor-estimate vector (zeros when
+        the group is absent)."""
+        sl = getattr(self, group)
+        if sl is None:
+            return np.zeros(OPTIONAL_GROUPS[group])
+        return np.asarray(sensors)[..., sl.start - 9:sl.stop - 9]
+
+    def __eq__(self, other):
+        return isinstance(other, StateLayout) and other.groups == self.groups
+
+    def __hash__(self):
+        return hash(self.groups)
+
+    def __repr__(self):
+        return f"StateLayout({list(self.groups)!r}, n={self.n})"
+
+
+#: The KF-GINS layout (21 states) and the named layouts of ``[states] layout``: ``survey``
+#: adds the two non-orthogonality groups (the default of ``ins process``).
+KFGINS = StateLayout(())
+LAYOUTS = {"kfgins": (), "survey": ("gyro_misalignment", "accel_misalignment")}
+
 #: Unit conversions from the edge units to SI.
 DEG = np.pi / 180.0
 DPH = DEG / 3600.0             # deg/h -> rad/s
@@ -150,10 +230,11 @@ class ImuNoise:
                                2.0 * self.sensor_std ** 2 / tau])
 
 
-def noise_matrix(noise):
-    """``G Q G^T`` (21 x 21), attitude independent (see the module notes)."""
+def noise_matrix(noise, layout=KFGINS):
+    """``G Q G^T`` (n x n), attitude independent (see the module notes); the optional
+    groups are random constants (no noise)."""
     q = noise.q_continuous()
-    GQG = np.zeros((N_STATES, N_STATES))
+    GQG = np.zeros((layout.n, layout.n))
     idx = np.arange(3)
     GQG[VEL.start + idx, VEL.start + idx] = q[3:6]
     GQG[ATT.start + idx, ATT.start + idx] = q[0:3]
@@ -207,8 +288,15 @@ def navigation_matrix(lat, h, v_n, f_n):
     return F
 
 
-def system_matrix(lat, h, v_n, f_n, C_nb, f_b, w_ib_b, corr_time_s):
-    """Continuous F (21 x 21) at one state (the IMU-rate form, for tests and reference).
+def sym_matrix(v):
+    """``N(v) = [[0, v_z, v_y], [v_z, 0, v_x], [v_y, v_x, 0]]``: the non-orthogonality
+    matrix of ``v`` (and ``N(m) w = N(w) m``)."""
+    v = np.asarray(v, dtype=float)
+    return np.array([[0.0, v[2], v[1]], [v[2], 0.0, v[0]], [v[1], v[0], 0.0]])
+
+
+def system_matrix(lat, h, v_n, f_n, C_nb, f_b, w_ib_b, corr_time_s, layout=KFGINS):
+    """Continuous F (n x n) at one state (the IMU-rate form, for tests and reference).
 
     Parameters
     ----------
@@ -218,34 +306,41 @@ def system_matrix(lat, h, v_n, f_n, C_nb, f_b, w_ib_b, corr_time_s):
     corr_time_s : float
         Gauss-Markov correlation time, s.
     """
-    integrals = (np.asarray(C_nb), np.asarray(C_nb) * np.asarray(w_ib_b)[None, :],
-                 np.asarray(C_nb) * np.asarray(f_b)[None, :])
-    return interval_matrix(lat, h, v_n, f_n, integrals, 1.0, corr_time_s)
+    C_nb = np.asarray(C_nb)
+    integrals = (C_nb, C_nb * np.asarray(w_ib_b)[None, :], C_nb * np.asarray(f_b)[None, :],
+                 C_nb @ sym_matrix(w_ib_b), C_nb @ sym_matrix(f_b))
+    return interval_matrix(lat, h, v_n, f_n, integrals, 1.0, corr_time_s, layout)
 
 
-def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s):
-    """``A = int F dt`` over a node interval (21 x 21).
+def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s, layout=KFGINS):
+    """``A = int F dt`` over a node interval (n x n).
 
     Parameters
     ----------
     lat, h, v_n, f_n :
         Mid-interval navigation state and mean specific force in n (see
         :func:`navigation_matrix`).
-    integrals : tuple of three (3, 3) arrays
-        ``S_C = int C_nb dt``, ``S_Cw = int C_nb diag(w_ib_b) dt`` and
-        ``S_Cf = int C_nb diag(f_b) dt`` (s, rad, m/s).
+    integrals : tuple of three or five (3, 3) arrays
+        ``S_C = int C_nb dt``, ``S_Cw = int C_nb diag(w_ib_b) dt``,
+        ``S_Cf = int C_nb diag(f_b) dt`` (s, rad, m/s) and, for the misalignment groups,
+        ``S_CNw = int C_nb N(w_ib_b) dt``, ``S_CNf = int C_nb N(f_b) dt`` (rad, m/s).
     dt : float
         Interval length, s.
     corr_time_s : float
         Gauss-Markov correlation time, s.
+    layout : StateLayout
     """
-    S_C, S_Cw, S_Cf = integrals
-    A = np.zeros((N_STATES, N_STATES))
+    S_C, S_Cw, S_Cf = integrals[:3]
+    A = np.zeros((layout.n, layout.n))
     A[0:9, 0:9] = navigation_matrix(lat, h, v_n, f_n) * dt
     A[VEL, BA] = S_C
     A[VEL, SA] = S_Cf
     A[ATT, BG] = -S_C
     A[ATT, SG] = -S_Cw
+    if layout.gyro_misalignment is not None:
+        A[ATT, layout.gyro_misalignment] = -integrals[3]
+    if layout.accel_misalignment is not None:
+        A[VEL, layout.accel_misalignment] = integrals[4]
     idx = np.arange(9, 21)
     A[idx, idx] = -dt / corr_time_s
     return A
@@ -292,8 +387,9 @@ def checked_std(var, scale, time=None, names=STATE_NAMES, what="covariance"):
         if t is not None and t.ndim:
             t = t[row] if len(row) else t[0]
         when = "" if t is None else f" at t = {float(t):.3f} s"
+        name = names[k] if k < len(names) else f"state {k}"
         raise QualityError(f"numerical failure{when}: the {what} has variance "
-                           f"{float(var[tuple(idx)]):.3e} for state {names[k]} (negative "
+                           f"{float(var[tuple(idx)]):.3e} for state {name} (negative "
                            f"beyond rounding: scale {float(scale[tuple(idx)]):.3e}); the "
                            f"covariance lost positive definiteness (implausible noise "
                            f"settings or sigmas in the config?)")
@@ -304,6 +400,6 @@ def discretize(A, GQG, dt):
     """Transition and process noise of an interval: ``Phi = I + A + A^2/2 + A^3/6``,
     ``Q_d = (Phi GQG Phi^T + GQG) dt / 2``."""
     A2 = A @ A
-    Phi = np.eye(N_STATES) + A + 0.5 * A2 + (A2 @ A) / 6.0
+    Phi = np.eye(len(A)) + A + 0.5 * A2 + (A2 @ A) / 6.0
     Qd = 0.5 * dt * (Phi @ GQG @ Phi.T + GQG)
     return Phi, Qd

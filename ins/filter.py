@@ -36,14 +36,14 @@ import warnings
 import numpy as np
 
 from . import _filter_kernels, earth
-from .error_model import (ATT, N_STATES, NAV, POS, SENSORS, STATE, VEL,  # noqa: F401
+from .error_model import (ATT, KFGINS, N_STATES, NAV, POS, SENSORS, STATE, VEL,  # noqa: F401
                           checked_std, discretize, interval_matrix, noise_matrix)
 from .errors import InputError, InputWarning
 # the settings and the stores have their own modules; importable from here as before
 from .filter_settings import FilterSettings  # noqa: F401
 from .filter_stores import NodeStore, TrajectoryStore
-from .lever_arm import antenna_lla, antenna_velocity, position_jacobian, velocity_jacobian
-from .rotation import quat_to_dcm
+from .measurements import (GnssPosition, GnssVelocity, NavPoint, NonHolonomic, UpdateRecord,
+                           ZeroVelocity, kalman_update)
 
 
 class ForwardResult:
@@ -81,6 +81,12 @@ class ForwardResult:
         Position innovation (predicted antenna minus fix, NED m) of each tested record.
     node_states : ndarray, shape (m, 10)
         Forward states at the nodes (after the update).
+    records : list of ins.measurements.UpdateRecord
+        Every tested measurement (GNSS position and velocity, heading, zero velocity,
+        non-holonomic), in processing order: innovations per axis, NIS, accepted.
+    layout : ins.error_model.StateLayout
+        The error states (``dx`` has ``layout.n`` columns, ``sensors`` ``layout.n - 9``:
+        the 12 of the KF-GINS layout, then the optional groups' estimates).
     """
 
     def __init__(self, trajectory, nodes, node_rows, node_time, dx, sensors):
@@ -89,6 +95,8 @@ class ForwardResult:
         self.n_updates = self.n_rejected = self.n_outside = self.n_mount_fallback = 0
         self.nis = self.nis_record = self.innovation_m = None
         self.nis_threshold = np.inf
+        self.records = []
+        self.layout = KFGINS
         self._whole = None
 
     def _arrays(self):
@@ -153,55 +161,76 @@ def filterpy_functions():
 
 
 class _Updater:
-    """GNSS measurement updates at one node, with feedback into the state."""
+    """The measurement updates at one node (:mod:`ins.measurements`), with feedback into
+    the state; keeps a record of every tested measurement."""
 
     def __init__(self, settings, gnss):
         self.s = settings
+        self.layout = settings.layout
         self.gnss = gnss
-        self.kf_predict, self.kf_update, chi2 = filterpy_functions()
-        self.threshold = float(chi2.ppf(1.0 - settings.reject_probability, 3))
+        self.kf_predict, _, self.chi2 = filterpy_functions()
+        self.thresholds = {}
+        self.threshold = self._threshold(3)
         self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
         self.nis, self.nis_record, self.innovation = [], [], []
+        self.records = []
+        self.cov = getattr(gnss, "cov_ned_m2", None)
 
-    def _apply(self, state, sensors, P, z, R, H):
-        S = H @ P @ H.T + R
-        nis = float(z @ np.linalg.solve(S, z))
-        if nis > self.threshold:
+    def _threshold(self, m):
+        if m not in self.thresholds:
+            self.thresholds[m] = float(self.chi2.ppf(1.0 - self.s.reject_probability, m))
+        return self.thresholds[m]
+
+    def apply(self, meas, point, P):
+        """Test and apply one measurement at ``point`` (updated in place); returns
+        ``(P, dx or None, nis, z)``."""
+        z = meas.residual(meas.predict(point), meas.observed)
+        H = meas.jacobian(point)
+        x, P, nis, sigma = kalman_update(P, H, meas.R, z, self._threshold(len(z)), meas)
+        self.records.append(UpdateRecord(meas.name, meas.axes, meas.unit, meas.time, z,
+                                         sigma, nis, x is not None))
+        if x is None:
             self.n_rejected += 1
-            return P, None, nis
-        x, P = self.kf_update(np.zeros(N_STATES), P, z, R, H)
-        _filter_kernels.correct_state(state, x)
-        sensors += x[STATE.sensors]
+            return P, None, nis, z
+        _filter_kernels.correct_state(point.state, x)
+        point.sensors += x[self.layout.sensors]
         self.n_updates += 1
-        return P, x, nis
+        return P, x, nis, z
 
-    def update(self, k, t_row, state, sensors, P, w_ib_b):
+    def update(self, k, t_row, state, sensors, P, w_meas_b):
         """Process GNSS record ``k`` at the node of time ``t_row``; returns (P, dx)."""
         g = self.gnss
-        dx = np.zeros(N_STATES)
+        dx = np.zeros(self.layout.n)
         tg = g.time[k]
         l_b, dl_b, valid = self.s.lever.at(tg)
-        l_b, dl_b = l_b[0], dl_b[0]
         if not valid[0]:
             self.n_fallback += 1
-        lla = state[NAV.lla] + earth.lla_rate(state[0], state[2], state[NAV.vel]) * (tg - t_row)
-        C_nb = quat_to_dcm(state[NAV.q_nb])
-        z = earth.ned_offset(g.lla[k], antenna_lla(lla, C_nb, l_b))
-        R = np.diag(g.sigma_ned_m[k] ** 2)
-        P, x, nis = self._apply(state, sensors, P, z, R, position_jacobian(C_nb, l_b))
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0])
+        cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
+        P, x, nis, z = self.apply(GnssPosition(tg, g.lla[k], cov), point, P)
         self.nis.append(nis)
         self.nis_record.append(k)
         self.innovation.append(z)
         if x is not None:
             dx += x
         if self.s.use_velocity and g.has_velocity:
-            C_nb = quat_to_dcm(state[NAV.q_nb])
-            w_in_n = (earth.earth_rate_n(state[0])
-                      + earth.transport_rate_n(state[0], state[2], state[NAV.vel]))
-            v_ant = antenna_velocity(state[NAV.vel], C_nb, w_ib_b, w_in_n, l_b, dl_b)
-            H = velocity_jacobian(C_nb, w_ib_b, w_in_n, l_b, dl_b)
-            R = np.diag(g.sigma_vel_ned_mps[k] ** 2)
-            P, x, _ = self._apply(state, sensors, P, v_ant - g.v_n[k], R, H)
+            meas = GnssVelocity(tg, g.v_n[k], np.diag(g.sigma_vel_ned_mps[k] ** 2))
+            P, x, _, _ = self.apply(meas, point, P)
+            if x is not None:
+                dx += x
+        return P, dx
+
+    def others(self, t_row, state, sensors, P, w_meas_b, at_rest, headings):
+        """The heading, zero-velocity and non-holonomic updates of a node; (P, dx)."""
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b)
+        dx = np.zeros(self.layout.n)
+        meas = list(headings)
+        if at_rest:
+            meas.append(ZeroVelocity(t_row, self.s.zupt_sigma_mps))
+        if self.s.nhc:
+            meas.append(NonHolonomic(t_row, self.s.nhc_sigma_mps))
+        for m in meas:
+            P, x, _, _ = self.apply(m, point, P)
             if x is not None:
                 dx += x
         return P, dx
@@ -301,18 +330,28 @@ class _ForwardRun:
     per-node records, the next GNSS record ``gj`` and the rows held back."""
 
     def __init__(self, gnss, settings, workdir):
-        self.GQG = noise_matrix(settings.noise)
+        self.layout = L = settings.layout
+        self.settings = settings
+        self.GQG = noise_matrix(settings.noise, L)
         self.tau = settings.noise.corr_time_s
         self.interval = settings.node_interval_s
-        self.sensors = (np.zeros(12) if settings.initial_sensors is None
-                        else np.array(settings.initial_sensors, dtype=float).reshape(12))
+        self.sensors = np.zeros(L.n - 9)
+        if settings.initial_sensors is not None:
+            init = np.asarray(settings.initial_sensors, dtype=float).ravel()
+            if len(init) not in (12, L.n - 9):
+                raise InputError(f"initial_sensors: expected 12 or {L.n - 9} values, got "
+                                 f"{len(init)}")
+            self.sensors[:len(init)] = init
+        self.mis = (L.gyro_misalignment is not None or L.accel_misalignment is not None)
+        self.headings = sorted(settings.heading, key=lambda m: m.time)
+        self.hj = 0
         self.P = settings.initial_covariance()
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
         self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
             [], [], [], [], []
         self.updater = _Updater(settings, gnss)
         self.g_time = gnss.time
-        self.acc = np.zeros((10, 3))
+        self.acc = np.zeros((16, 3))
         self.state = self.state_a = self.t_a = None
         self.gj = self.row_base = self.n_rows = 0
         self.carry = None
@@ -333,8 +372,8 @@ class _ForwardRun:
             self.P, _ = self.updater.update(self.gj, t[k0], state, self.sensors, self.P,
                                             np.zeros(3))
             self.gj += 1
-        self.nodes.append(P0, self.P, np.eye(N_STATES), t[k0])
-        self.dxs.append(np.zeros(N_STATES))
+        self.nodes.append(P0, self.P, np.eye(self.layout.n), t[k0])
+        self.dxs.append(np.zeros(self.layout.n))
         self.traj.append(t[k0:k0 + 1], state[None, :])
         self.row_base, self.n_rows = -k0, 1
         self._keep_node(k0, t[k0])
@@ -358,17 +397,24 @@ class _ForwardRun:
             r = _next_node(t, cur, self.t_a, g_time[self.gj] if self.gj < len(g_time) else None,
                            stop, last, self.interval)
             hi = stop if r < 0 else r + 1
-            _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, self.state, self.sensors,
-                                           out[cur + 1 - p:hi - p], self.acc)
+            if self.mis:
+                L = self.layout
+                mis = np.concatenate([L.estimate(self.sensors, "gyro_misalignment"),
+                                      L.estimate(self.sensors, "accel_misalignment")])
+                _filter_kernels.propagate_rows_mis(t, th, dv, cur + 1, hi, self.state,
+                                                   self.sensors, mis, out[cur + 1 - p:hi - p],
+                                                   self.acc)
+            else:
+                _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, self.state,
+                                               self.sensors, out[cur + 1 - p:hi - p],
+                                               self.acc[:10])
             if not np.all(np.isfinite(self.state)):
                 raise InputError(f"the solution became non-finite before t = {t[hi - 1]!r} s "
                                  f"(implausible increments, initial state or GNSS)")
             cur = hi - 1
             if r < 0:
                 break
-            self.P = _node(t, th, r, self.state, self.state_a, self.t_a, self.sensors, self.P,
-                           self.acc, self.GQG, self.tau, self.nodes, self.updater, self.gj,
-                           self.dxs, lambda k: _row_known(g_time[k], t, r))
+            self.P = self.node(t, th, dv, r, lambda k: _row_known(g_time[k], t, r))
             while self.gj < len(g_time) and _row_known(g_time[self.gj], t, r):
                 self.gj += 1
             out[r - p] = self.state
@@ -394,6 +440,55 @@ class _ForwardRun:
         total = int(round(self.t_total / max(float(np.median(np.diff(t[-64:]))), 1e-9))) + 1
         return self.n_rows, (max(total, self.n_rows) if not last else self.n_rows)
 
+    def node(self, t, th, dv, r, at_node):
+        """Covariance step from the previous node to row ``r``, then the GNSS updates of
+        the records from ``gj`` on whose row is ``r`` and the node's other measurements;
+        stores the node.  Returns P."""
+        L, up = self.layout, self.updater
+        dt = t[r] - self.t_a
+        mid = 0.5 * (self.state_a + self.state)
+        acc = self.acc
+        A = interval_matrix(mid[0], mid[2], mid[NAV.vel], acc[9] / dt,
+                            (acc[0:3], acc[3:6], acc[6:9], acc[10:13], acc[13:16]), dt,
+                            self.tau, L)
+        Phi, Qd = discretize(A, self.GQG, dt)
+        _, P = up.kf_predict(np.zeros(L.n), self.P, Phi, Qd)
+        P_prior = P
+        w_meas_b = th[r] / (t[r] - t[r - 1])
+        dx = np.zeros(L.n)
+        gj, g_time = self.gj, self.g_time
+        while gj < len(g_time) and at_node(gj):
+            P, d = up.update(gj, t[r], self.state, self.sensors, P, w_meas_b)
+            dx += d
+            gj += 1
+        heads = []
+        while self.hj < len(self.headings) and self.headings[self.hj].time <= t[r] + 1e-9:
+            heads.append(self.headings[self.hj])
+            self.hj += 1
+        rest = self.settings.zupt and self._at_rest(t, th, dv, r)
+        if heads or rest or self.settings.nhc:
+            P, d = up.others(t[r], self.state, self.sensors, P, w_meas_b, rest, heads)
+            dx += d
+        P = 0.5 * (P + P.T)
+        self.nodes.append(P_prior, P, Phi, t[r])
+        self.dxs.append(dx)
+        return P
+
+    def _at_rest(self, t, th, dv, r):
+        """Whether the IMU is at rest over the rows since the last node (in this block)
+        or the node is inside one of the configured zero-velocity windows."""
+        s = self.settings
+        if any(a <= t[r] <= b for a, b in s.zupt_windows_s):
+            return True
+        lo = max(int(np.searchsorted(t, self.t_a, side="right")), 1)
+        if r + 1 - lo < 2:
+            return False
+        dt = np.diff(t[lo - 1:r + 1])[:, None]
+        f = np.linalg.norm(dv[lo:r + 1] / dt, axis=1)
+        w = np.abs(th[lo:r + 1] / dt)
+        return bool(np.std(f) < s.zupt_accel_std_mps2
+                    and np.max(w) < np.deg2rad(s.zupt_gyro_dps))
+
     def result(self):
         up = self.updater
         out = ForwardResult(self.traj, self.nodes, np.array(self.node_rows),
@@ -407,33 +502,9 @@ class _ForwardRun:
         out.nis_record = np.array(up.nis_record, dtype=np.int64)
         out.innovation_m = np.array(up.innovation).reshape(-1, 3)
         out.nis_threshold = up.threshold
+        out.records = up.records
+        out.layout = self.layout
         return out
-
-
-def _node(t, th, r, state, state_a, t_a, sensors, P, acc, GQG, tau, nodes, updater, gj,
-          dxs, at_node):
-    """Covariance step from the previous node to row ``r``, then the GNSS updates of the
-    records from ``gj`` on whose row is ``r``; stores the node.  Returns P."""
-    dt = t[r] - t_a
-    mid = 0.5 * (state_a + state)
-    A = interval_matrix(mid[0], mid[2], mid[NAV.vel], acc[9] / dt,
-                        (acc[0:3], acc[3:6], acc[6:9]), dt, tau)
-    Phi, Qd = discretize(A, GQG, dt)
-    _, P = updater.kf_predict(np.zeros(N_STATES), P, Phi, Qd)
-    P_prior = P
-    dt_row = t[r] - t[r - 1]
-    w_ib_b = ((th[r] / dt_row - sensors[SENSORS.gyro_bias])
-              / (1.0 + sensors[SENSORS.gyro_scale]))
-    dx = np.zeros(N_STATES)
-    g_time = updater.gnss.time
-    while gj < len(g_time) and at_node(gj):
-        P, d = updater.update(gj, t[r], state, sensors, P, w_ib_b)
-        dx += d
-        gj += 1
-    P = 0.5 * (P + P.T)
-    nodes.append(P_prior, P, Phi, t[r])
-    dxs.append(dx)
-    return P
 
 
 def std_of(P, time=None):

@@ -4,11 +4,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .error_model import STATE, ImuNoise
+from .error_model import KFGINS, ImuNoise, StateLayout
 from .errors import InputError
 from .lever_arm import LeverArm
 
 DEG = np.pi / 180.0
+ARCSEC = DEG / 3600.0
 
 
 @dataclass
@@ -33,6 +34,24 @@ class FilterSettings:
         Innovation-test false-rejection probability (chi-square with 3 dof).
     node_interval_s : float
         Longest interval between two covariance steps, s.
+    layout : ins.error_model.StateLayout
+        The error states (default: the 21 KF-GINS states).
+    gyro_misalignment_std_arcsec, accel_misalignment_std_arcsec : float or (3,)
+        Prior sigma of the non-orthogonality states, arcsec.
+    lever_arm_std_m : float or (3,)
+        Prior sigma of the lever-arm correction, m (b frame).
+    time_offset_std_ms : float
+        Prior sigma of the IMU-GNSS time offset, ms.
+    zupt : bool
+        Zero-velocity updates at the nodes where the IMU is found at rest (the spread of
+        the specific-force norm below ``zupt_accel_std_mps2`` and every angular rate
+        below ``zupt_gyro_dps`` over the rows since the last node) or that fall in one
+        of ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
+    nhc : bool
+        Non-holonomic constraint at every node (lateral and vertical body velocity 0,
+        sigma ``nhc_sigma_mps``): for land vehicles whose body axes are the IMU's.
+    heading : sequence of ins.measurements.DualAntennaHeading, optional
+        Dual-antenna headings, processed at the node of their time.
     """
 
     noise: ImuNoise = field(default_factory=ImuNoise)
@@ -44,12 +63,35 @@ class FilterSettings:
     use_velocity: bool = True
     reject_probability: float = 1e-5
     node_interval_s: float = 1.0
+    layout: StateLayout = KFGINS
+    gyro_misalignment_std_arcsec: object = 100.0
+    accel_misalignment_std_arcsec: object = 100.0
+    lever_arm_std_m: object = 0.05
+    time_offset_std_ms: float = 5.0
+    zupt: bool = False
+    zupt_sigma_mps: float = 0.005
+    zupt_accel_std_mps2: float = 0.05
+    zupt_gyro_dps: float = 0.5
+    zupt_windows_s: tuple = ()
+    nhc: bool = False
+    nhc_sigma_mps: float = 0.1
+    heading: tuple = ()
+
+    def prior_std(self):
+        """Prior standard deviations of the optional groups of :attr:`layout`, SI."""
+        edge = {"gyro_misalignment": (self.gyro_misalignment_std_arcsec, ARCSEC, 3),
+                "accel_misalignment": (self.accel_misalignment_std_arcsec, ARCSEC, 3),
+                "lever_arm": (self.lever_arm_std_m, 1.0, 3),
+                "time_offset": (self.time_offset_std_ms, 1e-3, 1)}
+        return np.concatenate([[]] + [np.broadcast_to(np.asarray(edge[g][0], float), edge[g][2])
+                                      * edge[g][1] for g in self.layout.groups])
 
     def initial_covariance(self):
         std = np.concatenate([np.broadcast_to(np.asarray(self.pos_std_ned_m, float), 3),
                               np.broadcast_to(np.asarray(self.vel_std_ned_mps, float), 3),
                               np.broadcast_to(np.asarray(self.att_std_deg, float), 3) * DEG,
-                              self.noise.sensor_std])
+                              self.noise.sensor_std, self.prior_std()])
         if np.any(~np.isfinite(std)) or np.any(std <= 0):
-            raise InputError(f"initial standard deviations must be > 0, got {std[STATE.nav]}")
+            raise InputError(f"initial standard deviations must be > 0, got "
+                             f"{dict(zip(self.layout.names, std))}")
         return np.diag(std ** 2)

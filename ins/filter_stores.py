@@ -6,11 +6,12 @@ import tempfile
 
 import numpy as np
 
-from .error_model import N_STATES, checked_std
+from .error_model import checked_std
 
 
 class NodeStore:
-    """``P_prior``, ``P_post`` and ``Phi`` (21 x 21 each) of every node, kept for the RTS pass.
+    """``P_prior``, ``P_post`` and ``Phi`` (n x n each, n the number of error states) of
+    every node, kept for the RTS pass.
 
     In memory, or, with ``workdir``, appended to an anonymous temporary file there (10.6
     kB a node: 380 MB for a 10 h flight at 1 Hz, on disk, not in memory) and read back
@@ -21,6 +22,7 @@ class NodeStore:
 
     def __init__(self, workdir=None):
         self.count = 0
+        self.n = None
         self.post_std = []                 # sqrt(diag(P_post)) of every node (small)
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
@@ -28,6 +30,7 @@ class NodeStore:
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.errors.QualityError` naming ``time`` (s) and the state."""
+        self.n = len(P_prior)
         d_prior, d_post = np.diag(P_prior), np.diag(P_post)
         scale = np.maximum(np.abs(d_prior), np.abs(d_post))
         checked_std(d_prior, scale, time, what="forward filter's prior covariance")
@@ -41,15 +44,16 @@ class NodeStore:
         self.count += 1
 
     def block(self, j0, j1):
-        """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, 21, 21) of P_prior, P_post, Phi."""
+        """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, n, n) of P_prior, P_post, Phi."""
+        n = self.n or 0
         if self._mem is not None:
-            return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, N_STATES, N_STATES)
-        rec = 3 * N_STATES * N_STATES
+            return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, n, n)
+        rec = 3 * n * n
         self._file.flush()
         self._file.seek(j0 * rec * 8)
         data = np.fromfile(self._file, dtype=np.float64, count=(j1 - j0) * rec)
         self._file.seek(0, os.SEEK_END)
-        return data.reshape(j1 - j0, 3, N_STATES, N_STATES)
+        return data.reshape(j1 - j0, 3, n, n)
 
     def blocks_reversed(self, size=512):
         """``(j0, block)`` from the last nodes to the first."""

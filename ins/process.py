@@ -307,7 +307,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     f_std = np.array(fwd.nodes.post_std)
     if cfg.smooth:
         xs, s_std = rts_errors(fwd, full=False)
-        s_sens = fwd.sensors + xs[:, STATE.sensors]
+        s_sens = fwd.sensors + xs[:, fwd.layout.sensors]
     else:
         xs, s_std, s_sens = None, f_std, fwd.sensors
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _filter_kernels
-from .error_model import STATE, STATE_NAMES, checked_std
+from .error_model import STATE_NAMES, checked_std
 from .errors import QualityError
 
 
@@ -97,10 +97,18 @@ def rts_errors(fwd, full=True):
         if full:
             Ps[j] = Pj
         std[j] = checked_std(np.diag(Pj), np.diag(P_post),
-                             None if node_time is None else node_time[j],
+                             None if node_time is None else node_time[j], names=_names(fwd, n),
                              what="smoothed covariance")
         nxt = (P_prior, Phi, Pj)
     return xs, (Ps if full else std)
+
+
+def _names(fwd, n):
+    """State names of a forward result (its layout), else of the 21-state layout."""
+    layout = getattr(fwd, "layout", None)
+    if layout is not None and layout.n == n:
+        return layout.names
+    return STATE_NAMES if n == len(STATE_NAMES) else tuple(f"state_{k}" for k in range(n))
 
 
 def _not_positive(P, when, exc):
@@ -110,7 +118,8 @@ def _not_positive(P, when, exc):
         detail = "it holds non-finite values"
     elif np.any(d <= 0):
         k = int(np.argmin(d))
-        detail = f"variance {d[k]:.3e} for state {STATE_NAMES[k]}"
+        names = _names(None, len(d))
+        detail = f"variance {d[k]:.3e} for state {names[k]}"
     else:
         w = np.linalg.eigvalsh(P / np.sqrt(np.outer(d, d)))
         detail = f"smallest eigenvalue of its correlation matrix {w[0]:.3e}"
@@ -164,4 +173,4 @@ def smooth(fwd):
     return SmoothedResult(time=np.concatenate([p[0] for p in parts]),
                           states=np.concatenate([p[1] for p in parts]),
                           node_rows=fwd.node_rows, x_after=xs, P=Ps,
-                          sensors=fwd.sensors + xs[:, STATE.sensors])
+                          sensors=fwd.sensors + xs[:, 9:])

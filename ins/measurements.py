@@ -1,0 +1,390 @@
+"""Measurements of the GNSS/INS filter: a small protocol and its implementations, and the
+Kalman update by Cholesky.
+
+Protocol
+--------
+A measurement is an object with
+
+``name`` (str) and ``axes`` (tuple of str)
+    what it is (``gnss_position``) and the names of its components (``N``, ``E``, ``D``);
+``unit`` (str)
+    the unit of its innovations in the innovation file (``m``, ``m/s``, ``deg``);
+``time`` (float)
+    its epoch, s;
+``observed``
+    the measured value (in the measurement's own form: lat, lon, h for a position);
+``R`` (m x m)
+    its noise covariance, SI;
+``predict(point)``
+    its predicted value from a :class:`NavPoint` (the filter's state at a node);
+``residual(a, b)``
+    ``a - b`` of two values as an m-vector in SI (NED metres for positions, wrapped
+    radians for a heading);
+``jacobian(point)``
+    ``H`` (m x n) with ``residual(predict(point), predict(true point)) ~ H dx`` for an
+    error state ``dx`` (:mod:`ins.error_model`: navigation errors estimate minus truth,
+    sensor errors truth minus estimate; :func:`corrected` applies ``dx``).
+
+The innovation is ``z = residual(predict(point), observed)`` (predicted minus measured);
+:func:`kalman_update` gives the standardized innovation of each axis
+``z_i / sqrt(S_ii)`` and the normalized innovation squared ``z^T S^-1 z`` (NIS) from one
+Cholesky factorization of ``S = H P H^T + R``.
+
+Implementations: :class:`GnssPosition` (full 3 x 3 covariance when given),
+:class:`GnssVelocity`, :class:`DualAntennaHeading`, :class:`ZeroVelocity` and
+:class:`NonHolonomic` (lateral and vertical body velocity zero).  The lever-arm and
+time-offset states enter the GNSS measurements when the layout has them.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _filter_kernels, earth
+from .error_model import KFGINS, SENSORS, StateLayout, sym_matrix
+from .errors import QualityError
+from .lever_arm import antenna_lla, antenna_velocity
+from .rotation import quat_to_dcm, skew
+
+__all__ = ["NavPoint", "GnssPosition", "GnssVelocity", "DualAntennaHeading", "ZeroVelocity",
+           "NonHolonomic", "UpdateRecord", "kalman_update", "corrected",
+           "write_innovations", "INNOVATION_COLUMNS"]
+
+
+@dataclass
+class NavPoint:
+    """The filter's state at one epoch, as the measurements see it.
+
+    Attributes
+    ----------
+    time : float
+        Epoch of ``state``, s.
+    state : ndarray, shape (10,)
+        Navigation state (:data:`ins.error_model.NAV`: lat, lon rad, h m, ``v_n`` m/s,
+        ``q_nb``).
+    sensors : ndarray, shape (n - 9,)
+        Sensor estimates in the order of ``layout.sensors``.
+    layout : StateLayout
+    w_meas_b : ndarray, shape (3,)
+        Raw (uncompensated) angular rate of the gyros, rad/s, body FRD.
+    l_b, dl_b : ndarray, shape (3,)
+        Configured IMU-to-antenna arm (m, b) and its rate (m/s), without the estimated
+        lever-arm correction.
+    """
+
+    time: float
+    state: np.ndarray
+    sensors: np.ndarray
+    layout: StateLayout = KFGINS
+    w_meas_b: np.ndarray = None
+    l_b: np.ndarray = None
+    dl_b: np.ndarray = None
+
+    @property
+    def C_nb(self):
+        return quat_to_dcm(self.state[6:10])
+
+    @property
+    def w_ib_b(self):
+        """Compensated angular rate, rad/s (bias, scale, non-orthogonality removed)."""
+        w = np.zeros(3) if self.w_meas_b is None else np.asarray(self.w_meas_b, float)
+        s = self.sensors
+        w = (w - s[SENSORS.gyro_bias]) / (1.0 + s[SENSORS.gyro_scale])
+        return w - sym_matrix(self.layout.estimate(s, "gyro_misalignment")) @ w
+
+    @property
+    def w_in_n(self):
+        s = self.state
+        return earth.earth_rate_n(s[0]) + earth.transport_rate_n(s[0], s[2], s[3:6])
+
+    def arm(self):
+        """``(l_b, dl_b)``: the arm with the estimated correction, m and m/s."""
+        l_b = np.zeros(3) if self.l_b is None else np.asarray(self.l_b, float)
+        dl_b = np.zeros(3) if self.dl_b is None else np.asarray(self.dl_b, float)
+        return l_b + self.layout.estimate(self.sensors, "lever_arm"), dl_b
+
+    @property
+    def time_offset(self):
+        return float(self.layout.estimate(self.sensors, "time_offset")[0])
+
+
+def corrected(point, dx):
+    """The point with the error state ``dx`` removed (the filter's feedback rule): the
+    navigation errors subtracted, the sensor errors added to the estimates."""
+    state = np.array(point.state, dtype=float)
+    _filter_kernels.correct_state(state, np.asarray(dx[:9], dtype=float))
+    return NavPoint(point.time, state, point.sensors + dx[point.layout.sensors],
+                    point.layout, point.w_meas_b, point.l_b, point.dl_b)
+
+
+def _check_cov(cov, m, what):
+    cov = np.asarray(cov, dtype=float)
+    if cov.shape == (m,):
+        cov = np.diag(cov)
+    if cov.shape != (m, m) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"{what}: expected a ({m}, {m}) covariance, got shape {cov.shape}")
+    return cov
+
+
+class GnssPosition:
+    """Antenna position fix: ``observed`` = lat, lon (rad), h (m); ``R`` NED, m^2.
+
+    The prediction moves the node state to the record's time (plus the estimated time
+    offset) along its velocity, then adds the arm ``C_nb l_b``.
+    """
+
+    name, axes, unit = "gnss_position", ("N", "E", "D"), "m"
+
+    def __init__(self, time, lla, cov_ned_m2):
+        self.time = float(time)
+        self.observed = np.asarray(lla, dtype=float)
+        self.R = _check_cov(cov_ned_m2, 3, self.name)
+
+    def _dt(self, p):
+        return self.time + p.time_offset - p.time
+
+    def predict(self, p):
+        s = p.state
+        lla = s[0:3] + earth.lla_rate(s[0], s[2], s[3:6]) * self._dt(p)
+        return antenna_lla(lla, p.C_nb, p.arm()[0])
+
+    def residual(self, a, b):
+        return earth.ned_offset(b, a)
+
+    def jacobian(self, p):
+        L, C = p.layout, p.C_nb
+        l_b, dl_b = p.arm()
+        H = np.zeros((3, L.n))
+        H[:, L.pos] = np.eye(3)
+        H[:, L.vel] = self._dt(p) * np.eye(3)
+        H[:, L.att] = skew(C @ l_b)
+        if L.lever_arm is not None:
+            H[:, L.lever_arm] = -C
+        if L.time_offset is not None:
+            H[:, L.time_offset] = -p.state[3:6, None]
+        return H
+
+
+class GnssVelocity:
+    """Antenna velocity: ``observed`` = ``v_n`` (m/s); ``R`` NED, (m/s)^2."""
+
+    name, axes, unit = "gnss_velocity", ("N", "E", "D"), "m/s"
+
+    def __init__(self, time, v_n, cov_ned_m2ps2):
+        self.time = float(time)
+        self.observed = np.asarray(v_n, dtype=float)
+        self.R = _check_cov(cov_ned_m2ps2, 3, self.name)
+
+    def predict(self, p):
+        l_b, dl_b = p.arm()
+        return antenna_velocity(p.state[3:6], p.C_nb, p.w_ib_b, p.w_in_n, l_b, dl_b)
+
+    def residual(self, a, b):
+        return np.asarray(a) - np.asarray(b)
+
+    def jacobian(self, p):
+        L, C, w = p.layout, p.C_nb, p.w_ib_b
+        l_b, dl_b = p.arm()
+        w_in = p.w_in_n
+        H = np.zeros((3, L.n))
+        H[:, L.vel] = np.eye(3)
+        H[:, L.att] = skew(C @ (np.cross(w, l_b) + dl_b)) - skew(w_in) @ skew(C @ l_b)
+        # w = (I - N(m)) (w_meas - b) / (1 + s): its change for a sensor error dx
+        s = p.sensors
+        J = ((np.eye(3) - sym_matrix(L.estimate(s, "gyro_misalignment")))
+             / (1.0 + s[SENSORS.gyro_scale]))
+        w1 = (p.w_meas_b - s[SENSORS.gyro_bias]) / (1.0 + s[SENSORS.gyro_scale])
+        Cl = -C @ skew(l_b)
+        H[:, L.gyro_bias] = Cl @ J
+        H[:, L.gyro_scale] = Cl @ J @ np.diag(w1)
+        if L.gyro_misalignment is not None:
+            H[:, L.gyro_misalignment] = Cl @ sym_matrix(w1)
+        if L.lever_arm is not None:
+            H[:, L.lever_arm] = -(C @ skew(w) - skew(w_in) @ C)
+        return H
+
+
+class DualAntennaHeading:
+    """Heading of a dual-antenna baseline: ``observed`` = azimuth of the baseline (rad,
+    clockwise from north); ``baseline_b`` its direction in b (the primary-to-secondary
+    antenna vector; only its horizontal direction in n matters); ``R`` rad^2."""
+
+    name, axes, unit = "heading", ("psi",), "deg"
+
+    def __init__(self, time, heading_rad, sigma_rad, baseline_b=(1.0, 0.0, 0.0)):
+        self.time = float(time)
+        self.observed = np.array([float(heading_rad)])
+        self.R = np.array([[float(sigma_rad) ** 2]])
+        self.baseline_b = np.asarray(baseline_b, dtype=float)
+
+    def predict(self, p):
+        b = p.C_nb @ self.baseline_b
+        return np.array([np.arctan2(b[1], b[0])])
+
+    def residual(self, a, b):
+        return (np.asarray(a) - np.asarray(b) + np.pi) % (2 * np.pi) - np.pi
+
+    def jacobian(self, p):
+        b = p.C_nb @ self.baseline_b
+        h2 = b[0] ** 2 + b[1] ** 2
+        if h2 < 1e-12 * float(b @ b):
+            raise ValueError("heading: the baseline is vertical (no azimuth)")
+        H = np.zeros((1, p.layout.n))
+        H[0, p.layout.att] = np.array([-b[1], b[0], 0.0]) / h2 @ skew(b)
+        return H
+
+
+class ZeroVelocity:
+    """Zero-velocity update: the IMU's ``v_n`` is zero; ``R`` (m/s)^2 per axis."""
+
+    name, axes, unit = "zero_velocity", ("N", "E", "D"), "m/s"
+
+    def __init__(self, time, sigma_mps):
+        self.time = float(time)
+        self.observed = np.zeros(3)
+        self.R = np.diag(np.broadcast_to(np.asarray(sigma_mps, float), 3) ** 2)
+
+    def predict(self, p):
+        return np.array(p.state[3:6], dtype=float)
+
+    def residual(self, a, b):
+        return np.asarray(a) - np.asarray(b)
+
+    def jacobian(self, p):
+        H = np.zeros((3, p.layout.n))
+        H[:, p.layout.vel] = np.eye(3)
+        return H
+
+
+class NonHolonomic:
+    """Non-holonomic constraint of a land vehicle whose body axes are the IMU's: the
+    lateral and vertical body velocity (``C_nb^T v_n``, y and z) are zero; ``R``
+    (m/s)^2 per axis."""
+
+    name, axes, unit = "nonholonomic", ("y", "z"), "m/s"
+
+    def __init__(self, time, sigma_mps):
+        self.time = float(time)
+        self.observed = np.zeros(2)
+        self.R = np.diag(np.broadcast_to(np.asarray(sigma_mps, float), 2) ** 2)
+
+    def predict(self, p):
+        return (p.C_nb.T @ p.state[3:6])[1:3]
+
+    def residual(self, a, b):
+        return np.asarray(a) - np.asarray(b)
+
+    def jacobian(self, p):
+        C = p.C_nb
+        H = np.zeros((2, p.layout.n))
+        H[:, p.layout.vel] = C.T[1:3]
+        H[:, p.layout.att] = -(C.T @ skew(p.state[3:6]))[1:3]
+        return H
+
+
+@dataclass
+class UpdateRecord:
+    """One tested measurement: its name, axes and unit, time (s), innovation (SI),
+    ``sqrt(S_ii)`` (SI), NIS, whether it was accepted."""
+
+    name: str
+    axes: tuple
+    unit: str
+    time: float
+    innovation: np.ndarray
+    sigma: np.ndarray
+    nis: float
+    accepted: bool
+
+    @property
+    def standardized(self):
+        """Per-axis standardized innovations ``z_i / sqrt(S_ii)``."""
+        return self.innovation / self.sigma
+
+
+def kalman_update(P, H, R, z, threshold, meas=None):
+    """One Kalman update by a single Cholesky factorization of ``S = H P H^T + R``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+    H : ndarray, shape (m, n)
+    R : ndarray, shape (m, m)
+    z : ndarray, shape (m,)
+        Innovation, predicted minus measured.
+    threshold : float
+        Innovation test: the update is skipped when ``z^T S^-1 z`` exceeds it.
+    meas : object, optional
+        The measurement (``name``, ``time``), for the error message.
+
+    Returns
+    -------
+    dx : ndarray (n,) or None
+        The error-state estimate (None when rejected).
+    P : ndarray (n, n)
+        Posterior covariance (Joseph form), or ``P`` when rejected.
+    nis : float
+    sigma : ndarray (m,)
+        ``sqrt(diag(S))``.
+
+    Raises
+    ------
+    ins.errors.QualityError
+        ``S`` not positive definite: names the measurement and its epoch.
+    """
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+    PHt = P @ H.T
+    S = H @ PHt + R
+    S = 0.5 * (S + S.T)
+    try:
+        cf = cho_factor(S, lower=True, check_finite=True)
+    except (LinAlgError, ValueError) as exc:
+        name = getattr(meas, "name", "measurement")
+        t = getattr(meas, "time", None)
+        when = "" if t is None else f" at t = {t:.3f} s"
+        raise QualityError(f"{name}{when}: the innovation covariance S = H P H^T + R is "
+                           f"not positive definite (diagonal {np.diag(S)!r}; {exc}); check "
+                           f"the measurement's sigmas and the filter's noise settings") from None
+    w = np.linalg.solve(np.tril(cf[0]), z) if len(z) > 1 else z / cf[0][0]
+    nis = float(w @ w)
+    sigma = np.sqrt(np.diag(S))
+    if not nis <= threshold:
+        return None, P, nis, sigma
+    K = cho_solve(cf, PHt.T).T
+    dx = K @ z
+    IKH = np.eye(len(P)) - K @ H
+    P = IKH @ P @ IKH.T + K @ R @ K.T
+    return dx, P, nis, sigma
+
+
+#: Columns of ``innovations.txt`` (units in the names; ``value`` and ``sigma`` in the
+#: unit of the ``unit`` column).
+INNOVATION_COLUMNS = ("time_s", "measurement", "axis", "innovation", "sigma",
+                      "standardized", "nis", "accepted", "unit")
+_UNIT_SCALE = {"deg": 180.0 / np.pi}
+
+
+def write_innovations(path, records):
+    """Write ``innovations.txt``: one line per axis of every tested measurement
+    (:data:`INNOVATION_COLUMNS`, space separated; headings in deg), atomically."""
+    from .fileio import atomic_open
+    with atomic_open(path, "w") as f:
+        f.write("# " + " ".join(INNOVATION_COLUMNS) + "\n")
+        f.write("# innovation = predicted - measured; sigma = sqrt(S_ii), S = H P H^T + R; "
+                "standardized = innovation / sigma; nis = z^T S^-1 z of the whole record; "
+                "accepted = 1 when it passed the innovation test\n")
+        for r in records:
+            k = _UNIT_SCALE.get(r.unit, 1.0)
+            for a, z, s in zip(r.axes, r.innovation, r.sigma):
+                f.write(f"{r.time:.3f} {r.name} {a} {z * k:.6e} {s * k:.6e} {z / s:.4f} "
+                        f"{r.nis:.4f} {int(r.accepted)} {r.unit}\n")
+
+
+def read_innovations(path):
+    """Read ``innovations.txt`` back: a dict of columns (numpy arrays)."""
+    rows = [ln.split() for ln in open(path, encoding="utf-8") if not ln.startswith("#")]
+    cols = list(zip(*rows)) if rows else [()] * len(INNOVATION_COLUMNS)
+    out = {}
+    for name, col in zip(INNOVATION_COLUMNS, cols):
+        out[name] = (np.array(col) if name in ("measurement", "axis", "unit")
+                     else np.array(col, dtype=float))
+    return out
