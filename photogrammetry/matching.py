@@ -16,7 +16,8 @@ that segment, with (:func:`band_tolerance_mm`)
 image radius r by up to ``(f + r^2/f) s_ang``), ``s_pos`` the RMS position sigma (m),
 ``D`` the distance to the ground (m) and ``loc`` the keypoints' localisation (three level
 pixels).  Among the candidates of the band, the nearest descriptor must beat the second
-by the ratio test and be the nearest for its partner too (mutual).  The matches are then
+by the ratio test (a lone candidate in the band against the second-nearest of the whole
+image) and be the nearest for its partner too (mutual).  The matches are then
 verified with an essential matrix (OpenCV ``USAC_MAGSAC`` on the ideal coordinates, so
 the camera's distortion is out), and the pairs' matches joined into tracks (connected
 components of the match graph, i.e. union-find); a track that holds two keypoints of one
@@ -224,15 +225,20 @@ def guided_matches(desc_i, desc_j, xy_i, xy_j, vi, vj, f_mm, z_range_m, tol_mm,
     for s in range(0, len(rows), _CHUNK):
         r = rows[s:s + _CHUNK]
         band = _segment_distance(p0[r], p1[r], qj) <= tol_mm
-        dist2 = 2.0 - 2.0 * (np.asarray(desc_i[r], np.float32) @ dj.T)
-        dist2 = np.where(band, np.maximum(dist2, 0.0), np.inf)
+        full = np.maximum(2.0 - 2.0 * (np.asarray(desc_i[r], np.float32) @ dj.T), 0.0)
+        dist2 = np.where(band, full, np.inf)
         n_cand += int(band.any(axis=1).sum())
+        am = np.argmin(dist2, axis=1)
         if n_j >= 2:
-            part = np.partition(dist2, 1, axis=1)
-            d1, d2 = np.sqrt(part[:, 0]), np.sqrt(part[:, 1])
+            d1, d2 = np.sqrt(np.partition(dist2, 1, axis=1)[:, :2]).T
+            # a lone candidate in the band: the second-nearest of the whole image
+            # stands in for the second of the band (else any lone candidate would pass)
+            f2 = np.partition(full, 1, axis=1)[:, :2]
+            am_full = np.argmin(full, axis=1)
+            alt = np.sqrt(np.where(am_full == am, f2[:, 1], f2[:, 0]))
+            d2 = np.where(np.isfinite(d2), d2, alt)
         else:
             d1, d2 = np.sqrt(dist2[:, 0]), np.full(len(r), np.inf)
-        am = np.argmin(dist2, axis=1)
         good = np.isfinite(d1) & (d1 < ratio * d2)
         best_i[r[good]] = am[good]
         cm = np.argmin(dist2, axis=0)
