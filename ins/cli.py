@@ -182,22 +182,24 @@ def _cmd_mechanize(args):
 
 def _add_compare(sub):
     p = sub.add_parser(
-        "compare", help="errors of a .nav result against a reference .nav (truth)",
-        description="Compare two KF-GINS .nav files on their common epochs (times equal "
-                    "within 1 us): position error north/east/down in m (in the reference's "
-                    "n frame), velocity error in m/s, attitude error as the rotation "
-                    "C_nb_est C_nb_ref^T (tilt about north and east, heading) in arcsec.")
-    p.add_argument("result", metavar="RESULT.nav")
-    p.add_argument("reference", metavar="TRUTH.nav")
+        "compare", help="errors of a trajectory (.nav or SBET) against a reference (truth)",
+        description="Compare two trajectories (KF-GINS .nav or Applanix SBET, detected by "
+                    "the extension .out/.sbet or the content) on their common epochs (times "
+                    "equal within 1 us): position error north/east/down in m (in the "
+                    "reference's n frame), velocity error in m/s, attitude error as the "
+                    "rotation C_nb_est C_nb_ref^T (tilt about north and east, heading) in "
+                    "arcsec.")
+    p.add_argument("result", metavar="RESULT", help="trajectory: .nav or SBET")
+    p.add_argument("reference", metavar="TRUTH", help="reference trajectory: .nav or SBET")
     p.set_defaults(func=_cmd_compare)
 
 
 def _cmd_compare(args):
     from .accuracy import compare
-    from .trajectory import read_nav
+    from .trajectory import read_trajectory
 
     try:
-        errors = compare(read_nav(args.result), read_nav(args.reference))
+        errors = compare(read_trajectory(args.result), read_trajectory(args.reference))
     except InputError:
         raise
     except ValueError as exc:          # no common epoch
@@ -220,6 +222,7 @@ def _cmd_compare(args):
 COMMAND_MODULES = [
     "ins.cli_allan",
     "ins.cli_process",
+    "ins.cli_time_offset",
 ]
 #: Entry-point group of the sub-commands that other packages add to ``ins`` (name: the
 #: sub-command; value: ``module:add_parser``).

@@ -23,8 +23,9 @@ by linear least squares at each trial offset.  ``offset`` is the GNSS clock minu
 IMU clock: a record stamped ``t`` holds the state at IMU time ``t - offset``; shifting
 the GNSS stamps by ``-offset`` puts them on the IMU's time scale.  The residual sum of
 squares over a grid of offsets (step ``step_s``) is the (negative) cross-correlation
-curve; its minimum is refined by a parabola through the three best points (sub-sample
-peak), and the sigma is that of the curve's curvature,
+curve; its minimum is refined by a parabola fitted over +-0.1 s around the best trial
+offset (sub-sample peak; the real curve wiggles at the scale of the GNSS interval),
+and the sigma is that of the parabola's curvature,
 ``sigma^2 = 2 s0^2 / rss''`` with ``s0^2`` the residual variance, inflated by
 ``sqrt(n / n_eff)`` (``n_eff`` from the residuals' autocorrelation summed to its first
 zero crossing: the windowed differences and the GNSS noise are correlated).
@@ -45,6 +46,8 @@ from .errors import InputError
 MAX_OFFSET_S = 1.0
 #: Default step of the trial offsets, s.
 STEP_S = 0.005
+#: Half-width of the parabola fitted around the minimum of the residual curve, s.
+FIT_S = 0.1
 #: Default window of the differences, s.
 WINDOW_S = 0.5
 #: Default spacing of the knots of the slowly varying terms, s.
@@ -243,9 +246,15 @@ def estimate_time_offset(imu, gnss, source="velocity", max_offset_s=MAX_OFFSET_S
     if k == 0 or k == len(lags) - 1:
         raise InputError(f"the best time offset is at the edge of the searched range "
                          f"+-{max_offset_s:g} s: widen it")
-    y0, y1, y2 = rss[k - 1], rss[k], rss[k + 1]
-    curv = (y0 - 2 * y1 + y2) / step_s ** 2
-    x = lags[k] + 0.5 * step_s * (y0 - y2) / (y0 - 2 * y1 + y2)
+    # a parabola fitted over +-FIT_S around the grid minimum: the vertex (sub-sample
+    # peak) and the curvature of the curve's shape, not of its local wiggles
+    near = np.abs(lags - lags[k]) <= max(FIT_S, 2 * step_s)
+    a2, a1, _ = np.polyfit(lags[near] - lags[k], rss[near], 2)
+    if not a2 > 0:
+        raise InputError("the residual curve has no minimum near its lowest point: no "
+                         "usable information on the time offset")
+    curv = 2.0 * a2
+    x = float(np.clip(lags[k] - a1 / (2 * a2), lags[k] - FIT_S, lags[k] + FIT_S))
     e = p.residuals(x)
     dof = max(len(e) - p.A.shape[1] - 1, 1)
     s2 = float(e @ e) / dof

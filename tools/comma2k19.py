@@ -63,7 +63,7 @@ WEEK_S = 604800.0
 SIGMA_H_M = 2.0
 SIGMA_V_M = 4.0
 SIGMA_VEL_MPS = 0.1
-SIGMA_VD_MPS = 0.5
+SIGMA_VD_MPS = 10.0
 
 
 def _load(segment, name):
@@ -175,15 +175,35 @@ method = "gnss-heading"           # the car drives from the first fix: heading f
 """
 
 
-def convert(segment, out_dir, force=False, stamp="utc", time_shift_s=0.0, **sigmas):
+def retime_gnss(gnss, position_offset_s, velocity_offset_s):
+    """The fixes on the IMU's time scale when their positions and velocities carry
+    different offsets (GNSS clock minus IMU clock, s; ``ins.time_offset``): each record
+    is stamped at its position's IMU time ``t - position_offset_s`` and carries the
+    velocity interpolated (linearly) at that time from the velocities' IMU times
+    ``t - velocity_offset_s``; records outside the velocities' span are dropped."""
+    from dataclasses import replace
+    t_p = gnss.time - position_offset_s
+    t_v = gnss.time - velocity_offset_s
+    keep = (t_p >= t_v[0]) & (t_p <= t_v[-1])
+    v_n = np.column_stack([np.interp(t_p, t_v, gnss.v_n[:, j]) for j in range(3)])
+    return replace(gnss, time=t_p, v_n=v_n).select(keep)
+
+
+def estimate_offsets(imu, gnss):
+    """``ins.time_offset`` estimates of the positions' and the velocities' offsets."""
+    from ins.time_offset import estimate_time_offset
+    return (estimate_time_offset(imu, gnss, source="position"),
+            estimate_time_offset(imu, gnss, source="velocity"))
+
+
+def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **sigmas):
     """Write ``imu.txt``, ``gnss.txt``, ``reference.nav``, ``config.toml`` and
     ``conversion.toml`` (module notes) into ``out_dir``; returns a dict of figures.
 
-    ``time_shift_s`` is added to the GNSS stamps (e.g. the opposite of the offset
-    estimated by ``ins time-offset``).
+    ``offsets``: ``"estimate"`` (the positions' and velocities' clock offsets estimated
+    from the data by ``ins.time_offset`` and removed), ``None`` (the stamps as they are)
+    or a pair ``(position_offset_s, velocity_offset_s)`` (GNSS minus IMU clock, s).
     """
-    from dataclasses import replace
-
     from ins.fileio import atomic_open, output_folder
     from ins.gnss import write_gnss
     from ins.imu_files import write_kfgins_text
@@ -191,16 +211,23 @@ def convert(segment, out_dir, force=False, stamp="utc", time_shift_s=0.0, **sigm
     week, offset, fit_rms = boot_to_gps(segment)
     imu = read_imu(segment, offset)
     gnss, arrival_lag = read_ublox(segment, offset, week, stamp, **sigmas)
-    if time_shift_s:
-        gnss = replace(gnss, time=gnss.time + time_shift_s)
+    est = {}
+    if offsets == "estimate":
+        pos, vel = estimate_offsets(imu, gnss)
+        est = {"position_offset_sigma_s": pos.sigma_s, "velocity_offset_sigma_s": vel.sigma_s}
+        offsets = (pos.offset_s, vel.offset_s)
+    if offsets is not None:
+        gnss = retime_gnss(gnss, *offsets)
     ref = read_reference(segment, offset)
     dt = np.diff(imu.time)
     info = {"gps_week": week, "boot_to_gps_tow_s": offset, "boot_fit_rms_s": fit_rms,
             "imu_epochs": len(imu), "imu_rate_hz": float(1 / np.median(dt)),
             "imu_dt_min_s": float(dt.min()), "imu_dt_max_s": float(dt.max()),
             "gnss_records": len(gnss), "gnss_stamp": stamp,
-            "gnss_arrival_minus_epoch_s": arrival_lag, "gnss_time_shift_s": time_shift_s,
-            "reference_epochs": len(ref)}
+            "gnss_arrival_minus_epoch_s": arrival_lag,
+            "position_offset_s": offsets[0] if offsets else 0.0,
+            "velocity_offset_s": offsets[1] if offsets else 0.0,
+            "reference_epochs": len(ref), **est}
     with output_folder(out_dir, force=force) as stage:
         write_kfgins_text(os.path.join(stage, "imu.txt"), imu)
         write_gnss(os.path.join(stage, "gnss.txt"), gnss)
@@ -212,6 +239,11 @@ def convert(segment, out_dir, force=False, stamp="utc", time_shift_s=0.0, **sigm
     return info
 
 
+def _sigma(info, name):
+    key = f"{name}_offset_sigma_s"
+    return f" (estimated, sigma {info[key]:.4f} s)" if key in info else " (given)"
+
+
 def _conversion_text(segment, info, gnss):
     s, sv = gnss.sigma_ned_m[0], gnss.sigma_vel_ned_mps[0]
     lines = [f"# tools/comma2k19.py of {os.path.abspath(segment)}",
@@ -221,7 +253,10 @@ def _conversion_text(segment, info, gnss):
              f"(frame_times vs frame_gps_times, RMS {info['boot_fit_rms_s']:.1e} s)",
              f"gnss_stamp = \"{info['gnss_stamp']}\"   # utc: fix epoch; arrival: boot clock",
              f"gnss_arrival_minus_epoch_s = {info['gnss_arrival_minus_epoch_s']:.4f}",
-             f"gnss_time_shift_s = {info['gnss_time_shift_s']:.4f}",
+             f"position_offset_s = {info['position_offset_s']:.4f}   # GNSS - IMU clock, "
+             f"removed{_sigma(info, 'position')}",
+             f"velocity_offset_s = {info['velocity_offset_s']:.4f}   # GNSS - IMU clock, "
+             f"removed{_sigma(info, 'velocity')}",
              "[imu]",
              f"epochs = {info['imu_epochs']}",
              f"rate_hz = {info['imu_rate_hz']:.3f}",
