@@ -9,6 +9,8 @@ from ins import textfiles
 from ins.cliutil import Progress, check_output_file, triplet
 from ins.errors import InputError
 
+from . import cli_eo_exif
+
 EPILOG = """\
 frames and units:
   The trajectory is the IMU's (.nav: lat, lon deg, ellipsoidal h m, NED velocity m/s,
@@ -65,7 +67,7 @@ def add_parser(sub):
         description="Interpolate an IMU trajectory at the exposure events and compute the "
                     "perspective centre and camera angles (phi-omega-kappa or "
                     "omega-phi-kappa) in a mapping frame.",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=EPILOG + cli_eo_exif.EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
                    help="simulated flight folder with manifest.toml")
     p.add_argument("--trajectory", metavar="T.nav", help="IMU trajectory (.nav)")
@@ -87,6 +89,7 @@ def add_parser(sub):
                    help="output format (default csv)")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary")
     p.add_argument("-o", "--output", required=True, metavar="EO.csv", help="output file")
+    cli_eo_exif.add_options(p)
     p.set_defaults(func=run)
 
 
@@ -127,6 +130,8 @@ def _inputs(args):
 
 
 def run(args):
+    if args.from_exif:
+        return cli_eo_exif.run(args)
     from ins.trajectory import read_nav
 
     from .camera import read_camera
