@@ -16,7 +16,16 @@ inputs:
   --imu/--gnss      KF-GINS text files as they are: IMU 'time dtheta_xyz[rad]
                     dvel_xyz[m/s]' (FRD, increment over (t[k-1], t[k]] stamped at its end);
                     GNSS 'time lat lon[deg] h[m] std_n std_e std_d[m]' of the ANTENNA,
-                    optionally 'vn ve vd std_vn std_ve std_vd [m/s]'
+                    optionally 'vn ve vd std_vn std_ve std_vd [m/s]'; or an RTKLIB .pos
+                    solution of the antenna (detected from its header: lat/lon/height,
+                    d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
+                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+  --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
+                    dgps, single, ppp or numbers 1..6; default all)
+  --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
+  --imu-time-shift-s / --gnss-time-shift-s  added to that log's stamps at read time (s):
+                    the offset of its clock against the common time base (GPS seconds of
+                    week), e.g. a GNSS stamped at reception 0.2 s late: -0.2
   --mount           mount log 'time roll pitch yaw [deg]' (C_ap = Rz(yaw) Ry(pitch) Rx(roll))
   --config F.toml   initial state and sigma, IMU noise (deg/sqrt(h), m/s/sqrt(h), deg/h,
                     mGal, ppm, h), lever arm (m, body FRD), alignment; see
@@ -52,9 +61,16 @@ exit codes:
 outputs (in -o OUT_DIR, a new or empty folder; --force replaces an existing one whole,
 built aside and swapped in: never a mix of two runs):
   solution.nav      smoothed trajectory, KF-GINS .nav: week t lat lon[deg] h[m]
-                    vN vE vD[m/s] roll pitch yaw[deg]
+                    vN vE vD[m/s] roll pitch yaw[deg] (--format nav, the default)
+  sbet_solution.out with --format sbet: the smoothed trajectory as an Applanix SBET
+                    (17 little-endian doubles: GPS s of week, lat lon[rad], h[m],
+                    velocity x north y west z up[m/s], roll pitch heading[rad], wander
+                    angle 0, body accelerations and rates 0), and smrmsg_solution.out
+                    (its accuracy at the filter nodes: N E D[m], vN vE vD[m/s], roll
+                    pitch heading[arcmin]); --format nav,sbet writes both
   forward.nav       with --forward: the forward-filter trajectory (same layout; a
-                    diagnostic, not written by default: solution.nav is the product)
+                    diagnostic, not written by default: solution.nav is the product;
+                    sbet_forward.out with --format sbet)
   solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
                     roll pitch yaw [deg]
   imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
@@ -76,7 +92,23 @@ def add_parser(sub):
     p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
                    help="flight folder with manifest.toml")
     p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
-    p.add_argument("--gnss", metavar="F", help="GNSS log of the antenna (KF-GINS text)")
+    p.add_argument("--gnss", metavar="F",
+                   help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
+    p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
+                   help="GNSS file format (default: detected from the extension and header)")
+    p.add_argument("--gnss-quality", metavar="Q,...",
+                   help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
+    p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
+                   help="RTKLIB: sigma factor per quality, e.g. float=3,single=10")
+    p.add_argument("--imu-time-shift-s", type=float, metavar="S",
+                   help="added to the IMU stamps at read time, s (overrides [imu] "
+                        "time_shift_s)")
+    p.add_argument("--gnss-time-shift-s", type=float, metavar="S",
+                   help="added to the GNSS stamps at read time, s (overrides [gnss] "
+                        "time_shift_s)")
+    p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
+                   help="trajectory output format(s): nav (solution.nav, default), sbet "
+                        "(sbet_solution.out + smrmsg_solution.out), or both")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
@@ -117,7 +149,37 @@ def _config(args):
         cfg.truth = args.truth
     if args.no_smooth:
         cfg.smooth = False
+    _input_options(cfg, args)
     return cfg
+
+
+def _input_options(cfg, args):
+    """The GNSS format, quality policy and time shifts of the command line into ``cfg``."""
+    from .rtklib import parse_quality, parse_quality_scale
+    if args.gnss_format:
+        cfg.gnss_format = args.gnss_format
+    if args.gnss_quality:
+        cfg.gnss_quality = parse_quality(args.gnss_quality, "--gnss-quality")
+    if args.gnss_quality_scale:
+        cfg.gnss_quality_scale = parse_quality_scale(args.gnss_quality_scale,
+                                                     "--gnss-quality-scale")
+    for name in ("imu_time_shift_s", "gnss_time_shift_s"):
+        value = getattr(args, name)
+        if value is not None:
+            if not np.isfinite(value):
+                raise InputError(f"--{name.replace('_', '-')}: expected a finite number of "
+                                 f"seconds, got {value!r}")
+            setattr(cfg, name, float(value))
+
+
+def output_formats(text):
+    """The trajectory formats of ``--format`` (``"nav"``, ``"sbet"``, ``"nav,sbet"``)."""
+    from .process_outputs import OUTPUT_FORMATS
+    formats = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    bad = [f for f in formats if f not in OUTPUT_FORMATS]
+    if bad or not formats:
+        raise InputError(f"--format {text!r}: expected nav, sbet or nav,sbet")
+    return formats
 
 
 def _from_args(args, load_config, path):
@@ -134,6 +196,7 @@ def _cmd_process(args):
     from .process import process
     from .process_outputs import write_outputs
     t0 = wallclock.perf_counter()
+    formats = output_formats(args.format)
     cfg = _config(args)
     progress = Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
@@ -151,7 +214,8 @@ def _cmd_process(args):
                 raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
                                    f"outputs anyway).") from None
             t1 = wallclock.perf_counter()
-            names = write_outputs(result, stage, week=args.week, forward=args.forward)
+            names = write_outputs(result, stage, week=args.week, forward=args.forward,
+                                  formats=formats)
             if not args.no_plots:
                 from .plots import write_plots
                 names += write_plots(result, stage, flight_dir=args.flight_dir)

@@ -22,6 +22,7 @@ from .filter import filterpy_functions, run_forward
 from .filter_settings import FilterSettings
 from .imu import ImuLog
 from .imu_blocks import iter_imu, prefetch
+from .imu_files import shifted_blocks
 from .gnss import read_gnss
 from .lever_arm import LeverArm
 from .mechanization import NavState
@@ -273,10 +274,12 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
         still raise).
     """
     import warnings
-    blocks = prefetch(iter_imu(cfg.imu, format=cfg.imu_format, rates=cfg.imu_rates,
-                               axes=cfg.imu_axes))
+    blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
+                                              rates=cfg.imu_rates, axes=cfg.imu_axes),
+                                     cfg.imu_time_shift_s))
     filterpy_functions()           # the imports overlap the reader thread's parsing
-    gnss = read_gnss(cfg.gnss)
+    gnss = read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
+                     quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale)
     mount = read_mount(cfg.mount) if cfg.mount else None
     lever = _lever(cfg, mount)
     st = _start(cfg, blocks, gnss, lever)
@@ -334,8 +337,8 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
 def with_truth(result, truth_path):
     """``result`` with its errors against a truth ``.nav`` file (piece by piece)."""
     from .accuracy import TrajectoryErrors, compare
-    from .trajectory import read_nav
-    truth = read_nav(truth_path)
+    from .trajectory import read_trajectory
+    truth = read_trajectory(truth_path)
 
     def errors(pieces):
         parts = []

@@ -5,12 +5,15 @@ Configuration (TOML; ``data/configs/kfgins_like.toml``), keys named like KF-GINS
 with the unit in the name::
 
     [files]      imu, gnss, mount (optional), truth (optional): paths relative to the file
-    [imu]        format = "kfgins"|"kfgins-bin"|"csv", rates = false, axes = "FRD"
+    [imu]        format = "kfgins"|"kfgins-bin"|"csv", rates = false, axes = "FRD",
+                 time_shift_s = 0 (added to the IMU's stamps at read time)
     [initial]    lat_deg, lon_deg, h_m, vel_ned_mps, rpy_deg, time_s (optional),
                  pos_std_ned_m, vel_std_ned_mps, att_std_deg
     [imu_noise]  arw_deg_sqrth, vrw_mps_sqrth, gyro_bias_std_dph, accel_bias_std_mgal,
                  gyro_scale_std_ppm, accel_scale_std_ppm, corr_time_h
-    [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5
+    [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5,
+                 format = "kfgins"|"rtklib" (default: sniffed), time_shift_s = 0,
+                 quality = "fix,float" (RTKLIB Q kept), quality_scale = "float=3,single=10"
     [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
     [alignment]  method = "given"|"static"|"gnss-heading", static_window_s = [t0, t1]
     [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true
@@ -33,11 +36,12 @@ _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bia
                "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h")
 _SECTIONS = {
     "files": {"imu", "gnss", "mount", "truth"},
-    "imu": {"format", "rates", "axes"},
+    "imu": {"format", "rates", "axes", "time_shift_s"},
     "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
     "imu_noise": set(_NOISE_KEYS),
-    "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability"},
+    "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
+             "time_shift_s", "quality", "quality_scale"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth"},
@@ -57,6 +61,11 @@ class ProcessConfig:
     imu_format: str = None
     imu_rates: bool = False
     imu_axes: str = "FRD"
+    imu_time_shift_s: float = 0.0
+    gnss_format: str = None
+    gnss_time_shift_s: float = 0.0
+    gnss_quality: object = None
+    gnss_quality_scale: object = None
     noise: ImuNoise = field(default_factory=ImuNoise)
     lever_bp: np.ndarray = field(default_factory=lambda: np.zeros(3))
     lever_ap: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -139,6 +148,8 @@ def _fill(cfg, data, where, path=None):
     cfg.imu_format = imu.get("format", cfg.imu_format)
     cfg.imu_rates = bool(imu.get("rates", cfg.imu_rates))
     cfg.imu_axes = imu.get("axes", cfg.imu_axes)
+    if "time_shift_s" in imu:
+        cfg.imu_time_shift_s = _number(imu["time_shift_s"], where("imu", "time_shift_s"))
     if "imu_noise" in data:
         cfg.noise = _noise(data["imu_noise"], where("imu_noise"))
     gnss = data.get("gnss", {})
@@ -146,6 +157,7 @@ def _fill(cfg, data, where, path=None):
         cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"))
         cfg.lever_ap = np.zeros(3)
     cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
+    _gnss_input(cfg, gnss, where)
     if "reject_probability" in gnss:
         p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
         if p >= 1:
@@ -181,6 +193,25 @@ def _fill(cfg, data, where, path=None):
                                       True)
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
     return cfg
+
+
+def _gnss_input(cfg, gnss, where):
+    """``[gnss]`` format, time_shift_s, quality, quality_scale (checked here, applied by
+    :func:`ins.gnss.read_gnss`)."""
+    from .gnss import FORMATS
+    from .rtklib import parse_quality, parse_quality_scale
+    if "format" in gnss:
+        if gnss["format"] not in FORMATS:
+            raise InputError(f"{where('gnss', 'format')}: expected one of {', '.join(FORMATS)}, "
+                             f"got {gnss['format']!r}")
+        cfg.gnss_format = gnss["format"]
+    if "time_shift_s" in gnss:
+        cfg.gnss_time_shift_s = _number(gnss["time_shift_s"], where("gnss", "time_shift_s"))
+    if "quality" in gnss:
+        cfg.gnss_quality = parse_quality(gnss["quality"], where("gnss", "quality"))
+    if "quality_scale" in gnss:
+        cfg.gnss_quality_scale = parse_quality_scale(gnss["quality_scale"],
+                                                     where("gnss", "quality_scale"))
 
 
 def config_from_manifest(flight_dir, overrides=None):

@@ -95,9 +95,14 @@ class TimeOffset:
 
 
 def level_axes_b(imu):
-    """Levelled forward, right and down axes of the body from the mean specific force:
-    ``(x_h, y_h, d_b)``, unit vectors in b, shape (3,) each."""
-    f = np.sum(np.asarray(imu.dvel_b), axis=0)
+    """The increments' velocity changes resolved in the body frame of the first epoch
+    (attitude from the gyros alone) and that frame's levelled forward and right axes:
+    ``(dvel_0 (n, 3), x_h, y_h, d)``; down ``d`` is the direction of the mean specific
+    force resolved so, reversed."""
+    from ._time_offset_kernels import resolve_increments
+    dvel_0 = resolve_increments(np.ascontiguousarray(imu.dtheta_b, dtype=float),
+                                np.ascontiguousarray(imu.dvel_b, dtype=float))
+    f = np.sum(dvel_0, axis=0)
     norm = np.linalg.norm(f)
     if norm == 0:
         raise InputError("the IMU log has no specific force: no down axis")
@@ -107,16 +112,16 @@ def level_axes_b(imu):
         raise InputError("the body's forward axis points within 30 deg of the vertical: "
                          "the IMU axes are not forward-right-down (give --axes)")
     x /= np.linalg.norm(x)
-    return x, np.cross(d, x), d
+    return dvel_0, x, np.cross(d, x), d
 
 
 def imu_velocity(imu):
-    """Integrated specific force along the levelled forward and right axes:
-    ``(time, V)`` with ``V`` shape (n+1, 2), m/s, 0 at the start of the first increment
-    (its interval taken as the next one)."""
-    x, y, _ = level_axes_b(imu)
+    """Integrated specific force along the levelled forward and right axes of the first
+    epoch's body frame: ``(time, V)`` with ``V`` shape (n+1, 2), m/s, 0 at the start of
+    the first increment (its interval taken as the next one)."""
+    dvel_0, x, y, _ = level_axes_b(imu)
     t = np.asarray(imu.time)
-    dv = np.asarray(imu.dvel_b) @ np.column_stack([x, y])
+    dv = dvel_0 @ np.column_stack([x, y])
     t0 = t[0] - (t[1] - t[0])
     return np.concatenate([[t0], t]), np.vstack([np.zeros(2), np.cumsum(dv, axis=0)])
 
@@ -165,33 +170,40 @@ class _Problem:
         self.t_i, self.V = imu_velocity(imu)
         t_g, v = gnss_velocity(gnss, source)
         speed = np.hypot(v[:, 0], v[:, 1])
-        psi = np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
         h = 0.5 * window_s
         margin = max_offset_s + h
         use = ((t_g - margin >= self.t_i[0]) & (t_g + margin <= self.t_i[-1])
                & (t_g - h >= t_g[0]) & (t_g + h <= t_g[-1]) & (speed >= min_speed_mps))
-        # the window must hold fixes at speed only (the track is meaningless at rest)
-        slow = speed < min_speed_mps
-        if np.any(slow):
-            near = np.abs(t_g[use][:, None] - t_g[slow][None, :]) <= h
-            use[np.flatnonzero(use)[near.any(axis=1)]] = False
         self.t = t_g[use]
         self.h = h
-        ds = np.interp(self.t + h, t_g, speed) - np.interp(self.t - h, t_g, speed)
-        dl = speed[use] * (np.interp(self.t + h, t_g, psi) - np.interp(self.t - h, t_g, psi))
-        self.obs = np.concatenate([ds, dl])
+        self.dv_ne = (np.column_stack([np.interp(self.t + h, t_g, v[:, j]) for j in (0, 1)])
+                      - np.column_stack([np.interp(self.t - h, t_g, v[:, j]) for j in (0, 1)]))
+        self.obs = self.dv_ne.ravel()
         if len(self.t) >= 2:
             knots = np.arange(self.t[0], self.t[-1] + knot_s, knot_s)
             B = _hat(self.t, knots)
             Z = np.zeros_like(B)
             self.A = np.block([[B, Z], [Z, B]])
+            self.segment = np.minimum(((self.t - self.t[0]) // knot_s).astype(int),
+                                      len(knots) - 2 if len(knots) > 1 else 0)
 
     def residuals(self, offset):
         ts = self.t - offset
         dV = (np.column_stack([np.interp(ts + self.h, self.t_i, self.V[:, j]) for j in (0, 1)])
               - np.column_stack([np.interp(ts - self.h, self.t_i, self.V[:, j])
                                  for j in (0, 1)]))
-        r = self.obs - np.concatenate([dV[:, 0], dV[:, 1]])
+        # the GNSS velocity change into the first epoch's levelled body axes: one
+        # rotation about down per knot interval (start heading, gyro drift), by 2-D
+        # Procrustes
+        u = self.dv_ne
+        cross = u[:, 0] * dV[:, 1] - u[:, 1] * dV[:, 0]
+        dot = np.einsum("ij,ij->i", u, dV)
+        n = self.segment.max() + 1
+        alpha = np.arctan2(np.bincount(self.segment, cross, n),
+                           np.bincount(self.segment, dot, n))[self.segment]
+        ca, sa = np.cos(alpha), np.sin(alpha)
+        u = np.column_stack([ca * u[:, 0] - sa * u[:, 1], sa * u[:, 0] + ca * u[:, 1]])
+        r = np.concatenate([u[:, 0] - dV[:, 0], u[:, 1] - dV[:, 1]])
         coef, *_ = np.linalg.lstsq(self.A, r, rcond=None)
         return r - self.A @ coef
 

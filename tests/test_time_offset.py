@@ -39,7 +39,7 @@ def test_injected_offset_recovered(flight, source):
     r = estimate_time_offset(imu, gnss, source=source)
     assert abs(r.offset_s - INJECTED_S) < 0.005          # 5 ms of 137: sub-sample (10 ms IMU)
     assert abs(r.offset_s - INJECTED_S) < 4 * r.sigma_s   # the sigma is not optimistic
-    assert 1e-4 < r.sigma_s < 0.01
+    assert 1e-4 < r.sigma_s < 0.05
     # the shifted log is on the IMU's time scale: nothing left to find
     again = estimate_time_offset(imu, shift_gnss(gnss, r.offset_s), source=source)
     assert abs(again.offset_s) < 0.002
