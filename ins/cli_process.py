@@ -109,6 +109,10 @@ def add_parser(sub):
     p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
                    help="trajectory output format(s): nav (solution.nav, default), sbet "
                         "(sbet_solution.out + smrmsg_solution.out), or both")
+    p.add_argument("--preset", metavar="NAME",
+                   help="defaults for the keys the config does not give: tactical, mems, "
+                        "land (ins/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
+                        "deg/h, mGal, ppm, h)")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
@@ -150,6 +154,11 @@ def _config(args):
     if args.no_smooth:
         cfg.smooth = False
     _input_options(cfg, args)
+    if args.preset:
+        from .presets import apply_preset
+        from .textfiles import read_toml
+        given = read_toml(args.config, "a processing config (TOML)") if args.config else {}
+        cfg = apply_preset(cfg, args.preset, given)
     return cfg
 
 

@@ -46,7 +46,7 @@ from .imu import (DPH, G0, MAX_MEDIAN_ANGULAR_RATE, MAX_MEDIAN_SPECIFIC_FORCE,
 
 __all__ = [
     "FORMATS", "read_imu", "read_kfgins_text", "read_kfgins_binary", "read_csv",
-    "write_kfgins_text", "write_kfgins_binary", "write_csv",
+    "write_kfgins_text", "write_kfgins_binary", "write_csv", "shift_time", "shifted_blocks",
 ]
 
 #: Accepted ``format`` values of :func:`read_imu`.
@@ -452,6 +452,25 @@ def read_imu(path, format=None, rates=False, axes="FRD"):
     if format == "csv":
         return read_csv(path, axes=axes, rates=True if rates else None)
     raise ValueError(f"format must be one of {', '.join(FORMATS)} or None, got {format!r}")
+
+
+# ---------------------------------------------------------------------------------------
+# time base
+
+def shift_time(log, time_shift_s):
+    """``log`` with ``time_shift_s`` (s) added to every stamp (the IMU clock's offset
+    against the common time base: ``t = t_imu + time_shift_s``); 0 gives ``log`` itself."""
+    if not time_shift_s:
+        return log
+    return ImuLog.adopt(log.time + float(time_shift_s), log.dtheta_b, log.dvel_b)
+
+
+def shifted_blocks(blocks, time_shift_s):
+    """The IMU blocks of an iterator with ``time_shift_s`` added to their stamps
+    (:func:`shift_time`), lazily; the iterator itself when the shift is 0."""
+    if not time_shift_s:
+        return blocks
+    return (shift_time(b, time_shift_s) for b in blocks)
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,5 +1,7 @@
 """Output files of ``ins process``: solution.nav, solution_std.txt, imu_errors.txt and
-forward.nav (:func:`write_outputs`), and the roll, pitch, yaw sigmas of a phi-angle covariance
+forward.nav (:func:`write_outputs`), or the solution as an Applanix SBET with its SMRMSG
+accuracy file (``formats=("sbet",)``: sbet_solution.out, smrmsg_solution.out,
+sbet_forward.out), and the roll, pitch, yaw sigmas of a phi-angle covariance
 (:func:`euler_std_deg`)."""
 import os
 
@@ -33,24 +35,44 @@ def euler_std_deg(q_nb, P_att):
                                   what="attitude (roll, pitch, yaw) covariance"))
 
 
-def write_outputs(result, out_dir, week=0, forward=False):
-    """Write solution.nav (smoothed), solution_std.txt, imu_errors.txt and, with
-    ``forward=True``, forward.nav (the forward filter's trajectory, a diagnostic).
+#: Trajectory formats of :func:`write_outputs`.
+OUTPUT_FORMATS = ("nav", "sbet")
 
-    The .nav files are written piece by piece as the trajectory is streamed (bounded
-    memory).  Returns the list of written paths.  Every file is written atomically.
+
+def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
+    """Write the smoothed trajectory in each of ``formats`` (``"nav"``: solution.nav;
+    ``"sbet"``: sbet_solution.out and its accuracy file smrmsg_solution.out at the filter
+    nodes), solution_std.txt, imu_errors.txt and, with ``forward=True``, the forward
+    filter's trajectory (forward.nav / sbet_forward.out, a diagnostic).
+
+    The trajectories are written piece by piece as they are streamed (bounded memory).
+    Returns the list of written paths.  Every file is written atomically.
     """
     from . import textformat
     from .error_model import DPH, MGAL, PPM
     from .fileio import atomic_open
+    from .sbet import write_sbet, write_smrmsg
     from .trajectory import write_nav
+    unknown = [f for f in formats if f not in OUTPUT_FORMATS]
+    if unknown or not formats:
+        raise ValueError(f"formats must be some of {', '.join(OUTPUT_FORMATS)}, got {formats!r}")
     os.makedirs(out_dir, exist_ok=True)
-    paths = [os.path.join(out_dir, n) for n in
-             ("solution.nav", "solution_std.txt", "imu_errors.txt")]
-    write_nav(paths[0], result.iter_smoothed(), week=week)
+    paths = []
+    if "nav" in formats:
+        paths.append(os.path.join(out_dir, "solution.nav"))
+        write_nav(paths[-1], result.iter_smoothed(), week=week)
+    if "sbet" in formats:
+        paths.append(os.path.join(out_dir, "sbet_solution.out"))
+        write_sbet(paths[-1], result.iter_smoothed())
     if forward:
-        paths.append(os.path.join(out_dir, "forward.nav"))
-        write_nav(paths[-1], result.iter_forward(), week=week)
+        if "nav" in formats:
+            paths.append(os.path.join(out_dir, "forward.nav"))
+            write_nav(paths[-1], result.iter_forward(), week=week)
+        if "sbet" in formats:
+            paths.append(os.path.join(out_dir, "sbet_forward.out"))
+            write_sbet(paths[-1], result.iter_forward())
+    std_path = os.path.join(out_dir, "solution_std.txt")
+    err_path = os.path.join(out_dir, "imu_errors.txt")
     rows = np.arange(len(result.node_time))
     # attitude sigma from the smoothed covariance diagonal (phi-angle block)
     P_att = np.zeros((len(rows), 3, 3))
@@ -61,7 +83,12 @@ def write_outputs(result, out_dir, week=0, forward=False):
                              result.smoothed_std[:, STATE.vel], att])
     header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
               "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
-    _write_table(paths[1], header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
+    _write_table(std_path, header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
+    paths.append(std_path)
+    if "sbet" in formats:
+        paths.append(os.path.join(out_dir, "smrmsg_solution.out"))
+        write_smrmsg(paths[-1], result.node_time, result.smoothed_std[:, STATE.pos],
+                     result.smoothed_std[:, STATE.vel], np.deg2rad(att))
     s = result.smoothed_sensors
     table = np.column_stack([result.node_time, s[:, SENSORS.gyro_bias] / DPH,
                              s[:, SENSORS.accel_bias] / MGAL, s[:, SENSORS.gyro_scale] / PPM,
@@ -70,7 +97,8 @@ def write_outputs(result, out_dir, week=0, forward=False):
               "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
               "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
               "(smoothed estimates)\n")
-    _write_table(paths[2], header, table, [6] + [5] * 12, textformat, atomic_open)
+    _write_table(err_path, header, table, [6] + [5] * 12, textformat, atomic_open)
+    paths.append(err_path)
     return paths
 
 

@@ -7,7 +7,11 @@ The ``.nav`` layout (KF-GINS navigation result), one epoch a line::
 with t in s, lat/lon in deg, h in m (ellipsoidal), velocity NED in m/s, roll/pitch/yaw in
 deg (yaw in [0, 360)).  Written with 12 decimals in lat/lon (1e-12 deg = 0.1 um),
 5 in h, 6 in velocity and 9 in the angles (4e-6 arcsec): finer than 0.1 mm.
+
+:func:`read_trajectory` reads a ``.nav`` or an Applanix SBET (:mod:`ins.sbet`), telling
+them apart by the extension (``.out``/``.sbet``) or the content.
 """
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,3 +122,29 @@ def read_nav(path):
                          f"week t lat lon ..., deg)", path=str(path),
                          line=int(row_line[k]))
     return Trajectory.from_nav_rows(rows)
+
+
+#: Accepted ``format`` values of :func:`read_trajectory` (``None``: detected).
+TRAJECTORY_FORMATS = ("nav", "sbet")
+
+
+def trajectory_format(path):
+    """``"sbet"`` for an ``.out``/``.sbet`` extension or binary content that looks like an
+    SBET (:func:`ins.sbet.is_sbet`), else ``"nav"``."""
+    from .sbet import is_sbet
+    if os.path.splitext(os.fspath(path))[1].lower() in (".out", ".sbet"):
+        return "sbet"
+    return "sbet" if is_sbet(path) else "nav"
+
+
+def read_trajectory(path, format=None):
+    """Read a trajectory file: KF-GINS ``.nav`` or Applanix SBET (``format`` None:
+    :func:`trajectory_format`).  Errors name the file and the line or record."""
+    fmt = trajectory_format(path) if format is None else format
+    if fmt == "sbet":
+        from .sbet import read_sbet
+        return read_sbet(path)
+    if fmt == "nav":
+        return read_nav(path)
+    raise ValueError(f"format must be one of {', '.join(TRAJECTORY_FORMATS)} or None, "
+                     f"got {format!r}")

@@ -14,7 +14,9 @@ from . import cli_eo_exif
 EPILOG = """\
 frames and units:
   The trajectory is the IMU's (.nav: lat, lon deg, ellipsoidal h m, NED velocity m/s,
-  roll, pitch, yaw deg with C_nb = Rz(yaw) Ry(pitch) Rx(roll), body forward-right-down).
+  roll, pitch, yaw deg with C_nb = Rz(yaw) Ry(pitch) Rx(roll), body forward-right-down;
+  or an Applanix SBET, detected by the extension .out/.sbet or the content: radians,
+  heading = platform heading - wander angle).
   It is interpolated at each event time (s, same time scale): position by cubic Hermite
   with the velocities, attitude by a cubic on rotation vectors (error at 200 Hz below
   1 um and 0.001 arcsec).  The camera file gives the camera axes C_bc, the boresight
@@ -70,7 +72,8 @@ def add_parser(sub):
         epilog=EPILOG + cli_eo_exif.EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
                    help="simulated flight folder with manifest.toml")
-    p.add_argument("--trajectory", metavar="T.nav", help="IMU trajectory (.nav)")
+    p.add_argument("--trajectory", metavar="T.nav",
+                   help="IMU trajectory (.nav, or SBET .out/.sbet)")
     p.add_argument("--events", metavar="EVENTS.csv", help="exposure events image_id,time_s")
     p.add_argument("--camera", metavar="CAM.toml", help="camera file")
     p.add_argument("--sigma", metavar="STD.txt", help="trajectory standard deviations")
@@ -132,7 +135,7 @@ def _inputs(args):
 def run(args):
     if args.from_exif:
         return cli_eo_exif.run(args)
-    from ins.trajectory import read_nav
+    from ins.trajectory import read_trajectory
 
     from .camera import read_camera
     from .exposure import (compute_eo, read_events, read_solution_std, write_eo_applanix,
@@ -151,7 +154,7 @@ def run(args):
     _, mounting = read_camera(camera_path)
     progress = Progress("eo", not args.quiet)
     progress.note(f"reading {traj_path}...")
-    traj = read_nav(traj_path)
+    traj = read_trajectory(traj_path)
     sigma = read_solution_std(args.sigma) if args.sigma else None
     outside = np.flatnonzero((times < traj.time[0]) | (times > traj.time[-1]))
     if outside.size:                 # the events file is at fault: name it, not the .nav
