@@ -15,6 +15,7 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - with ``--with-pyins``, pyins's ``run_feedback_filter`` (1 s step) in the same run.
 
 Usage: python bench/bench_process.py [--data DIR] [--repeat N] [--with-pyins] [--quick]
+[--layout kfgins|survey]
 """
 import argparse
 import json
@@ -42,8 +43,12 @@ def _peerlib(shared):
     return peerlib
 
 
+#: Error-state layout of the runs (``--layout``): the peers' 21 states by default.
+LAYOUT = "kfgins"
+
+
 def config_for(data, gnss_file, node_interval_s=1.0):
-    from ins.error_model import ImuNoise
+    from ins.error_model import LAYOUTS, ImuNoise, StateLayout
     from ins.process_config import ProcessConfig
     meta = json.loads((data / "meta.json").read_text())
     fn, ini, st = meta["filter_noise"], meta["init_filter"], meta["init_std"]
@@ -57,7 +62,8 @@ def config_for(data, gnss_file, node_interval_s=1.0):
                "att_std_deg": np.array([st["level"], st["level"], st["azimuth"]])}
     return ProcessConfig(imu=str(data / "imu_noisy.txt"), gnss=str(data / gnss_file),
                          noise=noise, lever_bp=np.array(meta["lever_arm_frd"], float),
-                         initial=initial, node_interval_s=node_interval_s), meta
+                         initial=initial, node_interval_s=node_interval_s,
+                         layout=StateLayout(LAYOUTS[LAYOUT])), meta
 
 
 def frame(peerlib, traj):
@@ -274,7 +280,13 @@ def main():
                          "(default: the tests' short simulated flight)")
     ap.add_argument("--quick", action="store_true", help="accuracy only (no 0.1 s step, "
                                                          "no subprocess timings)")
+    ap.add_argument("--layout", default="kfgins", choices=["kfgins", "survey"],
+                    help="error states of the in-process runs (the subprocess timings use "
+                         "data/configs/kfgins_like.toml: kfgins)")
     args = ap.parse_args()
+    global LAYOUT
+    LAYOUT = args.layout
+    print(f"layout: {LAYOUT}")
     from benchdata import SHARED, ensure_bench_data
     data = Path(args.data) if args.data else ensure_bench_data()
     if data is None:

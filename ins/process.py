@@ -29,7 +29,7 @@ from .mechanization import NavState
 from .mount import read_mount
 # the configuration and the output files, importable from here as before
 from .process_config import (METHODS, POSITION_KEYS, ProcessConfig,  # noqa: F401
-                             config_from_manifest, load_config)
+                             config_from_manifest, filter_options, load_config)
 from .process_outputs import euler_std_deg, write_outputs  # noqa: F401
 from .process_trust import (DEPART_SIGMAS, DEPART_SPAN_S, NIS_FACTOR,  # noqa: F401
                             REJECT_ERROR_FRACTION, REJECT_WARN_FRACTION, SENSOR_SIGMAS,
@@ -303,7 +303,8 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
             np.asarray(std["pos_std_ned_m"], float), 3), d)
     settings = FilterSettings(noise=cfg.noise, lever=lever, use_velocity=cfg.use_velocity,
                               reject_probability=cfg.reject_probability,
-                              node_interval_s=cfg.node_interval_s, **std)
+                              node_interval_s=cfg.node_interval_s, **std,
+                              **filter_options(cfg))
     start = t0 if t0 is not None else cfg.start_s
     fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
                       progress=progress, workdir=workdir, initial_time=st.initial_time)

@@ -17,6 +17,13 @@ with the unit in the name::
     [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
     [alignment]  method = "given"|"static"|"gnss-heading", static_window_s = [t0, t1]
     [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true
+    [states]     layout = "survey"|"kfgins"; gyro_misalignment, accel_misalignment,
+                 lever_arm, time_offset (true/false: add or drop a group of the layout);
+                 gyro_misalignment_std_arcsec = 100, accel_misalignment_std_arcsec = 100,
+                 lever_arm_std_m = 0.05, time_offset_std_ms = 5 (priors)
+    [measurements] zupt = false, zupt_sigma_mps = 0.005, zupt_accel_std_mps2 = 0.05,
+                 zupt_gyro_dps = 0.5, zupt_windows_s = [[t0, t1], ...],
+                 nhc = false, nhc_sigma_mps = 0.1
 
 With a mount, ``[mount]`` replaces ``[gnss] lever_arm_b_m``.  A flight folder's
 ``manifest.toml`` (``docs/interfaces.md``) gives the files, lever arms, IMU error values
@@ -28,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .error_model import ImuNoise
+from .error_model import LAYOUTS, OPTIONAL_GROUPS, ImuNoise, StateLayout
 from .errors import InputError
 from .tomlschema import check_keys
 
@@ -45,7 +52,17 @@ _SECTIONS = {
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth"},
+    "states": {"layout", *OPTIONAL_GROUPS, "gyro_misalignment_std_arcsec",
+               "accel_misalignment_std_arcsec", "lever_arm_std_m", "time_offset_std_ms"},
+    "measurements": {"zupt", "zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps",
+                     "zupt_windows_s", "nhc", "nhc_sigma_mps"},
 }
+#: The layout of ``ins process`` when ``[states] layout`` is not given.
+DEFAULT_LAYOUT = "survey"
+#: ``[states]`` prior keys -> number of values (one value or one per axis).
+_PRIOR_KEYS = {"gyro_misalignment_std_arcsec": 3, "accel_misalignment_std_arcsec": 3,
+               "lever_arm_std_m": 3, "time_offset_std_ms": 1}
+_MEAS_NUMBERS = ("zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps", "nhc_sigma_mps")
 METHODS = ("given", "static", "gnss-heading")
 POSITION_KEYS = ("lat_deg", "lon_deg", "h_m")
 
@@ -80,6 +97,9 @@ class ProcessConfig:
     smooth: bool = True
     source: str = "config"
     initial_source: str = None
+    layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
+    priors: dict = field(default_factory=dict)
+    measurements: dict = field(default_factory=dict)
 
 
 def _vector(value, where, n=3):
@@ -192,7 +212,64 @@ def _fill(cfg, data, where, path=None):
         cfg.node_interval_s = _number(filt["node_interval_s"], where("filter", "node_interval_s"),
                                       True)
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
+    _states(cfg, data.get("states", {}), where)
+    _measurements(cfg, data.get("measurements", {}), where)
     return cfg
+
+
+def _flag(value, where):
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: expected true or false, got {value!r}")
+    return value
+
+
+def _states(cfg, sec, where):
+    """``[states]``: the layout, groups switched on or off, priors (edge units)."""
+    groups = set(cfg.layout.groups)
+    if "layout" in sec:
+        if sec["layout"] not in LAYOUTS:
+            raise InputError(f"{where('states', 'layout')}: expected one of "
+                             f"{', '.join(LAYOUTS)}, got {sec['layout']!r}")
+        groups = set(LAYOUTS[sec["layout"]])
+    for g in OPTIONAL_GROUPS:
+        if g in sec:
+            (groups.add if _flag(sec[g], where("states", g)) else groups.discard)(g)
+    cfg.layout = StateLayout(tuple(groups))
+    for key, n in _PRIOR_KEYS.items():
+        if key in sec:
+            v = (_number(sec[key], where("states", key), positive=True) if n == 1
+                 else _vector(sec[key], where("states", key)))
+            if np.any(np.asarray(v) <= 0):
+                raise InputError(f"{where('states', key)}: expected values > 0, got "
+                                 f"{sec[key]!r}")
+            cfg.priors[key] = v
+
+
+def _measurements(cfg, sec, where):
+    """``[measurements]``: zero-velocity and non-holonomic updates."""
+    for key in ("zupt", "nhc"):
+        if key in sec:
+            cfg.measurements[key] = _flag(sec[key], where("measurements", key))
+    for key in _MEAS_NUMBERS:
+        if key in sec:
+            cfg.measurements[key] = _number(sec[key], where("measurements", key), True)
+    if "zupt_windows_s" in sec:
+        w = sec["zupt_windows_s"]
+        try:
+            arr = np.array(w, dtype=float).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise InputError(f"{where('measurements', 'zupt_windows_s')}: expected a list "
+                             f"of [start, end] pairs (GPS s), got {w!r}") from None
+        if not np.all(np.isfinite(arr)) or np.any(arr[:, 1] < arr[:, 0]):
+            raise InputError(f"{where('measurements', 'zupt_windows_s')}: expected finite "
+                             f"[start, end] pairs with end >= start, got {w!r}")
+        cfg.measurements["zupt_windows_s"] = tuple(map(tuple, arr))
+
+
+def filter_options(cfg):
+    """The :class:`ins.filter_settings.FilterSettings` keywords of ``[states]`` and
+    ``[measurements]``."""
+    return {"layout": cfg.layout, **cfg.priors, **cfg.measurements}
 
 
 def _gnss_input(cfg, gnss, where):
@@ -242,6 +319,7 @@ def config_from_manifest(flight_dir, overrides=None):
     cfg.lever_ap = _vector(arm.get("platform_centre_to_antenna_a_m", [0, 0, 0]),
                            where("lever_arm", "platform_centre_to_antenna_a_m"))
     cfg.noise = _manifest_noise(man.get("imu", {}), where("imu"))
+    cfg.priors = _manifest_priors(man.get("imu", {}), where("imu"))
     stationary = man.get("stationary", {})
     segments = stationary.get("segments_s", stationary.get("segments")) \
         if isinstance(stationary, dict) else stationary
@@ -256,6 +334,16 @@ def config_from_manifest(flight_dir, overrides=None):
         _fill(cfg, data, lambda sec, key="": f"{overrides}: [{sec}]" + (f" {key}" if key else ""),
               overrides)
     return cfg
+
+
+def _manifest_priors(imu, where):
+    """Prior sigmas of the non-orthogonality states from the injected values of the
+    manifest (their magnitudes, at least 1 arcsec), as the noise of the sensor states."""
+    out = {}
+    for key in ("gyro_misalignment", "accel_misalignment"):
+        v = np.abs(_vector(imu.get(key + "_arcsec", 0.0), f"{where} {key}_arcsec"))
+        out[key + "_std_arcsec"] = np.maximum(v, 1.0)
+    return out
 
 
 def _manifest_noise(imu, where):
