@@ -1,0 +1,159 @@
+"""Drone metadata: a hand-written DJI XMP packet in a JPEG, EXIF GPS written by pillow,
+the camera axes of the gimbal angles checked against geometry worked by hand, and the
+real DJI images against the bundle adjustment (skipped without ../shared/real)."""
+import struct
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ins.errors import InputError
+from photogrammetry.cli import main
+from photogrammetry.drone import eo_from_drone, read_drone_shot
+from photogrammetry.exposure import read_eo_csv
+from photogrammetry.mapping import EnuFrame, parse_frame
+from photogrammetry.rotation import angles_to_matrix
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "odm_drone_block"
+
+XMP = """<x:xmpmeta xmlns:x="adobe:ns:meta/">
+ <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">
+  <rdf:Description rdf:about="DJI Meta Data"
+    xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/"
+   drone-dji:AbsoluteAltitude="+{alt}"
+   drone-dji:GpsLatitude="{lat}"
+   drone-dji:GpsLongtitude="{lon}"
+   drone-dji:GimbalRollDegree="{roll}"
+   drone-dji:GimbalYawDegree="{yaw}"
+   drone-dji:GimbalPitchDegree="{pitch}"
+   drone-dji:RtkFlag="{flag}"
+   drone-dji:RtkStdLon="0.02"
+   drone-dji:RtkStdLat="0.01"
+   drone-dji:RtkStdHgt="0.03">
+  </rdf:Description>
+ </rdf:RDF>
+</x:xmpmeta>"""
+
+
+def _jpeg_with_xmp(path, xmp):
+    """A JPEG whose APP1 segment holds the XMP packet (the layout DJI writes)."""
+    ok, jpg = cv2.imencode(".jpg", np.full((48, 64), 128, np.uint8))
+    payload = b"http://ns.adobe.com/xap/1.0/\x00" + xmp.encode()
+    app1 = b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload
+    data = jpg.tobytes()
+    Path(path).write_bytes(data[:2] + app1 + data[2:])
+    return str(path)
+
+
+def _shot(tmp_path, name="DJI_0001.JPG", roll=0.0, pitch=-90.0, yaw=0.0, flag=50,
+          lat=30.0, lon=114.0, alt=120.0):
+    return read_drone_shot(_jpeg_with_xmp(tmp_path / name, XMP.format(
+        roll=roll, pitch=pitch, yaw=yaw, flag=flag, lat=lat, lon=lon, alt=alt)))
+
+
+def _C(tmp_path, **kw):
+    s = _shot(tmp_path, **kw)
+    frame = EnuFrame(np.deg2rad(s.lat_deg), np.deg2rad(s.lon_deg), 0.0)
+    eo = eo_from_drone([s], frame, "phi-omega-kappa", np.deg2rad([0.5, 0.5, 2.0]), 3.0)
+    return eo, angles_to_matrix(eo.angles, eo.system)[0]
+
+
+def test_xmp_fields(tmp_path):
+    s = _shot(tmp_path, roll=1.5, pitch=-60, yaw=92.9, lat=24.5, lon=-120.25, alt=186.57)
+    assert s.image_id == "DJI_0001" and s.source == "xmp"
+    assert (s.lat_deg, s.lon_deg, s.alt_m) == (24.5, -120.25, 186.57)
+    np.testing.assert_array_equal(s.gimbal_rpy_deg, [1.5, -60, 92.9])
+    np.testing.assert_array_equal(s.rtk_std_m, [0.01, 0.02, 0.03])
+    assert _shot(tmp_path, flag=0).rtk_std_m is None          # no RTK fix: no RTK sigma
+
+
+def test_nadir_yaw_zero_is_identity(tmp_path):
+    """Pitch -90, yaw 0: image right = east, image top = north, view down: R = I."""
+    eo, R = _C(tmp_path)
+    np.testing.assert_allclose(R, np.eye(3), atol=1e-12)
+
+
+def test_nadir_yaw_90_image_top_east(tmp_path):
+    """Yaw 90: the top of the image points east, its right side south."""
+    _, R = _C(tmp_path, yaw=90.0)
+    np.testing.assert_allclose(R[:, 1], [1, 0, 0], atol=1e-12)     # y_c (image up) = east
+    np.testing.assert_allclose(R[:, 0], [0, -1, 0], atol=1e-12)    # x_c (right) = south
+    np.testing.assert_allclose(R[:, 2], [0, 0, 1], atol=1e-12)     # z_c backwards = up
+
+
+def test_oblique_pitch_minus_60_looks_north_and_down(tmp_path):
+    """Pitch -60, yaw 0: the view 60 deg below the horizon towards north; roll 10 deg
+    turns the image clockwise about the view (right side down)."""
+    _, R = _C(tmp_path, pitch=-60.0)
+    c, s = np.cos(np.deg2rad(60)), np.sin(np.deg2rad(60))
+    np.testing.assert_allclose(-R[:, 2], [0, c, -s], atol=1e-12)    # viewing direction
+    np.testing.assert_allclose(R[:, 0], [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(R[:, 1], [0, s, c], atol=1e-12)
+    _, R = _C(tmp_path, pitch=0.0, roll=10.0)                       # at the horizon
+    r = np.deg2rad(10)
+    np.testing.assert_allclose(-R[:, 2], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(R[:, 0], [np.cos(r), 0, -np.sin(r)], atol=1e-12)
+
+
+def test_sigmas(tmp_path):
+    """Nadir, yaw 0: RTK sigmas N, E, D -> Y, X, Z; at pitch -90 the roll axis is the
+    vertical too (gimbal lock of yaw-pitch-roll), so kappa takes yaw and roll sigmas."""
+    eo, _ = _C(tmp_path)
+    np.testing.assert_allclose(eo.position_sigma[0], [0.02, 0.01, 0.03], atol=1e-12)
+    np.testing.assert_allclose(np.rad2deg(eo.angle_sigma[0, 2]), np.hypot(2.0, 0.5), rtol=1e-6)
+
+
+def test_exif_gps_fallback(tmp_path):
+    """No position in the XMP: the EXIF GPS IFD (written by pillow) gives it."""
+    from PIL import Image
+    xmp = XMP.replace('drone-dji:GpsLatitude="{lat}"', "").replace(
+        'drone-dji:GpsLongtitude="{lon}"', "")
+    p = tmp_path / "e.jpg"
+    exif = Image.Exif()
+    exif.get_ifd(0x8825).update({1: "S", 2: (33.0, 52.0, 7.2), 3: "E", 4: (151.0, 12.0, 36.0),
+                                 5: 0, 6: 58.5})
+    Image.fromarray(np.full((32, 32), 100, np.uint8)).save(p, exif=exif,
+                                                           xmp=xmp.format(
+                                                               roll=0, pitch=-90, yaw=0,
+                                                               flag=0, alt=1).encode())
+    s = read_drone_shot(p)
+    assert s.source == "exif"
+    assert s.alt_m == pytest.approx(58.5)
+    assert s.lat_deg == pytest.approx(-(33 + 52 / 60 + 7.2 / 3600))
+    assert s.lon_deg == pytest.approx(151 + 12 / 60 + 36 / 3600)
+
+
+def test_no_xmp_is_refused(tmp_path, capsys):
+    p = tmp_path / "plain.jpg"
+    cv2.imwrite(str(p), np.zeros((10, 10), np.uint8))
+    with pytest.raises(InputError, match="gimbal"):
+        read_drone_shot(p)
+    assert main(["eo", "--from-exif", str(p), "-o", str(tmp_path / "eo.csv")]) == 2
+    assert "plain.jpg" in capsys.readouterr().err
+    assert main(["eo", "--from-exif", str(tmp_path / "none.jpg"), "-o",
+                 str(tmp_path / "eo.csv")]) == 2
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="../shared/real is absent")
+def test_real_dji_images_against_bundle(tmp_path):
+    """The DJI block: positions as orthority reads them (UTM 51N, cm), angles within
+    1.5 deg of the bundle adjustment (the drone's gimbal is that good; a wrong axis
+    convention would be tens of degrees off)."""
+    out = tmp_path / "eo.csv"
+    images = sorted(str(p) for p in (REAL / "images").glob("*.tif"))
+    assert main(["eo", "--from-exif", *images, "--frame", "EPSG:32651", "--system",
+                 "omega-phi-kappa", "-o", str(out), "-q"]) == 0
+    eo = read_eo_csv(out)
+    rows = [ln.replace("'", "").split() for ln in (REAL / "odm_xyz_opk.csv").read_text()
+            .splitlines()[1:] if ln.strip()]
+    ref = {r[0]: np.array([float(v) for v in r[1:7]]) for r in rows}
+    for k, iid in enumerate(eo.image_id):
+        np.testing.assert_allclose(eo.position[k], ref[iid][:3], atol=0.05)
+        R = angles_to_matrix(eo.angles[k], "omega-phi-kappa")
+        Rb = angles_to_matrix(np.deg2rad(ref[iid][3:]), "omega-phi-kappa")
+        from scipy.spatial.transform import Rotation
+        assert np.rad2deg(Rotation.from_matrix(R.T @ Rb).magnitude()) < 1.5
+    assert np.all(eo.position_sigma < 0.03)
+    frame = parse_frame("EPSG:32651")
+    assert frame.header() == eo.frame
