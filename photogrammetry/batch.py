@@ -11,13 +11,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ins.errors import InputError
+from ins.errors import InputError, QualityError
 from ins.rotation import wrap_to_pi
 
 from .assessment import assess
 from .block import adjust_block
 
-__all__ = ["RefineResult", "refine", "refine_many"]
+__all__ = ["RefineResult", "refine", "refine_many", "check_quality"]
 
 
 @dataclass
@@ -50,7 +50,7 @@ class RefineResult:
 
 def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
            sigma_mm=None, prior_sigma_rad=None, position_sigma_m=None, snooping=True,
-           progress=None):
+           progress=None, accept_poor=False):
     """Refine the angles of one block.
 
     Parameters
@@ -71,10 +71,19 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
     position_sigma_m : float, optional
         Sigma of the EO positions, m, per coordinate (known-base: propagated into the
         angles' covariance; default: the EO file's position sigmas, else exact bases).
+    accept_poor : bool
+        Return a result whose pairs or images are flagged as implausible
+        (``result.block.quality``, :mod:`photogrammetry.quality`) instead of raising.
 
     Returns
     -------
     RefineResult
+
+    Raises
+    ------
+    ins.errors.QualityError
+        A pair's or the block's sigma0, or an image's angle change, is implausible
+        (without `accept_poor`); the message names them.
     """
     if camera is None:
         raise InputError("the camera (principal distance) is required: --camera CAM.toml")
@@ -100,7 +109,9 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
     block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
                          datum, positions=eo.position, prior_sigma=prior_sigma_rad,
                          sigma_mm=sigma_mm, position_sigma=position_sigma_m, point_ids=point_ids,
-                         snooping=snooping, progress=progress)
+                         snooping=snooping, progress=progress,
+                         image_ids=[str(i) for i in eo.image_id])
+    check_quality(block.quality, accept_poor)
     # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
     # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
     result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
@@ -115,6 +126,17 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                 "n_observations": len(tiepoints)}
     return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method),
                         pairs, points, settings)
+
+
+def check_quality(quality, accept_poor=False, where=""):
+    """Raise QualityError for a poor result unless `accept_poor` (the first findings)."""
+    if quality is None or not quality.poor or accept_poor:
+        return
+    more = len(quality.reasons) - 3
+    raise QualityError(f"{where}refinement not to be trusted: "
+                       + "; ".join(quality.reasons[:3])
+                       + (f" (and {more} more)" if more > 0 else "")
+                       + " (rule: photogrammetry refine --help, 'trust')")
 
 
 def _run(kwargs):

@@ -42,6 +42,7 @@ from ins.errors import InputError, InputWarning, QualityWarning
 
 from . import _coplanarity_kernels as K
 from .coplanarity import STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
+from .quality import block_quality
 from .rotation import check_system
 
 __all__ = ["BlockResult", "adjust_block", "pad_pairs", "DATUMS"]
@@ -55,6 +56,11 @@ DATUMS = ("first", "ins", "none")
 #: 1e-4 keeps most of it.  With a base-direction nuisance per pair it ties the nuisances
 #: of the triple together at full strength: nonlinear, Gauss-Newton diverges below ~1e-4.
 RANK_TOL = {"known": 1e-4, "relative": 1e-2, "free": 1e-2}
+#: Critical value of the block's data snooping on ``|g| / sigma_g`` (alpha = 6e-5 per
+#: condition): the second line after each pair's own (robust start and w-test at
+#: :data:`photogrammetry.coplanarity.W_CRITICAL`), for the outliers a pair cannot see
+#: alone (too few points of its own); the block tests hundreds of conditions per round.
+BLOCK_W_CRITICAL = 4.0
 
 
 @dataclass
@@ -84,6 +90,9 @@ class BlockResult:
         Tie points rejected by data snooping (pair-wise, before the block adjustment).
     residuals : ndarray (P, n)
         Normalized misclosures ``g / sqrt(var)`` at the solution (0 where not used).
+    quality : photogrammetry.quality.Quality
+        Trust flags: pairs and images whose sigma0 or angle change is implausible
+        (the rule in :mod:`photogrammetry.quality`).
     """
     angles: np.ndarray
     cov: np.ndarray
@@ -97,6 +106,7 @@ class BlockResult:
     rejected: np.ndarray
     residuals: np.ndarray
     mask: np.ndarray = field(repr=False, default=None)
+    quality: object = None
 
     def correlation(self):
         """Correlation matrix of all angles (3m, 3m); 0 rows for fixed images."""
@@ -424,10 +434,88 @@ def _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigm
     return cov
 
 
+@dataclass
+class _State:
+    """Where a Gauss-Newton run ended."""
+    angles: np.ndarray
+    b: np.ndarray
+    lin: _Linearized
+    S: np.ndarray
+    converged: bool
+    iterations: int
+
+
+@dataclass
+class _GaussNewton:
+    """The block's Gauss-Newton iteration with its fixed settings."""
+    prior: np.ndarray
+    free: np.ndarray
+    col: np.ndarray
+    n_ang: int
+    n_base: int
+    bslot: np.ndarray
+    prior_w: np.ndarray
+    system: str
+    mode: str
+    sigma_mm: float
+    point_ids: object
+    good: np.ndarray
+    max_iter: int
+    tol: float
+    progress: object
+    iterations: int = 0
+
+    def run(self, angles, b, cond, joint):
+        """Iterate from `angles` and bases `b` (copied) to convergence."""
+        angles, b = angles.copy(), b.copy()
+        converged, S, free, n_ang = False, None, self.free, self.n_ang
+        for it in range(self.max_iter + 1):
+            lin = _linearize(angles, self.prior, free, b, cond, joint, self.col, n_ang,
+                             self.n_base, self.bslot, self.prior_w, self.system, self.mode,
+                             self.sigma_mm, self.point_ids)
+            if n_ang == 0:
+                converged = True
+                break
+            step, S, back = _solve_step(lin, n_ang)
+            if it == self.max_iter:
+                break
+            angles[free] += step.reshape(-1, 3)
+            big = np.max(np.abs(step))
+            if back is not None:                # back-substitute the base directions
+                good = self.good
+                d_b = -(back[1] + back[0] @ step)
+                b[good] = b[good] + np.einsum("pab,pb->pa", lin.E[good], d_b.reshape(-1, 2))
+                b /= np.linalg.norm(b, axis=1, keepdims=True)
+                big = max(big, np.max(np.abs(d_b)))
+            self.iterations += 1
+            if self.progress is not None:
+                self.progress(self.iterations, self.max_iter)
+            if big < self.tol and joint:
+                converged = True
+                break
+            joint = joint or big < 1e-6
+        return _State(angles, b, lin, S, converged, self.iterations)
+
+
+def _block_outliers(lin, cond, mask, mode):
+    """Conditions to drop after a converged run: per pair the largest normalized
+    misclosure ``|g| / sigma_g`` above :data:`BLOCK_W_CRITICAL`, while the pair keeps
+    enough points for its unknowns."""
+    w = np.abs(lin.g) / np.sqrt(np.where(lin.var > 0, lin.var, np.inf))
+    over = np.flatnonzero(w > BLOCK_W_CRITICAL)
+    if len(over) == 0:
+        return over
+    over = over[np.argsort(-w[over], kind="stable")]
+    _, first = np.unique(cond.p[over], return_index=True)
+    drop = over[first]
+    need = 3 if mode == "known" else 5
+    return drop[mask[cond.p[drop]].sum(axis=1) > need]
+
+
 def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-free",
                  datum="first", positions=None, prior_sigma=None, sigma_mm=0.005,
                  position_sigma=None, point_ids=None, snooping=True, max_iter=30, tol=1e-11,
-                 progress=None):
+                 progress=None, image_ids=None):
     """Adjust the angles of all images of a block together.
 
     Parameters
@@ -460,10 +548,20 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         (optimistic covariance when points are seen in 3+ images).
     progress : callable(done, total), optional
         Called after each iteration.
+    image_ids : sequence of str, optional
+        Names of the images in the quality messages (default: indices).
 
     Returns
     -------
     BlockResult
+        With ``quality`` (:func:`photogrammetry.quality.block_quality`): flagged, never
+        raised here (the caller decides; ``photogrammetry refine`` exits 3).
+
+    Outliers: every pair's screening starts robustly (minimal samples + MSAC, see
+    :func:`photogrammetry.coplanarity.adjust_pairs`), then snoops; after the block has
+    converged, data snooping on the block's normalized misclosures drops, per pair and
+    round, the largest above :data:`BLOCK_W_CRITICAL`, and the block
+    is iterated again (``rejected`` holds both).
 
     Raises
     ------
@@ -518,32 +616,22 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     # Gauss-Newton.  The base directions (relative, base-free) start from each pair's
     # own screening, in frames of different INS errors: converge first with the
     # conditions weighted one by one, then jointly (the joint weights depend on the bases
-    # through the near-repeated combinations)
-    joint = mode == "known" or point_ids is None
-    converged, iterations, S = False, 0, None
-    for it in range(max_iter + 1):
-        lin = _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot,
-                         prior_w, system, mode, sigma_mm, point_ids)
-        if n_ang == 0:
-            converged = True
+    # through the near-repeated combinations).  Then data snooping on the converged
+    # block (one condition per pair and round), Gauss-Newton again from there.
+    gn = _GaussNewton(prior, free, col, n_ang, n_base, bslot, prior_w, system, mode,
+                      sigma_mm, point_ids, good, max_iter, tol, progress)
+    state = gn.run(angles, b, cond, joint=mode == "known" or point_ids is None)
+    snooped = np.zeros(mask.shape, bool)
+    for _ in range(max_iter if snooping and n_ang else 0):
+        drop = _block_outliers(state.lin, cond, mask, mode)
+        if len(drop) == 0:
             break
-        step, S, back = _solve_step(lin, n_ang)
-        if it == max_iter:
-            break
-        angles[free] += step.reshape(-1, 3)
-        big = np.max(np.abs(step))
-        if back is not None:                    # back-substitute the base directions
-            d_b = -(back[1] + back[0] @ step)
-            b[good] = b[good] + np.einsum("pab,pb->pa", lin.E[good], d_b.reshape(-1, 2))
-            b /= np.linalg.norm(b, axis=1, keepdims=True)
-            big = max(big, np.max(np.abs(d_b)))
-        iterations = it + 1
-        if progress is not None:
-            progress(iterations, max_iter)
-        if big < tol and joint:
-            converged = True
-            break
-        joint = joint or big < 1e-6
+        mask[cond.p[drop], cond.s[drop]] = False
+        snooped[cond.p[drop], cond.s[drop]] = True
+        cond = _conditions(pairs, mask, point_ids, m, xy_i, xy_j, f_mm)
+        state = gn.run(state.angles, state.b, cond, joint=True)
+    angles, lin, S, converged, iterations = (state.angles, state.lin, state.S,
+                                             state.converged, state.iterations)
 
     n_prior = n_ang if datum == "ins" else 0
     redundancy = lin.rank + n_prior - n_ang - n_base
@@ -559,5 +647,11 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     res = np.zeros(mask.shape)
     res[cond.p, cond.s] = lin.g / np.sqrt(np.where(lin.var > 0, lin.var, np.inf))
+    ok = status == K.STATUS_OK
+    change = np.where(ok[:, None], screen["angles"] - prior[pairs[:, 1]], np.nan)
+    quality = block_quality(pairs, np.where(ok, screen["sigma0"], np.nan),
+                            screen["redundancy"], change, screen["sigma"], sigma0,
+                            int(redundancy), angles,
+                            prior, prior_sigma, sigma, adjusted, image_ids)
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
-                       adjusted, status, screen["rejected"], res, mask)
+                       adjusted, status, screen["rejected"] | snooped, res, mask, quality)

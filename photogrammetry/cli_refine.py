@@ -1,12 +1,13 @@
 """``photogrammetry refine``: coplanarity adjustment of the INS exposure angles."""
 import argparse
 import os
+import warnings
 
 import numpy as np
 
 from ins import interrupts
 from ins.cliutil import Progress, check_output_file
-from ins.errors import InputError
+from ins.errors import InputError, QualityWarning
 
 EPILOG = """\
 frames and units:
@@ -39,6 +40,23 @@ output:
   given, 0 if none).  REPORT.md with REPORT_residuals.png and REPORT_corrections.png:
   sigma0, redundancy, per-image sigmas and correlations, INS-minus-adjusted mean, RMS,
   INS noise, boresight (rx, ry, rz as in the camera file).
+
+outliers:
+  every pair starts robustly (minimal samples of 5 points, 3 with known-base, solved
+  exactly from the prior and scored by MSAC at |misclosure| < 5 sigma), is iterated on
+  the inliers, then data snooping (Baarda, w > 3.29) runs on the converged pair; after
+  the block has converged, snooping on the block's misclosures (per pair the largest
+  above 3.29) and the block again.  The result and the rejected points do not depend on
+  the prior within a few tenths of a degree.
+
+trust (exit 3 unless --accept-poor):
+  a pair (its pair-wise screening) or the block is flagged when sigma0 (1 = the stated
+  photo sigma) exceeds max(2, sqrt(chi2_0.999(r) / r)) at its redundancy r; an image
+  when a refined angle differs from its prior by more than
+  5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj: the
+  adjusted sigma; for a pair's screening its own sigma).  Any flag: exit 3 and nothing
+  written; with --accept-poor the outputs are written, the flags stated in the CSV
+  comments and the report.
 
   A flight folder (ins simulate) may replace EO.csv TIEPOINTS.csv: its tiepoints.csv and
   camera.toml are used, the EO from --eo or FOLDER/eo.csv.  Several folders run as Dask
@@ -76,6 +94,10 @@ def add_parser(sub):
                         "errors are propagated into the angle covariance and the INS "
                         "assessment; default: the EO sigmas, else exact bases)")
     p.add_argument("--no-snooping", action="store_true", help="no outlier rejection")
+    p.add_argument("--accept-poor", action="store_true",
+                   help="write the outputs even when a pair's or the block's sigma0 or an "
+                        "image's angle change is implausible (flagged in the CSV comments "
+                        "and the report; default: exit 3, nothing written)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, metavar="N", help="local Dask workers (several folders)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler address")
@@ -104,7 +126,7 @@ def _task(args, eo_path, tp_path, cam_path):
     return {"eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
             "method": args.method, "datum": args.datum, "sigma_mm": sigma_mm,
             "prior_sigma_rad": prior, "position_sigma_m": args.position_sigma_m,
-            "snooping": not args.no_snooping}
+            "snooping": not args.no_snooping, "accept_poor": True}
 
 
 def _jobs(args):
@@ -135,7 +157,7 @@ def _jobs(args):
 
 
 def run(args):
-    from .batch import refine, refine_many
+    from .batch import check_quality, refine, refine_many
     from .exposure import write_eo_csv
     from .report import write_report
     jobs = _jobs(args)
@@ -149,14 +171,23 @@ def run(args):
         results = refine_many([j[0] for j in jobs], workers=args.workers,
                               scheduler=args.scheduler,
                               progress=Progress("refine", not args.quiet))
+    if not args.accept_poor:
+        for (_, out, _), res in zip(jobs, results):
+            check_quality(res.block.quality, where=f"{out}: " if len(jobs) > 1 else "")
     # the outputs of every block (CSV, report, its plots) are written as one set: a
     # Ctrl-C meanwhile takes effect once the set is complete (ins.interrupts)
     with interrupts.deferred():
         for (task, out, rep), res in zip(jobs, results):
             blk = res.block
+            q = blk.quality
+            flags = (() if q is None or not q.poor else
+                     ("QUALITY POOR (written with --accept-poor): " + r for r in q.reasons))
             write_eo_csv(out, res.eo, comments=(
                 f"refined by photogrammetry refine: method = {res.settings['method']}; "
-                f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",))
+                f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",) + tuple(flags))
+            if q is not None and q.poor:
+                warnings.warn(f"{out}: refinement flagged as poor (written with "
+                              f"--accept-poor): {q.reasons[0]}", QualityWarning)
             if rep:
                 write_report(rep, res)
             if not args.quiet:

@@ -40,6 +40,7 @@ from ins.errors import InputError, QualityWarning
 from ins.rotation import skew
 
 from . import _coplanarity_kernels as K
+from . import _msac_kernels as MK
 from .rotation import angles_to_matrix, check_system
 
 __all__ = ["METHODS", "PairResult", "adjust_pair", "adjust_pairs", "paper_adjust",
@@ -54,6 +55,14 @@ STATUS_TEXT = {K.STATUS_OK: "ok", K.STATUS_NOT_CONVERGED: "not converged",
                K.STATUS_TOO_FEW: "too few tie points", STATUS_ZERO_BASE: "zero base"}
 #: Critical value of Baarda's w-test (alpha = 0.001, two-sided).
 W_CRITICAL = 3.29
+#: MSAC threshold of the robust start: |misclosure| / its sigma (a point beyond it is an
+#: outlier of a hypothesis; generous, since a minimal-sample hypothesis is noisier than
+#: the adjusted solution and data snooping follows on the converged one).
+MSAC_THRESHOLD = 5.0
+#: A minimal-sample hypothesis farther than this from the prior (rad, any angle) is
+#: discarded (2 deg: an order beyond the prior sigma of an INS).
+MAX_CHANGE = np.deg2rad(2.0)
+_MIN_MODE = {"known": 3, "relative": 5, "free": 5}
 
 
 @dataclass
@@ -119,7 +128,8 @@ def _normalized_residuals(out):
 
 def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-free",
                  base=None, mask=None, sigma_mm=0.005, snooping=True,
-                 w_critical=W_CRITICAL, max_reject=0.3, max_iter=30):
+                 w_critical=W_CRITICAL, max_reject=0.3, max_iter=30, robust=True,
+                 msac_threshold=MSAC_THRESHOLD, seed=0, max_change=MAX_CHANGE):
     """Adjust image 2's angles of many pairs at once (vectorized).
 
     Parameters
@@ -142,6 +152,16 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     snooping : bool
         Reject outliers by data snooping (one per pair and round, largest w first, while
         w > `w_critical`, at most `max_reject` of a pair's points).
+    robust : bool
+        Robust start (default): minimal samples solved exactly from the prior and scored
+        by MSAC (:mod:`photogrammetry._msac_kernels`; normalized misclosure threshold
+        `msac_threshold`, random samples seeded by `seed`), Gauss-Newton from the winner
+        on its inliers, every point re-classified at that solution (``|g| / sigma_g <
+        msac_threshold``), Gauss-Newton again, THEN data snooping.  The result and the
+        rejected set then do not depend on the prior within its basin (a few tenths of a
+        degree).  ``False``: Gauss-Newton from the prior on all points, then snooping.
+    max_change : float
+        Rad; a minimal-sample hypothesis farther than this from the prior is discarded.
 
     Returns
     -------
@@ -151,7 +171,9 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     ``failed`` (P,) bool (status above "not converged": the prior angles are returned,
     with NaN ``cov``, ``sigma`` and ``sigma0``, never a zero covariance),
     ``sigma0_estimated`` (P,) bool (False at zero redundancy: ``sigma0`` NaN and ``cov``
-    the a-priori ``Q``), ``rejected`` (P, n) bool, ``mask`` (P, n) final, ``vtpv`` (P,).
+    the a-priori ``Q``), ``rejected`` (P, n) bool, ``mask`` (P, n) final, ``vtpv`` (P,),
+    ``robust_rejected`` (P, n) bool (rejected by the robust start, a subset of
+    ``rejected``), ``hypotheses`` (P,) drawn by MSAC (0 without the robust start).
 
     Raises
     ------
@@ -166,9 +188,11 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         raise InputError(f"method {method!r}: expected one of {', '.join(METHODS)}")
     u1, u2 = _stack_rays(xy1_mm, f_mm, "xy1_mm"), _stack_rays(xy2_mm, f_mm, "xy2_mm")
     P, n = u1.shape[:2]
+    mask_in = mask
     mask = np.ones((P, n), bool) if mask is None else np.array(mask, dtype=bool, copy=True)
     angles1 = np.asarray(angles1, dtype=float).reshape(P, 3)
     angles2 = np.asarray(angles2, dtype=float).reshape(P, 3)
+    prior_in = angles2
     R1 = angles_to_matrix(angles1, system)
     if method == "paper":
         return paper_adjust(u1, u2, mask, R1, angles2, system, sigma_mm, max_iter)
@@ -182,6 +206,14 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     base = np.asarray(base, dtype=float).reshape(P, 3)
     zero = np.linalg.norm(base, axis=1) < 1e-9 if mode != "free" else np.zeros(P, bool)
     rejected = np.zeros((P, n), bool)
+    hypotheses = np.zeros(P, dtype=int)
+    if robust:
+        angles2, base, mask, hypotheses = _robust_start(
+            u1, u2, mask, R1, angles2, np.where(zero[:, None], 1.0, base), mode, system,
+            sigma_mm, msac_threshold, seed, max_change, max_iter)
+        rejected = ~mask & _stack_mask(xy1_mm, mask_in)
+    robust_rejected = rejected.copy()
+    n_snooped = np.zeros(P, dtype=int)
     todo = np.arange(P)
     out = None
     while True:
@@ -194,16 +226,74 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         wt = _normalized_residuals(part)
         worst = np.argmax(wt, axis=1)
         n_used = mask[todo].sum(axis=1)
-        cap = np.floor(max_reject * (n_used + rejected[todo].sum(axis=1)))
+        cap = np.floor(max_reject * (n_used + n_snooped[todo]))
         flag = ((wt[np.arange(len(todo)), worst] > w_critical) & (part["status"] <= 1)
-                & (n_used - 1 > _MIN_POINTS[method]) & (rejected[todo].sum(axis=1) < cap))
+                & (n_used - 1 > _MIN_POINTS[method]) & (n_snooped[todo] < cap))
         if not flag.any():
             break
         todo, worst = todo[flag], worst[flag]
         mask[todo, worst] = False
         rejected[todo, worst] = True
+        n_snooped[todo] += 1
     status = np.where(zero, STATUS_ZERO_BASE, out["status"])
-    return _finish(out, status, angles2, mask, rejected)
+    res = _finish(out, status, prior_in, mask, rejected)
+    res["robust_rejected"] = robust_rejected
+    res["hypotheses"] = hypotheses
+    return res
+
+
+def _stack_mask(xy, mask_in):
+    """The caller's mask (all points when None) as a (P, n) bool array."""
+    shape = np.shape(xy)[:2]
+    return np.ones(shape, bool) if mask_in is None else np.asarray(mask_in, bool)
+
+
+def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, threshold, seed,
+                  max_change, max_iter):
+    """MSAC on minimal samples, Gauss-Newton on the inliers, re-classification of all
+    points at that solution, Gauss-Newton again (no snooping).
+
+    Returns the start angles (P, 3) and bases (P, 3), the points kept (P, n) and the
+    number of hypotheses per pair; pairs where a step fails keep the previous one's."""
+    P, n = mask.shape
+    f64 = np.ascontiguousarray
+    order, sign, s2 = K._ORDER[system], K._SIGN[system], float(sigma_mm) ** 2
+    ang, b = np.empty((P, 3)), np.empty((P, 3))
+    inl, st, hyp = np.empty((P, n), bool), np.empty(P, np.int64), np.empty(P, np.int64)
+    t2 = float(threshold) ** 2
+    MK.msac_pairs(f64(u1, dtype=float), f64(u2, dtype=float), f64(mask, dtype=np.bool_),
+                  f64(R1, dtype=float), f64(prior2, dtype=float), f64(base, dtype=float),
+                  mode == "known", order, sign, s2, t2, 0.999, 10, 500, float(max_change),
+                  int(seed), ang, b, inl, st, hyp)
+    ok = st == MK.MSAC_OK
+    keep = np.where(ok[:, None], inl, mask)
+    if mode == "known":
+        b = base
+    todo = ok.copy()
+    for _ in range(5):      # GN on the kept points; re-classify all points there; repeat
+        idx = np.flatnonzero(todo)          # until the set is stable
+        if len(idx) == 0:
+            break
+        part = K.solve_pairs(u1[idx], u2[idx], keep[idx], R1[idx], ang[idx], b[idx], mode,
+                             system, sigma_mm, max_iter)
+        good = part["status"] == K.STATUS_OK
+        idx = idx[good]
+        ang[idx] = part["angles"][good]
+        if mode != "known":
+            b[idx] = part["base"][good]
+        w = np.empty((len(idx), n))
+        MK.studentized_misclosures(f64(u1[idx], dtype=float), f64(u2[idx], dtype=float),
+                                   f64(mask[idx], dtype=np.bool_),
+                                   f64(keep[idx], dtype=np.bool_), f64(R1[idx], dtype=float),
+                                   f64(ang[idx]), f64(b[idx]), f64(part["Q"][good]), order,
+                                   sign, s2, w)
+        again = mask[idx] & (np.abs(w) < threshold)         # inf (no redundancy): out
+        enough = again.sum(axis=1) >= _MIN_MODE[mode] + 1
+        changed = enough & np.any(again != keep[idx], axis=1)
+        keep[idx[enough]] = again[enough]
+        todo[:] = False
+        todo[idx[changed]] = True
+    return ang, b, keep, hyp
 
 
 def _merge(out, part, idx):

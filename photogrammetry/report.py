@@ -76,6 +76,19 @@ def _deg3(v):
     return " | ".join(f"{x:.6f}" for x in d)
 
 
+def _trust_lines(q):
+    """The trust section: the flags of :mod:`photogrammetry.quality`, or none."""
+    if q is None:
+        return []
+    rule = ("Rule: sigma0 above max(2, sqrt(chi2_0.999(r)/r)) at redundancy r (pair "
+            "screening or block), or an angle change from the prior above "
+            "5 sqrt(2 s_prior^2 + s_adj^2).")
+    if not q.poor:
+        return [f"Trust: no flag (block sigma0 limit {q.sigma0_limit:.2f}). {rule}", ""]
+    return (["## Trust: POOR (written with --accept-poor)", "", rule, ""]
+            + [f"- {r}" for r in q.reasons] + [""])
+
+
 def report_text(result, plots=()):
     """The report as Markdown text (plots: file names to link)."""
     s, blk, a = result.settings, result.block, result.assessment
@@ -91,6 +104,7 @@ def report_text(result, plots=()):
              f"**sigma0 = {blk.sigma0:.3f}** (= {blk.sigma0 * s['sigma_mm'] / px:.3g} px), "
              f"redundancy {blk.redundancy}, {blk.iterations} iterations, "
              f"{'converged' if blk.converged else 'NOT converged'}", ""]
+    lines += _trust_lines(blk.quality)
     bad = [(k, st) for k, st in enumerate(blk.pair_status) if st != 0]
     if bad:
         lines += ["Pairs left out:", ""]

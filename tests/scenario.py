@@ -135,8 +135,13 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
                width_px=8000, height_px=6000, height_m=1000.0, relief_m=50.0,
                forward_overlap=0.6, side_overlap=0.3, points_per_image=60, noise_px=0.5,
                max_angle_deg=3.0, ins_sigma_rad=0.005, boresight_rad=(0.002, -0.003, 0.004),
-               system=SYSTEM, min_common=8):
+               system=SYSTEM, min_common=8, outlier_fraction=0.0, outlier_px=(10.0, 100.0)):
     """A block of strips flown back and forth along x, with tie points, INS priors, truth.
+
+    With ``outlier_fraction`` > 0 that fraction of the observations (image, point) is
+    displaced by a random shift of ``outlier_px`` (min, max) pixels in a random direction
+    (gross mismatches); ``outliers`` (m, n_points) bool marks them (``obs`` and
+    ``pair_points`` carry them).
 
     The INS angles are the true attitude times the boresight misalignment (camera frame,
     ``R_ins = R_true @ boresight_matrix(-boresight)`` so that ``R_true = R_ins @ Rx Ry Rz``
@@ -178,6 +183,11 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
     seen = np.all(np.abs(xy) < half, axis=2)
     sigma_mm = noise_px * pixel_mm
     xy_obs = xy + rng.normal(0, sigma_mm, xy.shape)
+    orng = np.random.default_rng(seed + 7919)           # the outliers leave the rest as is
+    outliers = seen & (orng.random(seen.shape) < outlier_fraction)
+    size = orng.uniform(*outlier_px, seen.shape) * pixel_mm
+    turn = orng.uniform(0, 2 * np.pi, seen.shape)
+    xy_obs += (outliers * size)[..., None] * np.stack([np.cos(turn), np.sin(turn)], axis=2)
     pairs, pair_points, point_ids = [], [], []
     for i in range(m):
         for j in range(i + 1, m):
@@ -194,7 +204,7 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
             "pair_points": pair_points, "point_ids": point_ids,
             "ins_noise": noise, "boresight": bs, "f_mm": f_mm,
             "sigma_mm": sigma_mm, "pixel_mm": pixel_mm, "system": system, "obs": obs,
-            "X": X}
+            "X": X, "outliers": outliers}
 
 
 def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None,
