@@ -1,5 +1,5 @@
 """Numba kernels of the Moon-centre extraction: block maxima of a frame; the limb model's
-phased disk with its derivatives, blur and binning.
+phased disks (three basis laws) with their derivatives, blur and binning.
 
 Private to `moon_centre` and `_limb_model`.  All kernels release the GIL (``nogil``) so
 that images can be processed in a thread pool.
@@ -10,11 +10,20 @@ from numba import njit
 EPS = 1e-9
 
 
+#: Basis laws of the limb model, in the order of the rows of ``disk_jac``'s output:
+#: flat (1 on the lit part), Lambert (``mu0``), Lommel-Seeliger (``mu0 / (mu0 + mu)``).
+LAWS = ("flat", "lambert", "lommel-seeliger")
+
+
 @njit(cache=True, nogil=True)
 def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f, scale, n,
              D, dD):
-    """Anti-aliased Lommel-Seeliger disk ``D`` (N,) at sub-pixels and ``dD`` (3, N), its
-    derivatives with respect to ``(c1, c2, R)`` (analytic chain rule).
+    """Anti-aliased phased disks of the three basis laws (`LAWS`) at sub-pixels, ``D``
+    (3, N), and ``dD`` (3, 3, N), their derivatives with respect to ``(c1, c2, R)``
+    (analytic chain rule).
+
+    The limb is anti-aliased by a linear coverage ramp one sub-pixel wide; the flat law's
+    terminator (a step in ``mu0``) by a ramp one sub-pixel wide across it.
 
     Flat images: ``P[:, :2]`` are the sub-pixels' ``(u, v)``; ``X = (u - c1) / R``.
     Camera: ``P`` are their unit directions, ``X = P.e1 / sin r``, ``Y = P.e2 / sin r``
@@ -22,6 +31,7 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
     the Sun vector with respect to ``c1, c2``.
     """
     s0, s1, s2 = sun3[0], sun3[1], sun3[2]
+    sa = np.sqrt(s0 * s0 + s1 * s1)
     dX = np.empty(3)
     dY = np.empty(3)
     for i in range(P.shape[0]):
@@ -42,9 +52,10 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
         rho = np.sqrt(X * X + Y * Y)
         cover = 0.5 + (1.0 - rho) * R * scale * n
         if cover <= 0.0:
-            D[i] = 0.0
-            for k in range(3):
-                dD[k, i] = 0.0
+            for j in range(3):
+                D[j, i] = 0.0
+                for k in range(3):
+                    dD[j, k, i] = 0.0
             continue
         full = cover >= 1.0
         if full:
@@ -54,8 +65,25 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
         Xc, Yc = X * sc, Y * sc
         mu = np.sqrt(max(1.0 - Xc * Xc - Yc * Yc, 0.0))
         mu0 = Xc * s0 + Yc * s1 + mu * s2
-        I = mu0 / (mu0 + mu) if mu0 > 0.0 else 0.0
-        D[i] = I * cover
+        # the flat law's terminator: the half-ellipse F = Xs + cos(a) sqrt(1 - Ys^2) = 0
+        # in the basis (Xs, Ys) along / across the Sun's direction on the sky; a ramp in
+        # F one sub-pixel wide (F is smooth but at the horns; its gradient capped there)
+        if sa > 1e-9:
+            Xs = (Xc * s0 + Yc * s1) / sa
+            Ys = (-Xc * s1 + Yc * s0) / sa
+            w = np.sqrt(max(1.0 - Ys * Ys, 1e-12))
+            F = Xs + s2 * w
+            gF = min(np.sqrt(1.0 + (s2 * Ys / w) ** 2), 10.0) / (R * scale * n)
+            tstep = 0.5 + F / gF
+            tfull = tstep >= 1.0 or tstep <= 0.0
+            tstep = min(max(tstep, 0.0), 1.0)
+        else:
+            tstep, tfull = 1.0, True
+        lam = mu0 if mu0 > 0.0 else 0.0
+        ls = mu0 / (mu0 + mu) if mu0 > 0.0 else 0.0
+        D[0, i] = tstep * cover
+        D[1, i] = lam * cover
+        D[2, i] = ls * cover
         for k in range(3):
             drho = (X * dX[k] + Y * dY[k]) / rho if rho > 1e-12 else 0.0
             dcover = 0.0
@@ -63,20 +91,30 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
                 dcover = -drho * R * scale * n
                 if k == 2:
                     dcover += (1.0 - rho) * scale * n
-            dI = 0.0
-            if mu0 > 0.0:
-                if clip:
-                    dXc = sc * (dX[k] - X * drho / rho)
-                    dYc = sc * (dY[k] - Y * drho / rho)
-                    dmu = 0.0
-                else:
-                    dXc, dYc = dX[k], dY[k]
-                    dmu = -(Xc * dXc + Yc * dYc) / mu if mu > 0.0 else 0.0
-                dmu0 = dXc * s0 + dYc * s1 + dmu * s2
-                if k < 2:
-                    dmu0 += Xc * dsun3[k, 0] + Yc * dsun3[k, 1] + mu * dsun3[k, 2]
-                dI = (mu * dmu0 - mu0 * dmu) / (mu0 + mu) ** 2
-            dD[k, i] = dI * cover + I * dcover
+            if clip:
+                dXc = sc * (dX[k] - X * drho / rho)
+                dYc = sc * (dY[k] - Y * drho / rho)
+                dmu = 0.0
+            else:
+                dXc, dYc = dX[k], dY[k]
+                dmu = -(Xc * dXc + Yc * dYc) / mu if mu > 0.0 else 0.0
+            dmu0 = dXc * s0 + dYc * s1 + dmu * s2
+            if k < 2:
+                dmu0 += Xc * dsun3[k, 0] + Yc * dsun3[k, 1] + mu * dsun3[k, 2]
+            dt = 0.0
+            if not tfull:
+                ds0 = dsun3[k, 0] if k < 2 else 0.0
+                ds1 = dsun3[k, 1] if k < 2 else 0.0
+                ds2 = dsun3[k, 2] if k < 2 else 0.0
+                dsa = (s0 * ds0 + s1 * ds1) / sa
+                dXs = (dXc * s0 + dYc * s1 + Xc * ds0 + Yc * ds1 - Xs * dsa) / sa
+                dYs = (-dXc * s1 + dYc * s0 - Xc * ds1 + Yc * ds0 - Ys * dsa) / sa
+                dt = (dXs + ds2 * w - s2 * Ys * dYs / w) / gF
+            dD[0, k, i] = dt * cover + tstep * dcover
+            dl = dmu0 if mu0 > 0.0 else 0.0
+            dD[1, k, i] = dl * cover + lam * dcover
+            dI = (mu * dmu0 - mu0 * dmu) / (mu0 + mu) ** 2 if mu0 > 0.0 else 0.0
+            dD[2, k, i] = dI * cover + ls * dcover
 
 
 @njit(cache=True, nogil=True)

@@ -1,16 +1,26 @@
-"""Final centre of the Moon: least-squares fit of a blurred, phased disk to the lit limb.
+"""Final centre of the Moon: least-squares fit of a blurred, phased disk to the lit limb,
+with the photometric law fitted too.
 
-The half-peak crossing of the bright rim is not the limb: the Moon's brightness rises
-towards the lit limb like ``1 - sqrt(2 (R - r) / R) / mu0`` (Lommel-Seeliger), and the
-blur moves the half-peak point by an amount that depends on ``mu0`` along the limb, so
-on a phased Moon the ray centre is pulled along the Sun's direction (0.03-0.2 px).  Here
-the pixels of a band around the lit limb (``|r - R| < w``, within ``half_width`` of the
-Sun's direction: the terminator is left out) are fitted by the model
+The half-peak crossing of the bright rim is not the limb: how the brightness runs up to
+the lit limb depends on the surface's photometric law (Lommel-Seeliger rises to the
+limb like ``1 - sqrt(2 (R - r) / R) / mu0``, Lambert falls to ``mu0`` at it, a flat
+disk is a step), and the blur moves the half-peak point by an amount that depends on
+that profile and on ``mu0`` along the limb, so on a phased Moon the ray centre is pulled
+along the Sun's direction (0.03-0.7 px).  Here the pixels of a band around the lit limb
+(``|r - R| < w``, within ``half_width`` of the Sun's direction; saturated pixels left
+out) are fitted by the model
 
-    I = B + (A1 G_sigma + A2 G_(WING sigma)) * LS_disk(centre, R; Sun direction, phase),
+    I = B + sum_l (A_l1 G_sigma + A_l2 G_(WING sigma)) * disk_l(centre, R; Sun, phase),
 
+where ``disk_l`` are the phased disks of three basis laws (`_limb_kernels.LAWS`: flat,
+Lambert ``mu0``, Lommel-Seeliger ``mu0 / (mu0 + mu)``) with free, linear weights: the
+law is fitted, not assumed.  The span holds the lunar-Lambert (McEwen) family
+``(1 - L) mu0 + 2 L mu0 / (mu0 + mu)`` exactly and Hapke's law to first order in its
+H-functions (``LS (1 + c (mu0 + mu)) = LS + c mu0``).  The geometry (limb circle, the
+terminator from the known phase) is the same for every law, so the centre is measured by
+the lit limb's position whatever the shading.  The model is
 binned to pixels, with the Sun's direction and the phase angle known (ephemeris) and
-centre, radius, blur ``sigma``, amplitudes ``A1, A2`` and sky ``B`` unknown
+centre, radius, blur ``sigma``, the amplitudes ``A`` and sky ``B`` unknown
 (Gauss-Newton with the analytic Jacobian of the discretized model, numba kernels in
 `_limb_kernels`).  The disk is computed on a ``SUPERSAMPLE``-times finer grid with an
 anti-aliased edge (linear coverage ramp one sub-pixel wide), so the model is smooth in
@@ -29,10 +39,11 @@ the residual variance per pixel (white pixel noise), plus ``FLOOR_PX^2`` per axi
 the PSF-form mismatch and pixel phase (0.01-0.02 px RMS on Moffat-rendered Moons).
 """
 import numpy as np
+from scipy.optimize import nnls
 
 from . import _limb_kernels as _k
 
-SUPERSAMPLE = 4
+SUPERSAMPLE = 8
 BAND_PX = 3.0          # half width of the limb band beyond 2.5 blur sigmas, px
 WING = 3.0             # sigma of the PSF's wing component / core sigma
 FLOOR_PX = 0.012       # centre error of the PSF-form mismatch (Moffat vs the fit), px
@@ -91,10 +102,12 @@ class LimbModel:
         Sun's direction on the image, rad from +u towards +v (selects the lit limb band).
     half_width : float
         Half width of the limb arc used, rad.
+    saturation : float, optional
+        Pixels at or above this level (counts) are left out of the fit.
     """
 
     def __init__(self, crop, uv0, radius0, sun3=None, camera=None, sun_c=None,
-                 sun_angle=0.0, half_width=np.deg2rad(80.0), blur0=0.8):
+                 sun_angle=0.0, half_width=np.deg2rad(80.0), blur0=0.8, saturation=None):
         self.n = SUPERSAMPLE
         self.camera = camera
         rows, cols = np.mgrid[0:crop.shape[0], 0:crop.shape[1]]
@@ -102,6 +115,10 @@ class LimbModel:
         r = np.hypot(du, dv)
         dang = np.angle(np.exp(1j * (np.arctan2(dv, du) - sun_angle)))
         mask = (np.abs(r - radius0) < BAND_PX + 2.5 * blur0) & (np.abs(dang) <= half_width)
+        if saturation is not None:            # clipped pixels say only "at least this"
+            mask &= np.asarray(crop) < saturation
+        if mask.sum() < 12:
+            raise ValueError("fewer than 12 unsaturated pixels on the lit limb")
         # compute the model on the band's bounding box plus room for the blur
         rr, cc = np.nonzero(mask)
         pad = MARGIN_PX
@@ -141,9 +158,11 @@ class LimbModel:
         return e1, e2, np.array([s @ e1, s @ e2, -(s @ m)])
 
     def _disk(self, q):
-        """Disk (N,) at the sub-pixels and its derivatives (3, N) in ``(c1, c2, R)``."""
+        """Disks of the basis laws (L, N) at the sub-pixels and their derivatives (L, 3, N)
+        in ``(c1, c2, R)``."""
         N = len(self.P)
-        D, dD = np.empty(N), np.empty((3, N))
+        L = len(_k.LAWS)
+        D, dD = np.empty((L, N)), np.empty((L, 3, N))
         z3, z23 = np.zeros(3), np.zeros((2, 3))
         if self.camera is None:
             _k.disk_jac(self.P, True, q[0], q[1], q[2], z3, z3, z23, z23, self.sun3, z23,
@@ -160,30 +179,36 @@ class LimbModel:
         return D, dD
 
     def flux(self, q, jacobian=False):
-        """Unit-amplitude models of the masked pixels, shape (m, 2): the disk blurred by
-        a Gaussian of sigma ``q[3]`` and by one of ``WING * q[3]`` (core and wings of the
-        PSF), for ``q = (c1, c2, R, sigma)``.  With ``jacobian``, also their derivatives
-        in ``q``, shape (m, 2, 4)."""
+        """Unit-amplitude models of the masked pixels, shape (m, 2 L): for each basis law
+        (`_limb_kernels.LAWS`) its disk blurred by a Gaussian of sigma ``q[3]`` and by one
+        of ``WING * q[3]`` (core and wings of the PSF), for ``q = (c1, c2, R, sigma)``.
+        With ``jacobian``, also their derivatives in ``q``, shape (m, 2 L, 4)."""
         D, dD = self._disk(q)
-        S = np.concatenate([D[None], dD]).reshape(4, self.shape[0] * self.n, -1)
         n, s = self.n, abs(q[3])
         g, dg, h = _gauss(s * n)
         box = np.full(n, 1.0 / n)
-        core, core_s = _blur(S, np.convolve(g, box), np.convolve(dg, box), n, h, self.shape)
-        binned = _k.col_pass(_k.row_pass(S, box, n, 0, self.shape[1]), box, n, 0, self.shape[0])
-        # the wide wing is smooth on the pixel scale: blurred after binning
         gw, dgw, hw = _gauss(WING * s)
-        wing, wing_s = _blur(binned, gw, dgw, 1, hw, self.shape)
         m = self.mask
-        out = np.stack([core[0][m], wing[0][m]], axis=-1)
+        cols, jacs = [], []
+        for law in range(len(D)):
+            S = np.concatenate([D[law][None], dD[law]]).reshape(4, self.shape[0] * n, -1)
+            core, core_s = _blur(S, np.convolve(g, box), np.convolve(dg, box), n, h,
+                                 self.shape)
+            binned = _k.col_pass(_k.row_pass(S, box, n, 0, self.shape[1]), box, n, 0,
+                                 self.shape[0])
+            # the wide wing is smooth on the pixel scale: blurred after binning
+            wing, wing_s = _blur(binned, gw, dgw, 1, hw, self.shape)
+            cols += [core[0][m], wing[0][m]]
+            if jacobian:
+                jc = np.empty((m.sum(), 4))
+                jw = np.empty((m.sum(), 4))
+                jc[:, :3], jw[:, :3] = core[1:, m].T, wing[1:, m].T
+                jc[:, 3], jw[:, 3] = n * core_s[m], WING * wing_s[m]
+                jacs += [jc, jw]
+        out = np.stack(cols, axis=-1)
         if not jacobian:
             return out
-        jac = np.empty((len(out), 2, 4))
-        jac[:, 0, :3] = core[1:, m].T
-        jac[:, 1, :3] = wing[1:, m].T
-        jac[:, 0, 3] = n * core_s[m]
-        jac[:, 1, 3] = WING * wing_s[m]
-        return out, jac
+        return out, np.stack(jacs, axis=1)
 
     def centre(self, p):
         """Centre (u, v) in crop pixels of parameters ``p``."""
@@ -194,55 +219,95 @@ class LimbModel:
                                               + (p[1] / f) * self.e2)
 
 
-def _design(model, q, a):
-    """Model (m,) for linear parameters ``a = (A1, A2, B)`` and the analytic Jacobian
-    (m, 7) with respect to ``(q, a)``."""
+def _amplitudes(m0, y):
+    """Non-negative amplitudes of the laws' PSF components (NNLS) and the free sky level:
+    ``a = (A_1 .. A_2L, B)``.  Physical laws are non-negative mixes of the basis laws;
+    free signs would let a thin crescent's nearly collinear columns build any profile."""
+    ones = np.ones((len(y), 1))
+    a, _ = nnls(np.hstack([m0, ones, -ones]), y, maxiter=50 * m0.shape[1])
+    return np.append(a[:-2], a[-2] - a[-1])
+
+
+def _projected(model, q, y):
+    """Residuals (m,), the Jacobian in ``q`` with the active amplitudes projected out
+    (variable projection, Kaufman's form; (m, 4)) and the number of active amplitudes."""
     m0, dm = model.flux(q, jacobian=True)
-    J = np.column_stack([np.einsum("mjk,j->mk", dm, a[:2]), m0, np.ones(len(m0))])
-    return m0 @ a[:2] + a[2], J
+    a = _amplitudes(m0, y)
+    r = y - m0 @ a[:-1] - a[-1]
+    Jq = np.einsum("mjk,j->mk", dm, a[:-1])
+    act = np.column_stack([m0[:, a[:-1] > 0], np.ones(len(y))])
+    Jq = Jq - act @ np.linalg.lstsq(act, Jq, rcond=1e-10)[0]
+    return r, Jq, act.shape[1]
 
 
-def fit_limb_model(model, uv0, radius0, blur0=0.8, iterations=10, tol_px=5e-4,
+def _sse(model, q, y):
+    """Sum of squared residuals at ``q`` with the amplitudes solved (NNLS)."""
+    m0 = model.flux(q)
+    a = _amplitudes(m0, y)
+    r = y - m0 @ a[:-1] - a[-1]
+    return float(r @ r)
+
+
+SCAN_PX = np.arange(-1.5, 1.51, 0.25)     # start offsets tried along the Sun, px
+SCAN_BLUR = (0.5, 0.8, 1.3, 2.0)          # start blurs tried, px
+
+
+def _scan(model, q):
+    """The start ``q`` moved along the Sun's direction by the offset of `SCAN_PX` (and
+    with the blur of `SCAN_BLUR`) whose model fits best: the limb circle of a thin or dim
+    crescent can be 1 px off, beyond the reach of Gauss-Newton."""
+    sun = model.sun3[:2] if model.camera is None else model._frame(0.0, 0.0)[2][:2]
+    norm = np.hypot(sun[0], sun[1])
+    y = model.data
+    offsets = SCAN_PX if norm > 1e-6 else [0.0]
+    best = (np.inf, q)
+    for blur in SCAN_BLUR:
+        for d in offsets:
+            qd = q.copy()
+            qd[3] = blur
+            if norm > 1e-6:
+                qd[:2] += d * sun / norm
+            best = min(best, (_sse(model, qd, y), qd), key=lambda t: t[0])
+    return best[1]
+
+
+def fit_limb_model(model, uv0, radius0, blur0=0.8, iterations=20, tol_px=5e-4,
                    radius_prior=None):
-    """Gauss-Newton fit; returns (centre uv, cov uv, radius, blur, rms, n_pixels).
+    """Separable least squares; returns (centre uv, cov uv, radius, blur, rms, n_pixels).
 
     ``uv0`` is the initial centre (crop pixels); with a camera the centre parameters are
     offsets of the Moon's direction from it, scaled to px by the focal length.  The
-    amplitudes of the two PSF components and the sky enter linearly and are solved with
-    the step.  ``blur`` is the core sigma, px.  ``radius_prior = (R, sigma)`` (px) adds
-    the known radius as an observation (weighted against the pixel residual variance).
+    amplitudes of the laws' PSF components (non-negative) and the sky enter linearly and
+    are solved at each step (NNLS); Gauss-Newton on ``q = (c1, c2, R, blur)`` with their
+    effect projected out (variable projection).  ``blur`` is the core sigma, px.
+    ``radius_prior = (R, sigma)`` (px) adds the known radius as an observation (weighted
+    against the pixel residual variance).  The start is the best of a scan along the
+    Sun's direction and over the blur (`_scan`).
     """
     c0 = np.zeros(2) if model.camera is not None else np.asarray(uv0, float)
-    q = np.array([c0[0], c0[1], radius0, blur0])
     y = model.data
-    m0 = model.flux(q)
-    a = np.linalg.lstsq(np.column_stack([m0, np.ones(len(y))]), y, rcond=None)[0]
-    s2 = float(np.var(y - m0 @ a[:2] - a[2]))
+    q = _scan(model, np.array([c0[0], c0[1], radius0, blur0]))
 
-    def system(q, a, s2):
-        pred, J = _design(model, q, a)
-        r = y - pred
+    def system(q):
+        r, J, n_act = _projected(model, q, y)
+        s2 = max(float(r @ r) / max(len(r) - 4 - n_act, 1), 1e-12)
         if radius_prior is None:
-            return r, J, r, J
+            return r, J, r, J, s2
         w = np.sqrt(s2) / radius_prior[1]             # prior row in pixel-noise units
-        row = np.zeros((1, J.shape[1]))
-        row[0, 2] = w
-        return (np.append(r, w * (radius_prior[0] - q[2])), np.vstack([J, row]), r, J)
+        row = np.array([[0.0, 0.0, w, 0.0]])
+        return (np.append(r, w * (radius_prior[0] - q[2])), np.vstack([J, row]), r, J, s2)
 
     for _ in range(iterations):
-        rr, JJ, r, _ = system(q, a, s2)
+        rr, JJ, r, _, s2 = system(q)
         dp = np.linalg.lstsq(JJ, rr, rcond=1e-10)[0]
         big = np.max(np.abs(dp[:3]))
         if big > 1.0:                              # keep the steps within the linear range
             dp = dp / big
-        q, a = q + dp[:4], a + dp[4:]
+        q = q + dp
         q[3] = np.clip(abs(q[3]), 0.05, 10.0)
-        s2 = max(float(r @ r) / max(len(r) - JJ.shape[1], 1), 1e-12)
         if big < tol_px:
             break
-    rr, JJ, r, J = system(q, a, s2)
-    dof = max(len(r) - J.shape[1], 1)
-    s2 = float(r @ r) / dof
+    rr, JJ, r, J, s2 = system(q)
     N = J.T @ J
     if radius_prior is not None:
         N[2, 2] += s2 / radius_prior[1] ** 2

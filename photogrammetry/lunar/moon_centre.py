@@ -24,7 +24,7 @@ from ins.errors import InputError
 from . import _limb_kernels, _limb_model
 
 __all__ = ["MoonCentre", "MoonNotFoundError", "extract_centre", "fit_lit_limb", "lit_centroid",
-           "sun_direction_in_image"]
+           "sun_direction_in_image", "default_saturation"]
 
 
 class MoonNotFoundError(InputError):
@@ -170,7 +170,7 @@ def _tangent_basis(d0):
     return e1, _limb_kernels.cross3(d0, e1)
 
 
-def _circle_gn(data, p, camera, f, keep, iterations=6):
+def _circle_gn(data, p, camera, f, keep, iterations=6, fixed_radius=False):
     """Gauss-Newton of the geometric circle (or cone) fit on the points ``keep``.
 
     ``p``: flat ``(u, v, R)`` px; cone ``(axis (3,), R = f * half angle)``.  Returns
@@ -191,7 +191,10 @@ def _circle_gn(data, p, camera, f, keep, iterations=6):
             t /= np.maximum(sinang, 1e-15)[:, None]
             J = np.column_stack([-(t @ e1), -(t @ e2), -np.ones(len(t))])
         Jk, rk = J[keep], r[keep]
-        step = np.linalg.lstsq(Jk, -rk, rcond=None)[0]
+        if fixed_radius:
+            step = np.append(np.linalg.lstsq(Jk[:, :2], -rk, rcond=None)[0], 0.0)
+        else:
+            step = np.linalg.lstsq(Jk, -rk, rcond=None)[0]
         if _ == iterations or np.max(np.abs(step)) < 1e-7:
             return p, r, Jk
         if camera is None:
@@ -201,14 +204,16 @@ def _circle_gn(data, p, camera, f, keep, iterations=6):
             p = (a / np.linalg.norm(a), p[1] + step[2])
 
 
-def _fit(pts, c0, r0, camera):
+def _fit(pts, c0, r0, camera, radius=None):
     """Circle (or cone) fit with a 3-sigma cut; (centre uv, cov uv, radius px, rms px,
     inlier mask).
 
     Start: the algebraic fit, linear and exact for a circle (Kasa: ``u^2 + v^2 = 2 a u +
     2 b v + c``) or a cone (directions ``d`` with ``d . w = 1``, ``w = axis / cos r``);
     then Gauss-Newton on the geometric residuals (px; with a camera the angle to the axis
-    times ``f``), a cut at 3 MAD-sigmas (at least 0.02 px) and Gauss-Newton again.
+    times ``f``), a cut at 3 MAD-sigmas (at least 0.02 px) and Gauss-Newton again.  With
+    a known ``radius`` (px) the last Gauss-Newton keeps it fixed (a short arc of a thin
+    crescent does not tell its curvature).
     """
     if camera is None:
         f, data = 1.0, np.asarray(pts, float)
@@ -225,7 +230,9 @@ def _fit(pts, c0, r0, camera):
     keep = np.abs(r) < max(3 * mad, 0.02)
     if keep.sum() < 5:
         keep[:] = True
-    p, r, J = _circle_gn(data, p, camera, f, keep)
+    if radius is not None:
+        p = (np.append(p[:2], radius) if camera is None else (p[0], float(radius)))
+    p, r, J = _circle_gn(data, p, camera, f, keep, fixed_radius=radius is not None)
     rk = r[keep]
     s2 = float(rk @ rk) / max(keep.sum() - 3, 1)
     cov_p = s2 * np.linalg.pinv(J.T @ J)[:2, :2]
@@ -240,7 +247,7 @@ def _fit(pts, c0, r0, camera):
 
 
 def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_rays=None,
-                   phase_angle=None, sun_c=None, radius_prior=None):
+                   phase_angle=None, sun_c=None, radius_prior=None, saturation=None):
     """Centre of the Moon from the lit limb of one grayscale image.
 
     Parameters
@@ -269,6 +276,10 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     radius_prior : (float, float), optional
         Known radius and its sigma, px (with a camera: the semidiameter times the focal
         length), for the fit of the phased disk (see `fit_lit_limb`).
+    saturation : float, optional
+        Pixels at or above this level (counts) are clipped: left out of the fit of the
+        phased disk.  Default: the largest value of an integer image's type (none for
+        float images).
 
     Returns
     -------
@@ -282,6 +293,7 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     img = np.asarray(image)
     if img.ndim != 2:
         raise InputError(f"expected a 2-D grayscale image, got shape {img.shape}")
+    saturation = default_saturation(img, saturation)
     c0, radius, sky, _ = _find(img)
     half = int(2 * radius + 12)           # work on a crop around the Moon (as float)
     u0, v0 = max(int(c0[0]) - half, 0), max(int(c0[1]) - half, 0)
@@ -304,7 +316,8 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
     pts, ang, _ = _edges(img, c0, radius, angles, sky)
     if len(pts) < 6:
         raise MoonNotFoundError(f"only {len(pts)} limb points found")
-    uv, cov, rad, rms, keep = _fit(pts, c0, radius, camera)
+    uv, cov, rad, rms, keep = _fit(pts, c0, radius, camera,
+                                   None if radius_prior is None else radius_prior[0])
     # neighbouring rays share pixels: about one independent point per px of limb arc
     arc_px = radius * (np.ptp(ang) if sun_angle is not None else 2 * np.pi)
     inflate = max(1.0, keep.sum() / max(arc_px, 1.0))
@@ -315,15 +328,24 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         if radius_prior is not None:
             rad, r_sigma = radius_prior
         fit = fit_lit_limb(img, uv, rad, sun_angle, phase_angle, camera, sun_c, half_width_deg,
-                           radius_sigma_px=r_sigma)
+                           radius_sigma_px=r_sigma, saturation=saturation)
         uv, cov, rad, rms, n_used = fit.uv, fit.cov_uv, fit.radius_px, fit.rms_px, fit.n_points
     return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov, radius_px=rad,
                       n_points=n_used, rms_px=rms, centroid_uv=c0 + off,
                       sun_angle=float("nan") if sun_angle is None else sun_angle)
 
 
+def default_saturation(image, saturation=None):
+    """The clipping level of an image: ``saturation`` when given, else the largest value of
+    an integer type (65535 for uint16), else None (float images)."""
+    if saturation is not None:
+        return float(saturation)
+    dtype = np.asarray(image).dtype
+    return float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else None
+
+
 def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None, sun_c=None,
-                 half_width_deg=70.0, radius_sigma_px=None):
+                 half_width_deg=70.0, radius_sigma_px=None, saturation=None):
     """Centre from a least-squares fit of the blurred, phased disk to the lit limb's pixels.
 
     Parameters
@@ -348,6 +370,8 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
         When given, ``radius_px`` is known (e.g. the ephemeris' semidiameter times the
         focal length) with this sigma, px, and enters the fit as a prior: with one limb
         the radius and the centre along the Sun are nearly degenerate.
+    saturation : float, optional
+        Pixels at or above this level are left out (clipped).
 
     Returns
     -------
@@ -365,8 +389,13 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
     if camera is None:
         a = phase_angle
         sun3 = (np.sin(a) * np.cos(sun_angle), np.sin(a) * np.sin(sun_angle), np.cos(a))
-    model = _limb_model.LimbModel(crop, uv - off, radius_px, sun3=sun3, camera=cam, sun_c=sun_c,
-                                  sun_angle=sun_angle, half_width=np.deg2rad(half_width_deg))
+    try:
+        model = _limb_model.LimbModel(crop, uv - off, radius_px, sun3=sun3, camera=cam,
+                                      sun_c=sun_c, sun_angle=sun_angle,
+                                      half_width=np.deg2rad(half_width_deg),
+                                      saturation=saturation)
+    except ValueError as exc:
+        raise MoonNotFoundError(f"Moon at pixel ({uv[0]:.0f}, {uv[1]:.0f}): {exc}") from None
     prior = None if radius_sigma_px is None else (radius_px, radius_sigma_px)
     c, cov, rad, _, rms, n_pix = _limb_model.fit_limb_model(model, uv - off, radius_px,
                                                             radius_prior=prior)

@@ -59,9 +59,12 @@ def _moffat_kernel(sigma_px, n):
 
 
 def _blur_sub(flux_sub, psf, psf_sigma_px, n):
-    """Blur on the supersampled grid (Moffat), or pass through (Gaussian: after binning)."""
-    if psf == "gaussian" or psf_sigma_px <= 0:
+    """Blur on the supersampled grid: a continuous PSF, the same for every position of the
+    Moon on the pixels (a Gaussian applied to the binned pixels would be a staircase)."""
+    if psf_sigma_px <= 0:
         return flux_sub
+    if psf == "gaussian":
+        return ndimage.gaussian_filter(flux_sub, psf_sigma_px * n, mode="constant")
     if psf != "moffat":
         raise ValueError(f"psf must be 'gaussian' or 'moffat', not {psf!r}")
     return signal.fftconvolve(flux_sub, _moffat_kernel(psf_sigma_px, n), mode="same")
@@ -75,8 +78,6 @@ def _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, 
             psf="gaussian"):
     img = np.full(shape, float(background))
     r0, r1, c0, c1 = box
-    if psf == "gaussian" and psf_sigma_px > 0:
-        flux = ndimage.gaussian_filter(flux, psf_sigma_px, mode="constant")
     img[r0:r1, c0:c1] += peak * flux
     if noise_sigma > 0:
         rng = np.random.default_rng(rng)
