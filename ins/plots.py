@@ -14,7 +14,8 @@ from .error_model import SENSORS, STATE
 from .plotstyle import (ARCSEC, TRANSIENT_S, legend_right, length_unit, plain_log_ticks, pyplot,
                         robust_limits, save_png, time_label)
 
-__all__ = ["plot_errors", "plot_sigma", "plot_biases", "injected_biases", "write_plots"]
+__all__ = ["plot_errors", "plot_sigma", "plot_biases", "plot_innovations", "injected_biases",
+           "write_plots"]
 
 _DPH = np.pi / 180.0 / 3600.0          # rad/s per deg/h
 _MGAL = 1e-5                           # m/s^2 per mGal
@@ -169,6 +170,42 @@ def plot_biases(result, path, injected=None):
     return save_png(fig, path)
 
 
+def plot_innovations(result, path):
+    """Standardized innovations ``z_i / sqrt(S_ii)`` of every tested measurement against
+    time, one panel per measurement type, one colour per axis, the +-3 band; rejected
+    records as crosses."""
+    plt = pyplot()
+    recs = getattr(result.fwd, "records", None) or []
+    kinds = list(dict.fromkeys(r.name for r in recs))
+    if not kinds:
+        return None
+    t0 = float(result.node_time[0])
+    fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
+                             squeeze=False)
+    for ax, kind in zip(axes[:, 0], kinds):
+        sel = [r for r in recs if r.name == kind]
+        t = np.array([r.time for r in sel]) - t0
+        z = np.array([r.standardized for r in sel])
+        ok = np.array([r.accepted for r in sel])
+        for i, axis in enumerate(sel[0].axes):
+            rms = np.sqrt(np.mean(z[ok, i] ** 2)) if np.any(ok) else np.nan
+            ax.plot(t[ok], z[ok, i], ".", ms=2, label=f"{axis}: RMS {rms:.2f}")
+            if np.any(~ok):
+                ax.plot(t[~ok], np.clip(z[~ok, i], -10, 10), "x", ms=4, color="k")
+        ax.axhline(3, color="0.5", lw=0.8, ls="--")
+        ax.axhline(-3, color="0.5", lw=0.8, ls="--")
+        ax.set_ylim(-6, 6)
+        ax.set_ylabel(f"{kind}\ninnovation / sigma")
+        ax.grid(alpha=0.3)
+        legend_right(ax, fontsize=7)
+    xlabel, origin = time_label(t0)
+    axes[-1, 0].set_xlabel(xlabel)
+    fig.suptitle("Standardized innovations (predicted - measured) / sqrt(S_ii); dashed: "
+                 f"+-3; crosses: rejected (clipped at +-10)\n{origin}", fontsize=10)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
 def write_plots(result, out_dir, flight_dir=None):
     """Write the PNG plots into ``out_dir``; returns their paths.  ``flight_dir``: a
     simulated flight folder whose manifest gives the injected biases (optional)."""
@@ -177,4 +214,7 @@ def write_plots(result, out_dir, flight_dir=None):
              plot_biases(result, os.path.join(out_dir, "biases.png"), injected)]
     if result.errors_smoothed is not None:
         paths.append(plot_errors(result, os.path.join(out_dir, "errors.png")))
+    inn = plot_innovations(result, os.path.join(out_dir, "innovations.png"))
+    if inn is not None:
+        paths.append(inn)
     return paths

@@ -1,5 +1,6 @@
-"""Output files of ``ins process``: solution.nav, solution_std.txt, imu_errors.txt and
-forward.nav (:func:`write_outputs`), or the solution as an Applanix SBET with its SMRMSG
+"""Output files of ``ins process``: solution.nav, solution_std.txt, imu_errors.txt,
+innovations.txt, states.txt (optional state groups) and forward.nav
+(:func:`write_outputs`), or the solution as an Applanix SBET with its SMRMSG
 accuracy file (``formats=("sbet",)``: sbet_solution.out, smrmsg_solution.out,
 sbet_forward.out), and the roll, pitch, yaw sigmas of a phi-angle covariance
 (:func:`euler_std_deg`)."""
@@ -99,6 +100,14 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
               "(smoothed estimates)\n")
     _write_table(err_path, header, table, [6] + [5] * 12, textformat, atomic_open)
     paths.append(err_path)
+    from .state_files import write_innovations, write_optional_states
+    records = getattr(result.fwd, "records", None)
+    if records:
+        paths.append(os.path.join(out_dir, "innovations.txt"))
+        write_innovations(paths[-1], records)
+    states = write_optional_states(os.path.join(out_dir, "states.txt"), result)
+    if states:
+        paths.append(states)
     return paths
 
 
