@@ -366,3 +366,115 @@ def format_figures(fig):
               f"attitude after removing C_bc: std tilt N {a[0]:.3f}, tilt E {a[1]:.3f}, "
               f"heading {a[2]:.3f} deg (RMS {ar[0]:.3f} / {ar[1]:.3f} / {ar[2]:.3f})"]
     return lines
+
+
+# ---------------------------------------------------------------------------------------
+# command line
+
+EPILOG = """\
+two commands and a comparison:
+  python tools/comma2k19.py ../shared/real/comma2k19_segment -o seg
+  ins process --config seg/config.toml --preset land -o seg/out
+  python tools/comma2k19.py --compare seg/out/solution.nav seg
+
+--compare SOLUTION.nav DIR interpolates the solution (IMU) at the reference epochs of
+DIR/reference.nav (camera pose, 20 Hz), estimates the constant camera-to-IMU rotation
+C_bc (chordal least squares on SO(3), sigma from 5 s block means) and prints the
+horizontal position RMS (m), the velocity RMS north/east/down (m/s), C_bc as roll,
+pitch, yaw (deg) with its sigma, and the attitude agreement after removing C_bc (std of
+tilt about north and east and of heading, deg); the fixes of DIR/gnss.txt alone for
+comparison.  --json writes the same figures.
+
+time base: GPS seconds of week (boot clock + the offset of frame_times to
+frame_gps_times).  Offsets: GNSS clock - IMU clock, s.
+"""
+
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="tools/comma2k19.py", description="Convert a comma2k19 segment to the "
+        "toolkit's IMU, GNSS, reference and config files; or compare a solution with the "
+        "reference pose.", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("segment", nargs="?", metavar="SEGMENT", help="comma2k19 segment folder")
+    p.add_argument("-o", "--output", metavar="DIR", help="output folder (new or empty)")
+    p.add_argument("--force", action="store_true", help="replace a non-empty DIR")
+    p.add_argument("--gnss-time", choices=["utc", "arrival"], default="utc",
+                   help="stamp of the fixes: their UTC epoch (default) or their arrival "
+                        "on the boot clock (0.2 s later)")
+    p.add_argument("--offsets", default="estimate", metavar="POS,VEL|estimate|none",
+                   help="clock offsets (GNSS - IMU, s) of the positions and the velocities "
+                        "to remove: 'estimate' (default: ins.time_offset from the data), "
+                        "'none', or two numbers")
+    p.add_argument("--sigma-h", type=float, default=SIGMA_H_M, metavar="M",
+                   help=f"assumed horizontal sigma of a fix, m (default {SIGMA_H_M:g})")
+    p.add_argument("--sigma-v", type=float, default=SIGMA_V_M, metavar="M",
+                   help=f"assumed vertical sigma of a fix, m (default {SIGMA_V_M:g})")
+    p.add_argument("--sigma-vel", type=float, default=SIGMA_VEL_MPS, metavar="MPS",
+                   help=f"assumed horizontal velocity sigma, m/s (default {SIGMA_VEL_MPS:g})")
+    p.add_argument("--sigma-vd", type=float, default=SIGMA_VD_MPS, metavar="MPS",
+                   help=f"sigma of the unlogged vertical velocity written as 0, m/s "
+                        f"(default {SIGMA_VD_MPS:g}: practically unused)")
+    p.add_argument("--compare", nargs=2, metavar=("SOLUTION", "DIR"),
+                   help="figures of a solution .nav against DIR/reference.nav")
+    p.add_argument("--json", metavar="F", help="with --compare: also write the figures")
+    return p
+
+
+def _offsets(text):
+    if text in ("estimate", "none"):
+        return None if text == "none" else "estimate"
+    try:
+        pos, vel = (float(x) for x in text.split(","))
+    except ValueError:
+        raise SystemExit(f"tools/comma2k19.py: error: --offsets {text!r}: expected "
+                         f"'estimate', 'none' or POS,VEL in s") from None
+    return pos, vel
+
+
+def _figures_json(fig, path):
+    import json
+
+    from ins.fileio import atomic_open
+    clean = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v)
+             for k, v in fig.items()}
+    with atomic_open(path, "w") as f:
+        json.dump(clean, f, indent=1)
+
+
+def main(argv=None):
+    from ins.errors import InputError
+    from ins.gnss import read_gnss
+    from ins.trajectory import read_nav
+    args = _parser().parse_args(argv)
+    try:
+        if args.compare:
+            sol, folder = args.compare
+            fig = compare(read_nav(sol), read_nav(os.path.join(folder, "reference.nav")),
+                          read_gnss(os.path.join(folder, "gnss.txt")))
+            print("\n".join(format_figures(fig)))
+            if args.json:
+                _figures_json(fig, args.json)
+            return 0
+        if not args.segment or not args.output:
+            raise InputError("SEGMENT and -o DIR are required (or --compare SOLUTION DIR)")
+        info = convert(args.segment, args.output, force=args.force, stamp=args.gnss_time,
+                       offsets=_offsets(args.offsets), sigma_h=args.sigma_h,
+                       sigma_v=args.sigma_v, sigma_vel=args.sigma_vel, sigma_vd=args.sigma_vd)
+    except (InputError, OSError) as exc:
+        print(f"tools/comma2k19.py: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"{info['imu_epochs']} IMU epochs at {info['imu_rate_hz']:.1f} Hz, "
+          f"{info['gnss_records']} fixes, {info['reference_epochs']} reference epochs; "
+          f"GPS week {info['gps_week']}, tow = boot + {info['boot_to_gps_tow_s']:.6f} s")
+    print(f"fixes stamped by their {info['gnss_stamp']} time; removed clock offsets "
+          f"(GNSS - IMU): positions {info['position_offset_s']:+.4f} s, velocities "
+          f"{info['velocity_offset_s']:+.4f} s" +
+          (f" (estimated, sigma {info['position_offset_sigma_s']:.4f} / "
+           f"{info['velocity_offset_sigma_s']:.4f} s)" if "position_offset_sigma_s" in info
+           else ""))
+    print(f"wrote {args.output}/: imu.txt gnss.txt reference.nav config.toml conversion.toml")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
