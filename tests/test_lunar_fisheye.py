@@ -52,3 +52,91 @@ def test_read_camera(tmp_path):
     path.write_text('[camera]\nmodel = "frame"\n')
     with pytest.raises(InputError, match="model"):
         read_camera(path)
+
+
+# ---------------------------------------------------------------------------------------
+# the other lens models: each against its closed form, OpenCV's fisheye as the oracle of
+# the Kannala-Brandt model
+
+PP = (640.3, 479.8)
+CLOSED = {"fisheye-equidistant": lambda t, f: f * t,
+          "fisheye-stereographic": lambda t, f: 2 * f * np.tan(t / 2),
+          "fisheye-orthographic": lambda t, f: f * np.sin(t),
+          "fisheye-equisolid": lambda t, f: 2 * f * np.sin(t / 2)}
+
+
+@pytest.mark.parametrize("model", sorted(CLOSED))
+def test_lens_closed_forms(model):
+    f = 410.0
+    cam = FisheyeCamera(f, 1280, 960, PP, model=model)
+    theta = np.deg2rad([0.5, 10.0, 35.0, 60.0, 85.0])
+    az = np.deg2rad([0.0, 47.0, 133.0, 210.0, 300.0])
+    r = CLOSED[model](theta, f)
+    uv = np.column_stack([PP[0] + r * np.cos(az), PP[1] - r * np.sin(az)])
+    d = np.column_stack([np.sin(theta) * np.cos(az), np.sin(theta) * np.sin(az),
+                         -np.cos(theta)])
+    np.testing.assert_allclose(cam.direction_to_image(d), uv, atol=1e-9)
+    np.testing.assert_allclose(cam.image_to_direction(uv), d, atol=1e-12)
+    np.testing.assert_allclose(cam.image_to_direction(cam.direction_to_image(3.0 * d)), d,
+                               atol=1e-12)
+
+
+KB = (0.021, -0.0135, 0.0041, -0.0007)       # a real 190-deg lens's order of magnitude
+
+
+def _cv_setup(f=410.0):
+    cam = FisheyeCamera(f, 1280, 960, PP, model="opencv-fisheye", opencv_k=KB)
+    K = np.array([[f, 0, PP[0]], [0, f, PP[1]], [0, 0, 1.0]])
+    rng = np.random.default_rng(4)
+    theta = rng.uniform(0.01, np.deg2rad(85), 200)
+    az = rng.uniform(0, 2 * np.pi, 200)
+    d = np.column_stack([np.sin(theta) * np.cos(az), np.sin(theta) * np.sin(az),
+                         -np.cos(theta)])
+    return cam, K, d
+
+
+def test_opencv_fisheye_project_matches_cv2():
+    cv2 = pytest.importorskip("cv2")
+    cam, K, d = _cv_setup()
+    d_cv = d * [1, -1, -1]                               # OpenCV: y down, z along the view
+    uv_cv, _ = cv2.fisheye.projectPoints(d_cv[:, None, :], np.zeros(3), np.zeros(3), K,
+                                         np.array(KB))
+    np.testing.assert_allclose(cam.direction_to_image(d), uv_cv[:, 0], atol=1e-8)
+
+
+def test_opencv_fisheye_unproject_matches_cv2():
+    cv2 = pytest.importorskip("cv2")
+    cam, K, d = _cv_setup()
+    uv = cam.direction_to_image(d)
+    ab = cv2.fisheye.undistortPoints(uv[:, None, :].astype(np.float64), K, np.array(KB),
+                                     criteria=(cv2.TERM_CRITERIA_COUNT
+                                               | cv2.TERM_CRITERIA_EPS, 50, 1e-14))[:, 0]
+    back = cam.image_to_direction(uv) * [1, -1, -1]
+    np.testing.assert_allclose(back[:, :2] / back[:, 2:], ab, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("model,extra,ok", [
+    ("fisheye-equidistant", "", True),
+    ("fisheye-stereographic", "", True),
+    ("fisheye-orthographic", "", True),
+    ("opencv-fisheye", "opencv_k = [0.02, -0.01, 0.004, -0.0007]\n", True),
+    ("opencv-fisheye", "radial_k = [0.1, 0.0, 0.0]\n", False),
+    ("fisheye-equidistant", "opencv_k = [0.02, -0.01, 0.004, -0.0007]\n", False),
+    ("opencv-fisheye", "opencv_k = [0.02, -0.01, 0.004]\n", False),
+    ("kannala-brandt", "", False),
+])
+def test_read_lens_models(tmp_path, model, extra, ok):
+    from photogrammetry.lunar.fisheye import camera_file_text
+    path = tmp_path / "cam.toml"
+    path.write_text(f'[camera]\nmodel = "{model}"\nfocal_length_px = 410\nwidth_px = 1280\n'
+                    f'height_px = 960\n{extra}')
+    if not ok:
+        with pytest.raises(InputError, match=r"cam.toml.*(opencv_k|radial_k|model)"):
+            read_camera(path)
+        return
+    cam = read_camera(path)
+    assert cam.model == model
+    if "opencv_k" in extra:
+        assert cam.opencv_k == (0.02, -0.01, 0.004, -0.0007)
+    path.write_text(camera_file_text(cam))                  # written, read back the same
+    assert read_camera(path) == cam
