@@ -221,6 +221,7 @@ def _cmd_compare(args):
 # Sub-commands that live in modules of their own (one line each).
 COMMAND_MODULES = [
     "ins.cli_allan",
+    "ins.cli_bag",
     "ins.cli_process",
     "ins.cli_time_offset",
 ]

@@ -44,6 +44,11 @@ Conversions (into the conventions of :mod:`ins.gnss`):
 
 The quality policy (:func:`apply_quality`) keeps some Q values and scales the sigmas of
 others.  Errors name the file and the line.
+
+:func:`write_pos` writes a :class:`~ins.gnss.GnssLog` in the llh layout (GPST week and
+seconds of week, the full covariance as RTKLIB's signed roots; 12 decimals in the
+degrees and 9 in the sigmas instead of RTKLIB's 9 and 4, so that nothing is lost):
+``ins import-bag`` uses it to keep a NavSatFix covariance.
 """
 import os
 import re
@@ -55,8 +60,8 @@ from . import textfiles, textparse
 from .errors import InputError, InputWarning
 from .gnss import GnssLog
 
-__all__ = ["read_pos", "looks_like_pos", "apply_quality", "QUALITY", "LEAP_SECONDS",
-           "SIGMA_FLOOR_M", "parse_quality", "parse_quality_scale"]
+__all__ = ["read_pos", "write_pos", "looks_like_pos", "apply_quality", "QUALITY", "LEAP_SECONDS",
+           "SIGMA_FLOOR_M", "parse_quality", "parse_quality_scale", "utc_to_gps_seconds"]
 
 #: RTKLIB's Q values by name.
 QUALITY = {"fix": 1, "float": 2, "sbas": 3, "dgps": 4, "single": 5, "ppp": 6}
@@ -246,6 +251,13 @@ def _leap_seconds(utc_s):
                         - _GPS_EPOCH_DAYS) * 86400 for y, m, d, _ in LEAP_SECONDS])
     values = np.array([0] + [v for *_, v in LEAP_SECONDS])
     return values[np.searchsorted(starts, utc_s, side="right")]
+
+
+def utc_to_gps_seconds(utc_s):
+    """GPS seconds since the GPS epoch (1980-01-06) of UTC seconds since that epoch
+    (integer arrays): ``utc_s + (GPS - UTC)`` with the leap seconds of the date."""
+    utc_s = np.asarray(utc_s, np.int64)
+    return utc_s + _leap_seconds(utc_s)
 
 
 def _gps_time(time_fields, date_format, system):
@@ -546,3 +558,40 @@ def apply_quality(log, quality=None, quality_scale=None):
         cov = None if log.cov_ned_m2 is None else log.cov_ned_m2 * (f ** 2)[:, None, None]
         log = replace(log, sigma_ned_m=log.sigma_ned_m * f[:, None], cov_ned_m2=cov)
     return log
+
+
+_POS_HEADER = ("% (lat/lon/height=WGS84/ellipsoidal,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,"
+               "ns=# of satellites)\n"
+               "%  GPST                  latitude(deg)    longitude(deg)  height(m)   Q  ns"
+               "     sdn(m)     sde(m)     sdu(m)    sdne(m)    sdeu(m)    sdun(m) age(s)  ratio\n")
+
+
+def write_pos(path, log, week, comments=()):
+    """Write ``log`` as an RTKLIB ``.pos`` (llh, GPST week/tow; module notes), atomically.
+
+    ``log.time`` is taken as GPS seconds of ``week`` (values of 604800 s and more go to
+    the next weeks); the quality is ``log.quality`` (5, single, when None); ``ns`` is
+    written 0 (unknown) and age, ratio 0.  Returns the number of records.
+    """
+    from .fileio import atomic_open
+    n = len(log)
+    cov = log.cov_ned_m2
+    if cov is None:
+        cov = np.zeros((n, 3, 3))
+        idx = np.arange(3)
+        cov[:, idx, idx] = log.sigma_ned_m ** 2
+    root = lambda c: np.sign(c) * np.sqrt(np.abs(c))  # noqa: E731
+    wk = week + np.floor_divide(log.time, _WEEK_S).astype(np.int64)
+    tow = log.time - (wk - week) * _WEEK_S
+    q = np.full(n, 5, np.int64) if log.quality is None else np.asarray(log.quality, np.int64)
+    lat, lon = np.rad2deg(log.lla[:, 0]), np.rad2deg(log.lla[:, 1])
+    # sdn sde sdu sdne sdeu sdun from the NED covariance (u = -d)
+    cols = np.column_stack([np.sqrt(cov[:, 0, 0]), np.sqrt(cov[:, 1, 1]), np.sqrt(cov[:, 2, 2]),
+                            root(cov[:, 0, 1]), root(-cov[:, 1, 2]), root(-cov[:, 2, 0])])
+    lines = [f"{wk[k]:4d} {tow[k]:11.6f} {lat[k]:17.12f} {lon[k]:17.12f} {log.lla[k, 2]:10.5f} "
+             f"{q[k]:3d}   0 " + " ".join(f"{v:12.9f}" for v in cols[k]) + "   0.00    0.0"
+             for k in range(n)]
+    head = "".join(f"% {c}\n" for c in comments) + _POS_HEADER
+    with atomic_open(path, "wb") as f:
+        f.write((head + "\n".join(lines) + ("\n" if lines else "")).encode())
+    return n

@@ -262,3 +262,17 @@ def test_floor_and_psd(tmp_path):
         log = read_pos(write(tmp_path, HEAD_LLH + row + "\n"))
     assert log.sigma_ned_m[0, 0] >= 1e-4
     assert np.all(np.linalg.eigvalsh(log.cov_ned_m2[0]) > 0)
+
+
+def test_write_pos_round_trip(tmp_path):
+    from ins.rtklib import write_pos
+    src = read_pos(write(tmp_path, HEAD_LLH + "\n".join(ROWS_LLH) + "\n"))
+    p = tmp_path / "back.pos"
+    assert write_pos(p, src, week=2086, comments=["made by a test"]) == 3
+    text = p.read_text()
+    assert text.startswith("% made by a test\n%") and "\n2086 259200.200000" in text
+    back = read_pos(p)
+    np.testing.assert_allclose(back.time, src.time, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(back.lla[:, :2], src.lla[:, :2], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(back.cov_ned_m2, src.cov_ned_m2, rtol=1e-6, atol=1e-15)
+    assert list(back.quality) == [1, 2, 5]
