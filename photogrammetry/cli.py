@@ -17,6 +17,7 @@ COMMAND_MODULES = [
     "photogrammetry.cli_eo",
     "photogrammetry.cli_refine",
     "photogrammetry.cli_tiepoints",
+    "photogrammetry.cli_sfm",
     "photogrammetry.cli_lunar",
     "photogrammetry.cli_lunar_simulate",
 ]

@@ -137,23 +137,32 @@ def test_no_xmp_is_refused(tmp_path, capsys):
 
 @pytest.mark.skipif(not REAL.is_dir(), reason="../shared/real is absent")
 def test_real_dji_images_against_bundle(tmp_path):
-    """The DJI block: positions as orthority reads them (UTM 51N, cm), angles within
-    1.5 deg of the bundle adjustment (the drone's gimbal is that good; a wrong axis
-    convention would be tens of degrees off)."""
-    out = tmp_path / "eo.csv"
+    """The DJI block: positions in UTM 51N as odm_xyz_opk.csv has them (the RTK GPS,
+    5 cm); angles in the bundle's ENU frame within 1.5 deg of the OpenSfM bundle
+    adjustment (0.5-1.25 deg measured; a wrong axis convention would be tens of
+    degrees off)."""
+    from scipy.spatial.transform import Rotation
+
+    from photogrammetry.sfm_opensfm import read_reconstruction
     images = sorted(str(p) for p in (REAL / "images").glob("*.tif"))
+    out = tmp_path / "eo.csv"
     assert main(["eo", "--from-exif", *images, "--frame", "EPSG:32651", "--system",
                  "omega-phi-kappa", "-o", str(out), "-q"]) == 0
     eo = read_eo_csv(out)
+    assert eo.frame == parse_frame("EPSG:32651").header()
     rows = [ln.replace("'", "").split() for ln in (REAL / "odm_xyz_opk.csv").read_text()
             .splitlines()[1:] if ln.strip()]
-    ref = {r[0]: np.array([float(v) for v in r[1:7]]) for r in rows}
+    ref = {r[0]: np.array([float(v) for v in r[1:4]]) for r in rows}
     for k, iid in enumerate(eo.image_id):
-        np.testing.assert_allclose(eo.position[k], ref[iid][:3], atol=0.05)
-        R = angles_to_matrix(eo.angles[k], "omega-phi-kappa")
-        Rb = angles_to_matrix(np.deg2rad(ref[iid][3:]), "omega-phi-kappa")
-        from scipy.spatial.transform import Rotation
-        assert np.rad2deg(Rotation.from_matrix(R.T @ Rb).magnitude()) < 1.5
+        np.testing.assert_allclose(eo.position[k], ref[iid], atol=0.05)
     assert np.all(eo.position_sigma < 0.03)
-    frame = parse_frame("EPSG:32651")
-    assert frame.header() == eo.frame
+    bundle = read_reconstruction(REAL / "opensfm" / "reconstruction.json")
+    lat, lon, h = bundle.reference_lla_deg
+    assert main(["eo", "--from-exif", *images, "--origin", f"{lat},{lon},{h}", "-o",
+                 str(out), "-q", "--system", "omega-phi-kappa"]) == 0
+    eo = read_eo_csv(out)
+    assert eo.frame == bundle.eo.frame
+    for k, iid in enumerate(eo.image_id):
+        j = bundle.eo.image_id.index(iid)
+        d = Rotation.from_matrix(eo.matrices()[k].T @ bundle.eo.matrices()[j]).magnitude()
+        assert np.rad2deg(d) < 1.5

@@ -1,0 +1,141 @@
+"""``photogrammetry sfm-import`` and ``sfm-export``: OpenSfM/ODM and COLMAP projects in,
+refined EO out (OpenSfM reconstruction, COLMAP text model, orthority's OPK CSV)."""
+import argparse
+import os
+
+from ins.cliutil import check_output_file
+from ins.errors import InputError
+from ins.fileio import output_folder
+
+IMPORT_EPILOG = """\
+sources:
+  reconstruction.json   OpenSfM / ODM (opensfm/ folder): the first reconstruction; its
+                        tracks.csv beside it (or --tracks) gives the tie points.  Cameras
+                        "brown" (focal, c_x, c_y normalised by the larger image side;
+                        k1, k2, k3, p1, p2) and "perspective" (focal, k1, k2).
+  COLMAP model folder   cameras/images/points3D .bin or .txt, read with pycolmap
+                        (pip install 'insphoto[colmap]'); SIMPLE_PINHOLE, PINHOLE,
+                        SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV (k4..k6 = 0).
+
+output folder (refused when not empty unless --force):
+  camera.toml      the camera file; focal length in mm for --pixel-size-mm (an SfM
+                   project has no physical pixel size; the angles do not depend on
+                   it); distortion converted into the camera file's mm polynomial
+                   (docs/interfaces.md: k1' = k1/f^2, k2' = k2/f^4, k3' = k3/f^6,
+                   p1' = p2/f, p2' = -p1/f with f in mm; principal point in px with
+                   pixel centres at integers)
+  eo.csv           the SfM poses as an EO CSV: OpenSfM in ENU at its reference_lla,
+                   COLMAP in the model's world frame
+  tiepoints.csv    image_id,point_id,x_mm,y_mm (observed photo coordinates); image ids
+                   = image file names without extension
+"""
+
+EXPORT_EPILOG = """\
+formats:
+  opensfm    reconstruction.json: shots with rotation = axis-angle of R_cw (world to
+             computer-vision camera: x right, y down, z along the view), translation
+             t = -R_cw X0; the camera as "brown"; reference_lla = the ENU origin (the
+             EO must be in an enu frame)
+  colmap     a COLMAP text model in the folder -o: cameras.txt (OPENCV), images.txt
+             (QW QX QY QZ of R_cw, t), empty points3D.txt: known poses for COLMAP's
+             point_triangulator
+  orthority  filename x y z omega phi kappa (deg, omega-phi-kappa: R = Rx(omega)
+             Ry(phi) Rz(kappa) camera (x right, y up, z backwards) to world), space
+             separated, with a .prj beside it for an EPSG frame
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "sfm-import", help="camera, EO and tie points from an OpenSfM/ODM or COLMAP project",
+        description="Convert an OpenSfM/ODM reconstruction (with tracks.csv) or a COLMAP "
+                    "model into a camera file, an EO CSV and a tie-point CSV.",
+        epilog=IMPORT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("source", metavar="reconstruction.json|COLMAP_DIR")
+    p.add_argument("--tracks", metavar="tracks.csv", help="OpenSfM tracks (default: beside "
+                                                          "the reconstruction)")
+    p.add_argument("--pixel-size-mm", type=float, default=0.01, metavar="MM",
+                   help="pixel pitch of the camera file (mm; default 0.01)")
+    p.add_argument("--system", choices=["phi-omega-kappa", "omega-phi-kappa"],
+                   default="omega-phi-kappa", help="angle system of eo.csv")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("-o", "--output", required=True, metavar="FOLDER")
+    p.set_defaults(func=run_import)
+    e = sub.add_parser(
+        "sfm-export", help="refined EO as OpenSfM, COLMAP or orthority input",
+        description="Write an EO CSV (and its camera) for SfM tools and orthorectification.",
+        epilog=EXPORT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    e.add_argument("eo", metavar="EO.csv")
+    e.add_argument("--camera", metavar="CAM.toml", help="camera file (opensfm, colmap)")
+    e.add_argument("--format", required=True, choices=["opensfm", "colmap", "orthority"])
+    e.add_argument("--force", action="store_true", help="colmap: replace a non-empty folder")
+    e.add_argument("-o", "--output", required=True, metavar="OUT")
+    e.set_defaults(func=run_export)
+
+
+def run_import(args):
+    from .camera import write_camera
+    from .exposure import write_eo_csv
+    from .tiepoints import write_tiepoints
+    if not (args.pixel_size_mm > 0):
+        raise InputError(f"--pixel-size-mm must be > 0 mm, got {args.pixel_size_mm}")
+    src = args.source
+    if os.path.isdir(src):
+        from .sfm_colmap import read_colmap
+        model = read_colmap(src, args.system, args.pixel_size_mm)
+        cams = {model.cameras[c] for c in set(model.image_camera.values())}
+        eo, ids, pids, xy, kind = (model.eo, model.image_id, model.point_id, model.xy_mm,
+                                   "COLMAP")
+        skipped = 0
+    else:
+        from .sfm_opensfm import read_reconstruction, read_tracks
+        proj = read_reconstruction(src, args.system, args.pixel_size_mm)
+        tracks = args.tracks or os.path.join(os.path.dirname(os.path.abspath(src)),
+                                             "tracks.csv")
+        if not os.path.isfile(tracks):
+            raise InputError(f"no tracks.csv beside {src} (give --tracks)", path=tracks)
+        cams = {proj.cameras[c][0] for c in set(proj.shot_camera.values())}
+        ids, pids, xy, skipped = read_tracks(tracks, proj)
+        eo, kind = proj.eo, "OpenSfM"
+    if len(cams) != 1:
+        raise InputError(f"{src}: {len(cams)} cameras; the tie-point file and refine take "
+                         "one camera per block")
+    camera = cams.pop()
+    with output_folder(args.output, args.force) as tmp:
+        write_camera(os.path.join(tmp, "camera.toml"), camera)
+        write_eo_csv(os.path.join(tmp, "eo.csv"), eo, comments=(f"from the {kind} project "
+                                                                f"{src}",))
+        write_tiepoints(os.path.join(tmp, "tiepoints.csv"), ids, pids, xy,
+                        comments=(f"from the {kind} project {src}",))
+    if not args.quiet:
+        print(f"{kind}: {len(eo)} images, {len(set(pids))} tracks, {len(ids)} observations"
+              + (f" ({skipped} of images outside the reconstruction left out)" if skipped
+                 else ""))
+        print(f"wrote {args.output}/camera.toml, eo.csv, tiepoints.csv")
+    return 0
+
+
+def run_export(args):
+    from .camera import read_camera
+    from .exposure import read_eo_csv
+    eo = read_eo_csv(args.eo)
+    if os.path.abspath(args.output) == os.path.abspath(args.eo):
+        raise InputError(f"--output {args.output} would overwrite the input file {args.eo}")
+    if args.format == "orthority":
+        from .sfm_opensfm import write_orthority_csv
+        check_output_file(args.output)
+        write_orthority_csv(args.output, eo)
+        return 0
+    if not args.camera:
+        raise InputError(f"--format {args.format} needs --camera CAM.toml")
+    camera, _ = read_camera(args.camera)
+    if args.format == "opensfm":
+        from .sfm_opensfm import write_reconstruction
+        check_output_file(args.output)
+        write_reconstruction(args.output, eo, camera)
+    else:
+        from .sfm_colmap import write_colmap_text
+        with output_folder(args.output, args.force) as tmp:
+            write_colmap_text(tmp, eo, camera)
+    return 0
