@@ -8,10 +8,10 @@ config's key names and units::
     tactical   a tactical-grade IMU (fibre-optic or good MEMS gyros, ~1 deg/h)
     mems       a consumer / phone MEMS IMU (~100 deg/h, ~5 mg; values that process the
                comma2k19 phone at 104 Hz: tools/comma2k19.py, docs/real-data.md)
-    land       mems for a land vehicle; the non-holonomic constraint and the
-               zero-velocity updates are meant to be on here once the processing config
-               has keys for them (issue 16: the filter has them, ``FilterSettings.nhc`` and
-               ``zupt``; the config does not read them yet), so today land = mems
+    land       mems for a land vehicle: ``[measurements] nhc = true`` (lateral and
+               vertical velocity 0 in the BODY axes: the IMU's axes must be the
+               vehicle's) and ``zupt = true`` (zero-velocity updates where the IMU is
+               found at rest)
 
 The values are 1-sigma statistics in KF-GINS's units (deg/sqrt(h), m/s/sqrt(h), deg/h,
 mGal, ppm, h).
@@ -31,11 +31,13 @@ PRESETS = {
                                "gyro_scale_std_ppm": 100.0, "accel_scale_std_ppm": 100.0,
                                "corr_time_h": 1.0}},
     "mems": {"imu_noise": dict(_MEMS_NOISE)},
-    "land": {"imu_noise": dict(_MEMS_NOISE)},
+    "land": {"imu_noise": dict(_MEMS_NOISE),
+             "measurements": {"nhc": True, "zupt": True}},
 }
 
-#: Tables of a preset that map onto ``ProcessConfig`` attributes of the same name.
-_ATTRIBUTE_TABLES = ("gnss", "filter")
+#: Tables of a preset whose keys go into the ``ProcessConfig`` dictionary of that name
+#: (``[measurements]`` -> ``cfg.measurements``, the ``[states]`` priors -> ``cfg.priors``).
+_DICT_TABLES = {"measurements": "measurements", "states": "priors"}
 
 
 def names():
@@ -72,8 +74,9 @@ def apply_preset(cfg, name, given=None):
              if k not in given.get("imu_noise", {})}
     if noise and cfg.source != "manifest":
         out.noise = replace(cfg.noise, **noise)
-    for table in _ATTRIBUTE_TABLES:
-        for key, value in values.get(table, {}).items():
-            if key not in given.get(table, {}):
-                setattr(out, key, value)
+    for table, attr in _DICT_TABLES.items():
+        fill = {k: v for k, v in values.get(table, {}).items()
+                if k not in given.get(table, {})}
+        if fill:
+            setattr(out, attr, {**getattr(cfg, attr), **fill})
     return out
