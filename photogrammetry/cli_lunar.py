@@ -22,12 +22,35 @@ frames and units:
 inputs:
   TIMES.csv    image_id,utc   or   image_id,gps_week,gps_time_s  (increasing times)
   CENTRES.csv  image_id,u_px,v_px[,sigma_px]  (default sigma 0.1 px)
-  --images DIR <image_id>.png/.tif/.fits (FITS needs astropy)
-  CAM.toml     [camera] model = "fisheye-equisolid", focal_length_px (or
-               focal_length_mm with pixel_size_mm), width_px, height_px required;
-               optional: principal_point_px = [(width_px-1)/2, (height_px-1)/2],
-               radial_k = [0, 0, 0] (rad, eq. 1), pixel_size_mm; any other section or
-               key is an error (docs/interfaces.md)
+  --images DIR <image_id>.png/.tif/.fits (FITS needs astropy: pip install
+               'insphoto[fits]').  Without --times the times come from the FITS
+               headers: DATE-AVG (mid-exposure), else DATE-OBS (with TIME-OBS or UT
+               when DATE-OBS is a date) + EXPTIME/2; TIMESYS must be UTC or absent.
+               Header times are in --time-zone (default UTC; +08:00 = China
+               standard time: UTC = header time - 8 h).
+  CAM.toml     [camera] model, focal_length_px (or focal_length_mm with
+               pixel_size_mm), width_px, height_px required; optional:
+               principal_point_px = [(width_px-1)/2, (height_px-1)/2], pixel_size_mm,
+               radial_k = [0, 0, 0] (rad, eq. 1; equisolid only), opencv_k =
+               [0, 0, 0, 0] (opencv-fisheye only); any other key is an error.
+               model (theta = off-axis angle, r = px from the principal point):
+                 fisheye-equisolid      r = 2 f sin(theta/2), radial_k (paper eq. 1)
+                 fisheye-equidistant    r = f theta
+                 fisheye-stereographic  r = 2 f tan(theta/2)
+                 fisheye-orthographic   r = f sin(theta)
+                 opencv-fisheye         r = f theta (1 + k1 theta^2 + .. + k4 theta^8)
+                                        (cv2.fisheye with fx = fy = f, D = opencv_k)
+
+the Moon in the images:
+  The centre is fitted on the lit limb (the half of the outline facing the Sun, known
+  from the ephemeris and a first solution) with the photometric law fitted too (a
+  non-negative mix of flat, Lambert and Lommel-Seeliger shading) and the radius known
+  from the ephemeris' semidiameter (sigma 0.2 %).  Clipped pixels are left out:
+  --saturation, else a FITS file's SATURATE or DATAMAX, else an integer image's maximum
+  when at least 3 pixels hold it (a saturated core), else its type's largest value.
+  Errors: an image without a Moon (peak < 10 sky-noise sigmas above the sky) is named;
+  a session whose crescent is thinner than 2 px (lit width R (1 + cos phase), R = f
+  times the semidiameter) is refused.
 
 output:
   heading and sigma (deg and arcsec), per-image residuals (arcsec; '*' = outlier,
@@ -67,7 +90,14 @@ def add_parser(sub):
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--images", metavar="DIR", help="folder of Moon images <image_id>.png|tif|fits")
     src.add_argument("--centres", metavar="CENTRES.csv", help="measured Moon centres, px")
-    p.add_argument("--times", required=True, metavar="TIMES.csv", help="exposure times (UTC)")
+    p.add_argument("--times", metavar="TIMES.csv",
+                   help="exposure times (UTC); optional with FITS images whose headers "
+                        "hold the times")
+    p.add_argument("--time-zone", default="UTC", metavar="+HH:MM",
+                   help="time zone of the FITS header times (default UTC)")
+    p.add_argument("--saturation", type=float, metavar="COUNTS",
+                   help="clipping level of the images, counts (default: FITS SATURATE/"
+                        "DATAMAX, or an integer image's saturated plateau)")
     p.add_argument("--station", required=True, type=triplet, metavar="LAT,LON,H",
                    help="station latitude, longitude (deg) and ellipsoidal height (m)")
     p.add_argument("--camera", required=True, metavar="CAM.toml", help="fisheye camera file")
@@ -85,11 +115,36 @@ def _select(ids_times, utc, ids_other, what):
     return np.array([index[k] for k in ids_other], int)
 
 
+def header_times(files, zone, folder):
+    """(ids, UTC times) of FITS images from their headers (`lunar.io.fits_time`), the
+    header times being local times of offset ``zone`` (timedelta64); in time order."""
+    from .lunar.io import fits_header_time
+    ids, times = [], []
+    for name, path in files.items():
+        if not path.lower().endswith((".fits", ".fit")):
+            raise InputError(f"{path}: not a FITS file: give the times with --times")
+        t = fits_header_time(path)
+        if t is None:
+            raise InputError("no DATE-OBS or DATE-AVG in the FITS header: give the times "
+                             "with --times", path)
+        ids.append(name)
+        times.append(t - zone)
+    if not ids:
+        raise InputError("--images: no image files (.png .tif .tiff .fits .fit)", folder)
+    order = np.argsort(np.array(times, "datetime64[ns]"), kind="stable")
+    utc = np.array(times, "datetime64[ns]")[order]
+    if np.any(np.diff(utc) <= np.timedelta64(0, "ns")):
+        k = int(np.flatnonzero(np.diff(utc) <= np.timedelta64(0, "ns"))[0])
+        raise InputError(f"two images with the same header time {utc[k]}: "
+                         f"{ids[order[k]]} and {ids[order[k + 1]]}", folder)
+    return [ids[i] for i in order], utc
+
+
 def run(args):
     from .lunar import heading_from_centres, heading_from_images
     from .lunar.ephemeris import standard_pressure_hpa
     from .lunar.fisheye import read_camera
-    from .lunar.io import find_images, read_centres, read_times
+    from .lunar.io import find_images, parse_time_zone, read_centres, read_times
     from .lunar.solve import convergence
 
     t0 = wallclock.perf_counter()
@@ -101,7 +156,16 @@ def run(args):
     if args.plot:
         check_output_file(args.plot)      # an unwritable plot: now, not after the work
     camera = read_camera(args.camera)
-    ids, utc = read_times(args.times)
+    zone = parse_time_zone(args.time_zone)
+    if args.saturation is not None and not (np.isfinite(args.saturation)
+                                            and args.saturation > 0):
+        raise InputError(f"--saturation: expected counts > 0, got {args.saturation}")
+    if args.times:
+        ids, utc = read_times(args.times)
+    elif args.images:
+        ids, utc = header_times(find_images(args.images), zone, args.images)
+    else:
+        raise InputError("--times: required with --centres")
     pressure = standard_pressure_hpa(h) if args.pressure is None else args.pressure
     sky_options = dict(pressure_hpa=None if pressure == 0 else float(pressure),
                        temperature_c=args.temperature, dut1_s=args.dut1)
@@ -118,11 +182,13 @@ def run(args):
         used = [k for k in ids if k in files]
         if len(used) < 2:
             raise InputError(f"{args.images}: {len(used)} image(s) match the ids of "
-                             f"{args.times}; at least 2 usable images are needed")
+                             f"{args.times or 'the FITS headers'}; at least 2 usable images "
+                             "are needed")
         sel = np.array([ids.index(k) for k in used])
         progress = Progress("lunar-heading", not args.quiet)
         result = heading_from_images(camera, [files[k] for k in used], utc[sel], lat, lon, h,
-                                     progress=progress, **sky_options)
+                                     progress=progress, saturation=args.saturation,
+                                     **sky_options)
     sol = result.solution
     arcsec = np.rad2deg(1.0) * 3600
     print(f"{len(used)} images, {str(utc[sel][0])[:23]} .. {str(utc[sel][-1])[:23]} UTC; "

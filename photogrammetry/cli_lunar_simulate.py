@@ -35,11 +35,28 @@ lens:
   --camera CAM.toml (the lunar-heading camera file), default the example lens of
   data/lunar/fisheye.toml (equisolid, f = 800 px, 1600 x 1600 px, radial_k
   0.002,-0.001,0.0005 rad); --focal-length-px, --size W,H (principal point at the new
-  image centre) and --radial-k K1,K2,K3 replace its values.
+  image centre) and --radial-k K1,K2,K3 replace its values.  --lens MODEL changes the
+  projection (theta off-axis angle, rad; r px from the principal point):
+    fisheye-equisolid      r = 2 f sin(theta/2) with radial_k (the paper's eq. 1)
+    fisheye-equidistant    r = f theta
+    fisheye-stereographic  r = 2 f tan(theta/2)
+    fisheye-orthographic   r = f sin(theta)
+    opencv-fisheye         r = f theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6
+                           + k4 theta^8), --opencv-k K1,K2,K3,K4 (OpenCV's fisheye D)
+
+shading (--shading; the lit disk's photometric law, mu0 / mu the cosines of incidence
+and emission):
+  lommel-seeliger  mu0 / (mu0 + mu): bright lit limb, close to the real Moon (default)
+  lambert          mu0: darkened towards the limb
+  flat             1 on the lit part
+  hapke            Lommel-Seeliger times Hapke's multiple-scattering and opposition
+                   terms (albedo 0.25)
+  --saturation COUNTS clips the images there (a saturated core, as real exposures of
+  the Moon often have); lunar-heading leaves clipped pixels out of the fit.
 
 output folder (-o DIR; --force replaces an existing one, written whole or not at all):
-  images/<image_id>.png   16-bit grayscale Moon images (Lommel-Seeliger shading, the
-                          Moon's phase, Gaussian read noise; ids m000, m001, ...)
+  images/<image_id>.png   16-bit grayscale Moon images (--shading, the Moon's phase,
+                          Gaussian read noise; ids m000, m001, ...)
   times.csv               image_id,utc  (the format of lunar-heading --times)
   camera.toml             the lens (lunar-heading --camera)
   truth.toml              true heading, tilt, tilt azimuth, C_hc and the settings
@@ -89,6 +106,16 @@ def add_parser(sub):
     p.add_argument("--size", metavar="W,H", help="image width and height, px")
     p.add_argument("--radial-k", type=triplet, metavar="K1,K2,K3",
                    help="radial terms of the equisolid model (eq. 1), rad")
+    p.add_argument("--lens", metavar="MODEL",
+                   help="lens model: fisheye-equisolid (default), fisheye-equidistant, "
+                        "fisheye-stereographic, fisheye-orthographic, opencv-fisheye")
+    p.add_argument("--opencv-k", metavar="K1,K2,K3,K4",
+                   help="OpenCV fisheye distortion D (with --lens opencv-fisheye)")
+    p.add_argument("--shading", default="lommel-seeliger", metavar="LAW",
+                   help="photometric law of the lit disk: lommel-seeliger (default), "
+                        "lambert, flat, hapke")
+    p.add_argument("--saturation", type=float, metavar="COUNTS",
+                   help="clip the images at this level, counts (default: 65535)")
     p.add_argument("--heading", type=float, default=0.0, metavar="DEG",
                    help="true azimuth of the camera x axis, deg (default 0)")
     p.add_argument("--tilt", type=float, default=2.0, metavar="DEG",
@@ -151,13 +178,14 @@ def session_times(start, duration_s, count=None, interval_s=None):
 
 
 def _lens(args):
-    from .lunar.fisheye import FisheyeCamera, read_camera
+    from .lunar.fisheye import MODELS, FisheyeCamera, read_camera
     cam = dict(DEFAULT_LENS)
     if args.camera:
         c = read_camera(args.camera)
         cam = dict(focal_length_px=c.focal_length_px, width_px=c.width_px,
                    height_px=c.height_px, principal_point_px=tuple(c.principal_point_px),
-                   radial_k=tuple(c.radial_k), pixel_size_mm=c.pixel_size_mm)
+                   radial_k=tuple(c.radial_k), pixel_size_mm=c.pixel_size_mm, model=c.model,
+                   opencv_k=tuple(c.opencv_k))
     if args.focal_length_px is not None:
         if not np.isfinite(args.focal_length_px) or args.focal_length_px <= 0:
             raise InputError(f"--focal-length-px: expected px > 0, got {args.focal_length_px}")
@@ -170,26 +198,35 @@ def _lens(args):
         if w < 16 or h < 16:
             raise InputError(f"--size: expected W,H in px (integers >= 16), got {args.size!r}")
         cam.update(width_px=w, height_px=h, principal_point_px=((w - 1) / 2, (h - 1) / 2))
+    if args.lens is not None:
+        if args.lens not in MODELS:
+            raise InputError(f"--lens: expected one of {', '.join(MODELS)}, got {args.lens!r}")
+        if args.lens != cam.get("model", "fisheye-equisolid"):
+            cam.update(model=args.lens, radial_k=(0.0, 0.0, 0.0), opencv_k=(0.0,) * 4)
+    model = cam.get("model", "fisheye-equisolid")
     if args.radial_k is not None:
+        if model != "fisheye-equisolid":
+            raise InputError(f"--radial-k: applies to --lens fisheye-equisolid, not {model}")
         cam["radial_k"] = tuple(float(k) for k in args.radial_k)
+    if args.opencv_k is not None:
+        try:
+            k = tuple(float(x) for x in args.opencv_k.split(","))
+        except ValueError:
+            k = ()
+        if len(k) != 4 or not all(np.isfinite(k)):
+            raise InputError(f"--opencv-k: expected K1,K2,K3,K4 (4 numbers), got "
+                             f"{args.opencv_k!r}")
+        if model != "opencv-fisheye":
+            raise InputError(f"--opencv-k: applies to --lens opencv-fisheye, not {model}")
+        cam["opencv_k"] = k
     return FisheyeCamera(**cam)
 
 
 def camera_toml(camera):
     """The text of a fisheye camera file (``lunar.fisheye.read_camera``) for `camera`."""
-    def num(x):
-        return repr(float(x))
-    lines = ["# Fisheye camera of a simulated session (photogrammetry lunar-simulate).",
-             "[camera]", 'model = "fisheye-equisolid"',
-             f"focal_length_px = {num(camera.focal_length_px)}"]
-    if camera.pixel_size_mm is not None:
-        lines.append(f"pixel_size_mm = {num(camera.pixel_size_mm)}")
-    lines += [f"width_px = {int(camera.width_px)}", f"height_px = {int(camera.height_px)}",
-              "principal_point_px = [" + ", ".join(map(num, camera.principal_point_px))
-              + "]   # (column u, row v); pixel centres at integers",
-              "radial_k = [" + ", ".join(map(num, camera.radial_k))
-              + "]   # k1, k2, k3 of eq. (1), rad"]
-    return "\n".join(lines) + "\n"
+    from .lunar.fisheye import camera_file_text
+    return camera_file_text(camera, "Fisheye camera of a simulated session "
+                                    "(photogrammetry lunar-simulate)")
 
 
 def check_visible(utc, sky, camera, C_hc, min_altitude):
@@ -239,7 +276,9 @@ def _truth_toml(args, C_hc, tilt_azimuth_deg, pressure, utc):
                    "last_utc": str(np.datetime_as_string(utc[-1], unit="ms")) + "Z",
                    "noise_counts": args.noise, "peak_counts": args.peak,
                    "background_counts": args.background, "blur_px": args.blur,
-                   "seed": args.seed}}
+                   "shading": args.shading, "seed": args.seed}}
+    if args.saturation is not None:
+        doc["images"]["saturation_counts"] = float(args.saturation)
     if args.dut1 is not None:
         doc["sky"]["dut1_s"] = float(args.dut1)
     head = ("# Truth of a simulated lunar-heading session (photogrammetry lunar-simulate).\n"
@@ -268,6 +307,13 @@ def run(args):
         raise InputError(f"--tilt: expected deg from the zenith, 0 .. 85, got {args.tilt}")
     if not np.isfinite(args.heading):
         raise InputError(f"--heading: expected deg, got {args.heading}")
+    from .lunar.render import SHADING_LAWS
+    if args.shading not in SHADING_LAWS:
+        raise InputError(f"--shading: expected one of {', '.join(SHADING_LAWS)}, got "
+                         f"{args.shading!r}")
+    if args.saturation is not None and not (np.isfinite(args.saturation)
+                                            and args.saturation > 0):
+        raise InputError(f"--saturation: expected counts > 0, got {args.saturation}")
     for name in ("noise", "peak", "background", "blur"):
         value = getattr(args, name)
         if not (np.isfinite(value) and value >= 0):
@@ -295,12 +341,16 @@ def run(args):
     ids = [f"m{k:0{max(3, len(str(n - 1)))}d}" for k in range(n)]
     progress = Progress("lunar-simulate", not args.quiet)
     options = dict(peak=args.peak, background=args.background, psf_sigma_px=args.blur,
-                   noise_sigma=args.noise, dtype=np.uint16)
+                   noise_sigma=args.noise, shading=args.shading,
+                   dtype=np.float64 if args.saturation is not None else np.uint16)
+    sat = args.saturation
     with output_folder(args.output, args.force) as tmp:
         os.mkdir(os.path.join(tmp, "images"))
 
         def write_image(k):            # PNG compression releases the GIL: threads help
             img = session_image(camera, C_hc, sky, k, seed=args.seed, **options)
+            if sat is not None:
+                img = np.clip(np.rint(np.minimum(img, sat)), 0, 65535).astype(np.uint16)
             Image.fromarray(img).save(os.path.join(tmp, "images", f"{ids[k]}.png"),
                                       compress_level=1)
 

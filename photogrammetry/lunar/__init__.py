@@ -16,14 +16,19 @@ import numpy as np
 from ins.errors import InputError
 
 from .ephemeris import moon_sun_directions
-from .io import load_image
-from .moon_centre import MoonNotFoundError, _Offset, extract_centre, sun_direction_in_image
+from .io import load_image_meta
+from .moon_centre import (MoonNotFoundError, _Offset, default_saturation, extract_centre,
+                          sun_direction_in_image)
 from .solve import solve_heading
 
-__all__ = ["LunarHeading", "heading_from_centres", "heading_from_images", "centre_directions"]
+__all__ = ["LunarHeading", "heading_from_centres", "heading_from_images", "centre_directions",
+           "check_crescent", "MIN_LIT_WIDTH_PX"]
 
 #: Relative sigma of the Moon's image radius predicted from the ephemeris' semidiameter.
 RADIUS_SIGMA_REL = 2e-3
+#: Narrowest usable crescent: lit width ``R (1 + cos phase)`` on the image, px (the centre
+#: bias grows beyond 0.02 px on thinner ones: bench/bench_lunar_bias.py).
+MIN_LIT_WIDTH_PX = 2.0
 
 
 @dataclass
@@ -65,29 +70,58 @@ def _crop(img, uv, half):
             np.array([c0, r0]))
 
 
-def _first_pass(camera, item, k, load):
-    """Load one image, find the Moon, limb circle (lit side from the image); keep a crop."""
+def _first_pass(camera, item, k, load, saturation):
+    """Load one image, find the Moon, limb circle (lit side from the image); keep a crop
+    and the image's clipping level."""
+    name = item if isinstance(item, (str, os.PathLike)) else f"image {k + 1}"
     if load is not None:
         img = load(item)
     elif isinstance(item, (str, os.PathLike)):
-        img = load_image(item, dtype=None)
+        img, meta = load_image_meta(item)
+        if saturation is None:
+            saturation = meta.get("saturation")
     else:
         img = np.asarray(item)
+    sat = default_saturation(img, saturation)
     try:
-        m = extract_centre(img, camera=camera)
+        m = extract_centre(img, camera=camera, saturation=sat)
     except MoonNotFoundError as exc:
-        raise InputError(exc.reason, item if isinstance(item, str) else f"image {k + 1}") \
-            from None
+        raise InputError(exc.reason, name) from None
     crop, off = _crop(img, m.uv, 3 * m.radius_px + 12)
-    return crop, off, m.uv, m.cov_uv
+    return crop, off, m.uv, m.cov_uv, sat, name
 
 
-def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px):
+def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, saturation, name):
     """Limb circle on the lit limb of a crop, then the blurred phased disk fitted to it."""
     ang = sun_direction_in_image(camera, uv, sun_c)
-    m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c,
-                       radius_prior=(radius_px, radius_sigma_px))
+    try:
+        m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c,
+                           radius_prior=(radius_px, radius_sigma_px), saturation=saturation)
+    except MoonNotFoundError as exc:
+        raise InputError(exc.reason, name) from None
     return m.uv + off, m.cov_uv
+
+
+def check_crescent(sky, camera, min_width_px=None):
+    """Refuse a session whose Moon is too thin a crescent: the lit width along the Sun's
+    direction, ``R (1 + cos a)`` (R the Moon's radius on the image = f times the
+    semidiameter, px; a the phase angle), under `MIN_LIT_WIDTH_PX` at some image.
+
+    Raises
+    ------
+    InputError
+        Naming the phase angle, the radius and the width.
+    """
+    min_width_px = MIN_LIT_WIDTH_PX if min_width_px is None else min_width_px
+    radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
+    width = radius * (1 + np.cos(sky.phase_angle))
+    k = int(np.argmin(width))
+    if width[k] < min_width_px:
+        raise InputError(
+            f"the Moon is too thin a crescent to use: phase angle "
+            f"{np.rad2deg(sky.phase_angle[k]):.1f} deg, radius {radius[k]:.2f} px, lit width "
+            f"R (1 + cos phase) = {width[k]:.2f} px < {min_width_px:g} px (image {k + 1}); "
+            f"a longer focal length or a date nearer full Moon")
 
 
 def _ordered(pool, fn, args, progress, done, total):
@@ -102,7 +136,8 @@ def _ordered(pool, fn, args, progress, done, total):
 
 
 def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=None,
-                        workers=None, radius_sigma_rel=RADIUS_SIGMA_REL, **sky_options):
+                        workers=None, radius_sigma_rel=RADIUS_SIGMA_REL, saturation=None,
+                        **sky_options):
     """Heading from Moon images in two passes.
 
     Pass 1: limb circle (a cone with the camera) with the lit side taken from the image;
@@ -130,20 +165,27 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
         Threads (default: the CPU count, at most 4).
     radius_sigma_rel : float
         Relative sigma of the Moon's radius on the image predicted from the semidiameter
-        and the focal length (calibration of f, the refraction's flattening).
+        and the focal length (calibration of f).
+    saturation : float, optional
+        Clipping level of the images, counts: pixels at or above it are left out of the
+        fit.  Default: a FITS file's SATURATE (or DATAMAX) key, else
+        `moon_centre.default_saturation` (an integer image's plateau at its maximum or
+        its type's largest value).
 
     Raises
     ------
     InputError
-        An image without a Moon (named), or fewer than 2 images.
+        An image without a Moon (named), too thin a crescent (`check_crescent`), or
+        fewer than 2 images.
     """
     n = len(images)
     if n < 2:
         raise InputError(f"at least 2 usable images are needed, got {n}")
     sky = moon_sun_directions(utc, lat, lon, h, **sky_options)
+    check_crescent(sky, camera)
     workers = workers or min(os.cpu_count() or 1, 4)
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        first = _ordered(pool, _first_pass, [(camera, item, k, load)
+        first = _ordered(pool, _first_pass, [(camera, item, k, load, saturation)
                                              for k, item in enumerate(images)],
                          progress, 0, 2 * n)
         uv = np.array([f[2] for f in first])
@@ -154,7 +196,8 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
         radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
         second = _ordered(pool, _second_pass,
                           [(camera, f[0], f[1], f[2], sun_c[k], radius[k],
-                            radius_sigma_rel * radius[k]) for k, f in enumerate(first)],
+                            radius_sigma_rel * radius[k], f[4], f[5])
+                           for k, f in enumerate(first)],
                           progress, n, 2 * n)
     uv = np.array([s[0] for s in second])
     cov = np.array([s[1] for s in second])

@@ -10,10 +10,12 @@ CENTRES.csv::
     image_id,u_px,v_px[,sigma_px]       # or sigma_u_px,sigma_v_px; default sigma 0.1 px
 
 Images: ``<image_id>.png|.tif|.tiff|.fits|.fit`` in a folder (grayscale; colour is
-averaged).  FITS needs astropy (a test/bench extra).
+averaged).  FITS needs astropy (the extra ``fits``); its header gives the exposure time
+(`fits_time`) and the clipping level (`fits_saturation`).
 """
 import csv
 import os
+import re
 
 import numpy as np
 
@@ -21,8 +23,9 @@ from ins import textfiles
 from ins.errors import InputError
 from ins.fileio import atomic_open
 
-__all__ = ["read_times", "write_times", "read_centres", "load_image", "find_images",
-           "GPS_EPOCH", "GPS_MINUS_UTC_S"]
+__all__ = ["read_times", "write_times", "read_centres", "load_image", "load_image_meta",
+           "find_images", "fits_time", "fits_header_time", "fits_saturation", "parse_time_zone", "GPS_EPOCH",
+           "GPS_MINUS_UTC_S"]
 
 GPS_EPOCH = np.datetime64("1980-01-06T00:00:00", "ns")
 GPS_MINUS_UTC_S = 18          # leap seconds since 2017-01-01 (conventions.md)
@@ -136,6 +139,23 @@ def write_times(path, ids, utc):
         f.writelines(f"{k},{t}Z\n" for k, t in zip(ids, text))
 
 
+_ZONE = re.compile(r"^(UTC|Z)?([+-])(\d\d):?(\d\d)$")
+
+
+def parse_time_zone(text, option="--time-zone"):
+    """A time-zone offset ``+08:00`` / ``-0530`` / ``UTC`` / ``Z`` as numpy timedelta64[ns]
+    (local time = UTC + offset)."""
+    t = str(text).strip().upper()
+    if t in ("UTC", "Z", "+00:00", "00:00"):
+        return np.timedelta64(0, "ns")
+    m = _ZONE.match(t)
+    if not m or int(m.group(3)) > 14 or int(m.group(4)) >= 60:
+        raise InputError(f"{option}: expected an offset from UTC as +HH:MM or -HH:MM "
+                         f"(+08:00 for China), or UTC, got {text!r}")
+    minutes = int(m.group(3)) * 60 + int(m.group(4))
+    return np.timedelta64((1 if m.group(2) == "+" else -1) * minutes * 60_000_000_000, "ns")
+
+
 def read_centres(path, default_sigma_px=0.1):
     """Measured Moon centres.
 
@@ -182,24 +202,142 @@ def find_images(folder):
     return out
 
 
+def _read_fits(path):
+    """(data, header) of the first HDU with an image."""
+    try:
+        from astropy.io import fits
+    except ImportError:
+        raise InputError("reading FITS needs astropy: pip install 'insphoto[fits]' (or "
+                         "convert the image to PNG/TIFF)", path) from None
+    try:
+        with fits.open(path) as hdul:
+            for h in hdul:
+                if getattr(h, "data", None) is not None and np.ndim(h.data) >= 2:
+                    return np.asarray(h.data), h.header
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read the FITS file: {exc}", path) from None
+    raise InputError("no image data in the FITS file", path)
+
+
+_DMY = re.compile(r"^(\d\d)/(\d\d)/(\d\d)$")        # the pre-1999 DATE-OBS form dd/mm/yy
+FITS_TIMESYS = ("UTC", "UT")
+
+
+def _fits_datetime(text, path, key):
+    """An ISO 8601 date-time (or date) of a FITS header value as datetime64[ns]."""
+    text = str(text).strip().rstrip("Z")
+    m = _DMY.match(text)
+    if m:
+        text = f"19{m.group(3)}-{m.group(2)}-{m.group(1)}"
+    try:
+        t = np.datetime64(text, "ns")
+    except ValueError:
+        t = None
+    if t is None or np.isnat(t):
+        raise InputError(f"{key}: expected an ISO 8601 date-time (2017-05-12T15:00:00.25), "
+                         f"got {text!r}", path)
+    return t
+
+
+def fits_time(header, path):
+    """Mid-exposure time of a FITS header in the header's own time zone, datetime64[ns].
+
+    Rule: ``DATE-AVG`` (mid-exposure) when present; else ``DATE-OBS`` (the start: a full
+    date-time, or a date with ``TIME-OBS``/``UT``) plus half of ``EXPTIME``
+    (or ``EXPOSURE``), s, when present.  ``TIMESYS`` must be absent, UTC or UT (the
+    time zone of local-time headers is the caller's option).  None without a date.
+    """
+    sys_ = str(header.get("TIMESYS", "UTC")).strip().upper()
+    if sys_ not in FITS_TIMESYS:
+        raise InputError(f"TIMESYS = {sys_!r}: only UTC header times are read (convert "
+                         "them, or give --times)", path)
+    if "DATE-AVG" in header:
+        return _fits_datetime(header["DATE-AVG"], path, "DATE-AVG")
+    if "DATE-OBS" not in header:
+        return None
+    date = str(header["DATE-OBS"]).strip()
+    if "T" not in date:
+        clock = header.get("TIME-OBS", header.get("UT"))
+        if clock is not None:
+            date = f"{_fits_datetime(date, path, 'DATE-OBS').astype('datetime64[D]')}" \
+                   f"T{str(clock).strip()}"
+    t = _fits_datetime(date, path, "DATE-OBS")
+    exptime = header.get("EXPTIME", header.get("EXPOSURE"))
+    if exptime is not None:
+        try:
+            half = float(exptime) / 2
+        except (TypeError, ValueError):
+            raise InputError(f"EXPTIME: expected seconds, got {exptime!r}", path) from None
+        if not (np.isfinite(half) and half >= 0):
+            raise InputError(f"EXPTIME: expected seconds >= 0, got {exptime!r}", path)
+        t = t + np.timedelta64(int(round(half * 1e9)), "ns")
+    return t
+
+
+def fits_header_time(path):
+    """`fits_time` of the first image HDU of a FITS file (its header only), or None."""
+    try:
+        from astropy.io import fits
+    except ImportError:
+        raise InputError("reading FITS needs astropy: pip install 'insphoto[fits]'",
+                         path) from None
+    try:
+        with fits.open(path) as hdul:
+            for h in hdul:
+                if int(h.header.get("NAXIS", 0)) >= 2:
+                    return fits_time(h.header, str(path))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read the FITS file: {exc}", path) from None
+    raise InputError("no image data in the FITS file", path)
+
+
+def fits_saturation(header):
+    """The clipping level of a FITS header: ``SATURATE``, else ``DATAMAX``; None."""
+    for key in ("SATURATE", "DATAMAX"):
+        v = header.get(key)
+        if v is not None:
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                continue
+            if np.isfinite(v) and v > 0:
+                return v
+    return None
+
+
+def load_image_meta(path, dtype=None):
+    """`load_image` and what the file tells about the exposure: ``{"saturation": counts
+    or None, "time": datetime64[ns] or None (FITS: `fits_time`, in the header's zone)}``."""
+    ext = os.path.splitext(str(path))[1].lower()
+    if ext in (".fits", ".fit"):
+        data, header = _read_fits(str(path))
+        img = _gray(np.asarray(data), path)
+        meta = {"saturation": fits_saturation(header), "time": fits_time(header, str(path))}
+        return (img if dtype is None else img.astype(dtype, copy=False)), meta
+    return load_image(path, dtype), {"saturation": None, "time": None}
+
+
+def _gray(img, path):
+    if img.ndim == 3:
+        img = img[..., :3].mean(axis=-1) if img.shape[-1] in (3, 4) else img[0]
+    if img.ndim != 2:
+        raise InputError(f"expected a grayscale image, got shape {img.shape}", path)
+    if img.dtype.byteorder not in ("=", "|"):          # FITS is big-endian
+        img = img.astype(img.dtype.newbyteorder("="))
+    return img
+
+
 def load_image(path, dtype=float):
     """A grayscale image as an array (rows, columns); colour channels are averaged.
 
     ``dtype=None`` keeps the file's type for grayscale images (e.g. uint16 of a 16-bit
     PNG: no float copy of the whole frame); otherwise the array is converted to ``dtype``.
+    FITS needs astropy (the extra ``fits``).
     """
+    path = str(path)
     ext = os.path.splitext(path)[1].lower()
     if ext in (".fits", ".fit"):
-        try:
-            from astropy.io import fits
-        except ImportError:
-            raise InputError("reading FITS needs astropy (pip install astropy), "
-                             "or convert the image to PNG/TIFF", path) from None
-        with fits.open(path) as hdul:
-            data = next((h.data for h in hdul if getattr(h, "data", None) is not None), None)
-        if data is None:
-            raise InputError("no image data in the FITS file", path)
-        img = np.asarray(data)
+        img = _read_fits(path)[0]
     elif ext in (".tif", ".tiff"):
         import tifffile
         img = np.asarray(tifffile.imread(path))
@@ -214,8 +352,5 @@ def load_image(path, dtype=float):
                     img = np.asarray(im)
         except OSError as exc:
             raise InputError(f"cannot read the image: {exc}", path) from None
-    if img.ndim == 3:
-        img = img[..., :3].mean(axis=-1) if img.shape[-1] in (3, 4) else img[0]
-    if img.ndim != 2:
-        raise InputError(f"expected a grayscale image, got shape {img.shape}", path)
+    img = _gray(img, path)
     return img if dtype is None else img.astype(dtype, copy=False)

@@ -278,8 +278,8 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         length), for the fit of the phased disk (see `fit_lit_limb`).
     saturation : float, optional
         Pixels at or above this level (counts) are clipped: left out of the fit of the
-        phased disk.  Default: the largest value of an integer image's type (none for
-        float images).
+        phased disk.  Default: `default_saturation` (an integer image's plateau at its
+        maximum, or its type's largest value; none for float images).
 
     Returns
     -------
@@ -335,13 +335,24 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
                       sun_angle=float("nan") if sun_angle is None else sun_angle)
 
 
+#: An integer image whose maximum is held by at least this many pixels is clipped there.
+CLIPPED_PIXELS = 3
+
+
 def default_saturation(image, saturation=None):
-    """The clipping level of an image: ``saturation`` when given, else the largest value of
-    an integer type (65535 for uint16), else None (float images)."""
+    """The clipping level of an image: ``saturation`` when given; for an integer image
+    its maximum when at least `CLIPPED_PIXELS` pixels hold it (a clipped core: sensor or
+    file clipping leaves a plateau of equal values), else its type's largest value; None
+    for float images."""
     if saturation is not None:
         return float(saturation)
-    dtype = np.asarray(image).dtype
-    return float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else None
+    img = np.asarray(image)
+    if not np.issubdtype(img.dtype, np.integer):
+        return None
+    top = img.max()
+    if np.count_nonzero(img == top) >= CLIPPED_PIXELS:
+        return float(top)
+    return float(np.iinfo(img.dtype).max)
 
 
 def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None, sun_c=None,

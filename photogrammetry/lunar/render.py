@@ -1,12 +1,14 @@
 """Synthetic Moon images with phase and a sharp lit limb: ``photogrammetry lunar-simulate``
 (a session of images to try ``lunar-heading`` on), the tests and the benchmarks.
 
-Photometry: Lommel-Seeliger, ``I = mu0 / (mu0 + mu)`` on the lit part of the visible
-hemisphere (``mu0``, ``mu`` the cosines of incidence and emission): the lit limb stays
-bright, the terminator fades to zero, as on the real Moon.  The disk is supersampled,
-blurred by a point-spread function (Gaussian on the pixel grid, or a Moffat profile
-convolved on the supersampled grid: a PSF form the centre fit does not assume, so that
-tests of the fit are not circular) and given Gaussian read noise.
+Photometry: Lommel-Seeliger by default, ``I = mu0 / (mu0 + mu)`` on the lit part of the
+visible hemisphere (``mu0``, ``mu`` the cosines of incidence and emission): the lit limb
+stays bright, the terminator fades to zero, as on the real Moon; Lambert, flat and a
+Hapke-like law on request (`SHADING_LAWS`).  The disk is point-sampled on a
+supersampled grid with hard edges, blurred there by a point-spread function (a Gaussian,
+or a Moffat profile: a PSF form the centre fit does not assume), binned to pixels and
+given Gaussian read noise.  (The bias of the centre fit is measured on the per-pixel
+integrating renderer of ``tests/lunar_truth.py``, which shares no code with this one.)
 
 Two geometries share the shading: a flat disk of given centre and radius in pixels
 (``render_moon``), and the Moon seen through a fisheye camera, where the disk is the cone
@@ -18,11 +20,20 @@ import numpy as np
 from scipy import ndimage, signal
 
 __all__ = ["render_moon", "render_moon_fisheye", "render_session", "session_image",
-           "camera_attitude", "shade"]
+           "camera_attitude", "shade", "SHADING_LAWS"]
 
 
-def shade(X, Y, sun3):
-    """Lommel-Seeliger brightness of the disk at normalized coordinates.
+#: Shading laws of the renderer (``shade``): Lommel-Seeliger ``mu0 / (mu0 + mu)`` (the
+#: default: a bright lit limb, close to the real Moon), Lambert ``mu0`` (limb-darkened),
+#: flat (1 on the lit part) and a Hapke-like law (Lommel-Seeliger times
+#: ``(1 + B) P - 1 + H(mu0) H(mu)`` with single-scattering albedo 0.25, Hapke's
+#: H-function approximation, an opposition surge ``B`` of amplitude 1 and width 0.06 and a
+#: Henyey-Greenstein phase function ``P`` of asymmetry -0.3).
+SHADING_LAWS = ("lommel-seeliger", "lambert", "flat", "hapke")
+
+
+def shade(X, Y, sun3, law="lommel-seeliger"):
+    """Brightness of the disk at normalized coordinates.
 
     Parameters
     ----------
@@ -31,18 +42,40 @@ def shade(X, Y, sun3):
     sun3 : array_like, shape (3,)
         Unit vector from the Moon to the Sun in the basis (X axis, Y axis, towards the
         observer); its angle to the third axis is the phase angle.
+    law : str
+        One of `SHADING_LAWS`.
 
     Returns
     -------
     ndarray
-        Brightness in [0, 1]; 0 outside the disk and on the night side.
+        Brightness (1 for the full lit limb of Lommel-Seeliger and flat); 0 outside the
+        disk and on the night side.
     """
     rho2 = X * X + Y * Y
     inside = rho2 < 1.0
     mu = np.sqrt(np.where(inside, 1.0 - rho2, 0.0))
     mu0 = X * sun3[0] + Y * sun3[1] + mu * sun3[2]
     lit = inside & (mu0 > 0)
-    return np.where(lit, mu0 / np.where(lit, mu0 + mu, 1.0), 0.0)
+    m0 = np.where(lit, mu0, 0.0)
+    ls = m0 / np.where(lit, m0 + mu, 1.0)
+    if law == "lommel-seeliger":
+        out = ls
+    elif law == "lambert":
+        out = m0
+    elif law == "flat":
+        out = np.ones_like(m0)
+    elif law == "hapke":
+        gamma = np.sqrt(1 - 0.25)
+        g = np.arccos(np.clip(sun3[2], -1.0, 1.0))
+
+        def H(x):
+            return (1 + 2 * x) / (1 + 2 * gamma * x)
+        p = (1 - 0.09) / (1 - 0.6 * np.cos(g) + 0.09) ** 1.5
+        surge = 1.0 / (1 + np.tan(g / 2) / 0.06)
+        out = ls * ((1 + surge) * p - 1 + H(m0) * H(mu)) / ((1 + surge) * p)
+    else:
+        raise ValueError(f"law must be one of {', '.join(SHADING_LAWS)}, not {law!r}")
+    return np.where(lit, out, 0.0)
 
 
 MOFFAT_BETA = 3.0
@@ -112,7 +145,7 @@ def _bin(a, n):
 
 def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, peak=3000.0,
                 background=100.0, psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
-                dtype=np.uint16, psf="gaussian"):
+                dtype=np.uint16, psf="gaussian", shading="lommel-seeliger"):
     """A Moon disk of known centre on a flat image.
 
     Parameters
@@ -138,6 +171,8 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
     rng : int or numpy.random.Generator, optional
     dtype : numpy dtype
         Output type (integers are rounded and clipped).
+    shading : str
+        Photometric law, one of `SHADING_LAWS`.
 
     Returns
     -------
@@ -147,7 +182,8 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
     sun3 = (np.sin(a) * np.cos(b), np.sin(a) * np.sin(b), np.cos(a))
     box = _box(shape, centre_uv, radius_px + _margin(psf, psf_sigma_px))
     u, v = _subpixels(box, supersample)
-    flux = shade((u - centre_uv[0]) / radius_px, (v - centre_uv[1]) / radius_px, sun3)
+    flux = shade((u - centre_uv[0]) / radius_px, (v - centre_uv[1]) / radius_px, sun3,
+                 shading)
     flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
     return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
                    psf)
@@ -155,7 +191,7 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
 
 def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, background=100.0,
                         psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
-                        dtype=np.uint16, psf="gaussian"):
+                        dtype=np.uint16, psf="gaussian", shading="lommel-seeliger"):
     """The Moon imaged by a fisheye camera (the disk follows the lens distortion).
 
     Parameters
@@ -187,7 +223,7 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
     u, v = _subpixels(box, supersample)
     p = camera.image_to_direction(np.stack([u, v], axis=-1))
     sin_rho = np.sin(semidiameter)
-    flux = shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3) * (p @ m > 0)
+    flux = shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3, shading) * (p @ m > 0)
     flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
     return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
                    psf)
@@ -247,7 +283,7 @@ def render_session(camera, C_hc, sky, seed=0, **options):
         images whatever the order or the number rendered (`session_image`).
     **options
         Passed to `render_moon_fisheye` (peak, background, psf_sigma_px, noise_sigma,
-        supersample, dtype, psf).
+        supersample, dtype, psf, shading).
 
     Yields
     ------
