@@ -320,24 +320,31 @@ def _covariance(values, index, layout_names, path, row_line):
 
 def _floor_psd(cov):
     """Raise the variances to SIGMA_FLOOR_M**2 and make the matrices positive definite
-    (eigenvalues at least SIGMA_FLOOR_M**2) where the rounding broke it."""
+    (eigenvalues at least SIGMA_FLOOR_M**2) where the rounding broke it (found by the
+    leading minors; only those rows are decomposed)."""
     f2 = SIGMA_FLOOR_M ** 2
     idx = np.arange(3)
     cov = cov.copy()
     cov[:, idx, idx] = np.maximum(cov[:, idx, idx], f2)
-    w, v = np.linalg.eigh(cov)
-    bad = np.flatnonzero(w[:, 0] < f2 * 0.5)
+    a, b, c = cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]
+    d, e, f = cov[:, 0, 1], cov[:, 1, 2], cov[:, 0, 2]
+    m2 = a * b - d * d
+    m3 = a * (b * c - e * e) - d * (d * c - e * f) + f * (d * e - b * f)
+    scale = (a * b * c)
+    bad = np.flatnonzero((m2 <= 1e-9 * a * b) | (m3 <= 1e-9 * scale))
     if bad.size:
-        w = np.maximum(w[bad], f2)
-        cov[bad] = np.einsum("nij,nj,nkj->nik", v[bad], w, v[bad])
+        w, v = np.linalg.eigh(cov[bad])
+        w = np.maximum(w, f2)
+        cov[bad] = np.einsum("nij,nj,nkj->nik", v, w, v)
     return cov
 
 
 def _rotate(C, cov):
-    """``C cov C^T`` for a (3, 3) or (n, 3, 3) ``C``."""
-    if C.ndim == 2:
-        return np.einsum("ij,njk,lk->nil", C, cov, C)
-    return np.einsum("nij,njk,nlk->nil", C, cov, C)
+    """``C cov C^T`` for a (3, 3) or (n, 3, 3) ``C`` (ENU -> NED by indexing)."""
+    if C is _C_NED_ENU:
+        sign = np.array([1.0, 1.0, -1.0])
+        return cov[:, [1, 0, 2]][:, :, [1, 0, 2]] * np.outer(sign, sign)
+    return np.matmul(np.matmul(C, cov), np.swapaxes(C, -1, -2))
 
 
 def _parse(path):
@@ -351,8 +358,9 @@ def _parse(path):
     ntime = 6 if date_format else 2
     index, nfields = layout.index()
     buf = textfiles.file_buffer(path_s)
-    data = buf[:-1]
-    data[(data == ord("/")) | (data == ord(":"))] = ord(" ")   # the date's separators
+    if date_format:                           # the date's separators into blanks
+        data = buf[:-1]
+        data[(data == ord("/")) | (data == ord(":"))] = ord(" ")
     ncols = ntime + nfields
     res = textparse.parse_table(buf, ncols, ncols)
     if res.status != textparse.OK:
