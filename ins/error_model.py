@@ -147,9 +147,10 @@ class StateLayout:
         """The estimate of an optional ``group`` in a sensor-estimate vector (zeros when
         the group is absent)."""
         sl = getattr(self, group)
+        sensors = np.asarray(sensors)
         if sl is None:
-            return np.zeros(OPTIONAL_GROUPS[group])
-        return np.asarray(sensors)[..., sl.start - 9:sl.stop - 9]
+            return np.zeros(sensors.shape[:-1] + (OPTIONAL_GROUPS[group],))
+        return sensors[..., sl.start - 9:sl.stop - 9]
 
     def __eq__(self, other):
         return isinstance(other, StateLayout) and other.groups == self.groups

@@ -121,7 +121,9 @@ def fix_residuals(result, gnss, lever):
     """Residuals of the written solution (smoothed, else forward) at the GNSS fixes.
 
     The solution at the node of each fix (the last IMU epoch at or before it) is moved
-    along its velocity to the fix time and carried to the antenna through the lever arm.
+    along its velocity to the fix time (plus the estimated time offset, when the layout
+    has one) and carried to the antenna through the lever arm (plus the estimated
+    correction).
 
     Returns
     -------
@@ -140,9 +142,16 @@ def fix_residuals(result, gnss, lever):
     j = np.searchsorted(nt, gnss.time[index] + 1e-9, side="right") - 1
     states = result.node_solution()[j]
     tg = gnss.time[index]
+    # the estimated time offset and lever-arm correction (optional states), if any
+    layout = getattr(result.fwd, "layout", None)
+    sens = np.asarray(result.smoothed_sensors)[j]
+    offset = (layout.estimate(sens, "time_offset")[:, 0] if layout is not None
+              else np.zeros(len(j)))
     lla = states[:, NAV.lla] + earth.lla_rate(states[:, 0], states[:, 2], states[:, NAV.vel]) * (
-        tg - nt[j])[:, None]
+        tg + offset - nt[j])[:, None]
     l_b = lever.at(tg)[0]
+    if layout is not None:
+        l_b = l_b + layout.estimate(sens, "lever_arm")
     arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, NAV.q_nb]), l_b)
     ant = lla + earth.lla_rate(lla[:, 0], lla[:, 2], arm)
     res = earth.ned_offset(gnss.lla[index], ant)

@@ -126,7 +126,7 @@ def gnss_times(t_start, t_end, rate_hz, outages=()):
 
 
 def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
-                  sigma_vel_mps=None):
+                  sigma_vel_mps=None, time_offset_s=0.0, lever_error_b_m=None):
     """Noisy antenna fixes at the given epochs.
 
     Parameters
@@ -143,6 +143,14 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
         Noise source (one generator per product keeps products independent of each other).
     velocity : bool
         Whether to add the antenna velocity (with white noise ``sigma_vel_mps``, m/s).
+    time_offset_s : float
+        IMU-GNSS time offset to inject, s: the record stamped ``t`` holds the antenna at
+        the truth's (IMU) time ``t + time_offset_s`` (the sign of the filter's
+        ``time_offset`` state).
+    lever_error_b_m : array_like, shape (3,), optional
+        Lever-arm error to inject, m, b frame: the antenna is at ``l_bp +
+        lever_error_b_m + C_pa l_ap`` while the manifest states ``l_bp`` (the filter's
+        ``lever_arm`` state estimates it).
 
     Returns
     -------
@@ -152,7 +160,9 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
     """
     time = np.asarray(time, dtype=float)
     sigma = np.broadcast_to(np.asarray(sigma_ned_m, dtype=float), (3,))
-    sample = truth.evaluate(time)
+    sample = truth.evaluate(np.clip(time + float(time_offset_s), truth.t_start, truth.t_end))
+    if lever_error_b_m is not None:
+        l_bp = np.asarray(l_bp, dtype=float) + np.asarray(lever_error_b_m, dtype=float)
     lla, v_n = antenna_state(sample, l_bp, l_ap)
     # small NED offsets to (dlat, dlon, dh): D^-1, the same map as the position rate
     lla = lla + lla_rate(lla[:, 0], lla[:, 2], rng.standard_normal((len(time), 3)) * sigma)
