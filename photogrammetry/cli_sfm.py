@@ -94,7 +94,8 @@ def run_import(args):
         tracks = args.tracks or os.path.join(os.path.dirname(os.path.abspath(src)),
                                              "tracks.csv")
         if not os.path.isfile(tracks):
-            raise InputError(f"no tracks.csv beside {src} (give --tracks)", path=tracks)
+            raise InputError("tracks file not found" + ("" if args.tracks else
+                             f" beside {src} (give --tracks)"), path=tracks)
         cams = {proj.cameras[c][0] for c in set(proj.shot_camera.values())}
         ids, pids, xy, skipped = read_tracks(tracks, proj)
         eo, kind = proj.eo, "OpenSfM"

@@ -9,7 +9,8 @@ memory does not grow with the frame:
 - TIFF and GeoTIFF (tifffile): the smallest stored pyramid level (overview) that is
   not smaller than the target, else the full page decoded into a temporary memory-mapped
   file (on disk, not in RAM) for frames above :data:`MEMMAP_PIXELS`, reduced in bands
-  of rows.
+  of rows.  A compression tifffile cannot decode without the optional imagecodecs
+  package (JPEG-in-TIFF, as DJI/ODM write) falls back to pillow (libtiff), in memory.
 
 Pixel coordinates follow ``docs/interfaces.md``: centres at integers, ``(0, 0)`` the
 centre of the top-left pixel.  A level pixel ``(u_l, v_l)`` is the full-frame pixel
@@ -173,7 +174,13 @@ def read_grey(path, max_side_px=None):
         raise InputError("image not found", path=path)
     try:
         if path.lower().endswith(TIFF_SUFFIXES):
-            w, h, a = _read_tiff(path, max_side_px)
+            try:
+                w, h, a = _read_tiff(path, max_side_px)
+            except Exception as exc:        # a codec tifffile lacks (JPEG-in-TIFF
+                try:                        # without imagecodecs): pillow's libtiff
+                    w, h, a = _read_pillow(path, max_side_px)
+                except Exception:
+                    raise exc from None
         else:
             w, h, a = _read_pillow(path, max_side_px)
     except InputError:
