@@ -3,7 +3,7 @@
 The real-data path of issue 15 item 5 in two commands (and a comparison)::
 
     python tools/comma2k19.py SEGMENT -o seg              # convert (this script)
-    ins process --config seg/config.toml --preset land -o seg/out
+    ins process --config seg/config.toml --preset mems -o seg/out
     python tools/comma2k19.py --compare seg/out/solution.nav seg   # the figures
 
 ``SEGMENT`` is a comma2k19 segment folder (``IMU/``, ``GNSS/live_gnss_ublox``,
@@ -31,7 +31,9 @@ What the conversion writes into ``-o DIR`` (a new or empty folder, ``--force`` r
     given and is estimated by ``--compare``.
 ``config.toml``
     processing config for ``ins process`` (files, alignment from the GNSS track, zero
-    lever arm); the IMU noise comes from the preset (``--preset mems`` or ``land``).
+    lever arm); the IMU noise comes from the preset (``--preset mems``).  Not ``land``:
+    its non-holonomic constraint holds in the IMU's axes, and the phone is pitched
+    3.9 deg against the car's direction of travel (docs/real-data.md).
 ``conversion.toml``
     the time base, the assumptions and the figures of the conversion.
 
@@ -158,7 +160,8 @@ def read_reference(segment, offset):
 
 CONFIG = """\
 # ins process config of a comma2k19 segment (written by tools/comma2k19.py).
-# IMU noise: from the preset (ins process --preset mems | land).
+# IMU noise: from the preset (ins process --preset mems; not land: the phone's axes
+# are pitched 3.9 deg against the car's, and the NHC holds in the IMU's axes).
 [files]
 imu = "imu.txt"
 gnss = "gnss.txt"
@@ -374,7 +377,7 @@ def format_figures(fig):
 EPILOG = """\
 two commands and a comparison:
   python tools/comma2k19.py ../shared/real/comma2k19_segment -o seg
-  ins process --config seg/config.toml --preset land -o seg/out
+  ins process --config seg/config.toml --preset mems -o seg/out
   python tools/comma2k19.py --compare seg/out/solution.nav seg
 
 --compare SOLUTION.nav DIR interpolates the solution (IMU) at the reference epochs of
