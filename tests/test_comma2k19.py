@@ -168,3 +168,24 @@ def test_real_segment_beats_the_hand_figures(tmp_path):
     # the constant camera-to-IMU rotation, stated with its sigma
     assert np.all(fig["mount_sigma_deg"] < 0.05)
     assert np.all(np.abs(fig["mount_rpy_deg"]) < 3.0)
+
+
+@needs_real
+def test_command_line(tmp_path, capsys):
+    """The converter's command line with the stamps as they are, then --compare of the
+    reference against itself: zero errors, zero rotation, and the UTC-stamped fixes
+    2.09 m from the reference (the issue's figure for that choice)."""
+    import json
+    seg = tmp_path / "seg"
+    assert comma2k19.main([str(REAL), "-o", str(seg), "--offsets", "none"]) == 0
+    assert "removed clock offsets (GNSS - IMU): positions +0.0000 s" in capsys.readouterr().out
+    assert comma2k19.main(["--compare", str(seg / "reference.nav"), str(seg), "--json",
+                           str(tmp_path / "f.json")]) == 0
+    text = capsys.readouterr().out
+    assert "horizontal position RMS 0.000 m" in text
+    fig = json.loads((tmp_path / "f.json").read_text())
+    assert fig["horizontal_rms_m"] < 1e-6 and max(fig["att_std_deg"]) < 1e-6
+    assert abs(fig["fixes_horizontal_rms_m"] - 2.09) < 0.01
+    assert comma2k19.main([str(REAL), "-o", str(seg)]) == 2          # not empty, no --force
+    assert comma2k19.main([str(tmp_path / "nothing"), "-o", str(tmp_path / "x")]) == 2
+    assert "a comma2k19 segment folder is expected" in capsys.readouterr().err

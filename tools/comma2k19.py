@@ -68,21 +68,25 @@ SIGMA_VEL_MPS = 0.1
 SIGMA_VD_MPS = 10.0
 
 
-def _load(segment, name):
-    d = Path(segment) / name
+def _npy(path):
     try:
-        return np.load(d / "t.npy"), np.load(d / "value.npy")
+        return np.load(path)
     except OSError as exc:
         from ins.errors import InputError
-        raise InputError(f"{d}: {exc.strerror or exc} (a comma2k19 segment folder is "
+        raise InputError(f"{path}: {exc.strerror or exc} (a comma2k19 segment folder is "
                          f"expected: IMU/, GNSS/live_gnss_ublox/, global_pose/)") from None
+
+
+def _load(segment, name):
+    d = Path(segment) / name
+    return _npy(d / "t.npy"), _npy(d / "value.npy")
 
 
 def boot_to_gps(segment):
     """GPS week and the offset ``tow - boot`` (s) from the frames' two stamps, with the
     RMS residual of the fit (s)."""
-    ft = np.load(Path(segment) / "global_pose" / "frame_times.npy")
-    g = np.load(Path(segment) / "global_pose" / "frame_gps_times.npy")
+    ft = _npy(Path(segment) / "global_pose" / "frame_times.npy")
+    g = _npy(Path(segment) / "global_pose" / "frame_gps_times.npy")
     weeks = np.unique(g[:, 0])
     if len(weeks) != 1:
         raise ValueError("the segment crosses a GPS week")
@@ -145,10 +149,10 @@ def read_reference(segment, offset):
     from ins import earth
     from ins.trajectory import Trajectory
     gp = Path(segment) / "global_pose"
-    t = np.load(gp / "frame_times.npy") + offset
-    r_e = np.load(gp / "frame_positions.npy")
-    v_e = np.load(gp / "frame_velocities.npy")
-    q_wxyz = np.load(gp / "frame_orientations.npy")
+    t = _npy(gp / "frame_times.npy") + offset
+    r_e = _npy(gp / "frame_positions.npy")
+    v_e = _npy(gp / "frame_velocities.npy")
+    q_wxyz = _npy(gp / "frame_orientations.npy")
     lat, lon, h = pymap3d.ecef2geodetic(r_e[:, 0], r_e[:, 1], r_e[:, 2], deg=False)
     C_en = earth.dcm_en(lat, lon)
     v_n = np.einsum("nji,nj->ni", C_en, v_e)
