@@ -282,3 +282,86 @@ def test_block_refuses_zero_photo_variance(block):
     with pytest.raises(InputError, match="pair 0-1, tie point 3: .* variance 0.0"):
         adjust_block(np.zeros((2, 3)), [[0, 1]], pts, p["f_mm"], p["system"], "known-base",
                      "none", positions=X, sigma_mm=p["sigma_mm"], snooping=False)
+
+
+def _priors(B, seed):
+    """Two priors drawn within the stated sigma (0.005 rad) and one 0.25 deg off in
+    every angle (random signs)."""
+    rng = np.random.default_rng(seed)
+    a = B["angles"]
+    return [a + rng.normal(0, 0.005, a.shape), a + rng.normal(0, 0.005, a.shape),
+            a + np.deg2rad(0.25) * rng.choice([-1.0, 1.0], a.shape)]
+
+
+@pytest.mark.parametrize("method,datum", [("known-base", "none"), ("base-free", "first")])
+def test_block_with_outliers_does_not_depend_on_the_prior(method, datum):
+    """6 % of the observations are gross mismatches (10-100 px), so 10-30 % of each pair's
+    conditions: from priors within sigma and 0.25 deg off, the same rejected set (rule:
+    identical when every pair has at least 15 common points, i.e. enough inliers to
+    out-vote its outliers) and the same angles (1e-8 rad); the errors (datum first: after
+    the datum's common rotation) are within 4.5 sigma, sigma0 near 1, no quality flag."""
+    B = sc.make_block(n_strips=3, n_per_strip=6, seed=61, outlier_fraction=0.06,
+                      min_common=15)
+    per_pair = [np.mean(B["outliers"][i][q] | B["outliers"][j][q])
+                for (i, j), q in zip(B["pairs"], B["point_ids"])]
+    assert 0.08 < np.mean(per_pair) < 0.2 and max(per_pair) >= 0.2
+    runs = [adjust_block(p, B["pairs"], B["pair_points"], B["f_mm"], B["system"], method,
+                         datum, positions=B["positions"], sigma_mm=B["sigma_mm"],
+                         point_ids=B["point_ids"]) for p in _priors(B, 62)]
+    for r in runs[1:]:
+        np.testing.assert_array_equal(r.rejected, runs[0].rejected)
+    res = runs[0]
+    if datum == "none":
+        for r in runs[1:]:
+            np.testing.assert_allclose(r.angles, res.angles, atol=1e-8)
+    assert res.converged and abs(res.sigma0 - 1) < 0.1 and not res.quality.poor
+    err = _errors(B, res, align=datum == "first")
+    M = rotation_and_axes(res.angles, B["system"])[1]
+    s = np.sqrt(np.einsum("mij,mjk,mik->mi", M,
+                          np.stack([res.cov[3 * i:3 * i + 3, 3 * i:3 * i + 3]
+                                    for i in range(len(M))]), M))
+    k = s[:, 0] > 0
+    assert np.all(np.abs(err[k]) < 4.5 * s[k] + (0 if datum == "none" else 4.5 * s[k].max()))
+    # the detectable outliers are out: what stays is along the epipolar lines
+    truth = [B["outliers"][i][q] | B["outliers"][j][q]
+             for (i, j), q in zip(B["pairs"], B["point_ids"])]
+    kept = sum(int((t & res.mask[p, :len(t)]).sum()) for p, t in enumerate(truth))
+    assert kept < 0.2 * sum(int(t.sum()) for t in truth)
+
+
+@pytest.mark.parametrize("datum", ["first", "ins"])
+def test_two_strip_block_of_four_images_with_outliers_converges(datum):
+    """4 images in two strips (cross-strip pairs, kappa 0 and 180 deg), 8 % outlying
+    observations: from priors within sigma and 0.25 deg off the block converges to the
+    truth within its sigma (the issue's case returned 2.5-19 deg off, exit 0)."""
+    B = sc.make_block(n_strips=2, n_per_strip=2, seed=63, outlier_fraction=0.08,
+                      forward_overlap=0.8, side_overlap=0.6, points_per_image=120)
+    for prior in _priors(B, 64):
+        res = adjust_block(prior, B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                           "base-free", datum, positions=B["positions"],
+                           sigma_mm=B["sigma_mm"], point_ids=B["point_ids"])
+        assert res.converged and not res.quality.poor
+        # datum ins: the block sits in the INS frame (boresight ~0.3 deg, common rotation)
+        err = _errors(B, res, align=True)
+        assert np.abs(err).max() < np.deg2rad(0.1)
+        assert np.all(np.abs(err) < 5 * np.maximum(res.sigma, res.sigma.max()))
+
+
+def test_quality_flags_sigma0_and_angle_change(block):
+    """The trust rule: a stated photo sigma 4x too small makes sigma0 implausible (block
+    and pairs flagged); an image whose refined angle moves 3 deg from its prior (a prior
+    3 deg off, datum ins) is flagged by name; a good block has no flag."""
+    good = _run(block, "known-base", "none")
+    assert not good.quality.poor and not good.quality.pair_flags.any()
+    tight = _run(dict(block, sigma_mm=block["sigma_mm"] / 4), "known-base", "none")
+    # (the robust start and snooping, at the wrong sigma, throw good points out too:
+    # sigma0 2.3 instead of 4, still beyond the limit)
+    assert tight.quality.poor and tight.sigma0 > tight.quality.sigma0_limit == 2.0
+    assert any(r.startswith("block sigma0") for r in tight.quality.reasons)
+    assert tight.quality.pair_flags.any()
+    B = dict(block, prior=block["prior"].copy())
+    B["prior"][5, 2] += np.deg2rad(3.0)
+    off = _run(B, "known-base", "ins", image_ids=[f"img{i:03d}" for i in range(24)])
+    assert off.quality.poor and off.quality.image_flags[5]
+    assert off.quality.image_flags.sum() == 1
+    assert any(r.startswith("image img005: angle change") for r in off.quality.reasons)

@@ -202,3 +202,24 @@ def test_distorted_tie_points_are_undistorted_with_the_camera(tmp_path):
     assert abs(a.block.sigma0 - 1) < 0.1
     np.testing.assert_allclose(b.block.sigma0, a.block.sigma0, rtol=1e-6)
     np.testing.assert_allclose(b.block.angles, a.block.angles, atol=1e-9)
+
+
+def test_poor_result_exits_3_unless_accept_poor(files, tmp_path, capsys):
+    """A photo sigma stated 5x too small (0.1 px for 0.5 px noise): sigma0 implausible,
+    exit 3 and nothing written; --accept-poor writes the CSV with the flags in its
+    comments and the report's trust section; the honest sigma gives exit 0, no flag."""
+    B, d, (eo, tp, cam) = files
+    out, rep = tmp_path / "r.csv", tmp_path / "r.md"
+    args = ["refine", eo, tp, "--camera", cam, "--method", "known-base", "--datum", "none",
+            "-o", str(out), "--report", str(rep), "--sigma-px", "0.1"]
+    assert main(args) == 3
+    err = capsys.readouterr().err
+    assert "block sigma0" in err and "--help" in err and not out.exists() and not rep.exists()
+    assert main(args + ["--accept-poor"]) == 0
+    text = out.read_text()
+    assert "# QUALITY POOR (written with --accept-poor): block sigma0" in text
+    assert "## Trust: POOR" in rep.read_text()
+    assert read_eo_csv(str(out)).angles.shape == (12, 3)
+    capsys.readouterr()
+    assert main(args[:-2]) == 0
+    assert "QUALITY" not in out.read_text() and "Trust: no flag" in rep.read_text()
