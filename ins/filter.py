@@ -160,6 +160,11 @@ def filterpy_functions():
     return predict, update, chi2
 
 
+#: Zero-velocity detection also needs the filter's speed below this (m/s): a vehicle in
+#: smooth straight motion has steady specific force and small rates too.
+ZUPT_MAX_SPEED_MPS = 2.0
+
+
 class _Updater:
     """The measurement updates at one node (:mod:`ins.measurements`), with feedback into
     the state; keeps a record of every tested measurement."""
@@ -480,6 +485,8 @@ class _ForwardRun:
         s = self.settings
         if any(a <= t[r] <= b for a, b in s.zupt_windows_s):
             return True
+        if np.linalg.norm(self.state[NAV.vel]) > ZUPT_MAX_SPEED_MPS:
+            return False                   # smooth straight flight is not rest
         lo = max(int(np.searchsorted(t, self.t_a, side="right")), 1)
         if r + 1 - lo < 2:
             return False

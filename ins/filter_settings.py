@@ -45,8 +45,9 @@ class FilterSettings:
     zupt : bool
         Zero-velocity updates at the nodes where the IMU is found at rest (the spread of
         the specific-force norm below ``zupt_accel_std_mps2`` and every angular rate
-        below ``zupt_gyro_dps`` over the rows since the last node) or that fall in one
-        of ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
+        below ``zupt_gyro_dps`` over the rows since the last node, with the filter's
+        speed below ``ins.filter.ZUPT_MAX_SPEED_MPS``) or that fall in one of
+        ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
     nhc : bool
         Non-holonomic constraint at every node (lateral and vertical body velocity 0,
         sigma ``nhc_sigma_mps``): for land vehicles whose body axes are the IMU's.

@@ -3,6 +3,7 @@ the IMU error model, a lever-arm error and an IMU-GNSS time offset injected into
 log (ins.simulate.gnss.simulate_gnss); each estimate within 3 sigma of what was injected,
 and the sigma small enough that the test could fail (a state that learns nothing would
 pass the 3-sigma check with its prior)."""
+import functools
 import shutil
 import tomllib
 from pathlib import Path
@@ -110,3 +111,86 @@ def test_manifest_gives_the_misalignment_priors(tmp_path):
     cfg = config_from_manifest(str(folder), over)
     assert cfg.layout.groups == ("lever_arm",)
     np.testing.assert_array_equal(cfg.priors["lever_arm_std_m"], [0.2, 0.2, 0.2])
+
+
+def _static_part(flight, **settings):
+    """Forward filter over the first ``STATIC_S`` s of the short flight (on the ground,
+    at rest), from the true state with the given measurement settings; returns the
+    forward result and its velocity errors at the nodes (m/s, NED)."""
+    from dataclasses import replace
+    from ins.accuracy import compare
+    from ins.filter import run_forward
+    from ins.filter_settings import FilterSettings
+    from ins.lever_arm import LeverArm
+    from ins.mechanization import NavState
+    from ins.trajectory import Trajectory, read_nav
+    cfg = given_config(flight, varying=False)
+    man = tomllib.loads((Path(flight) / "manifest.toml").read_text())
+    ini, t0 = man["initial"], man["flight"]["start_time_s"]
+    imu, gnss = _static_logs(cfg.imu, cfg.gnss, t0)
+    # GNSS only in the first seconds: the velocity after that comes from the IMU and
+    # whatever the measurements under test give
+    keep = gnss.time < t0 + 5.0
+    gnss = replace(gnss, time=gnss.time[keep], lla=gnss.lla[keep],
+                   sigma_ned_m=gnss.sigma_ned_m[keep])
+    state = NavState.from_degrees(ini["lat_deg"], ini["lon_deg"], ini["h_m"],
+                                  ini["vel_ned_mps"], ini["rpy_deg"])
+    fs = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp + cfg.lever_ap),
+                        **settings)
+    fwd = run_forward(imu, gnss, state, fs, start=t0, end=t0 + STATIC_S)
+    s = fwd.node_states
+    e = compare(Trajectory(fwd.node_time, s[:, 0:3], s[:, 3:6], s[:, 6:10]),
+                read_nav(cfg.truth))
+    return fwd, e
+
+
+STATIC_S = 55.0
+
+
+@functools.lru_cache(maxsize=2)
+def _static_logs(imu_path, gnss_path, t0):
+    """The IMU rows of the static minute and the GNSS log (read once)."""
+    from ins.gnss import read_gnss
+    from ins.imu import ImuLog
+    from ins.imu_files import read_imu
+    imu = read_imu(imu_path)
+    k = np.searchsorted(imu.time, t0 + STATIC_S + 2.0)
+    return (ImuLog.adopt(imu.time[:k].copy(), imu.dtheta_b[:k].copy(), imu.dvel_b[:k].copy()),
+            read_gnss(gnss_path))
+
+
+def test_zero_velocity_updates_on_the_ground():
+    flight = short_flight()
+    free, e_free = _static_part(flight)
+    fwd, e = _static_part(flight, zupt=True)
+    zupt = [r for r in fwd.records if r.name == "zero_velocity"]
+    assert len(zupt) >= STATIC_S - 3                       # detected at (nearly) every node
+    assert all(r.accepted for r in zupt)
+    late = e.time > e.time[0] + 20
+    # without GNSS the free INS drifts (navigation grade: mm/s); the updates hold it
+    assert np.max(np.abs(e.v_n[late])) < 0.3 * np.max(np.abs(e_free.v_n[late]))
+    assert np.max(np.abs(e.v_n[late])) < 0.01
+    z = np.array([r.standardized for r in zupt])
+    assert np.sqrt(np.mean(z ** 2)) < 3.0       # the default sigma (5 mm/s) is generous
+    # windows instead of detection: only the nodes inside
+    t0 = fwd.node_time[0]
+    win, _ = _static_part(flight, zupt=True, zupt_windows_s=((t0 + 10, t0 + 20),),
+                          zupt_accel_std_mps2=1e-12)
+    times = [r.time for r in win.records if r.name == "zero_velocity"]
+    assert len(times) == 11 and min(times) >= t0 + 10 and max(times) <= t0 + 20
+
+
+def test_nonholonomic_constraint_on_the_ground():
+    flight = short_flight()
+    _, e_free = _static_part(flight)
+    fwd, e = _static_part(flight, nhc=True, nhc_sigma_mps=0.005)
+    nhc = [r for r in fwd.records if r.name == "nonholonomic"]
+    assert len(nhc) == len(fwd.node_time) - 1 and nhc[0].axes == ("y", "z")
+    late = e.time > e.time[0] + 20
+    # the constraint holds the cross-track (east: the aircraft points north or south?
+    # any heading: the body y and z) velocity; the along-track one drifts freely
+    from ins.rotation import quat_to_dcm
+    C = quat_to_dcm(fwd.node_states[:, 6:10])
+    vb = np.einsum("nji,nj->ni", C, e.v_n)[late]
+    vb_free = np.einsum("nji,nj->ni", C, e_free.v_n)[late]
+    assert np.max(np.abs(vb[:, 1:])) < 0.3 * np.max(np.abs(vb_free[:, 1:]))
