@@ -21,6 +21,9 @@ drone images (--from-exif IMAGE...):
   Sigmas: RTK standard deviations (else --position-sigma-m), --gimbal-sigma-deg
   propagated into the angles.  time_s: EXIF DateTimeOriginal taken as UTC, GPS
   seconds of week (0 if absent; DJI clocks often keep local time).
+  --camera-out: the camera file of DewarpData (date;fx,fy,cx,cy,k1,k2,p1,p2,k3 for the
+  full sensor 2 CalibratedOpticalCenterX x 2 CalibratedOpticalCenterY px, cx, cy offsets
+  from its centre, OpenCV distortion) scaled to the image size.
   photogrammetry eo --from-exif DJI_*.JPG --frame utm -o eo.csv
 """
 
@@ -34,6 +37,9 @@ def add_options(p):
                                          "default 0.5,0.5,2)")
     p.add_argument("--position-sigma-m", type=float, default=3.0, metavar="M",
                    help="position sigma per axis without RTK standard deviations (m; 3)")
+    p.add_argument("--camera-out", metavar="CAM.toml",
+                   help="also write the camera of the first image's DJI DewarpData "
+                        "(pixel size 0.01 mm; fx, fy averaged)")
 
 
 def run(args):
@@ -77,6 +83,15 @@ def run(args):
     frame = parse_frame(args.frame, origin, args.geoid_undulation)
     eo = eo_from_drone(shots, frame, args.system, np.deg2rad(args.gimbal_sigma_deg),
                        args.position_sigma_m, boresight)
+    if args.camera_out:
+        from .camera import write_camera
+        from .drone import camera_from_dji
+        check_output_file(args.camera_out)
+        camera, anisotropy = camera_from_dji(shots[0].path)
+        write_camera(args.camera_out, camera)
+        if not args.quiet:
+            print(f"wrote {args.camera_out} (DJI DewarpData of {shots[0].image_id}; fx, fy "
+                  f"differ by {1e6 * anisotropy:.0f} ppm, averaged)")
     if args.format == "csv":
         g = args.gimbal_sigma_deg
         write_eo_csv(args.output, eo, comments=(

@@ -17,7 +17,15 @@ The photogrammetric camera frame ``c`` (x right, y up on the image, z backwards)
 
     C_mc = C_mn C_ng C_gc [boresight]
 
-the chain of ``photogrammetry eo`` with the gimbal in place of the IMU body.  The drone's
+the chain of ``photogrammetry eo`` with the gimbal in place of the IMU body.
+
+The camera (:func:`camera_from_dji`) comes from ``DewarpData``
+(``date;fx,fy,cx,cy,k1,k2,p1,p2,k3``: focal lengths and the principal point's offset
+from the centre ``(CalibratedOpticalCenterX, CalibratedOpticalCenterY)`` in pixels of
+the full sensor ``2 CalibratedOpticalCenterX x 2 CalibratedOpticalCenterY``, OpenCV's
+distortion of normalised coordinates, as Pix4D and ODM read it), scaled to the image's
+size; the frame camera has square pixels, so ``f`` is the mean of fx and fy (their
+difference is stated by the caller).  The drone's
 position is taken as the perspective centre's (no lever arm).  Sigmas: the RTK standard
 deviations (north, east, down) when ``RtkFlag`` is not 0, else a stated position sigma;
 a stated gimbal sigma per angle (roll, pitch, yaw) propagated into the angle system.
@@ -36,7 +44,7 @@ from .exposure import ExposureOrientation, _angle_jacobian, _propagate
 from .rotation import boresight_matrix, check_system, matrix_to_angles
 
 __all__ = ["DroneShot", "read_drone_shot", "parse_dji_xmp", "read_xmp_packet",
-           "eo_from_drone", "DJI_CAMERA_AXES", "DJI_NS"]
+           "eo_from_drone", "camera_from_dji", "DJI_CAMERA_AXES", "DJI_NS"]
 
 DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 #: ``C_gc``: the camera frame c in the DJI gimbal body g (x optical axis, y right, z down).
@@ -313,3 +321,42 @@ def eo_from_drone(shots, frame, system, gimbal_sigma_rad, position_sigma_m,
     return ExposureOrientation([s.image_id for s in shots], times,
                                frame.position(lla), angles, system, frame.header(),
                                sig_pos, sig_ang)
+
+
+def camera_from_dji(path, pixel_size_mm=0.01):
+    """The frame camera of a DJI image's XMP ``DewarpData`` (module docstring).
+
+    Returns
+    -------
+    camera : FrameCamera
+    anisotropy : float
+        ``(fx - fy) / f``, which the square-pixel camera leaves out.
+    """
+    from .camera import FrameCamera
+    from .imagery import image_size
+    path = str(path)
+    xmp = read_xmp_packet(path)
+    dji = parse_dji_xmp(xmp, path) if xmp else {}
+    need = ("DewarpData", "CalibratedOpticalCenterX", "CalibratedOpticalCenterY")
+    if not all(k in dji for k in need):
+        raise InputError("no DJI camera calibration (XMP drone-dji:DewarpData, "
+                         "CalibratedOpticalCenterX/Y)", path=path)
+    values = dji["DewarpData"].split(";")[-1].split(",")
+    try:
+        fx, fy, cx, cy, k1, k2, p1, p2, k3 = (float(v) for v in values)
+    except ValueError:
+        raise InputError(f"XMP drone-dji:DewarpData = {dji['DewarpData']!r}: expected "
+                         "date;fx,fy,cx,cy,k1,k2,p1,p2,k3", path=path) from None
+    w0 = 2.0 * _number(dji, "CalibratedOpticalCenterX", path, "px")
+    h0 = 2.0 * _number(dji, "CalibratedOpticalCenterY", path, "px")
+    w, h = image_size(path)
+    s = w / w0
+    if abs(h / h0 - s) > 1e-3 * s:
+        raise InputError(f"image {w} x {h} px is not the sensor {w0:g} x {h0:g} px scaled "
+                         "alike in both directions", path=path)
+    fp = 0.5 * (fx + fy) * s
+    f = fp * pixel_size_mm
+    u0, v0 = (w0 / 2 + cx) * s - 0.5, (h0 / 2 + cy) * s - 0.5
+    cam = FrameCamera(f, pixel_size_mm, w, h, (u0, v0),
+                      (k1 / f ** 2, k2 / f ** 4, k3 / f ** 6), (p2 / f, -p1 / f))
+    return cam, (fx - fy) / (0.5 * (fx + fy))
