@@ -69,12 +69,14 @@ def _gauss(sd):
     return g, g * (j2 - g @ j2) / sd ** 3, h
 
 
-def _blur(S, kern, dkern, n, off, shape):
+def _blur(S, kern, dkern, n, off, shape, deriv=True):
     """Separable blur of the stack ``S`` (a, H, W) by ``kern`` x ``kern`` with binning by
-    ``n``; returns (blurred stack, derivative of ``S[0]``'s blur via ``dkern``)."""
+    ``n``; returns (blurred stack, derivative of ``S[0]``'s blur via ``dkern`` or None)."""
     rows, cols = shape
     T = _k.row_pass(S, kern, n, off, cols)
     out = _k.col_pass(T, kern, n, off, rows)
+    if not deriv:
+        return out, None
     d = (_k.col_pass(T[:1], dkern, n, off, rows)
          + _k.col_pass(_k.row_pass(S[:1], dkern, n, off, cols), kern, n, off, rows))
     return out, d[0]
@@ -191,13 +193,14 @@ class LimbModel:
         m = self.mask
         cols, jacs = [], []
         for law in range(len(D)):
-            S = np.concatenate([D[law][None], dD[law]]).reshape(4, self.shape[0] * n, -1)
+            S = (np.concatenate([D[law][None], dD[law]]) if jacobian
+                 else D[law][None]).reshape(4 if jacobian else 1, self.shape[0] * n, -1)
             core, core_s = _blur(S, np.convolve(g, box), np.convolve(dg, box), n, h,
-                                 self.shape)
+                                 self.shape, jacobian)
             binned = _k.col_pass(_k.row_pass(S, box, n, 0, self.shape[1]), box, n, 0,
                                  self.shape[0])
             # the wide wing is smooth on the pixel scale: blurred after binning
-            wing, wing_s = _blur(binned, gw, dgw, 1, hw, self.shape)
+            wing, wing_s = _blur(binned, gw, dgw, 1, hw, self.shape, jacobian)
             cols += [core[0][m], wing[0][m]]
             if jacobian:
                 jc = np.empty((m.sum(), 4))
@@ -260,15 +263,19 @@ def _scan(model, q):
     norm = np.hypot(sun[0], sun[1])
     y = model.data
     offsets = SCAN_PX if norm > 1e-6 else [0.0]
-    best = (np.inf, q)
-    for blur in SCAN_BLUR:
-        for d in offsets:
-            qd = q.copy()
-            qd[3] = blur
-            if norm > 1e-6:
-                qd[:2] += d * sun / norm
-            best = min(best, (_sse(model, qd, y), qd), key=lambda t: t[0])
-    return best[1]
+    def moved(q, d, blur):
+        qd = q.copy()
+        qd[3] = blur
+        if norm > 1e-6:
+            qd[:2] += d * sun / norm
+        return qd
+
+    # offsets at the start blur, then the blurs at the best offset, then the offsets again
+    best = min(((_sse(model, moved(q, d, q[3]), y), d) for d in offsets))
+    blur = min(((_sse(model, moved(q, best[1], b), y), b) for b in SCAN_BLUR))[1]
+    if blur != q[3]:
+        best = min(((_sse(model, moved(q, d, blur), y), d) for d in offsets))
+    return moved(q, best[1], blur)
 
 
 def fit_limb_model(model, uv0, radius0, blur0=0.8, iterations=20, tol_px=5e-4,
