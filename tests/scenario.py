@@ -247,3 +247,78 @@ def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None
     with open(paths[1], "w") as f:
         f.write("\n".join(rows) + "\n")
     return paths
+
+
+def make_large_block(n_images, n_per_strip=50, seed=0, f_px=10000.0, pixel_mm=0.01,
+                     width_px=8000, height_px=6000, height_m=1000.0, relief_m=50.0,
+                     forward_overlap=0.6, side_overlap=0.3, points_per_image=40,
+                     noise_px=0.5, max_angle_deg=3.0, ins_sigma_rad=0.005,
+                     boresight_rad=(0.002, -0.003, 0.004), system=SYSTEM, min_common=8):
+    """A block like :func:`make_block` for thousands of images, in memory linear in the
+    images: strips of `n_per_strip` (the last one shorter), ground points projected only
+    into the images near them, pairs only between neighbouring images (a different random
+    stream from :func:`make_block`).  Same returned keys (``obs`` and ``X`` included)."""
+    from photogrammetry.rotation import boresight_matrix, matrix_to_angles
+    rng = np.random.default_rng(seed)
+    f_mm = f_px * pixel_mm
+    scale = height_m / f_mm
+    w_g, h_g = width_px * pixel_mm * scale, height_px * pixel_mm * scale
+    base, gap = (1 - forward_overlap) * w_g, (1 - side_overlap) * h_g
+    n_strips = -(-n_images // n_per_strip)
+    k = np.arange(n_images) % n_per_strip
+    s = np.arange(n_images) // n_per_strip
+    back = s % 2 == 1
+    pos = np.column_stack([np.where(back, n_per_strip - 1 - k, k) * base
+                           + rng.normal(0, 3.0, n_images),
+                           s * gap + rng.normal(0, 5.0, n_images),
+                           height_m + rng.normal(0, 5.0, n_images)])
+    lim = np.deg2rad(max_angle_deg)
+    ang = rng.uniform(-lim, lim, (n_images, 3))
+    ang[back, 2] += np.pi
+    R = angles_to_matrix(ang, system)
+    x_max = (n_per_strip - 1) * base + 0.5 * w_g
+    y_max = (n_strips - 1) * gap + 0.5 * h_g
+    n_pts = int(points_per_image * n_images / 2.5)
+    X = np.column_stack([rng.uniform(-0.5 * w_g, x_max, n_pts),
+                         rng.uniform(-0.5 * h_g, y_max, n_pts),
+                         rng.uniform(-relief_m, relief_m, n_pts)])
+    half = 0.5 * np.array([width_px, height_px]) * pixel_mm
+    sigma_mm = noise_px * pixel_mm
+    # ground points near each image (a grid of cells of one footprint)
+    cell = np.floor(X[:, :2] / [w_g, h_g]).astype(int)
+    order = np.lexsort((cell[:, 1], cell[:, 0]))
+    keys = cell[order]
+    obs = {}
+    for i in range(n_images):
+        c = np.floor(pos[i, :2] / [w_g, h_g]).astype(int)
+        near = []
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                key = (c[0] + dx, c[1] + dy)
+                lo = np.searchsorted(keys[:, 0] * 1_000_003 + keys[:, 1],
+                                     key[0] * 1_000_003 + key[1], "left")
+                hi = np.searchsorted(keys[:, 0] * 1_000_003 + keys[:, 1],
+                                     key[0] * 1_000_003 + key[1], "right")
+                near.append(order[lo:hi])
+        near = np.sort(np.concatenate(near))
+        xy = project(R[i:i + 1], pos[i:i + 1], X[near][None], f_mm)[0]
+        seen = np.all(np.abs(xy) < half, axis=1)
+        obs[i] = (near[seen], xy[seen] + rng.normal(0, sigma_mm, (seen.sum(), 2)))
+    pairs, pair_points, point_ids = [], [], []
+    reach = np.array([w_g, h_g]) * 1.2
+    for i in range(n_images):
+        close = np.flatnonzero(np.all(np.abs(pos[i + 1:, :2] - pos[i, :2]) < reach, axis=1))
+        for j in close + i + 1:
+            common, a, b = np.intersect1d(obs[i][0], obs[j][0], return_indices=True)
+            if len(common) >= min_common:
+                pairs.append((i, j))
+                pair_points.append((obs[i][1][a], obs[j][1][b]))
+                point_ids.append(common)
+    bs = np.asarray(boresight_rad, dtype=float)
+    noise = rng.normal(0, ins_sigma_rad, (n_images, 3))
+    prior = matrix_to_angles(R @ boresight_matrix(bs).T, system) + noise
+    return {"angles": ang, "prior": prior, "positions": pos, "pairs": np.array(pairs),
+            "pair_points": pair_points, "point_ids": point_ids, "ins_noise": noise,
+            "boresight": bs, "f_mm": f_mm, "sigma_mm": sigma_mm, "pixel_mm": pixel_mm,
+            "system": system, "obs": obs, "X": X,
+            "outliers": {i: np.zeros(len(obs[i][0]), bool) for i in obs}}
