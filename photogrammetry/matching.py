@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PriorView", "ideal_photo_mm", "select_pairs", "band_tolerance_mm",
+__all__ = ["PriorView", "ideal_photo_mm", "ground_points", "project_mm", "select_pairs",
+           "band_tolerance_mm",
            "guided_matches", "verify_pair", "build_tracks", "PairMatches"]
 
 _CHUNK = 512
@@ -113,8 +114,12 @@ def _frame_grid_mm(camera, n):
     return ideal_photo_mm(camera, np.column_stack([uu.ravel(), vv.ravel()]))
 
 
-def _inside_mm(camera, xy_mm):
+def _inside_mm(camera, xy_mm, r_max_mm):
+    """Ideal photo points that land on the frame.  Points beyond the frame's largest
+    ideal radius are out even where the distortion polynomial folds them back onto it
+    (a strong barrel term does at about 1.5 x the frame's radius)."""
     ok = np.all(np.isfinite(xy_mm), axis=1)
+    ok &= np.hypot(xy_mm[:, 0], xy_mm[:, 1]) <= r_max_mm
     uv = camera.photo_to_pixel(np.where(ok[:, None], camera.distort(np.nan_to_num(xy_mm)),
                                         0.0))
     return ok & camera.inside(uv)
@@ -133,6 +138,7 @@ def select_pairs(views, camera, z_m, min_overlap=0.1, grid=9):
     """
     f = camera.focal_length_mm
     xy = _frame_grid_mm(camera, grid)
+    r_max = 1.001 * np.nanmax(np.hypot(xy[:, 0], xy[:, 1]))
     ground = [ground_points(v, xy, f, z_m) for v in views]
     centres = np.array([np.nanmean(g, axis=0) if np.isfinite(g).any() else v.X0_m
                         for g, v in zip(ground, views)])
@@ -148,8 +154,8 @@ def select_pairs(views, camera, z_m, min_overlap=0.1, grid=9):
             ok = np.all(np.isfinite(ground[i]), axis=1)
             if not ok.any():
                 continue
-            frac[i, j] = _inside_mm(camera, project_mm(views[j], ground[i][ok], f)).sum() \
-                / len(xy)
+            frac[i, j] = _inside_mm(camera, project_mm(views[j], ground[i][ok], f),
+                                    r_max).sum() / len(xy)
     pairs = []
     for i in range(n):
         for j in range(i + 1, n):

@@ -199,3 +199,23 @@ def test_bad_inputs(block, tmp_path, capsys):
     assert main(_args(block, block["paths"][:2], block["eo"])) == 2
     import os
     assert not os.path.exists(out)
+
+
+def test_pairs_ignore_points_folded_back_by_the_distortion():
+    """Strong barrel distortion (OpenSfM k1 = -0.26, the DJI camera's) folds points at
+    2 x the frame's radius back onto it: two nadir views 200 m apart at 100 m, which
+    share no ground, are no pair; 60 m apart they are."""
+    from photogrammetry.matching import select_pairs
+    from photogrammetry.sfm_opensfm import camera_from_opensfm
+    cam = camera_from_opensfm({"projection_type": "brown", "width": 1368, "height": 912,
+                               "focal_x": 0.666, "focal_y": 0.666, "c_x": 0.0, "c_y": 0.0,
+                               "k1": -0.264, "k2": 0.102, "k3": -0.0258, "p1": 0.0,
+                               "p2": 0.0})
+    xy = cam.pixel_to_photo(np.array([[1367.0, 455.5]]))
+    u = cam.undistort(xy)[0] * 2.0
+    assert cam.inside(cam.photo_to_pixel(cam.distort(u[None])))[0]     # the fold exists
+    far = [PriorView(np.array([0.0, 0, 100]), np.eye(3), 0.01, 0.1),
+           PriorView(np.array([200.0, 0, 100]), np.eye(3), 0.01, 0.1)]
+    assert select_pairs(far, cam, 0.0) == []
+    near = [far[0], PriorView(np.array([60.0, 0, 100]), np.eye(3), 0.01, 0.1)]
+    assert [p[:2] for p in select_pairs(near, cam, 0.0)] == [(0, 1)]
