@@ -166,3 +166,35 @@ def test_real_dji_images_against_bundle(tmp_path):
         j = bundle.eo.image_id.index(iid)
         d = Rotation.from_matrix(eo.matrices()[k].T @ bundle.eo.matrices()[j]).magnitude()
         assert np.rad2deg(d) < 1.5
+
+
+def test_dji_dewarp_camera_projects_as_opencv(tmp_path):
+    """DewarpData (full sensor 5472 x 3648, fx = fy here) on a 1368 x 912 image: our
+    camera projects as cv2.projectPoints with the scaled matrix (principal point W0/2 +
+    cx in corner coordinates, then to pixel centres) and OpenCV's distortion."""
+    from photogrammetry.drone import camera_from_dji
+    xmp = XMP.replace('drone-dji:RtkFlag="{flag}"', 'drone-dji:RtkFlag="{flag}"\n'
+                      '   drone-dji:CalibratedOpticalCenterX="2736.000000"\n'
+                      '   drone-dji:CalibratedOpticalCenterY="1824.000000"\n'
+                      '   drone-dji:DewarpData="2018-09-07;3657.02,3657.02,-4.03,23.10,'
+                      '-0.267098,0.111977,0.000924881,0.0000882056,-0.0331614"')
+    ok, jpg = cv2.imencode(".jpg", np.full((912, 1368), 128, np.uint8))
+    payload = b"http://ns.adobe.com/xap/1.0/\x00" + xmp.format(
+        roll=0, pitch=-90, yaw=0, flag=0, lat=1, lon=2, alt=3).encode()
+    data = jpg.tobytes()
+    p = tmp_path / "d.jpg"
+    p.write_bytes(data[:2] + b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload
+                  + data[2:])
+    cam, aniso = camera_from_dji(p)
+    assert aniso == 0 and (cam.width_px, cam.height_px) == (1368, 912)
+    s = 0.25
+    K = np.array([[3657.02 * s, 0, (2736 - 4.03) * s - 0.5],
+                  [0, 3657.02 * s, (1824 + 23.10) * s - 0.5], [0, 0, 1]])
+    dist = np.array([-0.267098, 0.111977, 0.000924881, 0.0000882056, -0.0331614])
+    rng = np.random.default_rng(2)
+    X = np.column_stack([rng.uniform(-0.6, 0.6, 50), rng.uniform(-0.4, 0.4, 50),
+                         np.ones(50)]) * rng.uniform(10, 90, (50, 1))
+    uv_cv, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), K, dist)
+    X_c = X * [1, -1, -1]
+    xy = -cam.focal_length_mm * X_c[:, :2] / X_c[:, 2:3]
+    np.testing.assert_allclose(cam.photo_to_pixel(cam.distort(xy)), uv_cv[:, 0], atol=1e-6)

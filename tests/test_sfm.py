@@ -212,3 +212,62 @@ def test_real_reconstruction_and_the_orthority_csv():
         R = angles_to_matrix(ref[iid], "omega-phi-kappa")
         err = Rotation.from_matrix(R.T @ P.eo.matrices()[k]).magnitude()
         assert np.rad2deg(err) < 0.002
+
+
+def _colmap_model(d, poses, points, params):
+    """A COLMAP text model (the layout of COLMAP's docs) with observations projected by
+    the OPENCV formula written out here (pixel centre of the top-left pixel: 0.5, 0.5)."""
+    fx, fy, cx, cy, k1, k2, p1, p2 = params
+    d.mkdir()
+    (d / "cameras.txt").write_text("# CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+                                   "1 OPENCV 640 480 " + " ".join(map(repr, params)) + "\n")
+    img_lines, tracks = [], {k: [] for k in range(len(points))}
+    for n, (name, (R_cw, C)) in enumerate(poses.items(), 1):
+        t = -R_cw @ C
+        x, y, z, w = Rotation.from_matrix(R_cw).as_quat()
+        q = " ".join(repr(float(v)) for v in (w, x, y, z, *t))
+        img_lines.append(f"{n} {q} 1 {name}")
+        X = points @ R_cw.T + t
+        xn, yn = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+        r2 = xn ** 2 + yn ** 2
+        rad = 1 + k1 * r2 + k2 * r2 ** 2
+        xd = xn * rad + 2 * p1 * xn * yn + p2 * (r2 + 2 * xn ** 2)
+        yd = yn * rad + p1 * (r2 + 2 * yn ** 2) + 2 * p2 * xn * yn
+        u, v = fx * xd + cx, fy * yd + cy
+        img_lines.append(" ".join(f"{float(u[k])!r} {float(v[k])!r} {k + 1}"
+                                  for k in range(len(points))))
+        for k in range(len(points)):
+            tracks[k].append(f"{n} {k}")
+    (d / "images.txt").write_text("\n".join(img_lines) + "\n")
+    (d / "points3D.txt").write_text("".join(
+        f"{k + 1} " + " ".join(repr(float(v)) for v in points[k]) + " 0 0 0 0.1 "
+        + " ".join(tracks[k]) + "\n" for k in range(len(points))))
+
+
+def test_colmap_import_collinear(tmp_path):
+    """Hand-written COLMAP model -> sfm-import: the imported rays of every observation
+    pass through its 3-D point; a nadir CV pose diag(1, -1, -1) is C_mc = I."""
+    pytest.importorskip("pycolmap")
+    rng = np.random.default_rng(8)
+    pts = np.column_stack([rng.uniform(-30, 30, 25), rng.uniform(-20, 20, 25),
+                           rng.uniform(-2, 2, 25)])
+    R2 = np.diag([1.0, -1, -1]) @ Rotation.from_euler("xyz", [-2, 3, -20], degrees=True
+                                                         ).as_matrix().T
+    params = [700.0, 700.0, 321.3, 238.9, -0.08, 0.01, 0.0005, -0.0003]
+    _colmap_model(tmp_path / "m", {"a.png": (np.diag([1.0, -1, -1]), np.array([0, 0, 80.0])),
+                                   "b.png": (R2, np.array([15.0, 2, 81]))}, pts, params)
+    out = tmp_path / "imp"
+    assert main(["sfm-import", str(tmp_path / "m"), "-o", str(out), "-q",
+                 "--system", "phi-omega-kappa"]) == 0
+    cam, _ = read_camera(out / "camera.toml")
+    eo = read_eo_csv(out / "eo.csv")
+    tp = read_tiepoints(out / "tiepoints.csv")
+    assert eo.image_id == ("a", "b") and len(tp) == 50
+    np.testing.assert_allclose(eo.matrices()[0], np.eye(3), atol=1e-12)
+    C = eo.matrices()
+    for iid, pid, xy in zip(tp.image_id, tp.point_id, tp.xy_mm):
+        k = eo.image_id.index(iid)
+        ray = C[k] @ cam.rays(cam.undistort(xy[None]))[0]
+        d = pts[int(pid) - 1] - eo.position[k]
+        angle = np.arctan2(np.linalg.norm(np.cross(ray, d)), ray @ d)
+        assert np.degrees(angle) * 3600 < 0.05
