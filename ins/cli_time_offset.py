@@ -7,16 +7,17 @@ from .errors import InputError
 
 EPILOG = """\
 method:
-  The GNSS velocity changes over a window (--window, s) centred on each fix, along the
-  track (speed change) and across it (speed x track change), against the specific force
-  integrated over the same window along the levelled forward and right body axes
-  (down = the mean specific force's direction: a vehicle that stays roughly level),
-  with slowly varying terms (gravity through grade or bank, accelerometer bias, crab)
-  fitted as piecewise-linear functions (knots every --knots s).  The residual sum of
-  squares over trial offsets (step --step s within +-max) has its minimum refined by a
-  parabola (sub-sample); sigma from its curvature, inflated by the residuals'
-  correlation.  Fixes slower than --min-speed (m/s) are not used.  The information
-  is in the accelerations and turns: a straight constant-speed log is refused.
+  The GNSS velocity change over a window (--window, s) centred on each fix, less
+  gravity, against the specific force integrated over the same window, resolved in the
+  IMU's first body frame by the gyros alone; that frame's rotation into NED is fitted
+  per knot interval (--knots s: tilt from gravity, heading from the turns and speed
+  changes), so the IMU may sit in any attitude and the vehicle may bank, crab or turn.
+  Slowly varying terms (accelerometer bias, tilt drift) are fitted as piecewise-linear
+  functions on the same knots.  The residual sum of squares over trial offsets (step
+  --step s within +-max) has its minimum refined by a parabola (sub-sample); sigma from
+  its curvature, inflated by the residuals' correlation.  Fixes slower than
+  --min-speed (m/s) are not used.  The information is in the accelerations and turns:
+  a straight constant-speed log is refused.
 
 sign:
   offset = GNSS clock - IMU clock (s): a fix stamped t was taken at IMU time

@@ -110,8 +110,8 @@ def test_conversion_files(tmp_path):
     off = g[0, 1] - np.load(REAL / "global_pose" / "frame_times.npy")[0]
     np.testing.assert_allclose(imu.time, t_boot[1:] + off, atol=2e-6)
     k = 100
-    np.testing.assert_allclose(imu.dtheta_b[k - 1], 0.5 * (w[k] + w[k - 1]) * (t_boot[k] - t_boot[k - 1]),
-                               atol=1e-9)
+    np.testing.assert_allclose(imu.dtheta_b[k - 1],
+                               0.5 * (w[k] + w[k - 1]) * (t_boot[k] - t_boot[k - 1]), atol=1e-9)
     # the fixes: UTC ms -> GPS tow, speed/bearing -> NE velocity
     u = np.load(REAL / "GNSS" / "live_gnss_ublox" / "value.npy")
     tow0 = u[0, 3] / 1e3 + 18 - 315964800 - 2012 * 604800
