@@ -65,7 +65,7 @@ def bias_table(trials, quick):
     radii = (5.0, 20.0) if quick else RADII
     print(f"centre bias along the Sun, px (mean +- standard error of {trials} images); "
           "blur 0.8 px, noise 3/3000")
-    head = "".join(f"{p:>13d}" for p in phases)
+    head = "".join(f"{p:>15d}" for p in phases)
     print(f"{'law':<16}{'R_px':>6}{head}   (phase angle, deg)   max|bias|  centroid@90")
     worst = {}
     for law in LAWS:
@@ -79,7 +79,7 @@ def bias_table(trials, quick):
             width = [R * (1 + np.cos(np.deg2rad(p))) for p in phases]
             usable = [abs(b) for (b, _), w in zip(row, width) if w >= 2.0]
             worst[law] = max(worst.get(law, 0.0), max(usable) if usable else 0.0)
-            cells = "".join(f"{b:>+8.3f}{'*' if w < 2.0 else ' '}{se:.3f}"[:13].rjust(13)
+            cells = "".join(f"{b:+.3f}{'*' if w < 2.0 else ' '}+-{se:.3f}".rjust(15)
                             for (b, se), w in zip(row, width))
             print(f"{law:<16}{R:>6.1f}{cells}   {max(abs(b) for b, _ in row):>9.3f}"
                   f"{cen90:>12.3f}", flush=True)
@@ -93,7 +93,7 @@ def bias_table(trials, quick):
     for law in LAWS:
         out = [cell(law, 60, 12.0, trials, sigma=s) for s in (0.5, 1.6, 2.5)]
         out += [cell(law, 60, 12.0, trials, saturation=f) for f in (0.6, 0.3)]
-        print(f"{law:<16}" + "".join(f"{b:>+9.3f}+-{se:.3f}"[:15].rjust(15)
+        print(f"{law:<16}" + "".join(f"{b:+.3f}+-{se:.3f}".rjust(15)
                                      for b, se, _ in out), flush=True)
 
 

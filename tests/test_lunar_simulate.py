@@ -159,3 +159,46 @@ def test_help_states_units(capsys):
     for w in ("NED", "azimuth of the camera x axis", "from the zenith", "UTC", "deg", "px",
               "counts", "times.csv", "camera.toml", "truth.toml"):
         assert w in text
+
+
+def test_lens_shading_saturation_two_commands(tmp_path, capsys):
+    """An OpenCV-fisheye lens, flat shading and a clipped core (--saturation): the camera
+    file says so and lunar-heading, finding the clipping from the plateau, gets the heading
+    within its sigma."""
+    out = tmp_path / "moon"
+    k = "0.02,-0.01,0.004,-0.0007"
+    assert main(["lunar-simulate", *[("24" if a == "36" else a) for a in SESSION],
+                 "--lens", "opencv-fisheye", "--opencv-k", k, "--shading", "flat",
+                 "--saturation", "2000", "-o", str(out)]) == 0
+    cam = read_camera(out / "camera.toml")
+    assert cam.model == "opencv-fisheye" and cam.opencv_k == (0.02, -0.01, 0.004, -0.0007)
+    assert cam.radial_k == (0.0, 0.0, 0.0)
+    truth = tomllib.loads((out / "truth.toml").read_text())
+    assert truth["images"]["shading"] == "flat"
+    assert truth["images"]["saturation_counts"] == 2000.0
+    img = np.asarray(Image.open(out / "images" / "m000.png"))
+    assert img.max() == 2000 and np.count_nonzero(img == 2000) >= 3
+    capsys.readouterr()
+    assert main(["lunar-heading", "--images", str(out / "images"), "--times",
+                 str(out / "times.csv"), "--station", STATION, "--camera",
+                 str(out / "camera.toml"), "-q"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("heading"))
+    hdg, sig = float(line.split()[6]), float(line.split()[9])
+    err = np.angle(np.exp(1j * np.deg2rad(hdg - truth["camera_orientation"]["heading_deg"])))
+    assert abs(np.rad2deg(err) * 3600) < 3 * sig
+
+
+@pytest.mark.parametrize("extra,words", [
+    (["--lens", "fisheye-equidistant", "--opencv-k", "0,0,0,0"], ["--opencv-k", "opencv"]),
+    (["--lens", "pinhole"], ["--lens", "fisheye-equisolid"]),
+    (["--lens", "opencv-fisheye", "--radial-k", "0.1,0,0"], ["--radial-k"]),
+    (["--shading", "phong"], ["--shading", "lommel-seeliger"]),
+    (["--saturation", "0"], ["--saturation"]),
+])
+def test_lens_and_shading_refused(tmp_path, capsys, extra, words):
+    code = main(["lunar-simulate", "--station", STATION, "--start", "2017-05-02T23:00:00Z",
+                 "--count", "3", "--tilt", "50", "-o", str(tmp_path / "m"), "-q", *extra])
+    err = capsys.readouterr().err
+    assert code == 2
+    for w in words:
+        assert w in err

@@ -91,12 +91,14 @@ def _first_pass(camera, item, k, load, saturation):
     return crop, off, m.uv, m.cov_uv, sat, name
 
 
-def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, saturation, name):
+def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, saturation, name,
+                 flattening):
     """Limb circle on the lit limb of a crop, then the blurred phased disk fitted to it."""
     ang = sun_direction_in_image(camera, uv, sun_c)
     try:
         m = extract_centre(crop, sun_angle=ang, camera=_Offset(camera, off), sun_c=sun_c,
-                           radius_prior=(radius_px, radius_sigma_px), saturation=saturation)
+                           radius_prior=(radius_px, radius_sigma_px), saturation=saturation,
+                           flattening=flattening)
     except MoonNotFoundError as exc:
         raise InputError(exc.reason, name) from None
     return m.uv + off, m.cov_uv
@@ -141,11 +143,13 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     """Heading from Moon images in two passes.
 
     Pass 1: limb circle (a cone with the camera) with the lit side taken from the image;
-    first solution.  Pass 2: the Sun's direction in the camera from it; limb circle on the
-    lit limb, then the blurred phased disk fitted to the lit limb's pixels
-    (`moon_centre.fit_lit_limb`) with the radius known from the ephemeris' semidiameter
-    (a prior: with one limb the radius and the centre along the Sun are nearly
-    degenerate); final solution.  Images are processed in a
+    first solution.  Pass 2: the Sun's direction and the zenith in the camera from it;
+    limb circle on the lit limb, then the blurred phased disk fitted to the lit limb's
+    pixels (`moon_centre.fit_lit_limb`, the photometric law fitted too) with the radius
+    known from the ephemeris' semidiameter (a prior: with one limb the radius and the
+    centre along the Sun are nearly degenerate) and the disk flattened by refraction
+    (`ephemeris.refraction_flattening`: an ellipse on the sky, 0.8 % flatter vertically
+    at 10 deg altitude); final solution.  Images are processed in a
     thread pool (the image decoding and the numba kernels release the GIL).
 
     Parameters
@@ -193,11 +197,12 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
         S_c, cov_c = centre_directions(camera, uv, cov)
         sol = solve_heading(sky.moon_h, S_c, cov_c)
         sun_c = sky.sun_h @ sol.C_hc
+        up_c = np.array([0.0, 0.0, -1.0]) @ sol.C_hc          # the zenith in the camera
         radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
         second = _ordered(pool, _second_pass,
                           [(camera, f[0], f[1], f[2], sun_c[k], radius[k],
-                            radius_sigma_rel * radius[k], f[4], f[5])
-                           for k, f in enumerate(first)],
+                            radius_sigma_rel * radius[k], f[4], f[5],
+                            (*sky.flattening[k], up_c)) for k, f in enumerate(first)],
                           progress, n, 2 * n)
     uv = np.array([s[0] for s in second])
     cov = np.array([s[1] for s in second])

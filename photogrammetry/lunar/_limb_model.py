@@ -106,10 +106,15 @@ class LimbModel:
         Half width of the limb arc used, rad.
     saturation : float, optional
         Pixels at or above this level (counts) are left out of the fit.
+    flattening : (float, float, array_like), optional
+        With a camera: ``(k_h, k_v, up_c)``, the refracted disk's horizontal and vertical
+        semi-axes over the semidiameter (`ephemeris.refraction_flattening`) and the
+        zenith's direction in the camera frame: the limb is that ellipse on the sky.
     """
 
     def __init__(self, crop, uv0, radius0, sun3=None, camera=None, sun_c=None,
-                 sun_angle=0.0, half_width=np.deg2rad(80.0), blur0=0.8, saturation=None):
+                 sun_angle=0.0, half_width=np.deg2rad(80.0), blur0=0.8, saturation=None,
+                 flattening=None):
         self.n = SUPERSAMPLE
         self.camera = camera
         rows, cols = np.mgrid[0:crop.shape[0], 0:crop.shape[1]]
@@ -138,10 +143,20 @@ class LimbModel:
         else:
             f = camera.focal_length_px
             self.d0 = camera.image_to_direction(np.asarray(uv0, float))
-            a = [1.0, 0.0, 0.0] if abs(self.d0[0]) < 0.9 else [0.0, 1.0, 0.0]
-            self.e1 = _k.cross3(self.d0, np.array(a))
-            self.e1 /= np.linalg.norm(self.e1)
-            self.e2 = _k.cross3(self.d0, self.e1)
+            self.k_xy = (1.0, 1.0)
+            up = None
+            if flattening is not None:
+                up = np.asarray(flattening[2], float)
+                up = up - (up @ self.d0) * self.d0
+                self.k_xy = (1.0 / flattening[0], 1.0 / flattening[1])
+            if up is not None and np.linalg.norm(up) > 1e-6:
+                self.e2 = up / np.linalg.norm(up)           # vertical on the sky
+                self.e1 = _k.cross3(self.e2, self.d0)       # horizontal
+            else:
+                a = [1.0, 0.0, 0.0] if abs(self.d0[0]) < 0.9 else [0.0, 1.0, 0.0]
+                self.e1 = _k.cross3(self.d0, np.array(a))
+                self.e1 /= np.linalg.norm(self.e1)
+                self.e2 = _k.cross3(self.d0, self.e1)
             self.P = np.ascontiguousarray(camera.image_to_direction(np.stack([u, v], axis=-1)))
             self.sun_c = np.asarray(sun_c, float) / np.linalg.norm(sun_c)
             J = camera.direction_jacobian(np.asarray(uv0, float))[0]
@@ -176,6 +191,8 @@ class LimbModel:
                          self._frame(q[0] - h * (k == 0), q[1] - h * (k == 1))) / (2 * h)
              for k in range(2)]
         de1, de2, ds = (np.array([d[0][j], d[1][j]]) for j in range(3))
+        kx, ky = self.k_xy                   # the refracted disk: an ellipse on the sky
+        e1, e2, de1, de2 = e1 * kx, e2 * ky, de1 * kx, de2 * ky
         _k.disk_jac(self.P, False, q[0], q[1], q[2], e1, e2, de1, de2, sun3, ds,
                     np.sin(q[2] / f), np.cos(q[2] / f), f, self.scale, self.n, D, dD)
         return D, dD

@@ -28,7 +28,7 @@ import numpy as np
 from ins.errors import InputError, InputWarning
 
 __all__ = ["SkyDirections", "moon_sun_directions", "direction_ned", "altaz_from_hour_angle",
-           "standard_pressure_hpa", "timescale_range"]
+           "standard_pressure_hpa", "timescale_range", "refraction_flattening"]
 
 SECONDS_PER_DAY = 86400.0
 MOON_RADIUS_M = 1737.4e3
@@ -109,6 +109,9 @@ class SkyDirections:
         UT1 - UTC used, s.
     refraction : ndarray, shape (n,)
         Refraction added to the altitude, rad (0 without pressure).
+    flattening : ndarray, shape (n, 2)
+        ``(k_h, k_v)``: the refracted disk's horizontal and vertical semi-axes over the
+        semidiameter (`refraction_flattening`; ones without pressure).
     """
     moon_h: np.ndarray
     sun_h: np.ndarray
@@ -118,6 +121,7 @@ class SkyDirections:
     phase_angle: np.ndarray
     dut1: np.ndarray
     refraction: np.ndarray
+    flattening: np.ndarray = None
 
 
 def _times(ts, utc):
@@ -192,7 +196,46 @@ def moon_sun_directions(utc, lat, lon, h, pressure_hpa=None, temperature_c=10.0,
         moon_h=direction_ned(alt.radians, az.radians), sun_h=direction_ned(salt.radians, saz.radians),
         alt=alt.radians, az=az.radians, semidiameter=np.arcsin(MOON_RADIUS_M / dist.m),
         phase_angle=np.arccos(np.clip(cosphase, -1, 1)), dut1=np.asarray(t.dut1, float),
-        refraction=refr)
+        refraction=refr,
+        flattening=(np.ones((len(refr), 2)) if pressure_hpa is None else np.column_stack(
+            refraction_flattening(alt.radians, pressure_hpa, temperature_c))))
+
+
+def refraction_flattening(alt, pressure_hpa, temperature_c=10.0):
+    """Horizontal and vertical scale of a small disk's image by refraction.
+
+    Refraction ``r(a)`` raises a body seen at apparent altitude ``a`` from its true
+    altitude ``a - r(a)``.  A point of the disk a true angle ``delta`` above the centre
+    appears ``delta / (1 - r'(a))`` above it (``a = h + r(a)`` differentiated), so the
+    vertical semi-axis is the semidiameter times ``k_v = 1 / (1 - dr/da)`` (``dr/da < 0``:
+    flattened).  The horizontal semi-axis keeps its azimuth span, whose angle scales with
+    the cosine of the altitude: ``k_h = cos(a) / cos(a - r)``.  ``r`` is skyfield's (and
+    the ephemeris') Bennett formula, ``r = c / tan(a + 7.31 / (a + 4.4))`` (degrees) with
+    ``c = 0.016667 * 0.28 P / (T + 273)``, differentiated analytically.
+
+    Parameters
+    ----------
+    alt : array_like
+        Apparent altitude, rad.
+    pressure_hpa, temperature_c : float
+        The air's pressure (hPa) and temperature (deg C).
+
+    Returns
+    -------
+    k_h, k_v : ndarray
+        Dimensionless (1 at the zenith; ``k_v`` about 0.9946 at 10 deg altitude, 1013 hPa,
+        10 deg C).
+    """
+    a = np.rad2deg(np.asarray(alt, float))
+    c = 0.016667 * 0.28 * pressure_hpa / (temperature_c + 273.0)
+    x = np.deg2rad(a + 7.31 / (a + 4.4))
+    r = c / np.tan(x)                                        # deg
+    dr_da = -c / np.sin(x) ** 2 * (1 - 7.31 / (a + 4.4) ** 2) * np.pi / 180
+    live = (a >= -1.0) & (a <= 89.9)                         # skyfield's range
+    r, dr_da = np.where(live, r, 0.0), np.where(live, dr_da, 0.0)
+    k_v = 1 / (1 - dr_da)
+    k_h = np.cos(np.deg2rad(a)) / np.cos(np.deg2rad(a - r))
+    return k_h, k_v
 
 
 @functools.lru_cache(maxsize=8)

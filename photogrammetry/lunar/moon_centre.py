@@ -247,7 +247,8 @@ def _fit(pts, c0, r0, camera, radius=None):
 
 
 def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_rays=None,
-                   phase_angle=None, sun_c=None, radius_prior=None, saturation=None):
+                   phase_angle=None, sun_c=None, radius_prior=None, saturation=None,
+                   flattening=None):
     """Centre of the Moon from the lit limb of one grayscale image.
 
     Parameters
@@ -280,6 +281,8 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         Pixels at or above this level (counts) are clipped: left out of the fit of the
         phased disk.  Default: `default_saturation` (an integer image's plateau at its
         maximum, or its type's largest value; none for float images).
+    flattening : (float, float, array_like), optional
+        With a camera: ``(k_h, k_v, up_c)`` of the refraction (see `fit_lit_limb`).
 
     Returns
     -------
@@ -328,7 +331,8 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         if radius_prior is not None:
             rad, r_sigma = radius_prior
         fit = fit_lit_limb(img, uv, rad, sun_angle, phase_angle, camera, sun_c, half_width_deg,
-                           radius_sigma_px=r_sigma, saturation=saturation)
+                           radius_sigma_px=r_sigma, saturation=saturation,
+                           flattening=flattening)
         uv, cov, rad, rms, n_used = fit.uv, fit.cov_uv, fit.radius_px, fit.rms_px, fit.n_points
     return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov, radius_px=rad,
                       n_points=n_used, rms_px=rms, centroid_uv=c0 + off,
@@ -356,7 +360,8 @@ def default_saturation(image, saturation=None):
 
 
 def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None, sun_c=None,
-                 half_width_deg=70.0, radius_sigma_px=None, saturation=None):
+                 half_width_deg=70.0, radius_sigma_px=None, saturation=None,
+                 flattening=None):
     """Centre from a least-squares fit of the blurred, phased disk to the lit limb's pixels.
 
     Parameters
@@ -383,6 +388,10 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
         the radius and the centre along the Sun are nearly degenerate.
     saturation : float, optional
         Pixels at or above this level are left out (clipped).
+    flattening : (float, float, array_like), optional
+        With a camera: ``(k_h, k_v, up_c)``, the refracted disk's horizontal and vertical
+        semi-axes over the semidiameter (`ephemeris.refraction_flattening`) and the
+        zenith's direction in the camera frame; the limb is fitted as that ellipse.
 
     Returns
     -------
@@ -404,7 +413,7 @@ def fit_lit_limb(image, uv, radius_px, sun_angle, phase_angle=None, camera=None,
         model = _limb_model.LimbModel(crop, uv - off, radius_px, sun3=sun3, camera=cam,
                                       sun_c=sun_c, sun_angle=sun_angle,
                                       half_width=np.deg2rad(half_width_deg),
-                                      saturation=saturation)
+                                      saturation=saturation, flattening=flattening)
     except ValueError as exc:
         raise MoonNotFoundError(f"Moon at pixel ({uv[0]:.0f}, {uv[1]:.0f}): {exc}") from None
     prior = None if radius_sigma_px is None else (radius_px, radius_sigma_px)

@@ -191,7 +191,8 @@ def render_moon(shape, centre_uv, radius_px, phase_angle_deg, sun_angle_deg, pea
 
 def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, background=100.0,
                         psf_sigma_px=0.7, noise_sigma=0.0, supersample=8, rng=None,
-                        dtype=np.uint16, psf="gaussian", shading="lommel-seeliger"):
+                        dtype=np.uint16, psf="gaussian", shading="lommel-seeliger",
+                        flattening=None):
     """The Moon imaged by a fisheye camera (the disk follows the lens distortion).
 
     Parameters
@@ -204,6 +205,10 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
         from the station is close enough).
     semidiameter : float
         Apparent semidiameter, rad.
+    flattening : (float, float, array_like), optional
+        ``(k_h, k_v, up_c)``: the disk's horizontal and vertical semi-axes over the
+        semidiameter (refraction, ``ephemeris.refraction_flattening``) and the zenith's
+        direction in the camera frame.
     Other parameters as for `render_moon`.
 
     Returns
@@ -212,9 +217,16 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
     """
     m = np.asarray(moon_c, float) / np.linalg.norm(moon_c)
     s = np.asarray(sun_c, float) / np.linalg.norm(sun_c)
-    e1 = np.cross(m, [0.0, 0.0, 1.0] if abs(m[2]) < 0.9 else [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(m, e1)
+    k_h = k_v = 1.0
+    if flattening is not None:                 # e2 up the sky, e1 along the horizon
+        k_h, k_v, up = flattening
+        e2 = np.asarray(up, float) - (np.asarray(up, float) @ m) * m
+        e2 /= np.linalg.norm(e2)
+        e1 = np.cross(e2, m)
+    else:
+        e1 = np.cross(m, [0.0, 0.0, 1.0] if abs(m[2]) < 0.9 else [1.0, 0.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(m, e1)
     sun3 = np.array([s @ e1, s @ e2, -(s @ m)])
     shape = (camera.height_px, camera.width_px)
     centre = camera.direction_to_image(m)
@@ -223,7 +235,8 @@ def render_moon_fisheye(camera, moon_c, sun_c, semidiameter, peak=3000.0, backgr
     u, v = _subpixels(box, supersample)
     p = camera.image_to_direction(np.stack([u, v], axis=-1))
     sin_rho = np.sin(semidiameter)
-    flux = shade(p @ e1 / sin_rho, p @ e2 / sin_rho, sun3, shading) * (p @ m > 0)
+    flux = shade(p @ e1 / (k_h * sin_rho), p @ e2 / (k_v * sin_rho), sun3, shading) \
+        * (p @ m > 0)
     flux = _bin(_blur_sub(flux, psf, psf_sigma_px, supersample), supersample)
     return _finish(flux, shape, box, peak, background, psf_sigma_px, noise_sigma, rng, dtype,
                    psf)
