@@ -219,3 +219,30 @@ def test_pairs_ignore_points_folded_back_by_the_distortion():
     assert select_pairs(far, cam, 0.0) == []
     near = [far[0], PriorView(np.array([60.0, 0, 100]), np.eye(3), 0.01, 0.1)]
     assert [p[:2] for p in select_pairs(near, cam, 0.0)] == [(0, 1)]
+
+
+def test_dask_workers_give_the_same_file(block, tmp_path):
+    out = str(tmp_path / "w.csv")
+    assert main(["tiepoints", *block["paths"], "--eo", block["eo"], "--camera",
+                 block["camera"], "--ground-height-m", "0", "--relief-m", "15", "-o", out,
+                 "-q", "--workers", "2"]) == 0
+    with open(out) as a, open(block["tp"]) as b:
+        assert a.read() == b.read()
+
+
+def test_dem_height_range(tmp_path):
+    """A hand-written float GeoTIFF with GDAL's nodata tag: the range of its valid
+    heights, less origin_h_m for an ENU frame, as is for a projected frame."""
+    import tifffile
+
+    from photogrammetry.tiepoints_images import dem_height_range
+    z = np.linspace(80.0, 120.0, 200 * 100).reshape(100, 200).astype(np.float32)
+    z[:10] = -9999.0
+    tifffile.imwrite(tmp_path / "dem.tif", z, extratags=[(42113, "s", 0, "-9999", True)])
+    lo, hi = dem_height_range(tmp_path / "dem.tif", "EPSG:32650; heights = ellipsoidal")
+    valid = z[10:]
+    assert lo == pytest.approx(np.percentile(valid, 0.5)) and lo > 80
+    assert hi == pytest.approx(np.percentile(valid, 99.5)) and hi < 120
+    lo2, hi2 = dem_height_range(tmp_path / "dem.tif", "enu; origin_lat_deg = 30.0; "
+                                "origin_lon_deg = 114.0; origin_h_m = 20.0")
+    assert (lo2, hi2) == pytest.approx((lo - 20.0, hi - 20.0))
