@@ -186,6 +186,7 @@ class _Problem:
             B = _hat(self.t, knots)
             Z = np.zeros_like(B)
             self.A = np.block([[B, Z], [Z, B]])
+            self.Q = np.linalg.qr(self.A)[0]       # the slowly varying terms' span
             self.segment = np.minimum(((self.t - self.t[0]) // knot_s).astype(int),
                                       max(len(knots) - 2, 0))
 
@@ -199,8 +200,7 @@ class _Problem:
         R = _rotations(dV, self.target, self.segment, int(self.segment.max()) + 1)
         e = np.einsum("nij,nj->ni", R[self.segment], dV) - self.target
         r = np.concatenate([e[:, 0], e[:, 1]])
-        coef, *_ = np.linalg.lstsq(self.A, r, rcond=None)
-        return r - self.A @ coef
+        return r - self.Q @ (self.Q.T @ r)
 
 
 def estimate_time_offset(imu, gnss, source="velocity", max_offset_s=MAX_OFFSET_S,
