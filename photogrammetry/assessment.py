@@ -44,6 +44,7 @@ import numpy as np
 from ins.rotation import rotvec_to_dcm, wrap_to_pi
 
 from . import _coplanarity_kernels as K
+from .reml import BandedV, gls_reml_banded
 from .rotation import angles_to_matrix, matrix_to_angles
 
 __all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL"]
@@ -118,8 +119,7 @@ class Assessment:
     boresight_iterations: int = 0
 
 
-def _image_correlations(cov, m):
-    blocks = np.stack([cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(m)])
+def _image_correlations(blocks):
     s = np.sqrt(np.einsum("mii->mi", blocks))
     inv = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 0.0)
     return blocks * inv[:, :, None] * inv[:, None, :]
@@ -218,24 +218,56 @@ def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
 LAMBDA_MAX_REL = 0.3
 
 
-def _fit(y, A, C, groups):
+def _fit(y, A, C, groups, start=None):
     """GLS + REML of ``y = A x + e``, ``V = lambda C + diag(s^2[groups])``.
 
     ``lambda`` checks the block's covariance ``C`` (about 1 when the conditions of points
     seen in three or more images are weighted jointly, i.e. with tie-point ids; about 1.4
     without them) and takes up a misfit when the data can tell it from the INS noise.
+    ``C`` is a dense matrix, or a block's covariance operator
+    (:class:`photogrammetry.block_covariance.BandedCovariance`: REML by
+    :func:`photogrammetry.reml.gls_reml_banded`, started from `start`, a dict that keeps
+    the last components for the next call).
     """
     n = len(y)
-    scale = max(np.trace(C) / n, float(np.mean(y ** 2)), 1e-30)
-    D = [np.diag((groups == a) * scale) for a in range(3)]
-    out = gls_variance_components(y, A, [C] + D)
+    banded = not isinstance(C, np.ndarray)
+    trace = np.einsum("kaa->", C.blocks) if banded else np.trace(C)
+    scale = max(trace / n, float(np.mean(y ** 2)), 1e-30)
+    start = {} if start is None else start
+
+    def solve(fixed):
+        if banded:
+            key = "free" if fixed is None else "held"
+            res = gls_reml_banded(y, A, C, groups, scale, fixed, start.get(key))
+            start[key] = res[2]
+            return res
+        D = [np.diag((groups == a) * scale) for a in range(3)]
+        return gls_variance_components(y, A, [C] + D, fixed=fixed)
+    out = solve(None)
     lam, lam_sigma = out[2][0], out[3][0]
     if not (lam > 0 and lam_sigma < LAMBDA_MAX_REL * lam):
-        out = gls_variance_components(y, A, [C] + D, fixed=[1.0, None, None, None])
+        out = solve([1.0, None, None, None])
         lam, lam_sigma = 1.0, 0.0
     x, cov_x, theta, sig, r, chi2, signed, negative = out
     return (x, cov_x, lam, lam_sigma, theta[1:] * scale, sig[1:] * scale, r, chi2,
             signed[1:] * scale, negative[1:])
+
+
+def _means(C, lam, s2, ones, d, k):
+    """Sigma of the arithmetic mean ``sqrt(1' V 1) / k``, covariance and value of the
+    GLS mean, with ``V = lam C + diag(s2)`` (dense C or a banded operator)."""
+    if isinstance(C, np.ndarray):
+        V = lam * C + np.diag(s2)
+        mean_sigma = np.sqrt(np.einsum("na,nm,ma->a", ones, V, ones)) / k
+        Vi = _inv_spd(V + 1e-12 * np.trace(V) / len(V) * np.eye(len(V)))
+        Vi_ones = Vi @ ones
+    else:
+        Vs = BandedV(C, lam, s2 + 1e-12 * (lam * np.einsum("kaa->", C.blocks)
+                                           + np.sum(s2)) / len(s2))
+        mean_sigma = np.sqrt(np.einsum("na,na->a", ones, Vs.dot(ones))) / k
+        Vi_ones = Vs.solve(ones)
+    cov_mean = np.linalg.inv(ones.T @ Vi_ones)
+    return mean_sigma, cov_mean, cov_mean @ (Vi_ones.T @ d)
 
 
 def assess(result, angles_ins, system, datum, method):
@@ -263,7 +295,12 @@ def assess(result, angles_ins, system, datum, method):
     negative = np.zeros(3, bool)
     boresight_iterations = 0
     idx = (3 * np.flatnonzero(used)[:, None] + np.arange(3)).ravel()
-    C = result.cov[np.ix_(idx, idx)]
+    if result.cov is None:                  # banded block: its covariance as an operator
+        C = result.cov_op
+        if not np.array_equal(C.free, used):
+            raise ValueError("the compared images must be the block's free images")
+    else:
+        C = result.cov[np.ix_(idx, idx)]
     groups = np.tile(np.arange(3), k)
     ones = np.zeros((3 * k, 3))
     ones[np.arange(3 * k), groups] = 1.0
@@ -286,9 +323,10 @@ def assess(result, angles_ins, system, datum, method):
         R_ins = angles_to_matrix(ins[used], system)
         B_k, P_k = np.eye(3), np.eye(3)
         d_k = d
+        start = {}
         for boresight_iterations in range(1, 21):
             (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
-             negative) = _fit(d_k.ravel(), A, C, groups)
+             negative) = _fit(d_k.ravel(), A, C, groups, start)
             B_k = B_k @ rotvec_to_dcm(v[:3])
             if not observable:
                 P_k = P_k @ rotvec_to_dcm(v[3:6])
@@ -298,11 +336,7 @@ def assess(result, angles_ins, system, datum, method):
                 break
         dof = 3 * k - A.shape[1]
         e = r.reshape(k, 3)
-        V = lam * C + np.diag(theta[groups])
-        mean_sigma = np.sqrt(np.einsum("na,nm,ma->a", ones, V, ones)) / k
-        Vi = _inv_spd(V + 1e-12 * np.trace(V) / len(V) * np.eye(len(V)))
-        cov_mean = np.linalg.inv(ones.T @ Vi @ ones)
-        gls_mean = cov_mean @ (ones.T @ Vi @ d.ravel())
+        mean_sigma, cov_mean, gls_mean = _means(C, lam, theta[groups], ones, d.ravel(), k)
         gls_mean_sigma = np.sqrt(np.diag(cov_mean))
         if observable:
             beta_sigma = np.sqrt(np.diag(cov_v)[:3])
@@ -318,5 +352,5 @@ def assess(result, angles_ins, system, datum, method):
     return Assessment(names, used, diff, mean, mean_sigma, gls_mean, gls_mean_sigma, rms,
                       beta, beta_sigma, observable, ins_noise, ins_noise_sigma,
                       np.sqrt(np.mean(e ** 2, axis=0)) if k else z3, np.sqrt(adj_var),
-                      chi2, dof, lam, lam_sigma, _image_correlations(result.cov, m),
+                      chi2, dof, lam, lam_sigma, _image_correlations(result.cov_blocks()),
                       np.asarray(signed, float), negative, boresight_iterations)

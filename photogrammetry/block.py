@@ -42,6 +42,8 @@ from ins.errors import InputError, InputWarning, QualityWarning
 
 from . import _coplanarity_kernels as K
 from .coplanarity import STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
+from .banded import BandedSPD
+from .block_covariance import banded_covariance
 from .quality import block_quality
 from .rotation import check_system
 
@@ -61,6 +63,12 @@ RANK_TOL = {"known": 1e-4, "relative": 1e-2, "free": 1e-2}
 #: :data:`photogrammetry.coplanarity.W_CRITICAL`), for the outliers a pair cannot see
 #: alone (too few points of its own); the block tests hundreds of conditions per round.
 BLOCK_W_CRITICAL = 4.0
+#: ``algebra="auto"``: known-base blocks with at least this many free angles are solved
+#: with the banded Cholesky factor of the sparse normal matrix and keep their covariance
+#: as an operator (:mod:`photogrammetry.block_covariance`; ``cov`` is then None), smaller
+#: ones (and the relative methods) with the dense reduced normal matrix.
+BANDED_MIN_ANGLES = 300
+ALGEBRAS = ("auto", "dense", "banded")
 
 
 @dataclass
@@ -71,8 +79,9 @@ class BlockResult:
     ----------
     angles : ndarray (m, 3)
         Rad, system order, mapping frame; the prior for images that were not adjusted.
-    cov : ndarray (3m, 3m)
-        A-posteriori covariance of all angles (image-major), rad^2.
+    cov : ndarray (3m, 3m) or None
+        A-posteriori covariance of all angles (image-major), rad^2; None for a block
+        solved with the banded algebra (see `cov_op` and :meth:`cov_blocks`).
     sigma : ndarray (m, 3)
         Per-angle standard deviations, rad (0 for the datum image of ``"first"``).
     sigma0 : float
@@ -93,6 +102,8 @@ class BlockResult:
     quality : photogrammetry.quality.Quality
         Trust flags: pairs and images whose sigma0 or angle change is implausible
         (the rule in :mod:`photogrammetry.quality`).
+    cov_op : photogrammetry.block_covariance.BandedCovariance or None
+        The free images' covariance as an operator (banded algebra only).
     """
     angles: np.ndarray
     cov: np.ndarray
@@ -107,9 +118,26 @@ class BlockResult:
     residuals: np.ndarray
     mask: np.ndarray = field(repr=False, default=None)
     quality: object = None
+    cov_op: object = field(repr=False, default=None)
+
+    def cov_blocks(self):
+        """The 3x3 covariance block of every image (m, 3, 3), rad^2 (0 for the datum
+        image, the prior's for images left out)."""
+        m = len(self.angles)
+        if self.cov is not None:
+            return np.stack([self.cov[3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(m)])
+        out = np.zeros((m, 3, 3))
+        out[self.cov_op.free] = self.cov_op.blocks
+        idx = np.flatnonzero(~self.adjusted)
+        out[idx] = np.einsum("ia,ab->iab", self.sigma[idx] ** 2, np.eye(3))
+        return out
 
     def correlation(self):
-        """Correlation matrix of all angles (3m, 3m); 0 rows for fixed images."""
+        """Correlation matrix of all angles (3m, 3m); 0 rows for fixed images (dense
+        covariance only: see :meth:`cov_blocks` for a banded block)."""
+        if self.cov is None:
+            raise ValueError("the block's covariance is kept as an operator (banded "
+                             "algebra): use cov_blocks() or cov_op")
         s = np.sqrt(np.diag(self.cov))
         inv = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 0.0)
         return self.cov * inv[:, None] * inv[None, :]
@@ -403,9 +431,13 @@ def _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot, p
     return _Linearized(g, var, rank, N, E, WJ, grad, H, vtpv)
 
 
-def _solve_step(lin, n_ang):
+def _solve_step(lin, n_ang, banded=False):
     """Gauss-Newton step of the free angles: ``(step, S, back)`` with S the reduced
-    normal matrix and `back` the base back-substitution (see :func:`_reduced_normals`)."""
+    normal matrix and `back` the base back-substitution (see :func:`_reduced_normals`);
+    banded (known-base): S is the banded factor of the sparse normal matrix."""
+    if banded:
+        factor = BandedSPD(lin.H, what="block normal matrix")
+        return factor.solve(-lin.grad), factor, None
     S, rhs, back = _reduced_normals(lin.H.tocsr(), lin.grad, n_ang)
     step, ok = K._solve(S[None], rhs[None])
     if not ok[0]:
@@ -463,6 +495,7 @@ class _GaussNewton:
     max_iter: int
     tol: float
     progress: object
+    banded: bool = False
     iterations: int = 0
 
     def run(self, angles, b, cond, joint):
@@ -476,7 +509,7 @@ class _GaussNewton:
             if n_ang == 0:
                 converged = True
                 break
-            step, S, back = _solve_step(lin, n_ang)
+            step, S, back = _solve_step(lin, n_ang, self.banded)
             if it == self.max_iter:
                 break
             angles[free] += step.reshape(-1, 3)
@@ -515,7 +548,7 @@ def _block_outliers(lin, cond, mask, mode):
 def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-free",
                  datum="first", positions=None, prior_sigma=None, sigma_mm=0.005,
                  position_sigma=None, point_ids=None, snooping=True, max_iter=30, tol=1e-11,
-                 progress=None, image_ids=None):
+                 progress=None, image_ids=None, algebra="auto"):
     """Adjust the angles of all images of a block together.
 
     Parameters
@@ -550,6 +583,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         Called after each iteration.
     image_ids : sequence of str, optional
         Names of the images in the quality messages (default: indices).
+    algebra : {"auto", "dense", "banded"}
+        Normal equations dense (the reduced normal matrix, its inverse: cost cubic in
+        the images) or banded (known-base only: sparse normal matrix in reverse
+        Cuthill-McKee order, banded Cholesky, covariance blocks by the Takahashi
+        recurrence: cost ``n b^2``, about linear in the images for strips of a given
+        length); "auto": banded from :data:`BANDED_MIN_ANGLES` free angles.
 
     Returns
     -------
@@ -618,8 +657,9 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     # conditions weighted one by one, then jointly (the joint weights depend on the bases
     # through the near-repeated combinations).  Then data snooping on the converged
     # block (one condition per pair and round), Gauss-Newton again from there.
+    banded = _use_banded(algebra, mode, n_ang)
     gn = _GaussNewton(prior, free, col, n_ang, n_base, bslot, prior_w, system, mode,
-                      sigma_mm, point_ids, good, max_iter, tol, progress)
+                      sigma_mm, point_ids, good, max_iter, tol, progress, banded)
     state = gn.run(angles, b, cond, joint=mode == "known" or point_ids is None)
     snooped = np.zeros(mask.shape, bool)
     for _ in range(max_iter if snooping and n_ang else 0):
@@ -639,12 +679,22 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         raise InputError(f"block has no redundancy ({lin.rank} independent conditions for "
                          f"{n_ang} angles and {n_base} base-direction parameters)")
     sigma0 = float(np.sqrt(lin.vtpv / redundancy))
-    cov = _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
-                      position_sigma)
+    cov_op = None
+    if banded:
+        ps = (None if position_sigma is None
+              else np.broadcast_to(np.asarray(position_sigma, float), (m, 3)))
+        cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img, ps)
+        cov = None
+        sigma = np.zeros((m, 3))
+        sigma[free] = np.sqrt(np.einsum("iaa->ia", cov_op.blocks))
+        sigma[~adjusted] = prior_sigma[~adjusted]
+    else:
+        cov = _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
+                          position_sigma)
+        sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     if not converged:
         warnings.warn(f"block adjustment did not converge in {max_iter} iterations",
                       QualityWarning, stacklevel=2)
-    sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     res = np.zeros(mask.shape)
     res[cond.p, cond.s] = lin.g / np.sqrt(np.where(lin.var > 0, lin.var, np.inf))
     ok = status == K.STATUS_OK
@@ -654,4 +704,15 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                             int(redundancy), angles,
                             prior, prior_sigma, sigma, adjusted, image_ids)
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
-                       adjusted, status, screen["rejected"] | snooped, res, mask, quality)
+                       adjusted, status, screen["rejected"] | snooped, res, mask, quality,
+                       cov_op)
+
+
+def _use_banded(algebra, mode, n_ang):
+    if algebra not in ALGEBRAS:
+        raise InputError(f"algebra {algebra!r}: expected one of {', '.join(ALGEBRAS)}")
+    if algebra == "banded" and mode != "known":
+        raise InputError("the banded algebra needs --method known-base (no base-direction "
+                         "unknowns)")
+    return algebra == "banded" or (algebra == "auto" and mode == "known"
+                                   and n_ang >= BANDED_MIN_ANGLES)
