@@ -86,3 +86,32 @@ def test_errors(tmp_path, capsys, edit, message):
                  str(tmp_path / "cam.toml"), "-q"])
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def test_thin_crescent_refused(tmp_path, capsys):
+    """The rule: lit width R (1 + cos phase) < 2 px refuses the session, naming the phase,
+    the radius and the width; 2 days from new Moon through an 800 px lens is refused."""
+    from types import SimpleNamespace
+
+    from ins.errors import InputError
+    from photogrammetry.lunar import MIN_LIT_WIDTH_PX, check_crescent
+    assert MIN_LIT_WIDTH_PX == 2.0
+    sky = SimpleNamespace(semidiameter=np.deg2rad([0.26, 0.26]),
+                          phase_angle=np.deg2rad([120.0, 140.0]))
+    check_crescent(sky, FisheyeCamera(3000.0, 100, 100, (49.5, 49.5)))   # 13.6 * 0.234 px
+    with pytest.raises(InputError, match=r"too thin a crescent.*phase angle 140.0 deg.*"
+                                         r"radius 3.63 px.*0.85 px < 2 px \(image 2\)"):
+        check_crescent(sky, CAM)
+    # end to end: 2017-04-28 (new Moon 04-26), evening at 40 N 116 E
+    utc = np.datetime64("2017-04-28T11:30:00") + np.arange(3) * np.timedelta64(60, "s")
+    (tmp_path / "cam.toml").write_text(CAM_TOML)
+    (tmp_path / "times.csv").write_text(
+        "image_id,utc\n" + "".join(f"m{k:03d},{t}Z\n" for k, t in enumerate(utc)))
+    (tmp_path / "img").mkdir()
+    for k in range(3):
+        Image.fromarray(np.full((16, 16), 100, np.uint16)).save(tmp_path / "img" / f"m{k:03d}.png")
+    code = main(["lunar-heading", "--images", str(tmp_path / "img"), "--times",
+                 str(tmp_path / "times.csv"), "--station", f"{LAT},{LON},{H}", "--camera",
+                 str(tmp_path / "cam.toml"), "-q"])
+    assert code == 2
+    assert "too thin a crescent" in capsys.readouterr().err
