@@ -33,7 +33,8 @@ sign:
 
 frames and units:
   IMU increments in the body frame forward-right-down (--axes for other mountings);
-  GNSS KF-GINS text (time, lat, lon deg, h m, sigmas; optionally vn ve vd m/s).
+  GNSS KF-GINS text (time, lat, lon deg, h m, sigmas; optionally vn ve vd m/s, NED) or
+  RTKLIB .pos (positions: use --source position).
 
 exit codes: 0 success, 2 bad input (files, too few fixes at speed, no accelerations,
   a minimum at the edge of the searched range), 130 Ctrl-C.
@@ -52,7 +53,8 @@ def add_parser(sub):
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--imu", required=True, metavar="F", help="IMU log (KF-GINS text/binary "
                    "or CSV)")
-    p.add_argument("--gnss", required=True, metavar="F", help="GNSS log (KF-GINS text)")
+    p.add_argument("--gnss", required=True, metavar="F",
+                   help="GNSS log (KF-GINS text or RTKLIB .pos, sniffed as ins process does)")
     p.add_argument("--format", choices=["kfgins", "kfgins-bin", "csv"], default=None,
                    help="IMU file format (default: from the extension)")
     p.add_argument("--rates", action="store_true",
@@ -70,7 +72,8 @@ def add_parser(sub):
     p.add_argument("--min-speed", type=float, default=3.0, metavar="MPS",
                    help="fixes slower than this are not used, m/s (default 3)")
     p.add_argument("-o", "--output", metavar="GNSS_OUT",
-                   help="write the GNSS log shifted onto the IMU's time scale")
+                   help="write the GNSS log shifted onto the IMU's time scale (KF-GINS "
+                        "text; an RTKLIB covariance is not carried over)")
     p.set_defaults(func=_cmd_time_offset)
 
 
