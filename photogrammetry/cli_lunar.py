@@ -84,8 +84,8 @@ def add_parser(sub):
         "lunar-heading", help="heading of a fisheye camera from Moon images and their times",
         description="Heading (azimuth of the camera x axis) from a series of Moon images "
                     "without level information: the Moon centre's direction in the camera "
-                    "(equisolid fisheye) and in the horizon frame (DE421 ephemeris), and "
-                    "the rotation between them by least squares.",
+                    "(a fisheye of one of five lens models) and in the horizon frame "
+                    "(DE421 ephemeris), and the rotation between them by least squares.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--images", metavar="DIR", help="folder of Moon images <image_id>.png|tif|fits")

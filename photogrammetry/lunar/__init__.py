@@ -161,8 +161,9 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     lat, lon : float
         rad.  h : float, m.
     load : callable, optional
-        ``load(path) -> 2-D array``; default `io.load_image` keeping the file's integer
-        type (only a crop around the Moon is converted to float).
+        ``load(path) -> 2-D array``; default `io.load_image_meta` keeping the file's
+        integer type (only a crop around the Moon is converted to float) and reading a
+        FITS file's clipping level.
     progress : callable, optional
         ``progress(done, total)`` over the 2 n extractions.
     workers : int, optional

@@ -7,10 +7,16 @@
    image are used: those end on the lit limb; the others end on the terminator, which is
    not on the Moon's circle and would pull the centre towards the Sun.
 3. Fit a circle to the limb points (algebraic start, geometric Gauss-Newton, a 3-sigma
-   cut and a refit).  With a camera the points become directions and the fit is a cone of the
-   apparent semidiameter around the Moon's direction (the fisheye draws the Moon as an
-   ellipse off-axis; the cone is exact).  The centre's covariance comes from the fit,
-   inflated for rays that sample the same pixels.
+   cut and a refit; with a known radius the last fit keeps it).  With a camera the
+   points become directions and the fit is a cone of the apparent semidiameter around
+   the Moon's direction (the fisheye draws the Moon as an ellipse off-axis; the cone is
+   exact).  The centre's covariance comes from the fit, inflated for rays that sample
+   the same pixels.
+4. With the Sun's direction and the phase known, that circle starts the fit of the
+   blurred phased disk to the lit limb's pixels (`fit_lit_limb`, `_limb_model`): the
+   photometric law is fitted too (a non-negative mix of flat, Lambert and
+   Lommel-Seeliger shading), so the centre does not depend on the Moon's shading;
+   clipped (saturated) pixels are left out; refraction's flattening can be given.
 
 Pixel coordinates ``(u, v)``: column, row; pixel centres at integers.
 """
