@@ -64,8 +64,8 @@ def add_parser(sub):
                    help="axes of the IMU messages (default FLU, ROS REP-103)")
     p.add_argument("--time-base", choices=["gps", "raw"], default="gps",
                    help="stamps as UTC Unix time into GPS seconds of week (default), or raw")
-    p.add_argument("--gnss-sigma-m", type=lambda s: triplet(s, "--gnss-sigma-m"),
-                   metavar="N,E,D", help="position sigma (m) of fixes without covariance")
+    p.add_argument("--gnss-sigma-m", type=triplet, metavar="N,E,D",
+                   help="position sigma north, east, down (m) of fixes without covariance")
     p.add_argument("--list", action="store_true", help="list the bag's topics and exit")
     p.add_argument("-q", "--quiet", action="store_true", help="no report")
     p.add_argument("-o", "--output", metavar="DIR", help="output folder (new or empty)")

@@ -56,6 +56,7 @@ BASE = {
     ("ins", "simulate"): ["plan.toml", "-o", "out"],
     ("ins", "process"): ["flight", "-o", "out"],
     ("ins", "compare"): ["a.nav", "b.nav"],
+    ("ins", "import-bag"): ["drive.bag", "-o", "out"],
     ("photogrammetry", "eo"): ["flight", "-o", "eo.csv"],
     ("photogrammetry", "refine"): ["eo.csv", "tp.csv"],
     ("photogrammetry", "tiepoints"): ["a.png", "--eo", "eo.csv", "--camera", "cam.toml",
