@@ -276,3 +276,13 @@ def test_write_pos_round_trip(tmp_path):
     np.testing.assert_allclose(back.lla[:, :2], src.lla[:, :2], rtol=0, atol=1e-13)
     np.testing.assert_allclose(back.cov_ned_m2, src.cov_ned_m2, rtol=1e-6, atol=1e-15)
     assert list(back.quality) == [1, 2, 5]
+
+
+def test_crlf_and_empty(tmp_path):
+    """RTKLIB writes \\r\\n line ends (outsols); a header without solutions is named."""
+    text = (HEAD_LLH + "\n".join(ROWS_LLH) + "\n").replace("\n", "\r\n")
+    log = read_pos(write(tmp_path, text))
+    assert len(log) == 3 and list(log.line) == [9, 10, 11]
+    assert log.lla[2, 2] == 50.125
+    with pytest.raises(InputError, match="no solution lines"):
+        read_pos(write(tmp_path, HEAD_LLH, name="empty.pos"))
