@@ -173,3 +173,26 @@ def test_pdal_reads_our_sbet(tmp_path):
     # PDAL reports the angles in degrees
     np.testing.assert_allclose(rows[:, 1], np.rad2deg(traj.lla[:, 0]), atol=1e-9)
     np.testing.assert_allclose(rows[:, 3], traj.lla[:, 2], atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def flight():
+    from test_filter import short_flight
+    return short_flight()
+
+
+def test_eo_reads_sbet(flight, tmp_path):
+    """photogrammetry eo on the flight's truth as SBET gives the EO of truth.nav (the .nav
+    is rounded to 1e-12 deg and 1e-9 deg; the SBET holds the doubles)."""
+    from photogrammetry.cli import main as pg_main
+    from photogrammetry.exposure import read_eo_csv
+    from ins.trajectory import read_nav
+    sbet = tmp_path / "truth.out"
+    write_sbet(sbet, read_nav(flight / "truth.nav"))
+    assert pg_main(["eo", str(flight), "-q", "-o", str(tmp_path / "nav.csv")]) == 0
+    assert pg_main(["eo", str(flight), "--trajectory", str(sbet), "-q",
+                    "-o", str(tmp_path / "sbet.csv")]) == 0
+    a, b = read_eo_csv(tmp_path / "nav.csv"), read_eo_csv(tmp_path / "sbet.csv")
+    assert a.image_id == b.image_id
+    np.testing.assert_allclose(b.position, a.position, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(b.angles, a.angles, rtol=0, atol=1e-9)
