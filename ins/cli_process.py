@@ -165,6 +165,11 @@ def _config(args):
 def _input_options(cfg, args):
     """The GNSS format, quality policy and time shifts of the command line into ``cfg``."""
     from .rtklib import parse_quality, parse_quality_scale
+    for key, path in (("imu", cfg.imu), ("gnss", cfg.gnss)):
+        if path and (os.path.isdir(path) or os.path.splitext(str(path))[1].lower()
+                     in (".bag", ".db3", ".mcap")):
+            raise InputError(f"--{key} {path}: a ROS bag; convert it first with 'ins "
+                             f"import-bag {path} -o DIR' (imu.txt, gnss.pos)")
     if args.gnss_format:
         cfg.gnss_format = args.gnss_format
     if args.gnss_quality:

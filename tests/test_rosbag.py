@@ -163,3 +163,11 @@ def test_bag_errors(bag, tmp_path, capsys):
     assert main(["import-bag", str(bag), "-o", str(tmp_path / "o"), "--gnss-sigma-m",
                  "1,0,1"]) == 2
     assert "--gnss-sigma-m" in capsys.readouterr().err
+
+
+def test_process_points_to_import_bag(bag, tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[initial]\nlat_deg = 30\nlon_deg = 114\nh_m = 0\n")
+    assert main(["process", "--imu", str(bag), "--gnss", str(bag), "--config", str(cfg),
+                 "-q", "-o", str(tmp_path / "o")]) == 2
+    assert "a ROS bag; convert it first with 'ins import-bag" in capsys.readouterr().err
