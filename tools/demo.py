@@ -69,14 +69,15 @@ def trajectory_figures(nav, truth_nav):
     return {"pos_cm": rms(err.pos_n) * 100, "att_as": rms(err.att_n) / ARCSEC, "err": err}
 
 
-def refine_figures(out, flight, camera, eo_ins, method, datum):
+def refine_figures(out, flight, camera, eo_ins, method, datum, accept_poor=False):
     """The assessment of the refinement (the same computation as the CLI's report)."""
     from photogrammetry.batch import refine
     from photogrammetry.tiepoints import read_tiepoints
     tie = read_tiepoints(flight / "tiepoints.csv", camera=camera)
     with warnings.catch_warnings():      # the command above has already shown them
         warnings.simplefilter("ignore")
-        return refine(eo_ins, tie, camera=camera, method=method, datum=datum)
+        return refine(eo_ins, tie, camera=camera, method=method, datum=datum,
+                      accept_poor=accept_poor)
 
 
 def main(argv=None):
@@ -88,6 +89,8 @@ def main(argv=None):
     p.add_argument("--method", default="known-base",
                    choices=["known-base", "relative", "base-free"])
     p.add_argument("--datum", default="none", choices=["none", "first", "ins"])
+    p.add_argument("--accept-poor", action="store_true",
+                   help="pass --accept-poor to refine (write a flagged refinement)")
     args = p.parse_args(argv)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -117,11 +120,12 @@ def main(argv=None):
     refined_file = out / "eo_refined.csv"
     times["refine"] = run([pg, "refine", eo_ins_file, flight / "tiepoints.csv", "--camera",
                            cam_file, "--method", args.method, "--datum", args.datum,
-                           "-o", refined_file, "--report", out / "refine_report.md"])
+                           "-o", refined_file, "--report", out / "refine_report.md"]
+                          + (["--accept-poor"] if args.accept_poor else []))
 
     print("\n== 5. every stage against the simulator's truth")
     summary, figures = summarize(out, flight, proc, camera, mounting, eo_ins_file,
-                                 refined_file, args.method, args.datum)
+                                 refined_file, args.method, args.datum, args.accept_poor)
     total = time.perf_counter() - t_start
     timing = ", ".join(f"{k} {v:.1f} s" for k, v in times.items())
     summary.append("")
@@ -133,7 +137,8 @@ def main(argv=None):
     return figures
 
 
-def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, method, datum):
+def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, method, datum,
+              accept_poor=False):
     from ins.trajectory import read_nav
     from photogrammetry.exposure import read_eo_csv
     from photogrammetry.rotation import matrix_to_angles
@@ -146,7 +151,7 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
     _, d_ins, idx = angle_errors(eo_ins, eo_true)
     _, d_ref, _ = angle_errors(eo_ref, eo_true)
     dpos = eo_ins.position - eo_true.position[idx]
-    res = refine_figures(out, flight, camera, eo_ins, method, datum)
+    res = refine_figures(out, flight, camera, eo_ins, method, datum, accept_poor)
     a = res.assessment
     names = eo_ins.system.split("-")
     b_true = np.asarray(mounting.boresight_rad)
@@ -165,6 +170,9 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
     # changes the sign of the error, not its scatter: a reordering, no sign, is right here)
     order = [1, 0, 2] if eo_ins.system == "phi-omega-kappa" else [0, 1, 2]
     noise_true = apparent.std(axis=0, ddof=1)[order]
+
+    ins_sigma = ins_camera_sigma(proc / "solution_std.txt", eo_ins.time, mounting)
+    b_sigma_total = np.hypot(a.boresight_sigma, ins_sigma)
 
     def row(label, values, unit, fmt="{:9.1f}"):
         return f"| {label} | " + " | ".join(fmt.format(v) for v in values) + f" | {unit} |"
@@ -191,6 +199,12 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
             "arcsec"),
         row("boresight rx/ry/rz: sigma of the estimate", a.boresight_sigma / ARCSEC,
             "arcsec"),
+        row("boresight rx/ry/rz: sigma with the INS attitude sigma (smoothed, mean over "
+            "the exposures, in the camera frame; the calibration cannot tell them apart)",
+            b_sigma_total / ARCSEC, "arcsec"),
+        row("boresight rx/ry/rz: (estimated - simulated) / that sigma",
+            (a.boresight - b_true) / b_sigma_total, "", "{:9.2f}"),
+        *misalignment_rows(flight, proc, row),
         row(f"INS angle noise {'/'.join(names)}: estimated by the refinement",
             a.ins_noise / ARCSEC, "arcsec"),
         row(f"INS angle noise {'/'.join(names)}: true (scatter of the INS camera attitude "
@@ -202,8 +216,62 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
                "ins_angles_rad": rms(d_ins), "refined_angles_rad": rms(d_ref),
                "boresight_true_rad": b_true, "boresight_apparent_rad": b_apparent,
                "ins_noise_rad": a.ins_noise, "ins_noise_true_rad": noise_true,
-               "boresight_rad": a.boresight, "boresight_sigma_rad": a.boresight_sigma}
+               "boresight_rad": a.boresight, "boresight_sigma_rad": a.boresight_sigma,
+               "boresight_sigma_with_ins_rad": b_sigma_total,
+               "misalignment": misalignment_figures(flight, proc)}
     return lines, figures
+
+
+def ins_camera_sigma(std_file, times, mounting):
+    """The smoothed INS attitude sigma at the exposures in the camera axes (rad): the
+    roll, pitch, yaw sigmas of ``solution_std.txt`` (interpolated to the exposure times)
+    as a body-frame covariance turned into the camera frame through the mounting axes
+    ``C_bc``, averaged over the exposures (the INS error varies slowly: it is common to
+    neighbouring exposures, so the mean, not the mean over sqrt(n), bounds what a
+    boresight calibration absorbs)."""
+    data = np.loadtxt(std_file)
+    sd = np.column_stack([np.interp(times, data[:, 0], np.deg2rad(data[:, k]))
+                          for k in (7, 8, 9)])
+    C_bc = np.asarray(mounting.axes, dtype=float)
+    P_c = np.einsum("ji,nj,jk->nik", C_bc, sd ** 2, C_bc)
+    return np.sqrt(np.einsum("nii->ni", P_c)).mean(axis=0)
+
+
+def misalignment_figures(flight, proc):
+    """Injected and estimated IMU non-orthogonality (arcsec), with the smoothed sigma at
+    the end of the flight: ``{group: (injected, estimate, sigma)}`` for the groups in
+    ``states.txt`` (empty without it)."""
+    import tomllib
+    path = proc / "states.txt"
+    if not path.is_file():
+        return {}
+    header = path.read_text().splitlines()[0].split()[1:]
+    last = np.loadtxt(path, ndmin=2)[-1]
+    man = tomllib.loads((flight / "manifest.toml").read_text())
+    out = {}
+    for group in ("gyro_misalignment", "accel_misalignment"):
+        cols = [f"{group}_{a}_arcsec" for a in "xyz"]
+        if cols[0] not in header:
+            continue
+        est = np.array([last[header.index(c)] for c in cols])
+        sd = np.array([last[header.index("std_" + c)] for c in cols])
+        injected = np.asarray(man["imu"].get(f"{group}_arcsec", [0.0] * 3), dtype=float)
+        out[group] = (injected, est, sd)
+    return out
+
+
+def misalignment_rows(flight, proc, row):
+    """Table rows: the injected and estimated non-orthogonality, sigma and the ratio."""
+    lines = []
+    for group, (inj, est, sd) in misalignment_figures(flight, proc).items():
+        name = group.replace("_", " ")
+        lines += [row(f"IMU {name} x/y/z: injected", inj, "arcsec"),
+                  row(f"IMU {name} x/y/z: estimated (smoothed)",
+                      est, "arcsec"),
+                  row(f"IMU {name} x/y/z: sigma", sd, "arcsec"),
+                  row(f"IMU {name} x/y/z: (estimated - injected) / sigma", (est - inj) / sd,
+                      "", "{:9.2f}")]
+    return lines
 
 
 def plot_angles(out, eo, d_ins, d_ref, names):
