@@ -27,6 +27,10 @@ as ``v_north = vx cos(alpha) - vy sin(alpha)``, ``v_east = -vx sin(alpha) - vy
 cos(alpha)``, and ``z`` up (the right-handed north-west-up frame of Savage's wander
 frame, which Applanix follows; the decoder's own ``v_down = vz`` makes the frame
 left-handed, so the vertical sign is the one published statement we do not follow).
+Published decoders disagree on these axes (another MATLAB reader labels x east-west and
+y north-south; an exporter of another vendor writes body axes), and PDAL passes the
+three values through unnamed: the velocity of an SBET from elsewhere is the field to
+check before use; position, attitude and time are unambiguous.
 Roll, pitch, heading are the ZYX Euler angles of ``C_nb`` (``C_nb = Rz(heading)
 Ry(pitch) Rx(roll)``, body forward-right-down), as in the ``.nav`` files.
 
