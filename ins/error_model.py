@@ -15,6 +15,18 @@ index   name        meaning                                                unit
 18-20   ``SA``      accelerometer scale-factor error, truth minus estimate  1
 ======  ==========  =====================================================  ========
 
+Optional groups (``[states]`` of the processing config, :class:`StateLayout`) follow the
+21 in this order: gyro non-orthogonality (3, rad), accelerometer non-orthogonality (3,
+rad), lever-arm correction (3, m, b frame), IMU-GNSS time offset (1, s).  The IMU model
+then reads ``w_meas = (I + diag(s_g) + N(m_g)) w + b_g + noise`` with the simulator's
+symmetric ``N(m) = [[0, m_z, m_y], [m_z, 0, m_x], [m_y, m_x, 0]]``, compensated as
+``w = (I - N(m_g)) (w_meas - b_g) / (1 + s_g)`` (first order in ``m``); since
+``N(m) w = N(w) m`` the attitude rows get ``F_phi,mg = -C_nb N(w_ib_b)`` and the velocity
+rows ``F_v,ma = C_nb N(f_b)`` (integrated as ``S_CNw``, ``S_CNf``).  The four groups are
+random constants (no process noise); the lever arm and the time offset enter only the
+GNSS measurements (:mod:`ins.measurements`).  ``layout = "kfgins"`` gives the 21 states
+and the figures of KF-GINS.
+
 The sign rules are those of KF-GINS (Shin's thesis): the navigation errors are removed
 (``r -= D^-1 dr``, ``v -= dv``, ``C_nb <- Rot(phi) C_nb``) and the sensor errors added to
 the estimates (``b += db``).  The IMU model is ``w_meas = (1 + s_g) w + b_g + noise``,
