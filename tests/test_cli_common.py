@@ -57,6 +57,7 @@ BASE = {
     ("ins", "process"): ["flight", "-o", "out"],
     ("ins", "compare"): ["a.nav", "b.nav"],
     ("ins", "import-bag"): ["drive.bag", "-o", "out"],
+    ("ins", "time-offset"): ["--imu", "imu.txt", "--gnss", "gnss.txt"],
     ("photogrammetry", "eo"): ["flight", "-o", "eo.csv"],
     ("photogrammetry", "refine"): ["eo.csv", "tp.csv"],
     ("photogrammetry", "tiepoints"): ["a.png", "--eo", "eo.csv", "--camera", "cam.toml",
