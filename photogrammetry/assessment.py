@@ -239,10 +239,13 @@ def _fit(y, A, C, groups, start=None):
         if banded:
             key = "free" if fixed is None else "held"
             res = gls_reml_banded(y, A, C, groups, scale, fixed, start.get(key))
-            start[key] = res[2]
+            if np.all(np.isfinite(res[2])):
+                start[key] = res[2]
             return res
         D = [np.diag((groups == a) * scale) for a in range(3)]
         return gls_variance_components(y, A, [C] + D, fixed=fixed)
+    if banded and "free" not in start:       # the free lambda starts from the held fit
+        start["free"] = solve([1.0, None, None, None])[2]
     out = solve(None)
     lam, lam_sigma = out[2][0], out[3][0]
     if not (lam > 0 and lam_sigma < LAMBDA_MAX_REL * lam):

@@ -76,6 +76,15 @@ def _projector(Vs, A):
     return P, cov_x
 
 
+def _diverged(y, A, op, theta):
+    """The result of a free-lambda REML that ran away (lambda to 0 or the components
+    to infinity: lambda is not separable from the INS noise): infinite sigma of lambda,
+    so that the caller holds it (the estimates are not used)."""
+    nan = np.full(A.shape[1], np.nan)
+    return (nan, np.full((A.shape[1],) * 2, np.nan), theta, np.array([np.inf, 0, 0, 0]),
+            np.full(len(y), np.nan), np.nan, theta, np.zeros(4, bool))
+
+
 def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=60,
                     tol=1e-7, probes=PROBES):
     """GLS + REML of ``y = A x + e``, ``V = theta_0 C + sum_a theta_{a+1} scale G_a``.
@@ -145,6 +154,8 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         theta = new
         if done and not gone.any():
             break
+        if est[0] and not (1e-8 < theta[0] < 1e8 and np.all(theta[1:] < 1e8)):
+            return _diverged(y, A, op, theta)   # lambda not separable from the noise
     Vs, cov_x, Py, u, AI = stats(theta)
     signed = theta.copy()
     signed[est] = theta[est] + np.linalg.solve(AI[np.ix_(est, est)], u[est])

@@ -365,3 +365,27 @@ def test_quality_flags_sigma0_and_angle_change(block):
     assert off.quality.poor and off.quality.image_flags[5]
     assert off.quality.image_flags.sum() == 1
     assert any(r.startswith("image img005: angle change") for r in off.quality.reasons)
+
+
+@pytest.mark.parametrize("datum,position_sigma", [("none", None), ("ins", 0.05)])
+def test_banded_algebra_equals_dense(block, datum, position_sigma):
+    """The banded normal equations (reverse Cuthill-McKee order, banded Cholesky,
+    Takahashi covariance blocks) give the dense path's angles, sigmas, covariance
+    blocks (with the EO-position term) and sigma0; the operator's product with a vector
+    is the dense covariance's."""
+    kw = dict(position_sigma=position_sigma)
+    dense = _run(block, "known-base", datum, algebra="dense", **kw)
+    band = _run(block, "known-base", datum, algebra="banded", **kw)
+    assert band.cov is None and band.cov_op is not None and dense.cov_op is None
+    np.testing.assert_allclose(band.angles, dense.angles, atol=1e-13)
+    assert band.sigma0 == pytest.approx(dense.sigma0, rel=1e-12)
+    np.testing.assert_allclose(band.sigma, dense.sigma, rtol=1e-9)
+    np.testing.assert_allclose(band.cov_blocks(), dense.cov_blocks(), rtol=1e-8,
+                               atol=1e-12 * dense.sigma.max() ** 2)
+    v = np.random.default_rng(0).normal(size=3 * len(block["angles"]))
+    np.testing.assert_allclose(band.cov_op.apply(v), dense.cov @ v,
+                               rtol=1e-7, atol=1e-9 * np.abs(dense.cov @ v).max())
+    with pytest.raises(ValueError, match="operator"):
+        band.correlation()
+    with pytest.raises(InputError, match="known-base"):
+        _run(block, "base-free", "first", algebra="banded")
