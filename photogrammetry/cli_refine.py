@@ -165,12 +165,17 @@ def run(args):
         for path in (out, rep):
             if path:
                 check_output_file(path)
+    bar = Progress("refine", not args.quiet)
     if len(jobs) == 1 and args.scheduler is None:
-        results = [refine(**jobs[0][0], progress=Progress("refine", not args.quiet))]
+        n = len(jobs[0][0]["eo"])
+        results = [refine(**jobs[0][0], progress=lambda k, kmax: bar.note(
+            f"refine: {n} images, block iteration {k} (at most {kmax})   "))]
     else:
+        sizes = [len(j[0]["eo"]) for j in jobs]
         results = refine_many([j[0] for j in jobs], workers=args.workers,
-                              scheduler=args.scheduler,
-                              progress=Progress("refine", not args.quiet))
+                              scheduler=args.scheduler, progress=lambda done, total: bar.note(
+                                  f"refine: {done}/{total} blocks ({sum(sizes)} images)   "))
+    bar.note("\r" + " " * 70 + "\r")
     if not args.accept_poor:
         for (_, out, _), res in zip(jobs, results):
             check_quality(res.block.quality, where=f"{out}: " if len(jobs) > 1 else "")
