@@ -12,8 +12,9 @@
    ``minnaert`` (k = 0.7) is outside that span: a stress row.  The lit-area centroid's
    bias (the naive estimate) is printed beside for scale.
 2. Sessions: for each law, ``photogrammetry lunar-simulate --shading LAW`` (72 images
-   over 15 min, equisolid f = 800 px) then ``photogrammetry lunar-heading`` on the
-   folder; the heading error against its sigma.
+   over 15 min, equisolid f = 800 px; then two rows with other lenses, blur and a
+   clipped core) then ``photogrammetry lunar-heading`` on the folder; the heading error
+   against its sigma.  (The same noise seed in every row: the errors are correlated.)
 
 Run: ``.venv/bin/python bench/bench_lunar_bias.py [--trials 6] [--quick] [--sessions-only]``.
 """
@@ -97,22 +98,29 @@ def bias_table(trials, quick):
                                      for b, se, _ in out), flush=True)
 
 
-def sessions(laws=("lommel-seeliger", "lambert", "flat", "hapke")):
+SESSIONS = [(law, []) for law in ("lommel-seeliger", "lambert", "flat", "hapke")] + [
+    ("flat", ["--lens", "opencv-fisheye", "--opencv-k", "0.02,-0.01,0.004,-0.0007",
+              "--saturation", "2000"]),
+    ("hapke", ["--lens", "fisheye-equidistant", "--blur", "1.5", "--saturation", "1500"]),
+]
+
+
+def sessions(rows=SESSIONS):
     from photogrammetry.cli import main
     print()
     print("sessions: 72 images over 15 min, 2017-05-02T14:00Z at 40 N 116 E, equisolid "
           "f = 800 px, heading 123.4 deg, tilt 20 deg")
     print(f"{'shading':<16}{'error_arcsec':>13}{'sigma_arcsec':>13}{'error/sigma':>12}"
-          f"{'var_factor':>11}{'time_s':>8}")
+          f"{'var_factor':>11}{'time_s':>8}  options")
     station = "40.0,116.0,50"
-    for law in laws:
+    for law, extra in rows:
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "moon")
             with redirect_stdout(StringIO()):
                 main(["lunar-simulate", "--station", station, "--start",
                       "2017-05-02T14:00:00Z", "--duration", "900", "--count", "72",
                       "--heading", "123.4", "--tilt", "20", "--shading", law, "-q",
-                      "-o", out])
+                      "-o", out, *extra])
             t0 = time.perf_counter()
             buf = StringIO()
             with redirect_stdout(buf):
@@ -131,7 +139,7 @@ def sessions(laws=("lommel-seeliger", "lambert", "flat", "hapke")):
             err = (hdg - truth["camera_orientation"]["heading_deg"] + 180) % 360 - 180
             err *= 3600
             print(f"{law:<16}{err:>13.1f}{sig:>13.1f}{err / sig:>12.2f}{vf:>11.2f}"
-                  f"{dt:>8.1f}", flush=True)
+                  f"{dt:>8.1f}  {' '.join(extra)}", flush=True)
 
 
 def main():

@@ -48,7 +48,8 @@ the Moon in the images:
   from the ephemeris' semidiameter (sigma 0.2 %).  Clipped pixels are left out:
   --saturation, else a FITS file's SATURATE or DATAMAX, else an integer image's maximum
   when at least 3 pixels hold it (a saturated core), else its type's largest value.
-  Errors: an image without a Moon (peak < 10 sky-noise sigmas above the sky) is named;
+  Errors: an image without a Moon (peak < 10 sky-noise sigmas above the sky, or a
+  brightest object not 0.5-2 times the Moon's predicted radius) is named;
   a session whose crescent is thinner than 2 px (lit width R (1 + cos phase), R = f
   times the semidiameter) is refused.
 

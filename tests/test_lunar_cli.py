@@ -115,3 +115,23 @@ def test_thin_crescent_refused(tmp_path, capsys):
                  str(tmp_path / "cam.toml"), "-q"])
     assert code == 2
     assert "too thin a crescent" in capsys.readouterr().err
+
+
+def test_not_the_moon_named(tmp_path, capsys):
+    """A bright object of the wrong size (a lamp of 15 px radius where the Moon has
+    3.7 px) is refused, naming the image and both radii."""
+    from photogrammetry.lunar.render import render_moon
+    sky, C_hc = _session(tmp_path, 3)
+    (tmp_path / "img").mkdir()
+    for k in range(3):
+        img = render_moon_fisheye(CAM, sky.moon_h[k] @ C_hc, sky.sun_h[k] @ C_hc,
+                                  sky.semidiameter[k], noise_sigma=3, rng=k)
+        if k == 1:
+            img = render_moon((1600, 1600), (400.0, 300.0), 15.0, 0, 0, noise_sigma=3, rng=k)
+        Image.fromarray(img).save(tmp_path / "img" / f"m{k:03d}.png")
+    code = main(["lunar-heading", "--images", str(tmp_path / "img"), "--times",
+                 str(tmp_path / "times.csv"), "--station", f"{LAT},{LON},{H}", "--camera",
+                 str(tmp_path / "cam.toml"), "--pressure", "1000", "-q"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "m001.png" in err and "radius of 15." in err and "the Moon's is 3.7 px" in err

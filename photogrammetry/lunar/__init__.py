@@ -88,7 +88,7 @@ def _first_pass(camera, item, k, load, saturation):
     except MoonNotFoundError as exc:
         raise InputError(exc.reason, name) from None
     crop, off = _crop(img, m.uv, 3 * m.radius_px + 12)
-    return crop, off, m.uv, m.cov_uv, sat, name
+    return crop, off, m.uv, m.cov_uv, sat, name, m.radius_px
 
 
 def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, saturation, name,
@@ -102,6 +102,21 @@ def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, satur
     except MoonNotFoundError as exc:
         raise InputError(exc.reason, name) from None
     return m.uv + off, m.cov_uv
+
+
+#: The brightest object's radius on the image over the Moon's predicted one: outside
+#: these bounds it is not the Moon (a lamp, a planet, a cloud lit by the Moon).
+SIZE_RATIO = (0.5, 2.0)
+
+
+def _check_size(first, radius):
+    """Refuse an image whose bright object has not the Moon's size (first-pass radius vs
+    f times the semidiameter)."""
+    for f, r in zip(first, radius):
+        if not SIZE_RATIO[0] <= f[6] / r <= SIZE_RATIO[1]:
+            raise InputError(f"no Moon found: the brightest object at pixel ({f[2][0]:.0f}, "
+                             f"{f[2][1]:.0f}) has a radius of {f[6]:.1f} px, the Moon's is "
+                             f"{r:.1f} px (focal length times the semidiameter)", f[5])
 
 
 def check_crescent(sky, camera, min_width_px=None):
@@ -193,13 +208,14 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
         first = _ordered(pool, _first_pass, [(camera, item, k, load, saturation)
                                              for k, item in enumerate(images)],
                          progress, 0, 2 * n)
+        radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
+        _check_size(first, radius)
         uv = np.array([f[2] for f in first])
         cov = np.array([f[3] for f in first])
         S_c, cov_c = centre_directions(camera, uv, cov)
         sol = solve_heading(sky.moon_h, S_c, cov_c)
         sun_c = sky.sun_h @ sol.C_hc
         up_c = np.array([0.0, 0.0, -1.0]) @ sol.C_hc          # the zenith in the camera
-        radius = camera.focal_length_px * np.asarray(sky.semidiameter, float)
         second = _ordered(pool, _second_pass,
                           [(camera, f[0], f[1], f[2], sun_c[k], radius[k],
                             radius_sigma_rel * radius[k], f[4], f[5],
