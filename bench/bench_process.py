@@ -171,7 +171,7 @@ def speed(args, data):
             for _ in range(args.repeat):
                 cmd = [sys.executable, "-c", _CHILD, "--imu", str(data / "imu_noisy.txt"),
                        "--gnss", str(data / "gnss.txt"), "--config", str(cfg_path), "-q",
-                       "-o", tmp] + extra
+                       "-o", tmp, "--force"] + extra
                 t = time.perf_counter()
                 proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
                 walls.append(time.perf_counter() - t)
