@@ -7,9 +7,10 @@ memory does not grow with the frame:
 - JPEG and other pillow formats: pillow's ``draft`` decodes JPEG at 1/2, 1/4 or 1/8
   directly; the rest is an area-average resize (OpenCV ``INTER_AREA``).
 - TIFF and GeoTIFF (tifffile): the smallest stored pyramid level (overview) that is
-  not smaller than the target, else the full page decoded into a temporary memory-mapped
-  file (on disk, not in RAM) for frames above :data:`MEMMAP_PIXELS`, reduced in bands
-  of rows.  A compression tifffile cannot decode without the optional imagecodecs
+  not smaller than the target; a level above :data:`MEMMAP_PIXELS` is decoded tile by
+  tile (or strip by strip), each band of rows reduced across as soon as it is complete
+  and the reduced rows then down (the area average is separable): one band and a
+  ``height x target width`` float array in memory, never the frame.  A compression tifffile cannot decode without the optional imagecodecs
   package (JPEG-in-TIFF, as DJI/ODM write) falls back to pillow (libtiff), in memory.
 
 Pixel coordinates follow ``docs/interfaces.md``: centres at integers, ``(0, 0)`` the
@@ -17,7 +18,6 @@ centre of the top-left pixel.  A level pixel ``(u_l, v_l)`` is the full-frame pi
 ``u = (u_l + 0.5) * sx - 0.5``, ``v = (v_l + 0.5) * sy - 0.5`` (:meth:`GreyLevel.to_full`).
 """
 import os
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,11 +26,11 @@ from ins.errors import InputError
 
 __all__ = ["GreyLevel", "read_grey", "image_size", "MEMMAP_PIXELS", "TIFF_SUFFIXES"]
 
-#: Frames with more pixels than this are decoded through a memory-mapped temporary file.
+#: Frames with more pixels than this are decoded segment by segment, band by band.
 MEMMAP_PIXELS = 40_000_000
 #: Suffixes read with tifffile.
 TIFF_SUFFIXES = (".tif", ".tiff", ".gtif")
-_BAND_ROWS = 1024
+_READ_BUFFER = 4 << 20          # compressed bytes tifffile reads at a time
 
 
 @dataclass(frozen=True)
@@ -61,18 +61,23 @@ class GreyLevel:
                         axis=-1)
 
 
-def _grey(a, path):
-    """uint8 grey of an (h, w), (h, w, c) array (first three channels averaged)."""
+def _grey(a, path, size=None):
+    """uint8 grey of an (h, w), (h, w, c) array (first three channels averaged), reduced
+    to ``size = (w, h)`` by area averages first; 8-bit data keep their levels, other
+    data are stretched between the 0.5 and 99.5 percentiles of the reduced image."""
     a = np.asarray(a)
+    eight_bit = a.dtype == np.uint8
     if a.ndim == 3:
-        a = a[..., :3].mean(axis=-1) if a.shape[-1] >= 3 else a[..., 0]
+        a = a[..., :3].mean(axis=-1, dtype=np.float32) if a.shape[-1] >= 3 else a[..., 0]
     if a.ndim != 2:
         raise InputError(f"not a single-frame image (array of shape {a.shape})", path=path)
-    if a.dtype != np.uint8:
-        a = np.asarray(a, dtype=float)
+    a = np.asarray(a, dtype=np.float32)
+    if size is not None:
+        a = _resize(a, size)
+    if not eight_bit:
         lo, hi = np.nanpercentile(a, [0.5, 99.5]) if a.size else (0.0, 1.0)
-        a = np.clip((a - lo) * (255.0 / max(hi - lo, 1e-12)), 0, 255)
-    return np.ascontiguousarray(a, dtype=np.uint8)
+        a = (a - lo) * (255.0 / max(hi - lo, 1e-12))
+    return np.ascontiguousarray(np.clip(np.round(a), 0, 255), dtype=np.uint8)
 
 
 def _target(width, height, max_side_px):
@@ -106,6 +111,37 @@ def _tiff_array(arr, axes):
     return np.transpose(arr, order)
 
 
+def _reduce_segments(page, path, width, height, tw, th):
+    """Decode a TIFF page segment by segment (tiles or strips, in row order); each band
+    of rows, once complete, is reduced across (to ``tw`` columns), then the stack of
+    reduced rows down (to ``th``).  The area average is separable, so this is the
+    whole-frame reduction; memory: one band of the frame and ``height x tw`` floats
+    (92 MB for a 13824-row DMC frame at 1667 columns), not the frame."""
+    import cv2
+    rows = np.zeros((height, tw), np.float32)
+    bands = {}                  # y -> [rows, columns filled]: complete ones are reduced
+
+    for seg, idx, shape in page.segments(maxworkers=1, buffersize=_READ_BUFFER):
+        _, _, y, x, _ = idx
+        h, w = min(shape[1], height - y), min(shape[2], width - x)
+        if y not in bands:
+            bands[y] = [np.zeros((h, width), np.float32), 0]
+        a = np.asarray(seg).reshape(shape)[0]
+        a = a[..., :3].mean(axis=-1, dtype=np.float32) if a.shape[-1] >= 3 else a[..., 0]
+        band = bands[y]
+        band[0][:, x:x + w] = a[:h, :w]
+        band[1] += w
+        if band[1] >= width:
+            rows[y:y + h] = cv2.resize(band[0], (tw, h), interpolation=cv2.INTER_AREA)
+            del bands[y]
+    if bands:
+        raise InputError("TIFF segments do not cover the frame", path=path)
+    out = cv2.resize(rows, (tw, th), interpolation=cv2.INTER_AREA)
+    if page.dtype == np.uint8:
+        return np.clip(np.round(out), 0, 255).astype(np.uint8)
+    return _grey(out.astype(np.float64), path)
+
+
 def _read_tiff(path, max_side_px):
     import tifffile
     with tifffile.TiffFile(path) as tif:
@@ -118,35 +154,27 @@ def _read_tiff(path, max_side_px):
             if w >= tw and h >= th:
                 level = lv
         lw, lh = _tiff_shape(level, path)
-        if lw * lh <= MEMMAP_PIXELS:
-            return width, height, _resize(_grey(_tiff_array(level.asarray(), level.axes),
-                                                path), (tw, th))
-        fd, tmp = tempfile.mkstemp(suffix=".raw")
-        os.close(fd)
-        try:
-            mm = level.asarray(out=tmp)
-            full = _tiff_array(mm, level.axes)
-            bands = []
-            for r0 in range(0, lh, _BAND_ROWS):
-                band = _grey(full[r0:r0 + _BAND_ROWS], path)
-                rows = max(1, round(band.shape[0] * th / lh))
-                bands.append(_resize(band, (tw, rows)))
-            del mm, full
-            out = np.concatenate(bands, axis=0)
-            return width, height, _resize(out, (tw, th))
-        finally:
-            os.unlink(tmp)
+        page = level.pages[0] if hasattr(level, "pages") else None
+        if lw * lh <= MEMMAP_PIXELS or page is None or len(level.pages) != 1 \
+                or page.planarconfig != 1:
+            return width, height, _grey(_tiff_array(level.asarray(), level.axes), path,
+                                        (tw, th))
+        return width, height, _reduce_segments(page, path, lw, lh, tw, th)
 
 
 def _read_pillow(path, max_side_px):
+    import warnings
+
     from PIL import Image
-    with Image.open(path) as im:
-        width, height = im.size
-        tw, th = _target(width, height, max_side_px)
-        if (tw, th) != (width, height):
-            im.draft("L", (tw, th))       # JPEG: decode at 1/2, 1/4, 1/8 (not below target)
-        a = _grey(np.asarray(im.convert("L")), path)
-    return width, height, _resize(a, (tw, th))
+    with warnings.catch_warnings():     # aerial frames are large by nature (a DMC frame
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # is 106 Mpx)
+        with Image.open(path) as im:
+            width, height = im.size
+            tw, th = _target(width, height, max_side_px)
+            if (tw, th) != (width, height):
+                im.draft("L", (tw, th))   # JPEG: decode at 1/2, 1/4, 1/8 (not below target)
+            a = np.asarray(im.convert("L"))
+    return width, height, _grey(a, path, (tw, th))
 
 
 def read_grey(path, max_side_px=None):

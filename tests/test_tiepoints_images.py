@@ -116,17 +116,21 @@ def test_read_grey_levels_map_to_full_frame(tmp_path):
         np.testing.assert_allclose(lv.to_full(c), [519.5, 319.5], atol=0.5 * lv.scale[0])
 
 
-def test_read_grey_memory_mapped_bands(tmp_path, monkeypatch):
-    """A frame above MEMMAP_PIXELS is reduced band by band: the same level as in memory."""
+@pytest.mark.parametrize("layout", ["strips", "tiles", "tiles16"])
+def test_read_grey_segment_by_segment(tmp_path, monkeypatch, layout):
+    """A frame above MEMMAP_PIXELS is decoded tile by tile (strip by strip) and reduced
+    band by band: the same level as the whole frame in memory (16 bit too)."""
     import tifffile
 
     import photogrammetry.imagery as imagery
     rng = np.random.default_rng(1)
     img = cv2.GaussianBlur(rng.integers(0, 255, (3000, 700)).astype(np.uint8), (0, 0), 3)
-    tifffile.imwrite(tmp_path / "big.tif", img, compression="zlib", rowsperstrip=64)
+    kw = dict(rowsperstrip=64) if layout == "strips" else dict(tile=(256, 128))
+    if layout == "tiles16":
+        img = img.astype(np.uint16) * 200
+    tifffile.imwrite(tmp_path / "big.tif", np.dstack([img] * 3), compression="zlib", **kw)
     ref = read_grey(tmp_path / "big.tif", 600).pixels
     monkeypatch.setattr(imagery, "MEMMAP_PIXELS", 1000)
-    monkeypatch.setattr(imagery, "_BAND_ROWS", 500)
     banded = read_grey(tmp_path / "big.tif", 600).pixels
     assert banded.shape == ref.shape == (600, 140)
     assert np.abs(banded.astype(int) - ref).max() <= 2
