@@ -63,13 +63,65 @@ def one(n, method, datum):
             "ins_noise_arcsec": np.round(a.ins_noise * 206264.8, 1).tolist()}
 
 
+def dask_run(n_blocks, n_images, workers):
+    """``n_blocks`` flights of ``n_images`` each written as files and refined as Dask
+    tasks (``photogrammetry.batch.refine_many``) on a local cluster of `workers`
+    processes; prints the wall time and every worker's peak resident memory."""
+    import resource
+    import tempfile
+    import time
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    import scenario as sc
+    from dask.distributed import Client, LocalCluster
+
+    from photogrammetry.batch import refine_many
+    from photogrammetry.camera import read_camera
+    from photogrammetry.exposure import read_eo_csv
+    from photogrammetry.tiepoints import read_tiepoints
+    with tempfile.TemporaryDirectory() as tmp:
+        tasks = []
+        for k in range(n_blocks):
+            d = Path(tmp) / f"flight{k}"
+            d.mkdir()
+            eo, tp, cam = sc.write_block_files(sc.make_large_block(n_images, seed=100 + k),
+                                               str(d))
+            camera, _ = read_camera(cam)
+            tasks.append(dict(eo=read_eo_csv(eo), tiepoints=read_tiepoints(tp, camera),
+                              camera=camera, method="known-base", datum="none"))
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                               dashboard_address=None,
+                               env={"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
+        client = Client(cluster)
+        try:
+            t0 = time.perf_counter()
+            res = refine_many(tasks, scheduler=cluster.scheduler_address)
+            wall = time.perf_counter() - t0
+            peak = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                              / 1024)
+        finally:
+            client.close()
+            cluster.close()
+    print(f"dask: {n_blocks} blocks x {n_images} images = {n_blocks * n_images} images on "
+          f"{workers} workers: {wall:.1f} s; peak resident memory per worker (MB): "
+          + ", ".join(f"{v:.0f}" for v in peak.values())
+          + f"; sigma0 {min(r.block.sigma0 for r in res):.3f}-"
+            f"{max(r.block.sigma0 for r in res):.3f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="50,200,1000,5000")
     ap.add_argument("--method", default="known-base")
     ap.add_argument("--datum", default="none")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--dask", metavar="BLOCKSxIMAGES",
+                    help="instead: BLOCKS flights of IMAGES each as Dask tasks (10x1000)")
+    ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
+    if args.dask:
+        b, n = (int(v) for v in args.dask.lower().split("x"))
+        dask_run(b, n, args.workers)
+        return
     if args.one:
         print(json.dumps(one(args.one, args.method, args.datum)))
         return

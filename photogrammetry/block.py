@@ -39,9 +39,10 @@ from scipy import sparse
 from scipy.sparse.linalg import splu
 
 from ins.errors import InputError, InputWarning, QualityWarning
+from ins.rotation import wrap_to_pi
 
 from . import _coplanarity_kernels as K
-from .coplanarity import STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
+from .coplanarity import MAX_CHANGE, STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
 from .banded import BandedSPD
 from .block_covariance import banded_covariance
 from .quality import block_quality
@@ -69,6 +70,9 @@ BLOCK_W_CRITICAL = 4.0
 #: ones (and the relative methods) with the dense reduced normal matrix.
 BANDED_MIN_ANGLES = 300
 ALGEBRAS = ("auto", "dense", "banded")
+#: Internal screening status: the pair's screening moved image j beyond MAX_CHANGE
+#: (reported as "not converged" in ``pair_status``, flagged by the quality rule).
+STATUS_STRAYED = 7
 
 
 @dataclass
@@ -333,12 +337,21 @@ def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigm
         status = np.where(few, K.STATUS_OK, status)
         norm = np.linalg.norm(base, axis=1)
         status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
+    # a screening that went farther than any sample may go from the prior (a weak pair
+    # converging to another solution, e.g. 170 deg off) has no valid outlier tests either
+    strayed = (status == K.STATUS_OK) & np.any(
+        np.abs(wrap_to_pi(screen["angles"] - prior[pairs[:, 1]])) > MAX_CHANGE, axis=1)
+    status = np.where(strayed, STATUS_STRAYED, status)
     good = status == K.STATUS_OK
     for k in np.flatnonzero(~good):
         what = ("its pair-wise screening did not converge"
-                if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT[status[k]])
+                if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT.get(status[k], ""))
+        if strayed[k]:
+            what = (f"its pair-wise screening moved image {pairs[k, 1]} more than "
+                    f"{np.rad2deg(MAX_CHANGE):g} deg from its prior (weak geometry)")
         warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {what}",
-                      QualityWarning if status[k] == K.STATUS_NOT_CONVERGED else InputWarning,
+                      QualityWarning if status[k] in (K.STATUS_NOT_CONVERGED, STATUS_STRAYED)
+                      else InputWarning,
                       stacklevel=3)
     return screen, status, good, screen["mask"] & good[:, None]
 
@@ -699,10 +712,13 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     res[cond.p, cond.s] = lin.g / np.sqrt(np.where(lin.var > 0, lin.var, np.inf))
     ok = status == K.STATUS_OK
     change = np.where(ok[:, None], screen["angles"] - prior[pairs[:, 1]], np.nan)
+    strayed = status == STATUS_STRAYED
+    status = np.where(strayed, K.STATUS_NOT_CONVERGED, status)
     quality = block_quality(pairs, np.where(ok, screen["sigma0"], np.nan),
                             screen["redundancy"], change, screen["sigma"], sigma0,
                             int(redundancy), angles,
-                            prior, prior_sigma, sigma, adjusted, image_ids)
+                            prior, prior_sigma, sigma, adjusted, image_ids, system,
+                            common_rotation=datum == "none", strayed=strayed)
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
                        adjusted, status, screen["rejected"] | snooped, res, mask, quality,
                        cov_op)

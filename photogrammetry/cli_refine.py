@@ -51,10 +51,13 @@ outliers:
 
 trust (exit 3 unless --accept-poor):
   a pair (its pair-wise screening) or the block is flagged when sigma0 (1 = the stated
-  photo sigma) exceeds max(2, sqrt(chi2_0.999(r) / r)) at its redundancy r; an image
+  photo sigma) exceeds max(2, sqrt(chi2_q(r) / r)) at its redundancy r (q = 0.999 for
+  the block, 1 - 0.001/P for each of its P pairs); an image
   when a refined angle differs from its prior by more than
   5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj: the
-  adjusted sigma; for a pair's screening its own sigma).  Any flag: exit 3 and nothing
+  adjusted sigma; with known-base and --datum none after removing the common
+  camera-frame rotation, the boresight); a pair whose screening moved an image beyond
+  5 deg from its prior (left out).  Any flag: exit 3 and nothing
   written; with --accept-poor the outputs are written, the flags stated in the CSV
   comments and the report.
 

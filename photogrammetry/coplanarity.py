@@ -60,8 +60,8 @@ W_CRITICAL = 3.29
 #: the adjusted solution and data snooping follows on the converged one).
 MSAC_THRESHOLD = 5.0
 #: A minimal-sample hypothesis farther than this from the prior (rad, any angle) is
-#: discarded (2 deg: an order beyond the prior sigma of an INS).
-MAX_CHANGE = np.deg2rad(2.0)
+#: discarded (5 deg: beyond any plausible INS error; the trust rule flags far less).
+MAX_CHANGE = np.deg2rad(5.0)
 _MIN_MODE = {"known": 3, "relative": 5, "free": 5}
 
 

@@ -80,9 +80,9 @@ def _trust_lines(q):
     """The trust section: the flags of :mod:`photogrammetry.quality`, or none."""
     if q is None:
         return []
-    rule = ("Rule: sigma0 above max(2, sqrt(chi2_0.999(r)/r)) at redundancy r (pair "
-            "screening or block), or an angle change from the prior above "
-            "5 sqrt(2 s_prior^2 + s_adj^2).")
+    rule = ("Rule: sigma0 above max(2, sqrt(chi2_q(r)/r)) at redundancy r (block: "
+            "q = 0.999; each of the P pair screenings: q = 1 - 0.001/P), or an angle change "
+            "from the prior above 5 sqrt(2 s_prior^2 + s_adj^2).")
     if not q.poor:
         return [f"Trust: no flag (block sigma0 limit {q.sigma0_limit:.2f}). {rule}", ""]
     return (["## Trust: POOR (written with --accept-poor)", "", rule, ""]

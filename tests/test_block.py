@@ -389,3 +389,15 @@ def test_banded_algebra_equals_dense(block, datum, position_sigma):
         band.correlation()
     with pytest.raises(InputError, match="known-base"):
         _run(block, "base-free", "first", algebra="banded")
+
+
+def test_quality_judges_known_base_changes_without_the_boresight():
+    """Known-base, datum none: a 1 deg boresight (common camera-frame rotation; 7x the
+    INS sigma) is not an implausible change (it is what the assessment estimates), one
+    image 3 deg off in kappa on top of it is."""
+    B = sc.make_block(n_strips=2, n_per_strip=6, seed=23, boresight_rad=(0.01, -0.015, 0.01))
+    res = _run(B, "known-base", "none")
+    assert not res.quality.poor, res.quality.reasons
+    B["prior"][4, 2] += np.deg2rad(3.0)
+    res = _run(B, "known-base", "none")
+    assert res.quality.poor and np.flatnonzero(res.quality.image_flags).tolist() == [4]
