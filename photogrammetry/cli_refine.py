@@ -46,20 +46,20 @@ outliers:
   exactly from the prior and scored by MSAC at |misclosure| < 5 sigma), is iterated on
   the inliers, then data snooping (Baarda, w > 3.29) runs on the converged pair; after
   the block has converged, snooping on the block's misclosures (per pair the largest
-  above 3.29) and the block again.  The result and the rejected points do not depend on
-  the prior within a few tenths of a degree.
+  |g|/sigma_g above 4.0) and the block again.  The result and the rejected points do
+  not depend on the prior within a few tenths of a degree.
 
 trust (exit 3 unless --accept-poor):
-  a pair (its pair-wise screening) or the block is flagged when sigma0 (1 = the stated
-  photo sigma) exceeds max(2, sqrt(chi2_q(r) / r)) at its redundancy r (q = 0.999 for
-  the block, 1 - 0.001/P for each of its P pairs); an image
-  when a refined angle differs from its prior by more than
-  5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj: the
-  adjusted sigma; with known-base and --datum none after removing the common
-  camera-frame rotation, the boresight); a pair whose screening moved an image beyond
-  5 deg from its prior (left out).  Any flag: exit 3 and nothing
-  written; with --accept-poor the outputs are written, the flags stated in the CSV
-  comments and the report.
+  - sigma0 (1 = the stated photo sigma) of a pair's screening or of the block above
+    max(2, sqrt(chi2_q(r) / r)) at its redundancy r (q = 0.999 for the block,
+    1 - 0.001/P for each of its P pairs);
+  - an image whose refined angle differs from its prior by more than
+    5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj:
+    the adjusted sigma; with known-base and --datum none after removing the common
+    camera-frame rotation, the boresight);
+  - a pair whose screening moved an image beyond 5 deg from its prior (left out).
+  Any flag: exit 3 and nothing written; with --accept-poor the outputs are written,
+  the flags stated in the CSV comments and the report.
 
   A flight folder (ins simulate) may replace EO.csv TIEPOINTS.csv: its tiepoints.csv and
   camera.toml are used, the EO from --eo or FOLDER/eo.csv.  Several folders run as Dask
