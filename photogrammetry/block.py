@@ -337,10 +337,13 @@ def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigm
         status = np.where(few, K.STATUS_OK, status)
         norm = np.linalg.norm(base, axis=1)
         status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
-    # a screening that went farther than any sample may go from the prior (a weak pair
-    # converging to another solution, e.g. 170 deg off) has no valid outlier tests either
+    # a screening that went farther than any sample may go from the prior, and farther
+    # than 5 of its own sigmas (a weak pair of 5-7 points wanders within sigmas of
+    # several degrees: not this), has no valid outlier tests either
+    change = np.abs(wrap_to_pi(screen["angles"] - prior[pairs[:, 1]]))
     strayed = (status == K.STATUS_OK) & np.any(
-        np.abs(wrap_to_pi(screen["angles"] - prior[pairs[:, 1]])) > MAX_CHANGE, axis=1)
+        change > np.maximum(MAX_CHANGE, 5 * np.nan_to_num(screen["sigma"], nan=np.inf)),
+        axis=1)
     status = np.where(strayed, STATUS_STRAYED, status)
     good = status == K.STATUS_OK
     for k in np.flatnonzero(~good):
@@ -348,7 +351,7 @@ def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigm
                 if status[k] == K.STATUS_NOT_CONVERGED else STATUS_TEXT.get(status[k], ""))
         if strayed[k]:
             what = (f"its pair-wise screening moved image {pairs[k, 1]} more than "
-                    f"{np.rad2deg(MAX_CHANGE):g} deg from its prior (weak geometry)")
+                    f"{np.rad2deg(MAX_CHANGE):g} deg and 5 of its sigmas from its prior")
         warnings.warn(f"pair {pairs[k, 0]}-{pairs[k, 1]} left out: {what}",
                       QualityWarning if status[k] in (K.STATUS_NOT_CONVERGED, STATUS_STRAYED)
                       else InputWarning,

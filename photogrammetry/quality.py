@@ -17,7 +17,8 @@ The rule (stated in ``photogrammetry refine --help`` and docs/interfaces.md):
   the camera frame): they are judged as the camera-frame rotation from the refined to
   the prior attitude less its median over the images, each component against the
   largest of the image's three limits.  For a pair's screening (image i
-  held at its prior) only a change beyond 5 deg is flagged (the pair is left out):
+  held at its prior) only a change beyond 5 deg and 5 of the screening's sigmas is
+  flagged (the pair is left out):
   a boresight changes the relative orientation of a cross-strip pair by up to twice its
   size, and a weak pair (few points, a short overlap) moves far within its own,
   unreliable, sigma; the images are judged in the block.
@@ -144,7 +145,8 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     strayed = np.zeros(len(pairs), bool) if strayed is None else np.asarray(strayed)
     for k in np.flatnonzero(strayed):
         reasons.append(f"pair {names[pairs[k, 0]]}-{names[pairs[k, 1]]}: its screening "
-                       f"moved {names[pairs[k, 1]]} beyond 5 deg from the prior (left out)")
+                       f"moved {names[pairs[k, 1]]} beyond 5 deg and 5 sigma from the prior "
+                       "(left out)")
     for k in np.flatnonzero(bad_s0 | bad_change):
         i, j = pairs[k]
         what = []
