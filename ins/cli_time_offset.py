@@ -32,7 +32,8 @@ sign:
             velocities.
 
 frames and units:
-  IMU increments in the body frame forward-right-down (--axes for other mountings);
+  IMU increments in the body frame (any mounting: its attitude is fitted; --axes and
+  --rates read the file as ins process does);
   GNSS KF-GINS text (time, lat, lon deg, h m, sigmas; optionally vn ve vd m/s, NED) or
   RTKLIB .pos (positions: use --source position).
 

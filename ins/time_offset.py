@@ -238,7 +238,7 @@ def estimate_time_offset(imu, gnss, source="velocity", max_offset_s=MAX_OFFSET_S
                          f"and window, knots > 0")
     p = _Problem(imu, gnss, source, window_s, knot_s, max_offset_s, min_speed_mps)
     n = len(p.t)
-    if n < 4 * p.A.shape[1] if n >= 2 else True:
+    if n < 2 or n < 4 * p.A.shape[1]:
         raise InputError(f"{n} GNSS epochs at {min_speed_mps:g} m/s or faster inside the "
                          f"IMU span (less {max_offset_s + 0.5 * window_s:g} s at each "
                          f"end): too few for a time offset with knots every {knot_s:g} s")
