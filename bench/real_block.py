@@ -22,7 +22,8 @@ from scipy.spatial.transform import Rotation
 from photogrammetry.batch import refine
 from photogrammetry.camera import read_camera, write_camera
 from photogrammetry.cli import main
-from photogrammetry.drone import camera_from_dji
+from photogrammetry.drone import camera_from_dji, gimbal_angles, read_drone_shot
+from photogrammetry.mapping import EnuFrame
 from photogrammetry.exposure import read_eo_csv
 from photogrammetry.rotation import matrix_to_angles
 from photogrammetry.sfm_opensfm import read_reconstruction
@@ -89,6 +90,18 @@ def main_(argv=None):
     table("gimbal - bundle (raw), deg", ids, wrap_deg(prior.angles - raw))
     table("gimbal - bundle (RTK datum), deg", ids, wrap_deg(prior.angles - rtk))
     table("gimbal sigma (stated), deg", ids, np.rad2deg(prior.angle_sigma))
+    enu = EnuFrame.from_degrees(lat, lon, h)
+    C_mn = enu.C_mn(enu.to_lla(prior.position))
+    xmp = np.array([read_drone_shot(p).gimbal_rpy_deg for p in images])
+    print("\nthe drone's own terms (XMP roll, pitch, yaw) and the bundle's (RTK datum), deg")
+    print(f"{'image':15s} {'roll':>8s} {'pitch':>8s} {'yaw':>8s} | {'roll':>8s} {'pitch':>8s} "
+          f"{'yaw':>8s} | gimbal - bundle")
+    b_rpy = np.rad2deg(gimbal_angles(R @ bundle.eo.matrices()[order], C_mn))
+    for k, i in enumerate(ids):
+        d = (xmp[k] - b_rpy[k] + 180) % 360 - 180
+        print(f"{i:15s} " + " ".join(f"{v:8.3f}" for v in xmp[k]) + " | "
+              + " ".join(f"{v:8.3f}" for v in b_rpy[k]) + " | "
+              + " ".join(f"{v:6.3f}" for v in d))
     for method, datum in (("known-base", "none"), ("known-base", "ins"),
                           ("base-free", "ins"), ("relative", "ins")):
         t0 = time.perf_counter()

@@ -44,7 +44,7 @@ from .exposure import ExposureOrientation, _angle_jacobian, _propagate
 from .rotation import boresight_matrix, check_system, matrix_to_angles
 
 __all__ = ["DroneShot", "read_drone_shot", "parse_dji_xmp", "read_xmp_packet",
-           "eo_from_drone", "camera_from_dji", "DJI_CAMERA_AXES", "DJI_NS"]
+           "eo_from_drone", "gimbal_angles", "camera_from_dji", "DJI_CAMERA_AXES", "DJI_NS"]
 
 DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 #: ``C_gc``: the camera frame c in the DJI gimbal body g (x optical axis, y right, z down).
@@ -321,6 +321,26 @@ def eo_from_drone(shots, frame, system, gimbal_sigma_rad, position_sigma_m,
     return ExposureOrientation([s.image_id for s in shots], times,
                                frame.position(lla), angles, system, frame.header(),
                                sig_pos, sig_ang)
+
+
+def gimbal_angles(C_mc, C_mn, boresight_rad=(0.0, 0.0, 0.0)):
+    """Gimbal roll, pitch, yaw (rad, the drone's convention) of camera attitudes: the
+    inverse of the chain of :func:`eo_from_drone`, ``C_ng = C_mn^T C_mc C_gc^T``.
+
+    Parameters
+    ----------
+    C_mc, C_mn : array_like (n, 3, 3)
+    boresight_rad : array_like (3,)
+
+    Returns
+    -------
+    ndarray (n, 3)
+        Roll, pitch, yaw, rad (yaw in (-pi, pi]).
+    """
+    from ins.rotation import dcm_to_euler
+    C_gc = np.array(DJI_CAMERA_AXES) @ boresight_matrix(np.asarray(boresight_rad, float))
+    C_ng = np.swapaxes(np.asarray(C_mn, float), -1, -2) @ np.asarray(C_mc, float) @ C_gc.T
+    return dcm_to_euler(C_ng)
 
 
 def camera_from_dji(path, pixel_size_mm=0.01):

@@ -198,3 +198,17 @@ def test_dji_dewarp_camera_projects_as_opencv(tmp_path):
     X_c = X * [1, -1, -1]
     xy = -cam.focal_length_mm * X_c[:, :2] / X_c[:, 2:3]
     np.testing.assert_allclose(cam.photo_to_pixel(cam.distort(xy)), uv_cv[:, 0], atol=1e-6)
+
+
+def test_gimbal_angles_invert_the_chain(tmp_path):
+    """eo_from_drone then gimbal_angles gives the XMP's roll, pitch, yaw back (oblique,
+    away from the pitch -90 lock), with a boresight too."""
+    from photogrammetry.drone import gimbal_angles
+    s = _shot(tmp_path, roll=1.2, pitch=-60.0, yaw=-175.8)
+    frame = EnuFrame(np.deg2rad(29.9), np.deg2rad(113.9), 0.0)
+    bore = np.deg2rad([0.3, -0.2, 0.5])
+    eo = eo_from_drone([s], frame, "omega-phi-kappa", np.deg2rad([0.5, 0.5, 2.0]), 3.0,
+                       bore)
+    lla = np.array([[np.deg2rad(s.lat_deg), np.deg2rad(s.lon_deg), s.alt_m]])
+    rpy = gimbal_angles(eo.matrices(), frame.C_mn(lla), bore)
+    np.testing.assert_allclose(np.rad2deg(rpy[0]), [1.2, -60.0, -175.8], atol=1e-9)
