@@ -44,8 +44,10 @@ inputs:
 the Moon in the images:
   The centre is fitted on the lit limb (the half of the outline facing the Sun, known
   from the ephemeris and a first solution) with the photometric law fitted too (a
-  non-negative mix of flat, Lambert and Lommel-Seeliger shading) and the radius known
-  from the ephemeris' semidiameter (sigma 0.2 %).  Clipped pixels are left out:
+  non-negative mix of flat, Lambert and Lommel-Seeliger shading), the radius known
+  from the ephemeris' semidiameter (sigma 0.2 %) and the disk flattened by refraction
+  at the Moon's altitude (vertical semi-axis 0.8 % shorter at 10 deg with
+  --pressure 1013).  Clipped pixels are left out:
   --saturation, else a FITS file's SATURATE or DATAMAX, else an integer image's maximum
   when at least 3 pixels hold it (a saturated core), else its type's largest value.
   Errors: an image without a Moon (peak < 10 sky-noise sigmas above the sky, or a
