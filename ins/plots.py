@@ -175,7 +175,7 @@ def plot_innovations(result, path):
     time, one panel per measurement type, one colour per axis, the +-3 band; rejected
     records as crosses."""
     plt = pyplot()
-    recs = getattr(result.fwd, "records", None) or []
+    recs = getattr(getattr(result, "fwd", None), "records", None) or []
     kinds = list(dict.fromkeys(r.name for r in recs))
     if not kinds:
         return None

@@ -52,7 +52,7 @@ def _toml_list(v):
 
 
 def _config(tmp_path, flight, position=True, noise=None, shift_m=(0.0, 0.0, 0.0),
-            name="c.toml", time_offset_s=0.0):
+            name="c.toml", time_offset_s=0.0, layout=None):
     """A config started from the flight's true initial state (optionally without the
     position, or shifted by ``shift_m`` NED), the mount's lever arms and ``noise``
     (a dict of [imu_noise] keys; None: the defaults, a navigation-grade 50 mGal)."""
@@ -70,6 +70,8 @@ def _config(tmp_path, flight, position=True, noise=None, shift_m=(0.0, 0.0, 0.0)
              f"{_toml_list(arm['platform_centre_to_antenna_a_m'])}\n")
     if noise:
         text += "[imu_noise]\n" + "".join(f"{k} = {v!r}\n" for k, v in noise.items())
+    if layout:
+        text += f"[states]\nlayout = {layout!r}\n"
     p = tmp_path / name
     p.write_text(text)
     return p
@@ -164,8 +166,16 @@ def test_default_noise_on_a_tactical_imu_stops_with_exit_3(flight, tmp_path, cap
     """Issue 12, case 2: the navigation-grade default noise on a tactical IMU rejected
     309 of 427 fixes, ended hundreds of metres off and exited 0.  Now exit 3 with the
     counts and the likely cause, nothing written; --accept-poor writes it with exit 0
-    and the warning."""
-    cfg = _config(tmp_path, flight)
+    and the warning.  The case of the issue: the 21 KF-GINS states (layout "kfgins"); the
+    default survey layout's non-orthogonality states absorb part of the error (28 %
+    rejected instead of 70 %) but the run still stops."""
+    survey = tmp_path / "survey"
+    survey.mkdir()
+    assert _run(flight, _config(survey, flight), survey / "out") == 3
+    err = capsys.readouterr().err
+    assert "GNSS measurements rejected by the innovation test" in err
+    assert "Nothing written (--accept-poor" in err
+    cfg = _config(tmp_path, flight, layout="kfgins")
     out = tmp_path / "out"
     assert _run(flight, cfg, out) == 3
     err = capsys.readouterr().err
@@ -290,7 +300,8 @@ def test_output_folder_is_refused_or_replaced_whole(flight, tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == before
     assert _run(flight, cfg, out, "-q", "--force") == 0
     after = sorted(p.name for p in out.iterdir())
-    assert after == ["imu_errors.txt", "solution.nav", "solution_std.txt"]
+    assert after == ["imu_errors.txt", "innovations.txt", "solution.nav", "solution_std.txt",
+                     "states.txt"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     # an empty folder is fine without --force
     empty = tmp_path / "empty"
