@@ -134,4 +134,4 @@ def test_not_the_moon_named(tmp_path, capsys):
                  str(tmp_path / "cam.toml"), "--pressure", "1000", "-q"])
     err = capsys.readouterr().err
     assert code == 2
-    assert "m001.png" in err and "radius of 15." in err and "the Moon's is 3.7 px" in err
+    assert "m001.png" in err and "is 15." in err and "the Moon's is 3.7 px" in err

@@ -88,7 +88,7 @@ def _first_pass(camera, item, k, load, saturation):
     except MoonNotFoundError as exc:
         raise InputError(exc.reason, name) from None
     crop, off = _crop(img, m.uv, 3 * m.radius_px + 12)
-    return crop, off, m.uv, m.cov_uv, sat, name, m.radius_px
+    return crop, off, m.uv, m.cov_uv, sat, name, m.extent_px
 
 
 def _second_pass(camera, crop, off, uv, sun_c, radius_px, radius_sigma_px, saturation, name,
@@ -110,12 +110,12 @@ SIZE_RATIO = (0.5, 2.0)
 
 
 def _check_size(first, radius):
-    """Refuse an image whose bright object has not the Moon's size (first-pass radius vs
-    f times the semidiameter)."""
+    """Refuse an image whose bright object has not the Moon's size (half its largest
+    extent, horn to horn on a crescent, vs f times the semidiameter)."""
     for f, r in zip(first, radius):
         if not SIZE_RATIO[0] <= f[6] / r <= SIZE_RATIO[1]:
             raise InputError(f"no Moon found: the brightest object at pixel ({f[2][0]:.0f}, "
-                             f"{f[2][1]:.0f}) has a radius of {f[6]:.1f} px, the Moon's is "
+                             f"{f[2][1]:.0f}) is {f[6]:.1f} px in radius, the Moon's is "
                              f"{r:.1f} px (focal length times the semidiameter)", f[5])
 
 

@@ -57,6 +57,9 @@ class MoonCentre:
         Centroid of the lit area (the biased estimate, for comparison).
     sun_angle : float
         Direction of the Sun on the image used to choose the limb, rad from +u to +v.
+    extent_px : float
+        Half the largest extent of the bright region, px (about the radius whatever the
+        phase: horn to horn on a crescent; nan from `fit_lit_limb`).
     """
     uv: np.ndarray
     cov_uv: np.ndarray
@@ -65,6 +68,7 @@ class MoonCentre:
     rms_px: float
     centroid_uv: np.ndarray
     sun_angle: float
+    extent_px: float = float("nan")
 
     @property
     def sigma_px(self):
@@ -304,6 +308,7 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         raise InputError(f"expected a 2-D grayscale image, got shape {img.shape}")
     saturation = default_saturation(img, saturation)
     c0, radius, sky, _ = _find(img)
+    extent = radius
     half = int(2 * radius + 12)           # work on a crop around the Moon (as float)
     u0, v0 = max(int(c0[0]) - half, 0), max(int(c0[1]) - half, 0)
     img = img[v0:int(c0[1]) + half + 1, u0:int(c0[0]) + half + 1].astype(float)
@@ -342,7 +347,8 @@ def extract_centre(image, sun_angle=None, camera=None, half_width_deg=70.0, n_ra
         uv, cov, rad, rms, n_used = fit.uv, fit.cov_uv, fit.radius_px, fit.rms_px, fit.n_points
     return MoonCentre(uv=np.asarray(uv) + off, cov_uv=cov, radius_px=rad,
                       n_points=n_used, rms_px=rms, centroid_uv=c0 + off,
-                      sun_angle=float("nan") if sun_angle is None else sun_angle)
+                      sun_angle=float("nan") if sun_angle is None else sun_angle,
+                      extent_px=float(extent))
 
 
 #: An integer image whose maximum is held by at least this many pixels is clipped there.
