@@ -18,14 +18,20 @@ law is fitted, not assumed.  The span holds the lunar-Lambert (McEwen) family
 ``(1 - L) mu0 + 2 L mu0 / (mu0 + mu)`` exactly and Hapke's law to first order in its
 H-functions (``LS (1 + c (mu0 + mu)) = LS + c mu0``).  The geometry (limb circle, the
 terminator from the known phase) is the same for every law, so the centre is measured by
-the lit limb's position whatever the shading.  The model is
-binned to pixels, with the Sun's direction and the phase angle known (ephemeris) and
-centre, radius, blur ``sigma``, the amplitudes ``A`` and sky ``B`` unknown
-(Gauss-Newton with the analytic Jacobian of the discretized model, numba kernels in
-`_limb_kernels`).  The disk is computed on a ``SUPERSAMPLE``-times finer grid with an
-anti-aliased edge (linear coverage ramp one sub-pixel wide), so the model is smooth in
+the lit limb's position whatever the shading (bench/bench_lunar_bias.py: under 0.01 px
+for those laws, 0.03 px at most for a Hapke-like one, on an independent renderer).  The
+model is binned to pixels, with the Sun's direction and the phase angle known
+(ephemeris) and centre, radius, blur ``sigma``, the amplitudes ``A`` (non-negative) and
+sky ``B`` unknown: separable least squares, the amplitudes by NNLS at each step and
+Gauss-Newton on the rest with their effect projected out (variable projection), from the
+best start of a scan along the Sun's direction and over the blur (a thin crescent's
+limb circle can be 1 px off); analytic Jacobian of the discretized model, numba kernels
+in `_limb_kernels`.  The disk is computed on a ``SUPERSAMPLE``-times finer grid with an
+anti-aliased edge (linear coverage ramp one sub-pixel wide; 4 sub-pixels left a
+0.01 px bias on the Lommel-Seeliger limb's cusp, 8 do not), so the model is smooth in
 the centre.  With a camera the disk is the cone of the semidiameter around the Moon's
-direction (exact off-axis in a fisheye).
+direction (exact off-axis in a fisheye), flattened by refraction when asked (an
+ellipse on the sky with axes along the horizon and the vertical).
 
 With one limb only, the centre along the Sun and the radius are nearly degenerate: a
 PSF-form mismatch moves both (0.04 px on a 3.7 px Moon).  The ephemeris knows the
