@@ -1,8 +1,9 @@
 """Moon centre from the lit limb, on rendered Moons of known centre.
 
-The renderer supersamples 8x with hard edges and blurs with a Moffat PSF (beta 3) on
-the fine grid; the centre fit assumes a Gaussian core + wing PSF, 4x supersampling and
-an anti-aliased edge, so the test is not circular.
+The renderer point-samples 8x with hard edges and blurs with a Moffat PSF (beta 3) on
+the fine grid; the centre fit assumes a Gaussian core + wing PSF, a fitted mix of three
+shading laws and an anti-aliased edge, so the test is not circular (the bias across
+shading laws is measured on the integrating renderer of test_lunar_truth.py).
 """
 import numpy as np
 import pytest
