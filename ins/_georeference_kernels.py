@@ -1,0 +1,139 @@
+"""Numba loop of the LiDAR direct georeferencing (private; :mod:`ins.georeference`).
+
+Per return k: ``d_n = C_nb (l_b + C_bs r_s)``, the point in ECEF
+``r_e = r_imu_e + C_en d_n``, and the first-order NED variance of the point from the
+independent input sigmas (see :func:`ins.georeference.georeference`).
+"""
+import math
+
+import numba as nb
+import numpy as np
+
+from .earth import A, E2
+
+
+@nb.njit(cache=True, inline="always")
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@nb.njit(cache=True, inline="always")
+def _mv(M, x0, x1, x2):
+    return (M[0, 0] * x0 + M[0, 1] * x1 + M[0, 2] * x2,
+            M[1, 0] * x0 + M[1, 1] * x1 + M[1, 2] * x2,
+            M[2, 0] * x0 + M[2, 1] * x1 + M[2, 2] * x2)
+
+
+@nb.njit(cache=True)
+def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
+                        bore_sig, range_sig, angle_sig, line_scanner, xyz_e, var_ned):
+    """Fill ``xyz_e`` (n, 3) ECEF points (m) and ``var_ned`` (n, 3) NED variances (m^2).
+
+    ``lla`` (n, 3) IMU lat, lon (rad), h (m); ``q_nb`` (n, 4) scalar last; ``r_s`` (n, 3)
+    m; ``C_bs`` = ``axes @ Rx @ Ry @ Rz`` with ``M_x`` = ``axes @ Rx``, ``M_xy`` =
+    ``axes @ Rx @ Ry`` (for the boresight Jacobian); ``std`` (n, 6): position N, E, D (m), roll, pitch, yaw (rad);
+    ``lever_sig``, ``bore_sig`` (3,); ``range_sig`` m, ``angle_sig`` rad; with
+    ``line_scanner`` the scan-angle derivative of r_s is ``r_s x e_x``.
+    """
+    n = lla.shape[0]
+    C = np.empty((3, 3))
+    for k in range(n):
+        # C_nb from the quaternion
+        x, y, z, w = q_nb[k, 0], q_nb[k, 1], q_nb[k, 2], q_nb[k, 3]
+        s = 1.0 / (x * x + y * y + z * z + w * w)
+        C[0, 0] = 1 - 2 * s * (y * y + z * z)
+        C[0, 1] = 2 * s * (x * y - z * w)
+        C[0, 2] = 2 * s * (x * z + y * w)
+        C[1, 0] = 2 * s * (x * y + z * w)
+        C[1, 1] = 1 - 2 * s * (x * x + z * z)
+        C[1, 2] = 2 * s * (y * z - x * w)
+        C[2, 0] = 2 * s * (x * z - y * w)
+        C[2, 1] = 2 * s * (y * z + x * w)
+        C[2, 2] = 1 - 2 * s * (x * x + y * y)
+        rx, ry, rz = r_s[k, 0], r_s[k, 1], r_s[k, 2]
+        sx, sy, sz = _mv(C_bs, rx, ry, rz)
+        vb0, vb1, vb2 = l_b[0] + sx, l_b[1] + sy, l_b[2] + sz
+        d0, d1, d2 = _mv(C, vb0, vb1, vb2)
+        lat, lon, h = lla[k, 0], lla[k, 1], lla[k, 2]
+        sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+        rn = A / math.sqrt(1.0 - E2 * sl * sl)
+        # C_en columns: north, east, down in ECEF
+        xyz_e[k, 0] = (rn + h) * cl * co - sl * co * d0 - so * d1 - cl * co * d2
+        xyz_e[k, 1] = (rn + h) * cl * so - sl * so * d0 + co * d1 - cl * so * d2
+        xyz_e[k, 2] = (rn * (1.0 - E2) + h) * sl + cl * d0 - sl * d2
+        # variances (NED), independent sources
+        v0 = std[k, 0] ** 2
+        v1 = std[k, 1] ** 2
+        v2 = std[k, 2] ** 2
+        # attitude: roll axis C[:, 0] (= Rz Ry e_x), pitch axis Rz(yaw) e_y, yaw axis e_z
+        cpy, cps = C[0, 0], C[1, 0]
+        nrm = math.sqrt(cpy * cpy + cps * cps)
+        cy, sy_ = (cpy / nrm, cps / nrm) if nrm > 0 else (1.0, 0.0)
+        j0, j1, j2 = _cross(C[0, 0], C[1, 0], C[2, 0], d0, d1, d2)
+        sr = std[k, 3] ** 2
+        v0 += j0 * j0 * sr
+        v1 += j1 * j1 * sr
+        v2 += j2 * j2 * sr
+        j0, j1, j2 = _cross(-sy_, cy, 0.0, d0, d1, d2)
+        sp = std[k, 4] ** 2
+        v0 += j0 * j0 * sp
+        v1 += j1 * j1 * sp
+        v2 += j2 * j2 * sp
+        j0, j1, j2 = _cross(0.0, 0.0, 1.0, d0, d1, d2)
+        sw = std[k, 5] ** 2
+        v0 += j0 * j0 * sw
+        v1 += j1 * j1 * sw
+        v2 += j2 * j2 * sw
+        # lever arm: C_nb e_i
+        for i in range(3):
+            li = lever_sig[i] ** 2
+            v0 += C[0, i] * C[0, i] * li
+            v1 += C[1, i] * C[1, i] * li
+            v2 += C[2, i] * C[2, i] * li
+        # boresight: d(C_bs r)/d(rx) = A Rx (e_x x (Ry Rz r)), ... (signs do not matter)
+        # with u = Ry Rz r = (A Rx)^T C_bs r and w = Rz r = (A Rx Ry)^T C_bs r
+        for i in range(3):
+            bi = bore_sig[i] ** 2
+            if bi == 0.0:
+                continue
+            if i == 0:
+                M = M_x
+            elif i == 1:
+                M = M_xy
+            else:
+                M = C_bs
+            # u = M^T (C_bs r)
+            u0 = M[0, 0] * sx + M[1, 0] * sy + M[2, 0] * sz
+            u1 = M[0, 1] * sx + M[1, 1] * sy + M[2, 1] * sz
+            u2 = M[0, 2] * sx + M[1, 2] * sy + M[2, 2] * sz
+            if i == 0:
+                c0, c1, c2 = _cross(1.0, 0.0, 0.0, u0, u1, u2)
+            elif i == 1:
+                c0, c1, c2 = _cross(0.0, 1.0, 0.0, u0, u1, u2)
+            else:
+                c0, c1, c2 = _cross(0.0, 0.0, 1.0, u0, u1, u2)
+            b0, b1, b2 = _mv(M, c0, c1, c2)
+            j0, j1, j2 = _mv(C, b0, b1, b2)
+            v0 += j0 * j0 * bi
+            v1 += j1 * j1 * bi
+            v2 += j2 * j2 * bi
+        # range: along the ray; scan angle: r_s x e_x (line scanners)
+        rho = math.sqrt(rx * rx + ry * ry + rz * rz)
+        if rho > 0 and range_sig > 0:
+            b0, b1, b2 = _mv(C_bs, rx / rho, ry / rho, rz / rho)
+            j0, j1, j2 = _mv(C, b0, b1, b2)
+            rr = range_sig * range_sig
+            v0 += j0 * j0 * rr
+            v1 += j1 * j1 * rr
+            v2 += j2 * j2 * rr
+        if line_scanner and angle_sig > 0:
+            c0, c1, c2 = _cross(rx, ry, rz, 1.0, 0.0, 0.0)
+            b0, b1, b2 = _mv(C_bs, c0, c1, c2)
+            j0, j1, j2 = _mv(C, b0, b1, b2)
+            aa = angle_sig * angle_sig
+            v0 += j0 * j0 * aa
+            v1 += j1 * j1 * aa
+            v2 += j2 * j2 * aa
+        var_ned[k, 0] = v0
+        var_ned[k, 1] = v1
+        var_ned[k, 2] = v2

@@ -1,0 +1,225 @@
+"""LiDAR direct georeferencing: laser returns to points on the Earth from the trajectory.
+
+For each return at time t (the INS paper's "mathematical basis of integrating LiDAR with
+INS/IMU")::
+
+    r_point = r_imu(t) + C_nb(t) (l_b + C_bs r_s)
+
+with ``r_imu``, ``C_nb`` the trajectory interpolated at t by
+:func:`ins.interpolation.interpolate_trajectory` (the EO interpolation: Hermite
+position, cubic attitude), ``l_b`` and ``C_bs`` the scanner's lever arm and axes with
+boresight (:mod:`ins.scanner`) and ``r_s`` the return in the scanner frame.  The sum is
+formed in NED at the IMU and added in ECEF (exact for any offset).
+
+Each point's variance in NED (first order, the sources independent): position sigmas
+of the trajectory, its roll, pitch and yaw sigmas through the rotation axes of the
+Euler angles (``d r / d roll = (Rz Ry e_x) x d``, ``d r / d pitch = (Rz e_y) x d``,
+``d r / d yaw = e_z x d`` with ``d = C_nb (l_b + C_bs r_s)``), the lever-arm sigmas,
+the boresight sigmas (``d (C_bs r_s) / d rx = axes Rx (e_x x Ry Rz r_s)`` and alike),
+the range noise along the ray and the scan-angle noise (``d r_s / d theta = r_s x
+e_x``).  Time correlation of the trajectory errors and the correlations between its
+states are neglected (the files give no more than sigmas).  The trajectory sigmas come
+from ``solution_std.txt`` (``ins process``) or an Applanix SMRMSG file, interpolated
+linearly, held constant beyond their first and last epochs.
+
+The work is done block by block (:func:`georeference_blocks`), the per-point algebra in
+a numba kernel (:mod:`ins._georeference_kernels`).
+"""
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._georeference_kernels import georeference_kernel
+from .errors import InputError
+from .interpolation import interpolate_trajectory
+from .rotation import rot_x, rot_y
+from .scanner import scanner_rays
+
+__all__ = ["Points", "TrajectoryStd", "georeference", "georeference_blocks",
+           "read_trajectory_std", "returns_to_scanner", "ecef_to_lla"]
+
+
+@dataclass(frozen=True)
+class TrajectoryStd:
+    """Standard deviations of a trajectory.
+
+    Attributes
+    ----------
+    time : ndarray, shape (k,)
+        s, increasing.
+    std : ndarray, shape (k, 6)
+        N, E, D position (m), roll, pitch, yaw (rad).
+    """
+
+    time: np.ndarray
+    std: np.ndarray
+
+    def at(self, t):
+        """Linear interpolation at ``t`` (s), held constant beyond the ends; (m, 6)."""
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([np.interp(t, self.time, self.std[:, j]) for j in range(6)])
+
+
+def read_trajectory_std(path):
+    """Read trajectory sigmas: ``solution_std.txt`` of ``ins process`` (text: time_s,
+    std N E D m, std vN vE vD m/s, std roll pitch yaw deg) or an Applanix SMRMSG file
+    (binary; detected by the extension ``.out`` or a name starting with ``smrmsg``).
+
+    Returns
+    -------
+    TrajectoryStd
+
+    Raises
+    ------
+    InputError
+        Naming the file and line/record: a negative or non-finite sigma, time not
+        increasing, a wrong column count.
+    """
+    name = os.path.basename(os.fspath(path)).lower()
+    if name.startswith("smrmsg") or name.endswith(".out"):
+        from .sbet import read_smrmsg
+        s = read_smrmsg(path)
+        return TrajectoryStd(s.time, np.column_stack([s.sigma_pos_ned_m, s.sigma_rpy_rad]))
+    from . import textfiles
+    rows, row_line = textfiles.read_table(
+        path, ncols_min=10, ncols_max=64,
+        hint="solution_std.txt: time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps "
+             "std_vd_mps std_roll_deg std_pitch_deg std_yaw_deg")
+    rows = np.array(rows[:, :10], dtype=float)
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1) | np.any(rows[:, 1:] < 0, axis=1))
+    if bad.size:
+        raise InputError("standard deviations must be finite and >= 0 (m, m/s, deg)",
+                         path=str(path), line=int(row_line[bad[0]]))
+    if np.any(np.diff(rows[:, 0]) <= 0):
+        k = int(np.flatnonzero(np.diff(rows[:, 0]) <= 0)[0]) + 1
+        raise InputError("time not increasing", path=str(path), line=int(row_line[k]))
+    return TrajectoryStd(rows[:, 0].copy(),
+                         np.column_stack([rows[:, 1:4], np.deg2rad(rows[:, 7:10])]))
+
+
+@dataclass(frozen=True)
+class Points:
+    """Georeferenced points.
+
+    Attributes
+    ----------
+    time : ndarray, shape (n,)
+        s.
+    xyz_ecef_m : ndarray, shape (n, 3)
+        ECEF (WGS84), m.
+    var_ned_m2 : ndarray, shape (n, 3)
+        Propagated variances north, east, down, m^2 (zeros without sigmas).
+    index : ndarray, shape (n,)
+        Position of each point among the block's returns (returns outside the
+        trajectory are dropped).
+    """
+
+    time: np.ndarray
+    xyz_ecef_m: np.ndarray
+    var_ned_m2: np.ndarray
+    index: np.ndarray
+
+    @property
+    def sigma_h_m(self):
+        """Horizontal sigma ``sqrt(var_N + var_E)`` (m)."""
+        return np.sqrt(self.var_ned_m2[:, 0] + self.var_ned_m2[:, 1])
+
+    @property
+    def sigma_v_m(self):
+        """Vertical sigma (m)."""
+        return np.sqrt(self.var_ned_m2[:, 2])
+
+    def lla(self):
+        """Latitude, longitude (rad), ellipsoidal height (m), shape (n, 3)."""
+        return ecef_to_lla(self.xyz_ecef_m)
+
+
+def ecef_to_lla(xyz_e):
+    """ECEF (m) to latitude, longitude (rad), ellipsoidal height (m), WGS84; (n, 3)."""
+    import pymap3d
+    xyz_e = np.atleast_2d(xyz_e)
+    lat, lon, h = pymap3d.ecef2geodetic(xyz_e[:, 0], xyz_e[:, 1], xyz_e[:, 2], deg=False)
+    return np.column_stack([lat, lon, h])
+
+
+def returns_to_scanner(scanner, range_m=None, scan_angle_rad=None, xyz_s_m=None):
+    """Scanner-frame points ``r_s`` (n, 3) of returns: range and scan angle for the line
+    scanners, the points themselves for model ``"points"``."""
+    if scanner.model == "points":
+        if xyz_s_m is None:
+            raise InputError('scanner model "points" needs points in the scanner frame '
+                             '(x, y, z m), not range and scan angle')
+        return np.asarray(xyz_s_m, dtype=float)
+    if range_m is None or scan_angle_rad is None:
+        raise InputError(f"scanner model {scanner.model!r} needs range (m) and scan angle "
+                         "(deg) per return")
+    return scanner_rays(range_m, scan_angle_rad, scanner.forward_tilt_rad)
+
+
+def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
+    """Georeference returns given in the scanner frame.
+
+    Parameters
+    ----------
+    traj : ins.trajectory.Trajectory
+        IMU trajectory (lat/lon rad, h m ellipsoidal, NED velocity, q_nb).
+    time : array_like, shape (n,)
+        Return times, s, on the trajectory's time scale.
+    r_s : array_like, shape (n, 3)
+        Returns in the scanner frame, m (:func:`returns_to_scanner`).
+    scanner : ins.scanner.Scanner
+    std : TrajectoryStd, optional
+        Trajectory sigmas; without them only the scanner's own sigmas propagate.
+    method : {"cubic", "slerp"}
+        Attitude interpolation.
+    path : str, optional
+        Trajectory file, for messages.
+
+    Returns
+    -------
+    Points
+        Returns outside ``[traj.time[0], traj.time[-1]]`` are dropped (``index`` tells
+        which were kept).
+    """
+    time = np.asarray(time, dtype=float)
+    r_s = np.asarray(r_s, dtype=float)
+    if r_s.shape != (len(time), 3):
+        raise ValueError(f"r_s must have shape ({len(time)}, 3), got {r_s.shape}")
+    inside = (time >= traj.time[0]) & (time <= traj.time[-1]) & np.all(np.isfinite(r_s), 1)
+    index = np.flatnonzero(inside)
+    t = time[index]
+    n = len(t)
+    xyz = np.empty((n, 3))
+    var = np.empty((n, 3))
+    if n == 0:
+        return Points(t, xyz, var, index)
+    at = interpolate_trajectory(traj, t, method=method, path=path)
+    s = np.zeros((n, 6)) if std is None else std.at(t)
+    rx, ry = rot_x(scanner.boresight_rad[0]), rot_y(scanner.boresight_rad[1])
+    M_x = scanner.axes @ rx
+    georeference_kernel(np.ascontiguousarray(at.lla), np.ascontiguousarray(at.q_nb),
+                        np.ascontiguousarray(r_s[index]), np.ascontiguousarray(scanner.C_bs),
+                        np.ascontiguousarray(scanner.lever_arm_m), M_x, M_x @ ry,
+                        np.ascontiguousarray(s), np.ascontiguousarray(scanner.lever_arm_sigma_m),
+                        np.ascontiguousarray(scanner.boresight_sigma_rad),
+                        float(scanner.range_sigma_m), float(scanner.scan_angle_sigma_rad),
+                        scanner.model != "points", xyz, var)
+    return Points(t, xyz, var, index)
+
+
+def georeference_blocks(traj, blocks, scanner, std=None, method="cubic", path=None):
+    """Georeference a stream of return blocks.
+
+    Parameters
+    ----------
+    blocks : iterable of (time (n,), r_s (n, 3))
+        Blocks of returns (bounded memory: one block at a time).
+
+    Yields
+    ------
+    Points
+        One per block (see :func:`georeference`).
+    """
+    for time, r_s in blocks:
+        yield georeference(traj, time, r_s, scanner, std=std, method=method, path=path)

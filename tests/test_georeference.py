@@ -1,0 +1,173 @@
+"""LiDAR georeferencing: analytic cases (pymap3d as the geodesy oracle, rotations written
+by hand or through scipy), the propagated sigmas against a Monte Carlo of the inputs."""
+import numpy as np
+import pymap3d
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ins.georeference import TrajectoryStd, georeference, read_trajectory_std
+from ins.scanner import Scanner, scanner_rays
+from ins.trajectory import Trajectory
+
+LAT, LON, H = 30.5, 114.3, 1200.0
+
+
+def _static(rpy_deg, n=11):
+    """A trajectory at rest (exact interpolation) with a fixed attitude."""
+    q = Rotation.from_euler("ZYX", np.deg2rad(rpy_deg[::-1])).as_quat()
+    return Trajectory(time=np.arange(n, dtype=float),
+                      lla=np.tile([np.deg2rad(LAT), np.deg2rad(LON), H], (n, 1)),
+                      v_n=np.zeros((n, 3)), q_nb=np.tile(q, (n, 1)))
+
+
+def _lla_deg(points):
+    lla = points.lla()
+    return np.column_stack([np.rad2deg(lla[:, :2]), lla[:, 2]])
+
+
+def _expected(ned):
+    ned = np.atleast_2d(ned)
+    return np.column_stack(pymap3d.ned2geodetic(ned[:, 0], ned[:, 1], ned[:, 2], LAT, LON, H))
+
+
+def _close(got, exp, tol_m=1e-6):
+    d = np.array(pymap3d.geodetic2ned(got[:, 0], got[:, 1], got[:, 2],
+                                      exp[:, 0], exp[:, 1], exp[:, 2])).T
+    assert np.abs(d).max() < tol_m, np.abs(d).max()
+
+
+def test_nadir_ray_level():
+    """Level flight, nadir ray: the point is the position minus range times up."""
+    traj = _static([0.0, 0.0, 37.0])
+    rho = np.array([100.0, 1000.0, 1500.0])
+    pts = georeference(traj, [1.0, 2.5, 9.9], scanner_rays(rho, np.zeros(3)), Scanner())
+    _close(_lla_deg(pts), _expected(np.column_stack([0 * rho, 0 * rho, rho])))
+    assert np.allclose(_lla_deg(pts)[:, 2], H - rho, atol=1e-6)   # straight down
+
+
+@pytest.mark.parametrize("roll_deg", [-12.0, 5.0, 20.0])
+def test_roll_tilts_the_ray(roll_deg):
+    """Heading north, roll phi: the nadir ray of the body points phi to the LEFT (west);
+    a scan angle equal to the roll points straight down (hand-written Rx)."""
+    traj = _static([roll_deg, 0.0, 0.0])
+    rho, phi = 800.0, np.deg2rad(roll_deg)
+    pts = georeference(traj, [3.0, 3.0], scanner_rays([rho, rho], [0.0, phi]), Scanner())
+    exp = _expected([[0.0, -rho * np.sin(phi), rho * np.cos(phi)], [0.0, 0.0, rho]])
+    _close(_lla_deg(pts), exp)
+
+
+def test_lever_arm_and_boresight_heading_east():
+    """Heading 90 deg: body forward = east; lever arm and boresight rx tilt (by hand)."""
+    traj = _static([0.0, 0.0, 90.0])
+    eps = np.deg2rad(0.5)
+    sc = Scanner(lever_arm_m=[2.0, 0.5, -0.3], boresight_rad=[eps, 0.0, 0.0])
+    rho = 500.0
+    pts = georeference(traj, [4.0], scanner_rays([rho], [0.0]), sc)
+    # in b: l + Rx(eps) (0, 0, rho) = (2, 0.5 - rho sin eps, -0.3 + rho cos eps);
+    # b -> NED for yaw 90: N = -y_b, E = x_b, D = z_b
+    yb, zb = 0.5 - rho * np.sin(eps), -0.3 + rho * np.cos(eps)
+    _close(_lla_deg(pts), _expected([-yb, 2.0, zb]))
+
+
+def test_outside_span_dropped():
+    traj = _static([0.0, 0.0, 0.0])
+    pts = georeference(traj, [-1.0, 5.0, 10.0, 10.5], scanner_rays(np.full(4, 10.0),
+                                                                  np.zeros(4)), Scanner())
+    assert list(pts.index) == [1, 2]
+
+
+def test_moving_trajectory_matches_interpolated_position():
+    """Constant velocity east: the point under a nadir ray follows the Hermite position."""
+    n = 21
+    t = np.arange(n) * 0.5
+    ned = np.column_stack([np.zeros(n), 60.0 * t, np.zeros(n)])
+    lat, lon, h = pymap3d.ned2geodetic(ned[:, 0], ned[:, 1], ned[:, 2], LAT, LON, H)
+    lla = np.column_stack([np.deg2rad(lat), np.deg2rad(lon), h])
+    q = Rotation.from_euler("ZYX", [np.pi / 2, 0, 0]).as_quat()
+    v = np.tile([0.0, 60.0, 0.0], (n, 1))
+    traj = Trajectory(t, lla, v, np.tile(q, (n, 1)))
+    tq = np.array([2.25, 7.6])
+    pts = georeference(traj, tq, scanner_rays([300.0, 300.0], [0.0, 0.0]), Scanner())
+    got = _lla_deg(pts)
+    # 300 m straight down from the IMU position at tq (the path is 60 t east)
+    imu = np.column_stack(pymap3d.ned2geodetic(0 * tq, 60.0 * tq, 0 * tq, LAT, LON, H))
+    d = np.array(pymap3d.geodetic2ned(got[:, 0], got[:, 1], got[:, 2], imu[:, 0], imu[:, 1],
+                                      imu[:, 2])).T
+    assert np.allclose(d, [[0, 0, 300.0]] * 2, atol=0.01), d
+
+
+def _mc_points(rng, m, base, sc, std, rho, theta):
+    """Independent forward model (scipy Rotation, flat NED at the IMU) with perturbed
+    inputs: position, roll/pitch/yaw, lever arm, boresight, range, scan angle."""
+    rpy = np.deg2rad(base) + rng.normal(0, 1, (m, 3)) * std[3:6]
+    C_nb = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_matrix()
+    bore = sc.boresight_rad + rng.normal(0, 1, (m, 3)) * sc.boresight_sigma_rad
+    C_bs = sc.axes @ Rotation.from_euler("XYZ", bore).as_matrix()      # intrinsic x, y, z
+    lever = sc.lever_arm_m + rng.normal(0, 1, (m, 3)) * sc.lever_arm_sigma_m
+    r = rho + rng.normal(0, sc.range_sigma_m, m)
+    th = theta + rng.normal(0, sc.scan_angle_sigma_rad, m)
+    r_s = scanner_rays(r, th, sc.forward_tilt_rad)
+    v_b = lever + np.einsum("mij,mj->mi", C_bs, r_s)
+    return rng.normal(0, 1, (m, 3)) * std[:3] + np.einsum("mij,mj->mi", C_nb, v_b)
+
+
+@pytest.mark.parametrize("base, theta_deg, tilt_deg", [
+    ([3.0, -2.0, 40.0], 25.0, 0.0), ([-8.0, 4.0, 200.0], -33.0, 8.0)])
+def test_sigma_against_monte_carlo(base, theta_deg, tilt_deg):
+    rng = np.random.default_rng(7)
+    sc = Scanner(forward_tilt_rad=np.deg2rad(tilt_deg), range_sigma_m=0.05,
+                 scan_angle_sigma_rad=np.deg2rad(0.004), lever_arm_m=[0.3, -0.2, 0.4],
+                 boresight_rad=np.deg2rad([0.1, -0.05, 0.2]),
+                 axes=Rotation.from_euler("z", 0.3).as_matrix(),
+                 lever_arm_sigma_m=[0.01, 0.02, 0.03],
+                 boresight_sigma_rad=np.deg2rad([0.005, 0.008, 0.01]))
+    std = np.array([0.03, 0.04, 0.06, np.deg2rad(0.005), np.deg2rad(0.006), np.deg2rad(0.02)])
+    rho, theta = 900.0, np.deg2rad(theta_deg)
+    traj = _static(base)
+    pts = georeference(traj, [5.0], scanner_rays([rho], [theta], sc.forward_tilt_rad), sc,
+                       std=TrajectoryStd(np.array([0.0, 10.0]), np.tile(std, (2, 1))))
+    mc = _mc_points(rng, 40000, base, sc, std, rho, theta)
+    var_mc = mc.var(axis=0)
+    # 40000 samples: the variance's relative sigma is sqrt(2/40000) = 0.7 %
+    assert np.allclose(pts.var_ned_m2[0], var_mc, rtol=0.04), (pts.var_ned_m2[0], var_mc)
+    # the nominal point (no noise) agrees with the independent forward model
+    nominal = _mc_points(np.random.default_rng(0), 1, base,
+                         Scanner(**{**{k: getattr(sc, k) for k in sc.__dataclass_fields__},
+                                    "range_sigma_m": 0.0, "scan_angle_sigma_rad": 0.0,
+                                    "lever_arm_sigma_m": [0, 0, 0],
+                                    "boresight_sigma_rad": [0, 0, 0]}),
+                         np.zeros(6), rho, theta)
+    _close(_lla_deg(pts), _expected(nominal), tol_m=1e-6)
+
+
+def test_each_source_alone():
+    """Nadir, level, heading north: range sigma -> vertical only; roll sigma ->
+    east only, rho sigma_roll; yaw sigma -> nothing on a nadir ray."""
+    traj = _static([0.0, 0.0, 0.0])
+    rho = 1000.0
+    r_s = scanner_rays([rho], [0.0])
+    sc = Scanner(range_sigma_m=0.1)
+    p = georeference(traj, [1.0], r_s, sc)
+    assert np.allclose(p.var_ned_m2, [[0, 0, 0.01]], atol=1e-15)
+    std = TrajectoryStd(np.array([0.0, 10.0]), np.tile([0, 0, 0, 1e-4, 0, 1e-3], (2, 1)))
+    p = georeference(traj, [1.0], r_s, Scanner(), std=std)
+    assert np.allclose(p.var_ned_m2, [[0, (rho * 1e-4) ** 2, 0]], atol=1e-12)
+    assert np.isclose(p.sigma_h_m[0], 0.1) and p.sigma_v_m[0] < 1e-9
+
+
+def test_read_solution_std_and_smrmsg(tmp_path):
+    from ins.sbet import write_smrmsg
+    p = tmp_path / "solution_std.txt"
+    p.write_text("# time_s std_n_m ...\n0.0 0.1 0.2 0.3 0 0 0 0.01 0.02 0.03\n"
+                 "2.0 0.3 0.4 0.5 0 0 0 0.03 0.04 0.05\n")
+    s = read_trajectory_std(p)
+    assert np.allclose(s.at([1.0, 5.0]), [[0.2, 0.3, 0.4, *np.deg2rad([0.02, 0.03, 0.04])],
+                                          [0.3, 0.4, 0.5, *np.deg2rad([0.03, 0.04, 0.05])]])
+    write_smrmsg(tmp_path / "smrmsg_x.out", [0.0, 1.0], [[1, 2, 3], [1, 2, 3]],
+                 np.zeros((2, 3)), np.deg2rad([[0.1, 0.2, 0.3], [0.1, 0.2, 0.3]]))
+    s = read_trajectory_std(tmp_path / "smrmsg_x.out")
+    assert np.allclose(s.std[0], [1, 2, 3, *np.deg2rad([0.1, 0.2, 0.3])])
+    p.write_text("0.0 0.1 -0.2 0.3 0 0 0 0.01 0.02 0.03\n")
+    from ins.errors import InputError
+    with pytest.raises(InputError, match="solution_std.txt:1"):
+        read_trajectory_std(p)
