@@ -6,8 +6,9 @@ is simulated (INS products only; cached in ``.cache/consistency``) with its cons
 sensor errors (biases, scale factors, non-orthogonality) DRAWN from zero-mean normals
 whose sigmas are the preset's magnitudes (:data:`DRAWN`), and processed as ``ins process
 FLIGHT`` does (config from the manifest: in-air alignment, the default layout unless
-``--layout``) but with those sigmas as the filter's statistics.  At every filter node the forward (posterior) and smoothed
-errors against the truth are normalized by their covariance:
+``--layout``) but with those sigmas as the filter's statistics.  At every filter node
+the forward (posterior) and smoothed errors against the truth are normalized by their
+covariance:
 
 - NEES of the position (3 dof) and of the attitude (3 dof), and of each attitude axis
   (tilt N, tilt E, heading; 1 dof), forward and smoothed;

@@ -6,7 +6,8 @@ The filter works on *nodes*: every GNSS epoch, plus extra nodes so that no two n
 more than ``node_interval_s`` apart (GNSS outages).  Between two nodes the IMU rows are
 mechanized at the full IMU rate in a numba loop (:mod:`ins._filter_kernels`), with the
 current bias and scale estimates removed, while the integrals that the covariance step
-needs are accumulated; the 21-state covariance is then propagated once per node interval
+needs are accumulated; the covariance (21 states, or the layout's
+:class:`ins.error_model.StateLayout`) is then propagated once per node interval
 (:func:`ins.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``).
 On the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
 position RMS by less than 0.1 mm and the heading RMS by 0.02 arcsec, at 2.6 times the
@@ -14,22 +15,29 @@ cost (``bench/bench_process.py``, "Covariance step").
 
 A GNSS record at time ``t_g`` between IMU epochs ``t_j <= t_g < t_j+1`` is processed at
 node ``j``: the predicted antenna position is the state at ``t_j`` advanced by
-``D^-1 v (t_g - t_j)`` (the neglected acceleration term is below 0.1 mm for a 5 ms IMU
-interval), with the lever arm at ``t_g``; the error state over those few ms is taken
-as unchanged.
+``D^-1 v (t_g + offset - t_j)`` (``offset`` the estimated IMU-GNSS time offset when the
+layout has one; the neglected acceleration term is below 0.1 mm for a 5 ms IMU
+interval), with the lever arm at ``t_g`` (plus the estimated correction); the error
+state over those few ms is taken as unchanged.  Dual-antenna headings, zero-velocity
+and non-holonomic updates (:class:`ins.filter_settings.FilterSettings`) follow the GNSS
+records of a node.
 
-Each update is preceded by an innovation test: ``nu^T S^-1 nu`` against the chi-square
-quantile of ``1 - reject_probability``; rejected records are counted.  After each
-accepted update the estimated errors are fed back (closed loop): the navigation state
-is corrected (:mod:`ins.error_model` sign rules), the sensor estimates updated, and
-the error state reset to zero.
+Every measurement is an object of :mod:`ins.measurements` (predicted value, ``H``,
+``R``); the update (:func:`ins.measurements.kalman_update`) factorises
+``S = H P H^T + R`` once (Cholesky), tests ``nu^T S^-1 nu`` against the chi-square
+quantile of ``1 - reject_probability`` (as many dof as the measurement has axes),
+counts the rejected records and keeps the per-axis standardized innovations of every
+tested one (``ForwardResult.records``, ``innovations.txt``).  After each accepted update
+the estimated errors are fed back (closed loop): the navigation state is corrected
+(:mod:`ins.error_model` sign rules), the sensor estimates updated, and the error state
+reset to zero.
 
-filterpy carries the covariance algebra: :func:`filterpy.kalman.predict` and
-:func:`filterpy.kalman.update` (Joseph form).  filterpy is imported when a filter
-starts (:func:`filterpy_functions`), not with this module: its package imports
-``scipy.stats`` (0.6 s), which the command line overlaps with reading the IMU log.  Its ``KalmanFilter`` object is not
-used: the transition and noise change at every node and the state is reset after each
-update, so the object would only hold what the functions are given.
+filterpy's :func:`filterpy.kalman.predict` propagates the covariance.  filterpy is
+imported when a filter starts (:func:`filterpy_functions`), not with this module: its
+package imports ``scipy.stats`` (0.6 s), which the command line overlaps with reading
+the IMU log.  Its ``KalmanFilter`` object is not used: the transition and noise change
+at every node and the state is reset after each update, so the object would only hold
+what the functions are given.
 """
 import warnings
 
