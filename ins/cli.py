@@ -222,6 +222,7 @@ def _cmd_compare(args):
 COMMAND_MODULES = [
     "ins.cli_allan",
     "ins.cli_bag",
+    "ins.cli_georeference",
     "ins.cli_process",
     "ins.cli_time_offset",
 ]

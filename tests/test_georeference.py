@@ -171,3 +171,93 @@ def test_read_solution_std_and_smrmsg(tmp_path):
     from ins.errors import InputError
     with pytest.raises(InputError, match="solution_std.txt:1"):
         read_trajectory_std(p)
+
+
+# ---------------------------------------------------------------------------------------
+# ins georeference (CLI): CSV in, LAS/LAZ out, read back with laspy, CRS by pyproj
+
+def _run(argv, capsys):
+    from ins import cli
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def static_flight(tmp_path):
+    from ins.trajectory import write_nav
+    traj = _static([2.0, -1.0, 30.0], n=11)
+    write_nav(tmp_path / "t.nav", traj)
+    (tmp_path / "std.txt").write_text("# time_s ...\n0 0.02 0.03 0.05 0 0 0 0.01 0.01 0.02\n"
+                                      "10 0.02 0.03 0.05 0 0 0 0.01 0.01 0.02\n")
+    (tmp_path / "s.toml").write_text('[scanner]\nmodel = "polygon"\nrange_sigma_m = 0.02\n'
+                                     '[mounting]\nlever_arm_m = [0.2, 0.1, 0.3]\n'
+                                     'boresight_deg = [0.01, -0.02, 0.03]\n')
+    rows = ["time_s,range_m,scan_angle_deg,intensity,return_number,strip"]
+    rng = np.random.default_rng(1)
+    t = np.round(np.sort(rng.uniform(-0.5, 10.5, 500)), 6)
+    rho = np.round(rng.uniform(900, 1300, 500), 4)
+    ang = np.round(rng.uniform(-30, 30, 500), 5)
+    for k in range(500):
+        rows.append(f"{t[k]:.6f},{rho[k]:.4f},{ang[k]:.5f},{k % 300},{1 + k % 3},{k % 2}")
+    (tmp_path / "returns.csv").write_text("\n".join(rows) + "\n")
+    return tmp_path, traj, t, rho, ang
+
+
+@pytest.mark.parametrize("ext, crs", [(".laz", None), (".las", "EPSG:4326")])
+def test_cli_csv_to_las(static_flight, capsys, ext, crs):
+    import laspy
+    from pyproj import CRS
+    tmp, traj, t, rho, ang = static_flight
+    out = tmp / f"points{ext}"
+    argv = ["georeference", "--trajectory", tmp / "t.nav", "--trajectory-std", tmp / "std.txt",
+            "--scanner", tmp / "s.toml", tmp / "returns.csv", "-o", out, "-q"]
+    if crs:
+        argv += ["--crs", crs]
+    code, stdout, err = _run(argv, capsys)
+    assert code == 0, err
+    inside = (t >= 0) & (t <= 10)
+    assert f"{(~inside).sum()} returns outside" in stdout
+    las = laspy.read(out)
+    assert len(las.points) == inside.sum()
+    assert np.allclose(las.gps_time, t[inside])
+    assert np.array_equal(las.intensity, (np.arange(500) % 300)[inside])
+    assert np.array_equal(las.point_source_id, (np.arange(500) % 2)[inside])
+    assert np.allclose(las.scan_angle * 0.006, ang[inside], atol=0.0031)
+    las_crs = las.header.parse_crs()
+    expected_crs = CRS.from_user_input(crs) if crs else CRS.from_epsg(32650)  # 114.3 E: 50N
+    assert las_crs.equals(expected_crs)
+    # independent: the library's ECEF points through pyproj, versus the file
+    sc = Scanner(range_sigma_m=0.02, lever_arm_m=[0.2, 0.1, 0.3],
+                 boresight_rad=np.deg2rad([0.01, -0.02, 0.03]))
+    pts = georeference(traj, t[inside], scanner_rays(rho[inside], np.deg2rad(ang[inside])), sc)
+    lla = _lla_deg(pts)
+    if crs:
+        assert np.allclose(las.x, lla[:, 1], atol=2e-8) and np.allclose(las.y, lla[:, 0],
+                                                                        atol=2e-8)
+    else:
+        from pyproj import Transformer
+        e, n = Transformer.from_crs(4326, 32650, always_xy=True).transform(lla[:, 1], lla[:, 0])
+        assert np.allclose(las.x, e, atol=1e-3) and np.allclose(las.y, n, atol=1e-3)
+    assert np.allclose(las.z, lla[:, 2], atol=1e-3)
+    assert np.all(las.sigma_v_m > 0.02) and np.all(las.sigma_h_m > 0.03)
+
+
+def test_cli_no_return_inside(static_flight, capsys):
+    tmp = static_flight[0]
+    (tmp / "late.csv").write_text("time_s,range_m,scan_angle_deg\n100,500,0\n")
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "late.csv", "-o", tmp / "p.las"], capsys)
+    assert code == 2 and "none of the 1 returns" in err and "late.csv" in err
+    assert not (tmp / "p.las").exists()
+
+
+def test_cli_bad_header(static_flight, capsys):
+    tmp = static_flight[0]
+    (tmp / "bad.csv").write_text("time,range_m,scan_angle_deg\n1,500,0\n")
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "bad.csv", "-o", tmp / "p.las"], capsys)
+    assert code == 2 and "bad.csv:1" in err and "time_s,range_m,scan_angle_deg" in err
