@@ -337,11 +337,11 @@ def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigm
         status = np.where(few, K.STATUS_OK, status)
         norm = np.linalg.norm(base, axis=1)
         status = np.where(norm < 1e-9, STATUS_ZERO_BASE, status)
-    # a screening that went farther than any sample may go from the prior, and farther
-    # than 5 of its own sigmas (a weak pair of 5-7 points wanders within sigmas of
-    # several degrees: not this), has no valid outlier tests either
+    # a screening with a redundancy of 5 or more that went farther than any sample may
+    # go from the prior, and farther than 5 of its own sigmas, has no valid outlier
+    # tests either (a weak pair of 5-9 points wanders anywhere: it stays, as it was)
     change = np.abs(wrap_to_pi(screen["angles"] - prior[pairs[:, 1]]))
-    strayed = (status == K.STATUS_OK) & np.any(
+    strayed = (status == K.STATUS_OK) & (screen["redundancy"] >= 5) & np.any(
         change > np.maximum(MAX_CHANGE, 5 * np.nan_to_num(screen["sigma"], nan=np.inf)),
         axis=1)
     status = np.where(strayed, STATUS_STRAYED, status)

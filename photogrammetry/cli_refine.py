@@ -57,8 +57,8 @@ trust (exit 3 unless --accept-poor):
     5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj:
     the adjusted sigma; with known-base and --datum none after removing the common
     camera-frame rotation, the boresight);
-  - a pair whose screening moved an image beyond 5 deg and 5 of its sigmas from its
-    prior (left out).
+  - a pair whose screening (redundancy >= 5) moved an image beyond 5 deg and 5 of its
+    sigmas from its prior (left out).
   Any flag: exit 3 and nothing written; with --accept-poor the outputs are written,
   the flags stated in the CSV comments and the report.
 
