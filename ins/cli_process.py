@@ -85,13 +85,14 @@ example:
 def add_parser(sub):
     p = sub.add_parser(
         "process", help="GNSS/INS post-processing: forward Kalman filter + RTS smoother",
-        description="Loosely coupled GNSS/INS post-processing: error-state Kalman filter "
-                    "with closed-loop feedback (fixed or mount-varying lever arm), then a "
-                    "backward Rauch-Tung-Striebel pass.  State layout from the config's "
-                    "[states]: 'survey' (default: the 21 KF-GINS states plus gyro and "
-                    "accelerometer axis misalignment; lever-arm and IMU-GNSS time-offset "
-                    "groups on request) or 'kfgins' (the 21 states: position, velocity, "
-                    "attitude, gyro/accel bias and scale factor).",
+        description=(
+            "Loosely coupled GNSS/INS post-processing: error-state Kalman filter with\n"
+            "closed-loop feedback (fixed or mount-varying lever arm), then a backward\n"
+            "Rauch-Tung-Striebel pass.  State layout from the config's [states]:\n"
+            "'survey' (default: the 21 KF-GINS states plus gyro and accelerometer axis\n"
+            "misalignment; lever-arm and IMU-GNSS time-offset groups on request) or\n"
+            "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
+            "scale factor)."),
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
                    help="flight folder with manifest.toml")
