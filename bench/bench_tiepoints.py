@@ -5,9 +5,9 @@ and the matching of a rendered block.  Prints figures.
 
 ``--big`` writes a 7680 x 13824 RGB frame as JPEG and as tiled, compressed TIFF (zlib)
 in a temporary folder (about 1 min) and reads each in a fresh process (peak RSS:
-VmHWM of /proc/self/status, which exec resets, unlike ru_maxrss), at the default level (longer side 3000 px): JPEG decoded at 1/4 by
-pillow's draft, TIFF tile by tile reduced band by band ("level"), and for comparison
-the TIFF decoded whole ("whole").  The block: 640 x 480 px images of a seeded
+VmHWM of /proc/self/status, which exec resets, unlike ru_maxrss), at the default level
+(longer side 3000 px): JPEG decoded at 1/4 by pillow's draft, TIFF tile by tile reduced
+band by band ("level"), and for comparison the TIFF decoded whole ("whole").  The block: 640 x 480 px images of a seeded
 terrain (photogrammetry.simulate.render), priors 0.2 deg off; time per stage and the
 tracks' agreement with the truth (ground spread of each track with the true EO).
 """
@@ -25,7 +25,7 @@ READ = """
 import json, sys, time
 import photogrammetry.imagery as im
 if sys.argv[3] == 'whole':
-    im.MEMMAP_PIXELS = 10**12
+    im.BANDED_PIXELS = 10**12
 t = time.perf_counter()
 lv = im.read_grey(sys.argv[1], int(sys.argv[2]))
 dt = time.perf_counter() - t

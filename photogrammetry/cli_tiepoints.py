@@ -152,7 +152,8 @@ def run(args):
                   f"keypoints with candidates, {p['guided']} guided matches, "
                   f"{p['inliers']} verified" + ("" if p["kept"] else " (dropped)"))
         hist = np.bincount(res.track_lengths)
-        print(f"{res.n_tracks} tracks ({', '.join(f'{n} of {k} images' for k, n in enumerate(hist) if n)}"
+        lengths = ", ".join(f"{n} of {k} images" for k, n in enumerate(hist) if n)
+        print(f"{res.n_tracks} tracks ({lengths}"
               f"; {res.n_conflicting} conflicting dropped), {len(res.image_id)} observations, "
               f"sigma {res.sigma_px:.3f} px")
         print(f"wrote {args.output}")

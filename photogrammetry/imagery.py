@@ -7,11 +7,12 @@ memory does not grow with the frame:
 - JPEG and other pillow formats: pillow's ``draft`` decodes JPEG at 1/2, 1/4 or 1/8
   directly; the rest is an area-average resize (OpenCV ``INTER_AREA``).
 - TIFF and GeoTIFF (tifffile): the smallest stored pyramid level (overview) that is
-  not smaller than the target; a level above :data:`MEMMAP_PIXELS` is decoded tile by
+  not smaller than the target; a level above :data:`BANDED_PIXELS` is decoded tile by
   tile (or strip by strip), each band of rows reduced across as soon as it is complete
   and the reduced rows then down (the area average is separable): one band and a
-  ``height x target width`` float array in memory, never the frame.  A compression tifffile cannot decode without the optional imagecodecs
-  package (JPEG-in-TIFF, as DJI/ODM write) falls back to pillow (libtiff), in memory.
+  ``height x target width`` float array in memory, never the frame.  A compression
+  tifffile cannot decode without the optional imagecodecs package (JPEG-in-TIFF, as
+  DJI/ODM write) falls back to pillow (libtiff), in memory.
 
 Pixel coordinates follow ``docs/interfaces.md``: centres at integers, ``(0, 0)`` the
 centre of the top-left pixel.  A level pixel ``(u_l, v_l)`` is the full-frame pixel
@@ -24,10 +25,10 @@ import numpy as np
 
 from ins.errors import InputError
 
-__all__ = ["GreyLevel", "read_grey", "image_size", "MEMMAP_PIXELS", "TIFF_SUFFIXES"]
+__all__ = ["GreyLevel", "read_grey", "image_size", "BANDED_PIXELS", "TIFF_SUFFIXES"]
 
 #: Frames with more pixels than this are decoded segment by segment, band by band.
-MEMMAP_PIXELS = 40_000_000
+BANDED_PIXELS = 40_000_000
 #: Suffixes read with tifffile.
 TIFF_SUFFIXES = (".tif", ".tiff", ".gtif")
 _READ_BUFFER = 4 << 20          # compressed bytes tifffile reads at a time
@@ -155,7 +156,7 @@ def _read_tiff(path, max_side_px):
                 level = lv
         lw, lh = _tiff_shape(level, path)
         page = level.pages[0] if hasattr(level, "pages") else None
-        if lw * lh <= MEMMAP_PIXELS or page is None or len(level.pages) != 1 \
+        if lw * lh <= BANDED_PIXELS or page is None or len(level.pages) != 1 \
                 or page.planarconfig != 1:
             return width, height, _grey(_tiff_array(level.asarray(), level.axes), path,
                                         (tw, th))

@@ -101,7 +101,8 @@ def _write_project(d, shots_pose, points, cam=BROWN):
         xn = (uv[:, 0] + 0.5 - cam["width"] / 2) / s
         yn = (uv[:, 1] + 0.5 - cam["height"] / 2) / s
         for k in range(len(points)):
-            lines.append(f"{name}\t{k}\t{k + 100}\t{float(xn[k])!r}\t{float(yn[k])!r}\t0.01\t10\t20\t30\t0\t0")
+            lines.append(f"{name}\t{k}\t{k + 100}\t{float(xn[k])!r}\t{float(yn[k])!r}"
+                         "\t0.01\t10\t20\t30\t0\t0")
     doc = [{"cameras": {"cam1": cam}, "shots": shots,
             "reference_lla": {"latitude": 30.0, "longitude": 114.0, "altitude": 20.0},
             "points": {str(k): {"coordinates": p.tolist()} for k, p in enumerate(points)}}]

@@ -118,7 +118,7 @@ def test_read_grey_levels_map_to_full_frame(tmp_path):
 
 @pytest.mark.parametrize("layout", ["strips", "tiles", "tiles16"])
 def test_read_grey_segment_by_segment(tmp_path, monkeypatch, layout):
-    """A frame above MEMMAP_PIXELS is decoded tile by tile (strip by strip) and reduced
+    """A frame above BANDED_PIXELS is decoded tile by tile (strip by strip) and reduced
     band by band: the same level as the whole frame in memory (16 bit too)."""
     import tifffile
 
@@ -130,7 +130,7 @@ def test_read_grey_segment_by_segment(tmp_path, monkeypatch, layout):
         img = img.astype(np.uint16) * 200
     tifffile.imwrite(tmp_path / "big.tif", np.dstack([img] * 3), compression="zlib", **kw)
     ref = read_grey(tmp_path / "big.tif", 600).pixels
-    monkeypatch.setattr(imagery, "MEMMAP_PIXELS", 1000)
+    monkeypatch.setattr(imagery, "BANDED_PIXELS", 1000)
     banded = read_grey(tmp_path / "big.tif", 600).pixels
     assert banded.shape == ref.shape == (600, 140)
     assert np.abs(banded.astype(int) - ref).max() <= 2
