@@ -20,7 +20,8 @@ from numba import njit
 from ._coplanarity_kernels import _nb_rotation, _nb_tangent, _nb_terms
 
 #: Status of :func:`msac_pairs`: a hypothesis was found / none (every sample singular
-#: or diverging: the prior is kept) / too few points for a sample.
+#: or diverging: the prior is kept) / too few points (fewer than twice the sample: the
+#: robust start is skipped, a wrong exact root of 5 of 7 points would win).
 MSAC_OK, MSAC_NONE, MSAC_TOO_FEW = 0, 1, 2
 
 
@@ -197,8 +198,8 @@ def msac_pairs(u1, u2, mask, R1, prior, base, known, order, sign, s2, t2, conf, 
         base_out[p] = base[p] / max(np.sqrt(base[p] @ base[p]), 1e-300)
         inlier_out[p] = mask[p]
         hyp_out[p] = 0
-        if m < k + 1:
-            status_out[p] = MSAC_TOO_FEW
+        if m < 2 * k:             # too few to out-vote anything: Gauss-Newton from the
+            status_out[p] = MSAC_TOO_FEW      # prior on all points, then snooping
             continue
         for i in range(n):
             for a in range(3):

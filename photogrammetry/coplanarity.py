@@ -159,7 +159,9 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         on its inliers, every point re-classified at that solution (``|g| / sigma_g <
         msac_threshold``), Gauss-Newton again, THEN data snooping.  The result and the
         rejected set then do not depend on the prior within its basin (a few tenths of a
-        degree).  ``False``: Gauss-Newton from the prior on all points, then snooping.
+        degree).  ``False``: Gauss-Newton from the prior on all points, then snooping
+        (also what a pair with fewer than twice the sample's points gets: 10, or 6 with
+        a known base).
     max_change : float
         Rad; a minimal-sample hypothesis farther than this from the prior is discarded.
 
