@@ -50,8 +50,8 @@ outliers:
   not depend on the prior within a few tenths of a degree.
 
 trust (exit 3 unless --accept-poor):
-  - sigma0 (1 = the stated photo sigma) of a pair's screening or of the block above
-    max(2, sqrt(chi2_q(r) / r)) at its redundancy r (q = 0.999 for the block,
+  - sigma0 (1 = the stated photo sigma) of a pair's screening (redundancy r >= 5) or
+    of the block above max(2, sqrt(chi2_q(r) / r)) (q = 0.999 for the block,
     1 - 0.001/P for each of its P pairs);
   - an image whose refined angle differs from its prior by more than
     5 sqrt(2 s_prior^2 + s_adj^2) (s_prior: the EO or --prior-sigma-deg sigma, s_adj:

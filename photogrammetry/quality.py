@@ -8,7 +8,9 @@ The rule (stated in ``photogrammetry refine --help`` and docs/interfaces.md):
   with ``q = 1 - 0.001 / P`` for the P pairs of a block (the 99.9 % point shared by all
   of them: no false alarm from the sheer number of pairs) and ``q = 0.999`` for the
   block -- the residuals are more than twice the stated sigma, and beyond that point of
-  their distribution.
+  their distribution.  Pairs of redundancy below 5 (a few points) are not judged on
+  their own (their screening from the prior may end in a far local minimum): the block
+  judges their points.
 - **angle change**: an image's refined angle differs from its prior (INS) angle by more
   than ``5 sqrt(2 s_prior^2 + s_adj^2)`` (any of the three angles; ``s_prior`` the prior
   sigma of the angle, ``s_adj`` its adjusted sigma: the change holds the image's own INS
@@ -41,6 +43,8 @@ __all__ = ["Quality", "sigma0_limit", "change_limit", "block_quality", "CHANGE_F
 SIGMA0_FLOOR = 2.0
 #: An angle change is implausible beyond CHANGE_FACTOR sqrt(2 s_prior^2 + s_adj^2).
 CHANGE_FACTOR = 5.0
+#: Pairs whose screening has a smaller redundancy are not judged on their own.
+WEAK_REDUNDANCY = 5
 _AS = 180.0 / np.pi * 3600.0
 
 
@@ -134,7 +138,10 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     names = list(range(len(angles))) if names is None else list(names)
     reasons = []
     plim = sigma0_limit(pair_redundancy, tests=len(pairs))
-    bad_s0 = np.isfinite(pair_sigma0) & (pair_sigma0 > plim)
+    # a weak pair (redundancy < 5) is judged in the block: its pair-wise screening from
+    # the prior may end in a far local minimum (6 points, 36 deg off: sigma0 8.8)
+    bad_s0 = (np.isfinite(pair_sigma0) & (np.asarray(pair_redundancy) >= WEAK_REDUNDANCY)
+              & (pair_sigma0 > plim))
     pchange = np.abs(wrap_to_pi(pair_change))
     pj = prior_sigma[pairs[:, 1]] if len(pairs) else np.zeros((0, 3))
     plim_change = change_limit(pj, np.nan_to_num(pair_sigma))
