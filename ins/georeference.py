@@ -37,7 +37,8 @@ from .rotation import rot_x, rot_y
 from .scanner import scanner_rays
 
 __all__ = ["Points", "TrajectoryStd", "georeference", "georeference_blocks",
-           "read_trajectory_std", "returns_to_scanner", "ecef_to_lla"]
+           "read_trajectory_std", "returns_to_scanner", "ecef_to_lla", "boresight_jacobian",
+           "attitude_jacobian"]
 
 
 @dataclass(frozen=True)
@@ -223,3 +224,43 @@ def georeference_blocks(traj, blocks, scanner, std=None, method="cubic", path=No
     """
     for time, r_s in blocks:
         yield georeference(traj, time, r_s, scanner, std=std, method=method, path=path)
+
+
+def boresight_jacobian(traj, time, r_s, scanner, method="cubic"):
+    """Derivative of each point (NED at the IMU, m) with respect to the boresight
+    ``(rx, ry, rz)`` (rad): ``C_nb d(C_bs r_s)/d b``, shape (n, 3, 3) (rows N, E, D).
+
+    ``d(C_bs r)/d rx = axes Rx (e_x x Ry Rz r)``, ``.../d ry = axes Rx Ry (e_y x Rz r)``,
+    ``.../d rz = C_bs (e_z x r)`` (``C_bs = axes Rx Ry Rz``, active rotations).  Times
+    must lie inside the trajectory.
+    """
+    from .rotation import quat_to_dcm, rot_z
+    at = interpolate_trajectory(traj, np.asarray(time, float), method=method)
+    C_nb = quat_to_dcm(at.q_nb)
+    b = scanner.boresight_rad
+    Rx, Ry, Rz = rot_x(b[0]), rot_y(b[1]), rot_z(b[2])
+    A = scanner.axes
+    r = np.asarray(r_s, float)
+    cols = [(A @ Rx) @ np.cross([1.0, 0, 0], r @ (Ry @ Rz).T).T,
+            (A @ Rx @ Ry) @ np.cross([0, 1.0, 0], r @ Rz.T).T,
+            scanner.C_bs @ np.cross([0, 0, 1.0], r).T]
+    J_b = np.stack([c.T for c in cols], axis=2)              # (n, 3 body, 3 angles)
+    return C_nb @ J_b
+
+
+def attitude_jacobian(traj, time, r_s, scanner, method="cubic"):
+    """Derivative of each point (NED, m) with respect to the trajectory's roll, pitch and
+    yaw (rad): columns ``(Rz Ry e_x) x d``, ``(Rz e_y) x d``, ``e_z x d`` with
+    ``d = C_nb (l_b + C_bs r_s)``; shape (n, 3, 3) (rows N, E, D)."""
+    from .rotation import quat_to_dcm
+    at = interpolate_trajectory(traj, np.asarray(time, float), method=method)
+    C_nb = quat_to_dcm(at.q_nb)
+    v_b = scanner.lever_arm_m + np.asarray(r_s, float) @ scanner.C_bs.T
+    d = np.einsum("nij,nj->ni", C_nb, v_b)
+    h = np.hypot(C_nb[:, 0, 0], C_nb[:, 1, 0])
+    cy = np.where(h > 0, C_nb[:, 0, 0] / np.where(h > 0, h, 1), 1.0)
+    sy = np.where(h > 0, C_nb[:, 1, 0] / np.where(h > 0, h, 1), 0.0)
+    pitch_axis = np.column_stack([-sy, cy, np.zeros_like(cy)])
+    yaw_axis = np.tile([0.0, 0.0, 1.0], (len(d), 1))
+    return np.stack([np.cross(C_nb[:, :, 0], d), np.cross(pitch_axis, d),
+                     np.cross(yaw_axis, d)], axis=2)

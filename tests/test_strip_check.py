@@ -1,0 +1,121 @@
+"""Simulated scanner over a simulated flight: georeferenced points against the true
+points within their sigmas (smoothed trajectory), larger errors from the forward
+filter; strip-overlap boresight estimate within 3 sigma of the injected one; the
+height-difference model on planes (exact, linear)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ins.earth import dcm_en
+from ins.georeference import georeference, read_trajectory_std, returns_to_scanner
+from ins.scanner import Scanner
+from ins.strip_check import estimate_boresight, pair_differences
+from ins.trajectory import read_trajectory
+
+ROOT = Path(__file__).resolve().parents[1]
+SHORT = ROOT / "tests" / "data" / "flights" / "short.toml"
+B_TRUE = np.deg2rad([0.1, -0.08, 0.15])
+
+
+@pytest.fixture(scope="module")
+def lidar_flight(tmp_path_factory):
+    """The short test flight, processed (smoothed + forward), and a polygon scanner with a
+    boresight of (0.1, -0.08, 0.15) deg over hilly terrain (relief 30 m)."""
+    from ins import cli
+    from ins.simulate.lidar import SineTerrain, simulate_returns, strip_windows
+    from photogrammetry.simulate.folder import simulate_flight
+    tmp = tmp_path_factory.mktemp("lidar")
+    simulate_flight(SHORT, tmp / "flight", 0)
+    code = cli.main(["process", str(tmp / "flight"), "--forward", "--no-plots", "-q",
+                     "-o", str(tmp / "out")])
+    assert code == 0
+    truth = read_trajectory(tmp / "flight" / "truth.nav")
+    rng = np.random.default_rng(3)
+    terrain = SineTerrain.random((np.deg2rad(30.5), np.deg2rad(114.3), 20.0), 20.0, 30.0,
+                                 500.0, rng)
+    nominal = Scanner(range_sigma_m=0.02, scan_angle_sigma_rad=np.deg2rad(0.002),
+                      lever_arm_m=[0.1, 0.05, 0.2])
+    windows = strip_windows(truth, 80.0)
+    assert len(windows) == 2
+    sim = simulate_returns(truth, nominal.with_boresight(B_TRUE), terrain, windows, rng,
+                           pulse_rate_hz=3000.0, scan_rate_hz=20.0, field_of_view_deg=60.0)
+    return dict(tmp=tmp, truth=truth, sim=sim, nominal=nominal,
+                smoothed=read_trajectory(tmp / "out" / "solution.nav"),
+                forward=read_trajectory(tmp / "out" / "forward.nav"),
+                std=read_trajectory_std(tmp / "out" / "solution_std.txt"))
+
+
+def _errors(traj, sim, scanner, std):
+    r_s = returns_to_scanner(scanner, sim.range_m, sim.scan_angle_rad)
+    p = georeference(traj, sim.time, r_s, scanner, std=std)
+    C_en = dcm_en(*p.lla()[:, :2].T)
+    d = np.einsum("nji,nj->ni", C_en, p.xyz_ecef_m - sim.true_xyz_ecef_m[p.index])
+    return d, p.var_ned_m2
+
+
+@pytest.mark.slow
+def test_points_within_sigmas_smoothed_vs_forward(lidar_flight):
+    f = lidar_flight
+    sim = f["sim"]
+    true_scanner = f["nominal"].with_boresight(B_TRUE)
+    # with the true trajectory the error is the scanner's noise: below its own sigma
+    d, var = _errors(f["truth"], sim, true_scanner, None)
+    z2 = (d ** 2 / var).mean(axis=0)
+    assert np.all(z2 > 0.5) and np.all(z2 < 1.5), z2
+    d_s, var_s = _errors(f["smoothed"], sim, true_scanner, f["std"])
+    d_f, _ = _errors(f["forward"], sim, true_scanner, f["std"])
+    # chi-square per axis: the errors of a smoothed trajectory are correlated over many
+    # seconds (few independent samples in a 2-minute flight): mean z^2 within 0.2 .. 3
+    z2 = (d_s ** 2 / var_s).mean(axis=0)
+    assert np.all(z2 > 0.2) and np.all(z2 < 3.0), z2
+    rms_s = np.sqrt((d_s ** 2).mean(axis=0))
+    rms_f = np.sqrt((d_f ** 2).mean(axis=0))
+    assert np.all(rms_f[:2] > 2.0 * rms_s[:2]) and rms_f[2] > 1.5 * rms_s[2], (rms_s, rms_f)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("which", ["truth", "smoothed"])
+def test_boresight_from_strips(lidar_flight, which):
+    from ins.strip_check import boresight_from_strips
+    f = lidar_flight
+    sim = f["sim"]
+    std = f["std"] if which == "smoothed" else None
+    r_s = returns_to_scanner(f["nominal"], sim.range_m, sim.scan_angle_rad)
+    b, est, first = boresight_from_strips(f[which], sim.time, r_s, sim.strip, f["nominal"],
+                                          std=std, radius_m=4.0, k=6)
+    z = (b - B_TRUE) / est.sigma_rad
+    assert np.all(np.abs(z) < 3.0), (np.rad2deg(b), np.rad2deg(est.sigma_rad), z)
+    assert est.estimable[0]                  # rx: opposite strips see it on any terrain
+    # the strips disagree by decimetres with the nominal boresight, by the noise after
+    assert first.pairs[0].rms_m > 0.15 and est.pairs[0].rms_m < 0.05
+
+
+def test_plane_differences_exact():
+    """Four strips on the plane z = 0.1 E - 0.05 N + 3, each moved by its own constant
+    Jacobian times delta: the height differences are exact (by hand) and the estimate
+    from all pairs recovers delta."""
+    from ins.strip_check import overlapping_pairs
+    rng = np.random.default_rng(0)
+    n, m = 3000, 4
+    en = rng.uniform(0, 100, (m * n, 2))
+    z = 0.1 * en[:, 0] - 0.05 * en[:, 1] + 3.0
+    strip = np.repeat(np.arange(1, m + 1), n)
+    J = np.repeat(rng.normal(0, 300, (m, 3, 3)), n, axis=0)
+    delta = np.array([1e-3, -2e-3, 5e-4])
+    enu = np.column_stack([en, z]) + np.einsum("nij,j->ni", J, delta)
+    g = np.array([0.1, -0.05])
+
+    def row(Jm):
+        return Jm[2] - g[0] * Jm[0] - g[1] * Jm[1]
+
+    pairs = [pair_differences(enu, J, strip, a, b, radius_m=5.0, k=8)
+             for a, b in overlapping_pairs(strip)]
+    assert len(pairs) == 6
+    for p in pairs:
+        assert len(p.dz_m) > 1000
+        expected = (row(J[(p.a - 1) * n]) - row(J[(p.b - 1) * n])) @ delta
+        assert np.allclose(p.dz_m, expected, atol=1e-9)
+    est = estimate_boresight(pairs)
+    assert np.allclose(est.delta_rad, delta, rtol=1e-7, atol=1e-12)
+    assert est.sigma0_m < 1e-8
