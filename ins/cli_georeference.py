@@ -60,8 +60,8 @@ def add_parser(sub):
                    help="output CRS of x, y (default: UTM zone of the trajectory's centre); "
                         "z is always the ellipsoidal height, m")
     from .cliutil import positive_int
-    p.add_argument("--block-size", type=positive_int, default=1_000_000, metavar="N",
-                   help="returns per block (memory), default 1000000")
+    p.add_argument("--block-size", type=positive_int, default=250_000, metavar="N",
+                   help="returns per block (memory: about 0.7 KiB a return), default 250000")
     p.add_argument("-o", "--output", required=True, metavar="points.laz",
                    help="output LAS (.las) or LAZ (.laz)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
