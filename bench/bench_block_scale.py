@@ -20,6 +20,11 @@ Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed
        5000  20447     31.74     51.47    83.21      897   302   0.998  [0.18, 0.63, 0.3]
     slope of log(total time) vs log(images), 200-5000: 1.03; of log(peak memory): 0.42
 
+Dask (``--dask 10x1000``: ten 1000-image flights written as files, read, and refined
+as tasks by ``refine_many`` on a local cluster of 2 single-threaded worker processes):
+10 000 images in 173.6 s (the machine shared with 5 other jobs), peak resident memory
+per worker 502 and 562 MB, sigma0 0.993-1.004.
+
 (50 images: dense algebra, band 0; the issue's 945-image block took 203 s and 1.24 GB,
 216 s of it in the dense assessment.)  The half-bandwidth grows with the strips' length
 (here 50 images), not with their number; the 5000-image assessment is slower per image
