@@ -127,8 +127,10 @@ def nees(err, P):
     return np.einsum("mi,mi->m", err, np.linalg.solve(P, err[:, :, None])[:, :, 0])
 
 
-def run_seed(folder, layout, plan):
-    """Per-node normalized errors and NIS of one flight."""
+def run_seed(folder, layout, plan, gauss_markov=False):
+    """Per-node normalized errors and NIS of one flight (``gauss_markov``: every sensor
+    state a Gauss-Markov process of its total sigma, the model before the constant
+    sensor states)."""
     from ins.accuracy import compare
     from ins.error_model import LAYOUTS, StateLayout
     from ins.process import process
@@ -137,6 +139,10 @@ def run_seed(folder, layout, plan):
     from ins.smoother import rts_errors
     from ins.trajectory import Trajectory, read_nav
     cfg = filter_statistics(config_from_manifest(str(folder)), plan)
+    if gauss_markov:
+        from dataclasses import replace
+        cfg.noise = replace(cfg.noise, gyro_bias_instability_dph=None,
+                            accel_bias_instability_mgal=None)
     if layout is not None:
         cfg.layout = StateLayout(LAYOUTS[layout])
     cfg.truth = None
@@ -230,10 +236,14 @@ def main():
                     help="error states (default: the default of ins process)")
     ap.add_argument("--plan", default=str(ROOT / "data" / "flights" / "demo.toml"))
     ap.add_argument("--save", default=None, help="write the per-node values (.npz)")
+    ap.add_argument("--gauss-markov", action="store_true",
+                    help="sensor states as Gauss-Markov processes of their total sigma "
+                         "(the model before the constant sensor states)")
     args = ap.parse_args()
     runs, t0 = [], time.perf_counter()
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        runs.append(run_seed(flight(args.plan, seed), args.layout, args.plan))
+        runs.append(run_seed(flight(args.plan, seed), args.layout, args.plan,
+                             args.gauss_markov))
         print(f"seed {seed}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     print_rms(runs)
     if args.save:
@@ -241,7 +251,8 @@ def main():
         np.savez(args.save, **{k: np.array([r[k][:m] for r in runs]) for k in runs[0]})
     print()
     print(f"\n{args.seeds} seeds of {Path(args.plan).name}, layout "
-          f"{args.layout or 'default'}; classes: settling (first {SETTLE_S:g} s), straight "
+          f"{args.layout or 'default'}"
+          f"{', Gauss-Markov sensor states' if args.gauss_markov else ''}; classes: settling (first {SETTLE_S:g} s), straight "
           f"lines and turns (|yaw rate| > {TURN_RATE_DPS:g} deg/s) after it\n")
     print("| quantity | class | dof | mean NEES/NIS | epochs with the seed mean inside "
           "the 95 % band | band | epochs |")

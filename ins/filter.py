@@ -346,7 +346,7 @@ class _ForwardRun:
         self.layout = L = settings.layout
         self.settings = settings
         self.GQG = noise_matrix(settings.noise, L)
-        self.tau = settings.noise.corr_time_s
+        self.tau = settings.noise.decay_time_s
         self.interval = settings.node_interval_s
         self.sensors = np.zeros(L.n - 9)
         if settings.initial_sensors is not None:

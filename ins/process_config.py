@@ -10,7 +10,10 @@ with the unit in the name::
     [initial]    lat_deg, lon_deg, h_m, vel_ned_mps, rpy_deg, time_s (optional),
                  pos_std_ned_m, vel_std_ned_mps, att_std_deg
     [imu_noise]  arw_deg_sqrth, vrw_mps_sqrth, gyro_bias_std_dph, accel_bias_std_mgal,
-                 gyro_scale_std_ppm, accel_scale_std_ppm, corr_time_h
+                 gyro_scale_std_ppm, accel_scale_std_ppm, corr_time_h,
+                 gyro_bias_instability_dph, accel_bias_instability_mgal (optional: the
+                 sensor states are then random constants plus this instability, see
+                 ins.error_model; a flight folder's manifest gives them)
     [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5,
                  format = "kfgins"|"rtklib" (default: sniffed), time_shift_s = 0,
                  quality = "fix,float" (RTKLIB Q kept), quality_scale = "float=3,single=10"
@@ -40,7 +43,8 @@ from .errors import InputError
 from .tomlschema import check_keys
 
 _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
-               "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h")
+               "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h",
+               "gyro_bias_instability_dph", "accel_bias_instability_mgal")
 _SECTIONS = {
     "files": {"imu", "gnss", "mount", "truth"},
     "imu": {"format", "rates", "axes", "time_shift_s"},
@@ -347,7 +351,9 @@ def _manifest_priors(imu, where):
 
 
 def _manifest_noise(imu, where):
-    """Filter noise from the injected error values of the manifest (same units)."""
+    """Filter noise from the injected error values of the manifest (same units): the
+    biases' prior the total of the constant and the instability, the sensor states
+    random constants plus the instability (as the simulator injects them)."""
     def get(key, default):
         v = imu.get(key, default)
         return np.abs(_vector(v, f"{where} {key}"))
@@ -360,4 +366,6 @@ def _manifest_noise(imu, where):
         accel_bias_std_mgal=np.maximum(bias_a, 1.0),
         gyro_scale_std_ppm=np.maximum(get("gyro_scale_ppm", 1.0), 1.0),
         accel_scale_std_ppm=np.maximum(get("accel_scale_ppm", 1.0), 1.0),
-        corr_time_h=float(imu.get("corr_time_h", 4.0)))
+        corr_time_h=float(imu.get("corr_time_h", 4.0)),
+        gyro_bias_instability_dph=get("gyro_bias_instability_dph", 0.0),
+        accel_bias_instability_mgal=get("accel_bias_instability_mgal", 0.0))

@@ -33,6 +33,40 @@ def test_noise_units():
         ImuNoise(arw_deg_sqrth=-1.0)
 
 
+def test_constant_sensor_states_with_instability():
+    """With a bias instability the sensor states are random constants plus a random walk
+    of ``2 sigma_inst^2 / T`` (hand values): after an hour from the prior, a bias
+    variance is prior^2 + 2 sigma_inst^2 (T = 1 h), a scale factor's is its prior^2."""
+    noise = ImuNoise(gyro_bias_std_dph=1.2, accel_bias_std_mgal=1000.0,
+                     gyro_scale_std_ppm=150.0, accel_scale_std_ppm=300.0, corr_time_h=1.0,
+                     gyro_bias_instability_dph=0.5, accel_bias_instability_mgal=100.0)
+    assert noise.constant_sensors and noise.decay_time_s == np.inf
+    assert not ImuNoise().constant_sensors and ImuNoise().decay_time_s == 4.0 * 3600
+    q = noise.q_continuous()
+    dph, mgal = np.pi / 180 / 3600, 1e-5
+    np.testing.assert_allclose(q[6:9], 2 * (0.5 * dph) ** 2 / 3600)
+    np.testing.assert_allclose(q[9:12], 2 * (100 * mgal) ** 2 / 3600)
+    np.testing.assert_array_equal(q[12:18], 0.0)
+    # one of the two given: the other instability is zero
+    only = ImuNoise(gyro_bias_instability_dph=0.5)
+    np.testing.assert_array_equal(only.q_continuous()[9:18], 0.0)
+    A = interval_matrix(0.5, 100.0, np.zeros(3), [0, 0, -9.8],
+                        (np.zeros((3, 3)),) * 3, 1.0, noise.decay_time_s)
+    Phi, Qd = discretize(A, noise_matrix(noise), 1.0)
+    np.testing.assert_array_equal(np.diag(Phi)[9:21], 1.0)
+    P = np.zeros((21, 21))
+    idx = np.arange(9, 21)
+    P[idx, idx] = noise.sensor_std ** 2
+    for _ in range(3600):
+        P = Phi @ P @ Phi.T + Qd
+    d = np.diag(P)
+    np.testing.assert_allclose(d[9:12], (1.2 * dph) ** 2 + 2 * (0.5 * dph) ** 2, rtol=1e-9)
+    np.testing.assert_allclose(d[12:15], (1000 * mgal) ** 2 + 2 * (100 * mgal) ** 2,
+                               rtol=1e-9)
+    np.testing.assert_allclose(d[15:18], (150e-6) ** 2, rtol=1e-12)
+    np.testing.assert_allclose(d[18:21], (300e-6) ** 2, rtol=1e-12)
+
+
 def test_gauss_markov_steady_state():
     """P = sigma^2 on the sensor states is stationary under Phi P Phi^T + Q_d."""
     noise = ImuNoise(corr_time_h=0.5)
