@@ -224,6 +224,7 @@ COMMAND_MODULES = [
     "ins.cli_bag",
     "ins.cli_georeference",
     "ins.cli_process",
+    "ins.cli_strip_check",
     "ins.cli_time_offset",
 ]
 #: Entry-point group of the sub-commands that other packages add to ``ins`` (name: the
