@@ -10,6 +10,12 @@ rotation axis over the pairs (arcsec), compared with the Cramer-Rao bound of the
 5-parameter relative orientation (the bound of "known-base" is smaller: the base is
 given).  Timing: wall time per pair on one core (ours: all pairs in one batched call,
 and ``adjust_pair`` once per pair: robust start + Gauss-Newton + snooping).
+
+Measured (``--pairs 100 --sizes 30,100``, one thread, load ~4 on 2 cores, 2026-11-24):
+ms per pair at n = 30 / 100 tie points -- ours batched base-free 0.117 / 0.182, ours
+``adjust_pair`` one pair per call 0.419 / 0.489, pycolmap ``refine_relative_pose`` from
+the prior 0.512 / 1.016, OpenCV USAC_ACCURATE 0.312 / 0.610, RANSAC 0.893 / 1.142;
+RMS / bound 1.07 for ours and pycolmap, 1.19 / 1.08 USAC, 3.2 / 5.7 RANSAC.
 """
 import argparse
 import sys
