@@ -261,3 +261,41 @@ def test_cli_bad_header(static_flight, capsys):
     code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
                          tmp / "s.toml", tmp / "bad.csv", "-o", tmp / "p.las"], capsys)
     assert code == 2 and "bad.csv:1" in err and "time_s,range_m,scan_angle_deg" in err
+
+
+def test_cli_las_in_scanner_frame(static_flight, capsys):
+    """Model "points": a LAS of points in the scanner frame (written by hand with laspy)
+    gives the same points as range/angle returns of the same geometry."""
+    import laspy
+    tmp, traj, t, rho, ang = static_flight
+    inside = (t >= 0) & (t <= 10)
+    t, rho, ang = t[inside], rho[inside], ang[inside]
+    r_s = scanner_rays(rho, np.deg2rad(ang))
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales = [1e-4, 1e-4, 1e-4]
+    header.offsets = [0.0, 0.0, 0.0]
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = r_s[:, 0], r_s[:, 1], r_s[:, 2]
+    las.gps_time = t
+    las.intensity = np.arange(len(t)) % 1000
+    las.point_source_id = np.full(len(t), 7)
+    las.write(tmp / "scanner_frame.las")
+    (tmp / "p.toml").write_text('[scanner]\nmodel = "points"\n[mounting]\n'
+                                'lever_arm_m = [0.2, 0.1, 0.3]\n'
+                                'boresight_deg = [0.01, -0.02, 0.03]\n')
+    code, out, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                           tmp / "p.toml", tmp / "scanner_frame.las", "-o", tmp / "p.las",
+                           "--crs", "EPSG:4979", "-q"], capsys)
+    assert code == 0, err
+    got = laspy.read(tmp / "p.las")
+    sc = Scanner(lever_arm_m=[0.2, 0.1, 0.3], boresight_rad=np.deg2rad([0.01, -0.02, 0.03]))
+    lla = _lla_deg(georeference(traj, t, scanner_rays(rho, np.deg2rad(ang)), sc))
+    assert np.allclose(got.y, lla[:, 0], atol=2e-8) and np.allclose(got.x, lla[:, 1], atol=2e-8)
+    assert np.allclose(got.z, lla[:, 2], atol=2e-3)      # the input's 0.1 mm grid
+    assert np.all(got.point_source_id == 7)
+    assert np.allclose(got.scan_angle * 0.006, ang, atol=0.0031)
+    # a line scanner cannot read scanner-frame points
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "scanner_frame.las", "-o", tmp / "q.las"],
+                        capsys)
+    assert code == 2 and '"points"' in err
