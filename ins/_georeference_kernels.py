@@ -137,3 +137,52 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
         var_ned[k, 0] = v0
         var_ned[k, 1] = v1
         var_ned[k, 2] = v2
+
+
+@nb.njit(cache=True)
+def interpolate_kernel(t, slot, t0, t1, y0, y1, d0, d1, tj, rvj, q0, lla_out, q_out):
+    """The EO interpolation (:func:`ins.interpolation.interpolate_trajectory`, "cubic")
+    evaluated per return from per-interval data.
+
+    For return i in interval ``slot[i]``: Hermite of (lat, lon, h) between ``y0``, ``y1``
+    with slopes ``d0``, ``d1`` over ``[t0, t1]``; attitude ``q0 * exp(sum_j L_j(t)
+    rv_j)`` with the Lagrange basis over the stencil times ``tj`` (slot, 4) of the
+    rotation vectors ``rvj`` (slot, 4, 3) of ``q0^-1 q_j``.
+    """
+    for i in range(t.shape[0]):
+        s_ = slot[i]
+        h = t1[s_] - t0[s_]
+        s = (t[i] - t0[s_]) / h
+        s2 = s * s
+        s3 = s2 * s
+        h00 = 2 * s3 - 3 * s2 + 1
+        h10 = s3 - 2 * s2 + s
+        h01 = -2 * s3 + 3 * s2
+        h11 = s3 - s2
+        for c in range(3):
+            lla_out[i, c] = (h00 * y0[s_, c] + h10 * h * d0[s_, c] + h01 * y1[s_, c]
+                             + h11 * h * d1[s_, c])
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        m = 4
+        for j in range(m):
+            w = 1.0
+            for jj in range(m):
+                if jj != j:
+                    w *= (t[i] - tj[s_, jj]) / (tj[s_, j] - tj[s_, jj])
+            r0 += w * rvj[s_, j, 0]
+            r1 += w * rvj[s_, j, 1]
+            r2 += w * rvj[s_, j, 2]
+        angle = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        if angle < 1e-4:
+            a2 = angle * angle
+            k = 0.5 - a2 / 48 + a2 * a2 / 3840
+        else:
+            k = math.sin(0.5 * angle) / angle
+        px, py, pz, pw = q0[s_, 0], q0[s_, 1], q0[s_, 2], q0[s_, 3]
+        qx, qy, qz, qw = r0 * k, r1 * k, r2 * k, math.cos(0.5 * angle)
+        q_out[i, 0] = pw * qx + qw * px + py * qz - pz * qy
+        q_out[i, 1] = pw * qy + qw * py + pz * qx - px * qz
+        q_out[i, 2] = pw * qz + qw * pz + px * qy - py * qx
+        q_out[i, 3] = pw * qw - px * qx - py * qy - pz * qz

@@ -30,14 +30,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._georeference_kernels import georeference_kernel
+from ._georeference_kernels import georeference_kernel, interpolate_kernel
+from .earth import lla_rate
 from .errors import InputError
-from .interpolation import interpolate_trajectory
-from .rotation import rot_x, rot_y
+from .interpolation import interpolate_trajectory, locate
+from .rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rot_x, rot_y, wrap_to_pi
 from .scanner import scanner_rays
 
 __all__ = ["Points", "TrajectoryStd", "georeference", "georeference_blocks",
            "read_trajectory_std", "returns_to_scanner", "ecef_to_lla", "boresight_jacobian",
+           "interpolate_pose",
            "attitude_jacobian"]
 
 
@@ -158,6 +160,39 @@ def returns_to_scanner(scanner, range_m=None, scan_angle_rad=None, xyz_s_m=None)
     return scanner_rays(range_m, scan_angle_rad, scanner.forward_tilt_rad)
 
 
+def interpolate_pose(traj, t, method="cubic", path=None):
+    """IMU position (lat, lon rad, h m; (m, 3)) and ``q_nb`` ((m, 4)) at the times ``t``.
+
+    ``"cubic"``: the EO interpolation (:func:`ins.interpolation.interpolate_trajectory`,
+    same formulas) with the per-interval work (Hermite slopes, the stencil's rotation
+    vectors) done once per trajectory interval used and the per-return evaluation in a
+    numba kernel (equal to the library's to rounding, ``tests/test_georeference.py``);
+    ``"slerp"`` or fewer than 4 epochs: the library function itself.
+    """
+    n = len(traj.time)
+    if method != "cubic" or n < 4:
+        at = interpolate_trajectory(traj, t, method=method, path=path)
+        return at.lla, at.q_nb
+    k = locate(traj.time, t, path=path)
+    uk, slot = np.unique(k, return_inverse=True)
+    y0, y1 = traj.lla[uk].copy(), traj.lla[uk + 1].copy()
+    y1[:, 1] = y0[:, 1] + wrap_to_pi(y1[:, 1] - y0[:, 1])
+    d0 = lla_rate(y0[:, 0], y0[:, 2], traj.v_n[uk])
+    d1 = lla_rate(y1[:, 0], y1[:, 2], traj.v_n[uk + 1])
+    idx = np.clip(uk - 1, 0, n - 4)[:, None] + np.arange(4)
+    q0 = traj.q_nb[uk]
+    rv = np.stack([quat_to_rotvec(quat_multiply(quat_conjugate(q0), traj.q_nb[idx[:, j]]))
+                   for j in range(4)], axis=1)
+    lla = np.empty((len(t), 3))
+    q = np.empty((len(t), 4))
+    interpolate_kernel(np.ascontiguousarray(t, dtype=float), slot.astype(np.int64),
+                       traj.time[uk], traj.time[uk + 1], y0, y1, d0, d1,
+                       np.ascontiguousarray(traj.time[idx]), np.ascontiguousarray(rv),
+                       np.ascontiguousarray(q0), lla, q)
+    lla[:, 1] = wrap_to_pi(lla[:, 1])
+    return lla, q
+
+
 def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
     """Georeference returns given in the scanner frame.
 
@@ -195,11 +230,11 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
     var = np.empty((n, 3))
     if n == 0:
         return Points(t, xyz, var, index)
-    at = interpolate_trajectory(traj, t, method=method, path=path)
+    lla, q_nb = interpolate_pose(traj, t, method=method, path=path)
     s = np.zeros((n, 6)) if std is None else std.at(t)
     rx, ry = rot_x(scanner.boresight_rad[0]), rot_y(scanner.boresight_rad[1])
     M_x = scanner.axes @ rx
-    georeference_kernel(np.ascontiguousarray(at.lla), np.ascontiguousarray(at.q_nb),
+    georeference_kernel(np.ascontiguousarray(lla), np.ascontiguousarray(q_nb),
                         np.ascontiguousarray(r_s[index]), np.ascontiguousarray(scanner.C_bs),
                         np.ascontiguousarray(scanner.lever_arm_m), M_x, M_x @ ry,
                         np.ascontiguousarray(s), np.ascontiguousarray(scanner.lever_arm_sigma_m),

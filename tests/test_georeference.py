@@ -299,3 +299,30 @@ def test_cli_las_in_scanner_frame(static_flight, capsys):
                          tmp / "s.toml", tmp / "scanner_frame.las", "-o", tmp / "q.las"],
                         capsys)
     assert code == 2 and '"points"' in err
+
+
+def test_fast_interpolation_equals_the_eo_interpolation():
+    """interpolate_pose ("cubic", numba) against ins.interpolation.interpolate_trajectory
+    on a turning, rolling trajectory crossing 180 deg of longitude."""
+    from ins.georeference import interpolate_pose
+    from ins.interpolation import interpolate_trajectory
+    from ins.rotation import quat_multiply, quat_conjugate, quat_to_rotvec
+    n = 400
+    t = 1000.0 + 0.005 * np.arange(n) + 0.001 * np.sin(np.arange(n))
+    lat = np.deg2rad(-33.9) + 1e-6 * np.arange(n)
+    lon = np.deg2rad(179.9999) + 2e-6 * np.arange(n)
+    lon = (lon + np.pi) % (2 * np.pi) - np.pi
+    lla = np.column_stack([lat, lon, 500.0 + 0.1 * np.arange(n)])
+    v = np.column_stack([40 + np.sin(t), 50 + np.cos(t), -0.3 * np.ones(n)])
+    rpy = np.column_stack([0.3 * np.sin(3 * t), 0.1 * np.cos(2 * t), 3.0 + 0.8 * t])
+    q = Rotation.from_euler("ZYX", rpy[:, ::-1]).as_quat()
+    traj = Trajectory(t, lla, v, q)
+    tq = np.sort(np.random.default_rng(0).uniform(t[0], t[-1], 5000))
+    tq[0], tq[-1] = t[0], t[-1]
+    lla_f, q_f = interpolate_pose(traj, tq)
+    ref = interpolate_trajectory(traj, tq)
+    d = lla_f - ref.lla
+    d[:, 1] = (d[:, 1] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(d[:, :2]).max() < 1e-14 and np.abs(d[:, 2]).max() < 1e-9
+    ang = np.linalg.norm(quat_to_rotvec(quat_multiply(quat_conjugate(ref.q_nb), q_f)), axis=1)
+    assert ang.max() < 1e-12
