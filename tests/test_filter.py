@@ -373,3 +373,27 @@ def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
     stack = np.array([P, bad])
     with pytest.raises(QualityError, match=r"t = 2\.000 s: .* gyro_scale_x"):
         std_of(stack, time=[1.0, 2.0])
+
+
+def test_manifest_gives_constant_sensor_states_with_the_instability(tmp_path):
+    """A flight manifest's bias instability makes the sensor states random constants plus
+    the instability (ins.error_model notes): prior = hypot(constant, instability) of the
+    hand-written values, decay none, bias driving noise 2 sigma_inst^2 / T, scale none;
+    a config without the keys keeps the KF-GINS Gauss-Markov model."""
+    (tmp_path / "manifest.toml").write_text(
+        '[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\n'
+        '[imu]\ngyro_bias_dph = [3.0, -4.0, 0.0]\naccel_bias_mgal = [300.0, 0.0, 0.0]\n'
+        'gyro_bias_instability_dph = [4.0, 3.0, 0.5]\n'
+        'accel_bias_instability_mgal = [400.0, 100.0, 0.0]\ncorr_time_h = 2.0\n'
+        'gyro_scale_ppm = [150.0, -150.0, 150.0]\n')
+    noise = config_from_manifest(str(tmp_path)).noise
+    dph, mgal = np.pi / 180 / 3600, 1e-5
+    np.testing.assert_allclose(noise.gyro_bias_std_dph, [5.0, 5.0, 0.5])
+    np.testing.assert_allclose(noise.accel_bias_std_mgal, [500.0, 100.0, 1.0])
+    assert noise.constant_sensors and noise.decay_time_s == np.inf
+    q = noise.q_continuous()
+    np.testing.assert_allclose(q[6:9], 2 * (np.array([4.0, 3.0, 0.5]) * dph) ** 2 / 7200)
+    np.testing.assert_allclose(q[9:12], 2 * (np.array([400.0, 100.0, 0.0]) * mgal) ** 2
+                               / 7200)
+    np.testing.assert_array_equal(q[12:18], 0.0)
+    assert not ProcessConfig(imu="imu.txt", gnss="gnss.txt").noise.constant_sensors
