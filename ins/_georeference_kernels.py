@@ -24,16 +24,29 @@ def _mv(M, x0, x1, x2):
             M[2, 0] * x0 + M[2, 1] * x1 + M[2, 2] * x2)
 
 
+@nb.njit(cache=True, inline="always")
+def _pv(P, k, use_P, x0, x1, x2):
+    """``P[k] @ x`` with ``use_P``, else x."""
+    if use_P:
+        return (P[k, 0, 0] * x0 + P[k, 0, 1] * x1 + P[k, 0, 2] * x2,
+                P[k, 1, 0] * x0 + P[k, 1, 1] * x1 + P[k, 1, 2] * x2,
+                P[k, 2, 0] * x0 + P[k, 2, 1] * x1 + P[k, 2, 2] * x2)
+    return x0, x1, x2
+
+
 @nb.njit(cache=True)
-def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
-                        bore_sig, range_sig, angle_sig, line_scanner, xyz_e, var_ned):
+def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, P, use_P, l_bp, std,
+                        lever_sig, bore_sig, range_sig, angle_sig, line_scanner, xyz_e,
+                        var_ned):
     """Fill ``xyz_e`` (n, 3) ECEF points (m) and ``var_ned`` (n, 3) NED variances (m^2).
 
     ``lla`` (n, 3) IMU lat, lon (rad), h (m); ``q_nb`` (n, 4) scalar last; ``r_s`` (n, 3)
     m; ``C_bs`` = ``axes @ Rx @ Ry @ Rz`` with ``M_x`` = ``axes @ Rx``, ``M_xy`` =
     ``axes @ Rx @ Ry`` (for the boresight Jacobian); ``std`` (n, 6): position N, E, D (m), roll, pitch, yaw (rad);
     ``lever_sig``, ``bore_sig`` (3,); ``range_sig`` m, ``angle_sig`` rad; with
-    ``line_scanner`` the scan-angle derivative of r_s is ``r_s x e_x``.
+    ``line_scanner`` the scan-angle derivative of r_s is ``r_s x e_x``.  With ``use_P``
+    (a scanner on the aircraft) every vector of the scanner's mounting frame is taken
+    into b by ``P[k]`` (``C_ba(t)``, (n, 3, 3)) and the arm is ``l_bp + P[k] l_b``.
     """
     n = lla.shape[0]
     C = np.empty((3, 3))
@@ -52,7 +65,11 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
         C[2, 2] = 1 - 2 * s * (x * x + y * y)
         rx, ry, rz = r_s[k, 0], r_s[k, 1], r_s[k, 2]
         sx, sy, sz = _mv(C_bs, rx, ry, rz)
-        vb0, vb1, vb2 = l_b[0] + sx, l_b[1] + sy, l_b[2] + sz
+        px, py, pz = _pv(P, k, use_P, sx, sy, sz)
+        la0, la1, la2 = _pv(P, k, use_P, l_b[0], l_b[1], l_b[2])
+        if use_P:
+            la0, la1, la2 = la0 + l_bp[0], la1 + l_bp[1], la2 + l_bp[2]
+        vb0, vb1, vb2 = la0 + px, la1 + py, la2 + pz
         d0, d1, d2 = _mv(C, vb0, vb1, vb2)
         lat, lon, h = lla[k, 0], lla[k, 1], lla[k, 2]
         sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
@@ -84,12 +101,14 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
         v0 += j0 * j0 * sw
         v1 += j1 * j1 * sw
         v2 += j2 * j2 * sw
-        # lever arm: C_nb e_i
+        # lever arm: C_nb P e_i
         for i in range(3):
             li = lever_sig[i] ** 2
-            v0 += C[0, i] * C[0, i] * li
-            v1 += C[1, i] * C[1, i] * li
-            v2 += C[2, i] * C[2, i] * li
+            e0, e1, e2 = _pv(P, k, use_P, 1.0 * (i == 0), 1.0 * (i == 1), 1.0 * (i == 2))
+            j0, j1, j2 = _mv(C, e0, e1, e2)
+            v0 += j0 * j0 * li
+            v1 += j1 * j1 * li
+            v2 += j2 * j2 * li
         # boresight: d(C_bs r)/d(rx) = A Rx (e_x x (Ry Rz r)), ... (signs do not matter)
         # with u = Ry Rz r = (A Rx)^T C_bs r and w = Rz r = (A Rx Ry)^T C_bs r
         for i in range(3):
@@ -113,6 +132,7 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
             else:
                 c0, c1, c2 = _cross(0.0, 0.0, 1.0, u0, u1, u2)
             b0, b1, b2 = _mv(M, c0, c1, c2)
+            b0, b1, b2 = _pv(P, k, use_P, b0, b1, b2)
             j0, j1, j2 = _mv(C, b0, b1, b2)
             v0 += j0 * j0 * bi
             v1 += j1 * j1 * bi
@@ -121,6 +141,7 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
         rho = math.sqrt(rx * rx + ry * ry + rz * rz)
         if rho > 0 and range_sig > 0:
             b0, b1, b2 = _mv(C_bs, rx / rho, ry / rho, rz / rho)
+            b0, b1, b2 = _pv(P, k, use_P, b0, b1, b2)
             j0, j1, j2 = _mv(C, b0, b1, b2)
             rr = range_sig * range_sig
             v0 += j0 * j0 * rr
@@ -129,6 +150,7 @@ def georeference_kernel(lla, q_nb, r_s, C_bs, l_b, M_x, M_xy, std, lever_sig,
         if line_scanner and angle_sig > 0:
             c0, c1, c2 = _cross(rx, ry, rz, 1.0, 0.0, 0.0)
             b0, b1, b2 = _mv(C_bs, c0, c1, c2)
+            b0, b1, b2 = _pv(P, k, use_P, b0, b1, b2)
             j0, j1, j2 = _mv(C, b0, b1, b2)
             aa = angle_sig * angle_sig
             v0 += j0 * j0 * aa

@@ -16,7 +16,10 @@ frames and units:
   the model (polygon | oscillating | points), the axes (rows of C_bs, scanner to body
   FRD), lever_arm_m (IMU to scanner origin, body FRD, m), boresight_deg (rx, ry, rz:
   C_bs = axes Rx Ry Rz) and the sigmas (range m, scan angle deg, lever arm m,
-  boresight deg): the camera file's conventions.
+  boresight deg): the camera file's conventions.  A scanner on the aircraft with the
+  IMU on the stabilized platform ([mounting] on = "aircraft": axes = C_as, lever arm
+  from the platform centre in the aircraft frame, imu_to_platform_centre_b_m) needs
+  --mount: C_bs(t) = C_ap(t)^T C_as, l_b(t) = l_bp + C_ap(t)^T l_a.
 
 returns:
   CSV with a header: time_s,range_m,scan_angle_deg[,intensity,return_number,strip]
@@ -56,6 +59,9 @@ def add_parser(sub):
     p.add_argument("--scanner", required=True, metavar="SCANNER.toml",
                    help="scanner file: model, axes, lever arm (m, body FRD), boresight "
                         "(deg), sigmas")
+    p.add_argument("--mount", metavar="F",
+                   help="mount-angle log (time_s roll_deg pitch_deg yaw_deg, C_ap), needed by "
+                        'a scanner on the aircraft ([mounting] on = "aircraft")')
     p.add_argument("--crs", metavar="EPSG:xxxx",
                    help="output CRS of x, y (default: UTM zone of the trajectory's centre); "
                         "z is always the ellipsoidal height, m")
@@ -103,6 +109,16 @@ def _cmd_georeference(args):
     import_laspy()
     check_output_file(args.output)
     scanner = read_scanner(args.scanner)
+    mount = None
+    if scanner.on == "aircraft":
+        if not args.mount:
+            raise InputError('the scanner is on the aircraft ([mounting] on = "aircraft"): '
+                             "--mount (the mount-angle log) is needed", path=args.scanner)
+        from .mount import read_mount
+        mount = read_mount(args.mount)
+    elif args.mount:
+        raise InputError('--mount is used by a scanner on the aircraft only ([mounting] on = '
+                         '"aircraft"); this scanner sits on the IMU', path=args.scanner)
     traj = read_trajectory(args.trajectory)
     if len(traj) < 2:
         raise InputError("the trajectory needs at least 2 epochs", path=args.trajectory)
@@ -123,7 +139,7 @@ def _cmd_georeference(args):
                 r_s = returns_to_scanner(scanner, blk.range_m, blk.scan_angle_rad,
                                          blk.xyz_s_m)
                 pts = georeference(traj, blk.time, r_s, scanner, std=std,
-                                   path=args.trajectory)
+                                   path=args.trajectory, mount=mount)
                 i = pts.index
                 angle = (np.rad2deg(blk.scan_angle_rad[i]) if blk.scan_angle_rad is not None
                          else np.rad2deg(np.arctan2(r_s[i, 1], r_s[i, 2])))
@@ -140,7 +156,8 @@ def _cmd_georeference(args):
     progress(done, done)
     dropped = done - kept
     print(f"{args.output}: {kept} points in {crs.name} (EPSG:{crs.to_epsg()}), z "
-          f"ellipsoidal" + (f"; {dropped} returns outside the trajectory "
+          f"ellipsoidal" + (f"; {dropped} returns outside the trajectory"
+                            + (" or the mount log" if mount is not None else "") + " "
                             f"{traj.time[0]:.3f} .. {traj.time[-1]:.3f} s dropped"
                             if dropped else "")
           + ("" if std is not None else "; no --trajectory-std: the sigmas hold the "

@@ -193,7 +193,7 @@ def interpolate_pose(traj, t, method="cubic", path=None):
     return lla, q
 
 
-def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
+def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None, mount=None):
     """Georeference returns given in the scanner frame.
 
     Parameters
@@ -211,11 +211,15 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
         Attitude interpolation.
     path : str, optional
         Trajectory file, for messages.
+    mount : ins.mount.MountLog, optional
+        Mount angles ``C_ap(t)``; required by a scanner with ``on = "aircraft"``
+        (:mod:`ins.scanner`), ignored otherwise.
 
     Returns
     -------
     Points
-        Returns outside ``[traj.time[0], traj.time[-1]]`` are dropped (``index`` tells
+        Returns outside ``[traj.time[0], traj.time[-1]]`` (and, for a scanner on the
+        aircraft, outside the mount log or in its gaps) are dropped (``index`` tells
         which were kept).
     """
     time = np.asarray(time, dtype=float)
@@ -223,6 +227,13 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
     if r_s.shape != (len(time), 3):
         raise ValueError(f"r_s must have shape ({len(time)}, 3), got {r_s.shape}")
     inside = (time >= traj.time[0]) & (time <= traj.time[-1]) & np.all(np.isfinite(r_s), 1)
+    use_P = scanner.on == "aircraft"
+    if use_P:
+        if mount is None:
+            raise InputError('a scanner on the aircraft (on = "aircraft") needs the mount '
+                             "angles (mount log)")
+        C_ap, valid = mount.C_ap(time)
+        inside &= valid
     index = np.flatnonzero(inside)
     t = time[index]
     n = len(t)
@@ -234,9 +245,11 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
     s = np.zeros((n, 6)) if std is None else std.at(t)
     rx, ry = rot_x(scanner.boresight_rad[0]), rot_y(scanner.boresight_rad[1])
     M_x = scanner.axes @ rx
+    P = np.ascontiguousarray(np.swapaxes(C_ap[index], 1, 2)) if use_P else np.zeros((1, 3, 3))
     georeference_kernel(np.ascontiguousarray(lla), np.ascontiguousarray(q_nb),
                         np.ascontiguousarray(r_s[index]), np.ascontiguousarray(scanner.C_bs),
                         np.ascontiguousarray(scanner.lever_arm_m), M_x, M_x @ ry,
+                        P, use_P, np.ascontiguousarray(scanner.imu_to_platform_centre_b_m),
                         np.ascontiguousarray(s), np.ascontiguousarray(scanner.lever_arm_sigma_m),
                         np.ascontiguousarray(scanner.boresight_sigma_rad),
                         float(scanner.range_sigma_m), float(scanner.scan_angle_sigma_rad),
@@ -244,7 +257,8 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None):
     return Points(t, xyz, var, index)
 
 
-def georeference_blocks(traj, blocks, scanner, std=None, method="cubic", path=None):
+def georeference_blocks(traj, blocks, scanner, std=None, method="cubic", path=None,
+                        mount=None):
     """Georeference a stream of return blocks.
 
     Parameters
@@ -258,7 +272,8 @@ def georeference_blocks(traj, blocks, scanner, std=None, method="cubic", path=No
         One per block (see :func:`georeference`).
     """
     for time, r_s in blocks:
-        yield georeference(traj, time, r_s, scanner, std=std, method=method, path=path)
+        yield georeference(traj, time, r_s, scanner, std=std, method=method, path=path,
+                           mount=mount)
 
 
 def boresight_jacobian(traj, time, r_s, scanner, method="cubic"):
@@ -270,6 +285,8 @@ def boresight_jacobian(traj, time, r_s, scanner, method="cubic"):
     must lie inside the trajectory.
     """
     from .rotation import quat_to_dcm, rot_z
+    if scanner.on != "imu":
+        raise InputError('the strip check handles a scanner on the IMU only (on = "imu")')
     at = interpolate_trajectory(traj, np.asarray(time, float), method=method)
     C_nb = quat_to_dcm(at.q_nb)
     b = scanner.boresight_rad
@@ -288,6 +305,8 @@ def attitude_jacobian(traj, time, r_s, scanner, method="cubic"):
     yaw (rad): columns ``(Rz Ry e_x) x d``, ``(Rz e_y) x d``, ``e_z x d`` with
     ``d = C_nb (l_b + C_bs r_s)``; shape (n, 3, 3) (rows N, E, D)."""
     from .rotation import quat_to_dcm
+    if scanner.on != "imu":
+        raise InputError('the strip check handles a scanner on the IMU only (on = "imu")')
     at = interpolate_trajectory(traj, np.asarray(time, float), method=method)
     C_nb = quat_to_dcm(at.q_nb)
     v_b = scanner.lever_arm_m + np.asarray(r_s, float) @ scanner.C_bs.T

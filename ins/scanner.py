@@ -17,8 +17,17 @@ software).
 Mounting, as the camera file's (:mod:`photogrammetry.camera`): ``axes`` the rows of the
 nominal ``C_bs`` (scanner axes to IMU body FRD, default identity), ``boresight_deg``
 ``(rx, ry, rz)`` the small misalignment, ``C_bs = axes @ Rx(rx) @ Ry(ry) @ Rz(rz)``;
-``lever_arm_m`` the IMU centre to the scanner's origin in ``b`` (m).  The scanner sits
-rigidly on the IMU (on a stabilized mount: both on the platform, ``p = b``).
+``lever_arm_m`` the IMU centre to the scanner's origin in ``b`` (m).  By default
+(``on = "imu"``) the scanner sits rigidly on the IMU (on a stabilized mount: both on
+the platform, ``p = b``).  With ``on = "aircraft"`` the IMU is on the stabilized
+platform and the scanner on the aircraft: ``axes`` are then the rows of the nominal
+``C_as`` (scanner to aircraft FRD), ``lever_arm_m`` the platform centre to the scanner
+origin in ``a`` and ``imu_to_platform_centre_b_m`` the IMU to the platform centre in
+``b``; with the mount angles ``C_ap(t)`` (:mod:`ins.mount`)::
+
+    C_bs(t) = C_ap(t)^T C_as,     l_b(t) = l_bp + C_ap(t)^T l_a
+
+(the varying lever arm of the lever-arm paper, as for the GNSS antenna).
 """
 import math
 from dataclasses import dataclass, field
@@ -37,11 +46,14 @@ __all__ = ["Scanner", "read_scanner", "write_scanner", "SCANNER_KEYS", "SCAN_MOD
 #: Scan models (see the module notes).
 SCAN_MODELS = ("polygon", "oscillating", "points")
 
+#: Where the scanner sits: on the IMU (rigid) or on the aircraft (IMU on the platform).
+SCANNER_PLACES = ("imu", "aircraft")
+
 #: Sections and keys of a scanner file; any other key is refused.
 SCANNER_KEYS = {
     "scanner": ("model", "forward_tilt_deg", "range_sigma_m", "scan_angle_sigma_deg"),
-    "mounting": ("axes", "lever_arm_m", "boresight_deg", "lever_arm_sigma_m",
-                 "boresight_sigma_deg"),
+    "mounting": ("on", "axes", "lever_arm_m", "boresight_deg", "lever_arm_sigma_m",
+                 "boresight_sigma_deg", "imu_to_platform_centre_b_m"),
 }
 
 
@@ -87,6 +99,11 @@ class Scanner:
         Misalignment ``(rx, ry, rz)``, rad.
     lever_arm_sigma_m, boresight_sigma_rad : array_like, shape (3,)
         Their 1-sigma uncertainties (m; rad).
+    on : {"imu", "aircraft"}
+        ``"aircraft"``: ``axes`` is ``C_as``, ``lever_arm_m`` in ``a`` from the platform
+        centre (module notes).
+    imu_to_platform_centre_b_m : array_like, shape (3,)
+        ``l_bp`` (m, body FRD), used with ``on = "aircraft"``.
     """
 
     model: str = "polygon"
@@ -98,8 +115,12 @@ class Scanner:
     boresight_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))
     lever_arm_sigma_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     boresight_sigma_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    on: str = "imu"
+    imu_to_platform_centre_b_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
+        if self.on not in SCANNER_PLACES:
+            raise InputError(f"on must be one of {', '.join(SCANNER_PLACES)}, got {self.on!r}")
         if self.model not in SCAN_MODELS:
             raise InputError(f"model must be one of {', '.join(SCAN_MODELS)}, got "
                              f"{self.model!r}")
@@ -128,7 +149,8 @@ class Scanner:
         object.__setattr__(self, "axes", axes)
         for name, unit, nonneg in (("lever_arm_m", "m", False), ("boresight_rad", "rad", False),
                                    ("lever_arm_sigma_m", "m >= 0", True),
-                                   ("boresight_sigma_rad", "rad >= 0", True)):
+                                   ("boresight_sigma_rad", "rad >= 0", True),
+                                   ("imu_to_platform_centre_b_m", "m", False)):
             object.__setattr__(self, name, _vec3(getattr(self, name), name, unit, nonneg))
 
     @property
@@ -183,6 +205,12 @@ def read_scanner(path):
     asig = sc.number("scan_angle_sigma_deg", 0.0, "deg >= 0", lo=0.0)
     sc.finish()
     mnt = Table(doc.get("mounting"), "mounting", path, SCANNER_KEYS["mounting"], SCANNER_KEYS)
+    on = mnt.choice("on", "imu", SCANNER_PLACES)
+    l_bp = mnt.numbers("imu_to_platform_centre_b_m", (0.0, 0.0, 0.0), "m, body FRD",
+                       length=3, scalar=False)
+    if on == "imu" and mnt.has("imu_to_platform_centre_b_m"):
+        raise mnt.error("imu_to_platform_centre_b_m", 'only with on = "aircraft" (a '
+                        "scanner on the IMU needs no platform arm)")
     axes = mnt.matrix("axes", tuple(map(tuple, np.eye(3))), (3, 3),
                       "rows of C_bs, a rotation matrix")
     lever = mnt.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m, body FRD", length=3, scalar=False)
@@ -197,14 +225,15 @@ def read_scanner(path):
         return Scanner(model=model, forward_tilt_rad=math.radians(tilt), range_sigma_m=rsig,
                        scan_angle_sigma_rad=math.radians(asig), axes=axes, lever_arm_m=lever,
                        boresight_rad=np.deg2rad(bore), lever_arm_sigma_m=lsig,
-                       boresight_sigma_rad=np.deg2rad(bsig))
+                       boresight_sigma_rad=np.deg2rad(bsig), on=on,
+                       imu_to_platform_centre_b_m=l_bp)
     except InputError as exc:
         raise InputError(f"[mounting] {exc.reason}", path=path) from None
 
 
 def scanner_to_dict(scanner):
     """The scanner file's content as nested dicts (TOML-ready)."""
-    return {
+    doc = {
         "scanner": {"model": scanner.model,
                     "forward_tilt_deg": math.degrees(scanner.forward_tilt_rad),
                     "range_sigma_m": scanner.range_sigma_m,
@@ -215,6 +244,11 @@ def scanner_to_dict(scanner):
                      "lever_arm_sigma_m": [float(v) for v in scanner.lever_arm_sigma_m],
                      "boresight_sigma_deg": [float(v) for v in
                                              np.rad2deg(scanner.boresight_sigma_rad)]}}
+    if scanner.on != "imu":
+        doc["mounting"]["on"] = scanner.on
+        doc["mounting"]["imu_to_platform_centre_b_m"] = [
+            float(v) for v in scanner.imu_to_platform_centre_b_m]
+    return doc
 
 
 def write_scanner(path, scanner):

@@ -326,3 +326,23 @@ def test_fast_interpolation_equals_the_eo_interpolation():
     assert np.abs(d[:, :2]).max() < 1e-14 and np.abs(d[:, 2]).max() < 1e-9
     ang = np.linalg.norm(quat_to_rotvec(quat_multiply(quat_conjugate(ref.q_nb), q_f)), axis=1)
     assert ang.max() < 1e-12
+
+
+def test_scanner_on_the_aircraft_by_hand():
+    """IMU level on the platform heading north, the platform rolled +10 deg relative to the
+    aircraft (C_ap = Rx(10 deg)): a nadir scanner on the aircraft looks 10 deg to the
+    right of the body's nadir; its arm is l_bp + Rx(-10 deg) l_a (written by hand)."""
+    from ins.mount import MountLog
+    traj = _static([0.0, 0.0, 0.0])
+    mount = MountLog(np.array([0.0, 10.0]), np.tile(np.deg2rad([10.0, 0.0, 0.0]), (2, 1)))
+    l_a, l_bp = np.array([0.5, 0.2, -0.4]), np.array([0.1, -0.05, -0.2])
+    sc = Scanner(on="aircraft", lever_arm_m=l_a, imu_to_platform_centre_b_m=l_bp)
+    a = np.deg2rad(10.0)
+    Rx_m = np.array([[1, 0, 0], [0, np.cos(a), np.sin(a)], [0, -np.sin(a), np.cos(a)]])
+    rho = 700.0
+    pts = georeference(traj, [2.0], scanner_rays([rho], [0.0]), sc, mount=mount)
+    ned = l_bp + Rx_m @ l_a + Rx_m @ np.array([0.0, 0.0, rho])
+    assert ned[1] > 100                                     # to the right (east)
+    _close(_lla_deg(pts), _expected(ned))
+    with pytest.raises(Exception, match="mount"):
+        georeference(traj, [2.0], scanner_rays([rho], [0.0]), sc)

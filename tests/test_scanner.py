@@ -64,11 +64,25 @@ def test_round_trip(tmp_path):
                  scan_angle_sigma_rad=1e-5, lever_arm_m=[1, 2, 3],
                  boresight_rad=[1e-3, -2e-3, 3e-3], lever_arm_sigma_m=[0.01, 0.02, 0.03],
                  boresight_sigma_rad=[1e-4, 2e-4, 3e-4])
-    write_scanner(tmp_path / "s.toml", sc)
-    back = read_scanner(tmp_path / "s.toml")
-    for name in sc.__dataclass_fields__:
-        a, b = getattr(sc, name), getattr(back, name)
-        assert np.allclose(a, b, rtol=1e-12, atol=1e-15) if name != "model" else a == b
+    for s in (sc, sc.__class__(**{**{n: getattr(sc, n) for n in sc.__dataclass_fields__},
+                                   "on": "aircraft",
+                                   "imu_to_platform_centre_b_m": [0.1, -0.2, 0.3]})):
+        write_scanner(tmp_path / "s.toml", s)
+        back = read_scanner(tmp_path / "s.toml")
+        for name in s.__dataclass_fields__:
+            a, b = getattr(s, name), getattr(back, name)
+            if name in ("model", "on"):
+                assert a == b
+            else:
+                assert np.allclose(a, b, rtol=1e-12, atol=1e-15), name
+
+
+def test_platform_arm_only_on_aircraft(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text('[scanner]\nmodel = "polygon"\n[mounting]\n'
+                 'imu_to_platform_centre_b_m = [0, 0, 0.1]\n')
+    with pytest.raises(InputError, match="imu_to_platform_centre_b_m.*aircraft"):
+        read_scanner(p)
 
 
 def test_rays():

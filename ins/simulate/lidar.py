@@ -107,7 +107,8 @@ def scan_angles(time, model, scan_rate_hz, field_of_view_deg):
 
 
 def simulate_returns(truth, scanner, terrain, windows, rng, pulse_rate_hz=2000.0,
-                     scan_rate_hz=20.0, field_of_view_deg=60.0, tol_m=1e-5, max_iter=50):
+                     scan_rate_hz=20.0, field_of_view_deg=60.0, tol_m=1e-5, max_iter=50,
+                     mount=None):
     """Simulate the returns of ``scanner`` over ``terrain`` along ``truth``.
 
     Parameters
@@ -123,6 +124,9 @@ def simulate_returns(truth, scanner, terrain, windows, rng, pulse_rate_hz=2000.0
     rng : numpy.random.Generator
         Range and scan-angle noise.
     pulse_rate_hz, scan_rate_hz, field_of_view_deg : float
+    mount : ins.mount.MountLog, optional
+        The mount angles ``C_ap(t)`` of a scanner on the aircraft (``on = "aircraft"``;
+        the IMU on the platform): rays ``C_ap^T C_as u``, arm ``l_bp + C_ap^T l_a``.
 
     Returns
     -------
@@ -140,7 +144,18 @@ def simulate_returns(truth, scanner, terrain, windows, rng, pulse_rate_hz=2000.0
     at = interpolate_trajectory(truth, t)
     C_nb = quat_to_dcm(at.q_nb)
     u_b = scanner_rays(np.ones(len(t)), theta, scanner.forward_tilt_rad) @ scanner.C_bs.T
-    o_n = C_nb @ scanner.lever_arm_m
+    l_b = np.broadcast_to(scanner.lever_arm_m, u_b.shape)
+    if scanner.on == "aircraft":
+        if mount is None:
+            raise InputError('a scanner on the aircraft needs the mount angles (mount=)')
+        C_ap, valid = mount.C_ap(t)
+        if not valid.all():
+            raise InputError("scanning windows outside the mount log or in its gaps")
+        C_pa = np.swapaxes(C_ap, 1, 2)
+        u_b = np.einsum("nij,nj->ni", C_pa, u_b)
+        l_b = scanner.imu_to_platform_centre_b_m + np.einsum("nij,j->ni", C_pa,
+                                                             scanner.lever_arm_m)
+    o_n = np.einsum("nij,nj->ni", C_nb, l_b)
     d_n = np.einsum("nij,nj->ni", C_nb, u_b)
     if np.any(d_n[:, 2] < 0.05):
         raise InputError("a simulated ray points less than 3 deg below the horizon")
