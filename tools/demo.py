@@ -178,6 +178,9 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
         return f"| {label} | " + " | ".join(fmt.format(v) for v in values) + f" | {unit} |"
 
     n = len(eo_ins)
+    e = smo["err"]
+    during = (e.time >= eo_true.time.min()) & (e.time <= eo_true.time.max())
+    strips_as = rms(e.att_n[during]) / ARCSEC
     lines = [
         "| stage | 1 | 2 | 3 | unit |", "|---|---:|---:|---:|---|",
         row("trajectory, forward filter: position RMS N/E/D", fwd["pos_cm"], "cm", "{:9.2f}"),
@@ -186,6 +189,8 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
         row("trajectory, smoothed: position RMS N/E/D", smo["pos_cm"], "cm", "{:9.2f}"),
         row("trajectory, smoothed: attitude RMS N/E/D (tilt, heading)", smo["att_as"],
             "arcsec"),
+        row("trajectory, smoothed, first to last exposure (strips and turns; the "
+            "straight in-air start left out): attitude RMS N/E/D", strips_as, "arcsec"),
         row(f"EO from the INS ({n} images): perspective centre RMS X/Y/Z",
             rms(dpos) * 100, "cm", "{:9.2f}"),
         row(f"EO from the INS: {'/'.join(names)} RMS (boresight unknown)",
@@ -212,7 +217,8 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
     ]
     plot_angles(out, eo_ins, d_ins, d_ref, names)
     figures = {"forward_pos_m": fwd["pos_cm"] / 100, "smoothed_pos_m": smo["pos_cm"] / 100,
-               "smoothed_att_rad": smo["att_as"] * ARCSEC, "eo_pos_m": rms(dpos),
+               "smoothed_att_rad": smo["att_as"] * ARCSEC,
+               "smoothed_att_strips_rad": strips_as * ARCSEC, "eo_pos_m": rms(dpos),
                "ins_angles_rad": rms(d_ins), "refined_angles_rad": rms(d_ref),
                "boresight_true_rad": b_true, "boresight_apparent_rad": b_apparent,
                "ins_noise_rad": a.ins_noise, "ins_noise_true_rad": noise_true,
