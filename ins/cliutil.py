@@ -84,10 +84,12 @@ def nonnegative_int(text):
 
 class Progress:
     """A one-line progress bar on stderr (only on a terminal): ``progress(done, total)``
-    with ``done``, ``total`` in epochs; :meth:`note` shows a transient status line."""
+    with ``done``, ``total`` counted in ``unit`` (epochs, images, pairs ...); :meth:`note`
+    shows a transient status line."""
 
-    def __init__(self, label, enabled):
+    def __init__(self, label, enabled, unit="epochs"):
         self.label = label
+        self.unit = unit
         self.enabled = enabled and sys.stderr.isatty()
         self.last = 0.0
 
@@ -106,7 +108,7 @@ class Progress:
         self.last = now
         frac = done / max(total, 1)
         bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} epochs"
+        sys.stderr.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} {self.unit}"
                          "      ")
         if done >= total:
             sys.stderr.write("\n")

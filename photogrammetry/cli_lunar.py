@@ -188,7 +188,7 @@ def run(args):
                              f"{args.times or 'the FITS headers'}; at least 2 usable images "
                              "are needed")
         sel = np.array([ids.index(k) for k in used])
-        progress = Progress("lunar-heading", not args.quiet)
+        progress = Progress("lunar-heading", not args.quiet, unit="images")
         result = heading_from_images(camera, [files[k] for k in used], utc[sel], lat, lon, h,
                                      progress=progress, saturation=args.saturation,
                                      **sky_options)

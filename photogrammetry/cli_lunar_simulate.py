@@ -339,7 +339,7 @@ def run(args):
 
     n = len(utc)
     ids = [f"m{k:0{max(3, len(str(n - 1)))}d}" for k in range(n)]
-    progress = Progress("lunar-simulate", not args.quiet)
+    progress = Progress("lunar-simulate", not args.quiet, unit="images")
     options = dict(peak=args.peak, background=args.background, psf_sigma_px=args.blur,
                    noise_sigma=args.noise, shading=args.shading,
                    dtype=np.float64 if args.saturation is not None else np.uint16)

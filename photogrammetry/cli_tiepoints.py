@@ -133,7 +133,7 @@ def run(args):
                              position_sigma_m=args.position_sigma_m, n_sigma=args.n_sigma,
                              ratio=args.ratio, min_overlap=args.min_overlap,
                              min_inliers=args.min_inliers, ransac_px=args.ransac_px)
-    progress = Progress("tiepoints", not args.quiet)
+    progress = Progress("tiepoints", not args.quiet, unit="images+pairs")
     res = match_images(args.images, eo, camera, z_range, settings, workers=args.workers,
                        progress=progress, eo_path=args.eo)
     if res.n_tracks == 0:
