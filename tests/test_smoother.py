@@ -179,3 +179,41 @@ def test_negative_smoothed_variance_is_a_failure_not_a_zero_sigma():
     # rounding-level negatives are not failures: -1e-12 of the scale gives sigma 0
     from ins.error_model import checked_std
     np.testing.assert_array_equal(checked_std([-1e-12, 4.0], [1.0, 4.0]), [0.0, 2.0])
+
+
+@pytest.mark.slow
+def test_smoothed_constant_sensor_errors_are_constant_and_match_the_truth():
+    """The short test flight with constant sensor errors only (the navigation preset's
+    biases and scale factors, no bias instability: the manifest's values are the
+    truth at every epoch) and the filter's constant sensor model (no driving noise):
+    the RTS smoother, through the feedback resets, gives one value per sensor state
+    for the whole flight (the smoothed estimate of a constant), within 3 sigma of the
+    injected value, and has learnt something (four sigmas below half their prior: the accelerometer biases
+    and scale factors of this gentle navigation-grade flight)."""
+    import tomllib
+    from pathlib import Path
+    from ins.process import process
+    from test_filter import PLAN, given_config, short_flight
+    plan = PLAN.replace('grade = "navigation"\n', 'grade = "navigation"\n'
+                        'gyro_bias_instability_dph = 0.0\n'
+                        'accel_bias_instability_mgal = 0.0\n')
+    assert plan != PLAN
+    folder = short_flight(seed=5, plan=plan)
+    man = tomllib.loads((Path(folder) / "manifest.toml").read_text())["imu"]
+    cfg = given_config(folder)
+    assert cfg.noise.constant_sensors and np.all(cfg.noise.q_continuous()[6:] == 0.0)
+    res = process(cfg)
+    dph, mgal, ppm = np.pi / 180 / 3600, 1e-5, 1e-6
+    truth = np.concatenate([np.array(man["gyro_bias_dph"]) * dph,
+                            np.array(man["accel_bias_mgal"]) * mgal,
+                            np.array(man["gyro_scale_ppm"]) * ppm,
+                            np.array(man["accel_scale_ppm"]) * ppm])
+    est = res.smoothed_sensors[:, :12]
+    std = res.smoothed_std[:, 9:21]
+    np.testing.assert_allclose(est, np.broadcast_to(est[0], est.shape),
+                               rtol=0, atol=1e-6 * float(np.min(std)))
+    np.testing.assert_allclose(std, np.broadcast_to(std[0], std.shape), rtol=1e-6)
+    z = (est[0] - truth) / std[0]
+    assert np.all(np.abs(z) < 3.0), z
+    ratio = std[0] / cfg.noise.sensor_std       # 1 for a state that learns nothing
+    assert np.sum(ratio < 0.5) >= 4, ratio
