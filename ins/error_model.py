@@ -37,7 +37,9 @@ bias instabilities are given (:class:`ImuNoise`): the sensor states are then a r
 constant plus a Gauss-Markov bias instability, as the simulator and a datasheet describe
 an IMU; over a flight much shorter than ``T`` this is a random walk: no decay, the
 biases driven by ``2 sigma_instability^2 / T``, the scale factors random constants
-(no noise).  The prior keeps the total bias sigma.  A single Gauss-Markov of the total
+(no noise).  The prior keeps the total bias sigma.  (On a flight longer than ``T`` the
+random walk's added variance ``2 sigma_inst^2 t / T`` passes the instability's ``sigma^2``:
+conservative, not overconfident.)  A single Gauss-Markov of the total
 sigma forgets a constant bias within ``T`` and drives it by ``2 sigma_total^2 / T``:
 on the demo flight (tactical, bias 1 deg/h, instability 0.5 deg/h, scale 150 ppm)
 the constant model brings the smoothed stated tilt sigmas from 49/38 to 40/29 arcsec.
