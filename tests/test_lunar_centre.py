@@ -90,3 +90,45 @@ def test_fisheye_pipeline_sigmas_honest():
     s = res.solution
     assert chi2.ppf(0.001, dof) / dof < s.variance_factor < chi2.ppf(0.999, dof) / dof
     assert abs(np.angle(np.exp(1j * (s.heading - np.deg2rad(123.4))))) < 4 * s.heading_sigma
+
+
+def test_hapke_basis_term_and_its_derivatives():
+    """The fourth basis disk is Hapke's isotropic multiple scattering
+    ``mu0/(mu0+mu) (H(mu0) H(mu) - 1)``, H(x) = (1+2x)/(1+2 sqrt(1-w) x), w = 0.25,
+    written here from the formula; its derivatives in (c1, c2, R) match central
+    differences (white-box check of the numba kernel)."""
+    from photogrammetry.lunar import _limb_kernels as k
+    assert k.LAWS[3] == "hapke-multiple" and k.HAPKE_W == 0.25
+    rng = np.random.default_rng(3)
+    a, b = np.deg2rad(50.0), 0.7                 # phase angle, Sun position angle
+    sun3 = np.array([np.sin(a) * np.cos(b), np.sin(a) * np.sin(b), np.cos(a)])
+    c1, c2, R, n = 30.2, 29.7, 20.0, 8
+    uv = rng.uniform(8.0, 52.0, (4000, 2))
+    P = np.column_stack([uv, np.zeros(len(uv))])
+    z3, z23 = np.zeros(3), np.zeros((2, 3))
+
+    def disks(c1, c2, R):
+        D, dD = np.empty((4, len(P))), np.empty((4, 3, len(P)))
+        k.disk_jac(P, True, c1, c2, R, z3, z3, z23, z23, sun3, z23, 1.0, 1.0, 1.0, 1.0,
+                   n, D, dD)
+        return D, dD
+
+    D, dD = disks(c1, c2, R)
+    X, Y = (uv[:, 0] - c1) / R, (uv[:, 1] - c2) / R
+    inner = X ** 2 + Y ** 2 < 0.9 ** 2
+    mu = np.sqrt(np.clip(1 - X ** 2 - Y ** 2, 0, None))
+    mu0 = X * sun3[0] + Y * sun3[1] + mu * sun3[2]
+    lit = inner & (mu0 > 0)
+    g = np.sqrt(0.75)
+    H = lambda x: (1 + 2 * x) / (1 + 2 * g * x)   # noqa: E731
+    expect = mu0[lit] / (mu0[lit] + mu[lit]) * (H(mu0[lit]) * H(mu[lit]) - 1)
+    assert lit.sum() > 500 and expect.max() > 0.02
+    np.testing.assert_allclose(D[3, lit], expect, rtol=1e-12, atol=1e-14)
+    assert np.all(D[3, inner & (mu0 < 0)] == 0)
+    # derivatives: central differences, away from the edge's ramp and the terminator
+    h = 1e-6
+    for j, dq in enumerate(np.eye(3)):
+        Dp, _ = disks(*(np.array([c1, c2, R]) + h * dq))
+        Dm, _ = disks(*(np.array([c1, c2, R]) - h * dq))
+        np.testing.assert_allclose(dD[3, j, lit], (Dp[3, lit] - Dm[3, lit]) / (2 * h),
+                                   rtol=1e-5, atol=1e-7)

@@ -1,5 +1,5 @@
 """Numba kernels of the Moon-centre extraction: block maxima of a frame; the limb model's
-phased disks (three basis laws) with their derivatives, blur and binning.
+phased disks (four basis laws) with their derivatives, blur and binning.
 
 Private to `moon_centre` and `_limb_model`.  All kernels release the GIL (``nogil``) so
 that images can be processed in a thread pool.
@@ -11,15 +11,22 @@ EPS = 1e-9
 
 
 #: Basis laws of the limb model, in the order of the rows of ``disk_jac``'s output:
-#: flat (1 on the lit part), Lambert (``mu0``), Lommel-Seeliger (``mu0 / (mu0 + mu)``).
-LAWS = ("flat", "lambert", "lommel-seeliger")
+#: flat (1 on the lit part), Lambert (``mu0``), Lommel-Seeliger (``mu0 / (mu0 + mu)``),
+#: Hapke's multiple scattering (``mu0 / (mu0 + mu) (H(mu0) H(mu) - 1)``, isotropic, with
+#: Hapke's approximation ``H(x) = (1 + 2 x) / (1 + 2 gamma x)``, ``gamma = sqrt(1 - w)``,
+#: single-scattering albedo ``w = HAPKE_W``).
+LAWS = ("flat", "lambert", "lommel-seeliger", "hapke-multiple")
+
+#: Single-scattering albedo of the Hapke multiple-scattering basis term (lunar: 0.2-0.3).
+HAPKE_W = 0.25
+_GAMMA = np.sqrt(1.0 - HAPKE_W)
 
 
 @njit(cache=True, nogil=True)
 def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f, scale, n,
              D, dD):
-    """Anti-aliased phased disks of the three basis laws (`LAWS`) at sub-pixels, ``D``
-    (3, N), and ``dD`` (3, 3, N), their derivatives with respect to ``(c1, c2, R)``
+    """Anti-aliased phased disks of the four basis laws (`LAWS`) at sub-pixels, ``D``
+    (4, N), and ``dD`` (4, 3, N), their derivatives with respect to ``(c1, c2, R)``
     (analytic chain rule).
 
     The limb is anti-aliased by a linear coverage ramp one sub-pixel wide; the flat law's
@@ -52,7 +59,7 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
         rho = np.sqrt(X * X + Y * Y)
         cover = 0.5 + (1.0 - rho) * R * scale * n
         if cover <= 0.0:
-            for j in range(3):
+            for j in range(4):
                 D[j, i] = 0.0
                 for k in range(3):
                     dD[j, k, i] = 0.0
@@ -81,9 +88,15 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
             tstep, tfull = 1.0, True
         lam = mu0 if mu0 > 0.0 else 0.0
         ls = mu0 / (mu0 + mu) if mu0 > 0.0 else 0.0
+        # Hapke's multiple-scattering factor H(mu0) H(mu) - 1 (>= 0) and its slopes
+        q0, q1 = 1.0 + 2.0 * _GAMMA * lam, 1.0 + 2.0 * _GAMMA * mu
+        h0, h1 = (1.0 + 2.0 * lam) / q0, (1.0 + 2.0 * mu) / q1
+        g0, g1 = 2.0 * (1.0 - _GAMMA) / (q0 * q0), 2.0 * (1.0 - _GAMMA) / (q1 * q1)
+        ms = h0 * h1 - 1.0
         D[0, i] = tstep * cover
         D[1, i] = lam * cover
         D[2, i] = ls * cover
+        D[3, i] = ls * ms * cover
         for k in range(3):
             drho = (X * dX[k] + Y * dY[k]) / rho if rho > 1e-12 else 0.0
             dcover = 0.0
@@ -115,6 +128,8 @@ def disk_jac(P, flat, c1, c2, R, e1, e2, de1, de2, sun3, dsun3, sin_r, cos_r, f,
             dD[1, k, i] = dl * cover + lam * dcover
             dI = (mu * dmu0 - mu0 * dmu) / (mu0 + mu) ** 2 if mu0 > 0.0 else 0.0
             dD[2, k, i] = dI * cover + ls * dcover
+            dms = g0 * dl * h1 + h0 * g1 * dmu
+            dD[3, k, i] = (dI * ms + ls * dms) * cover + ls * ms * dcover
 
 
 @njit(cache=True, nogil=True)
