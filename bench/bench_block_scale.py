@@ -1,13 +1,18 @@
 """Block scale: refine + assess time and peak memory against the number of images.
 
-    .venv/bin/python bench/bench_block_scale.py [--sizes 50,200,1000,5000] [--method known-base]
+    .venv/bin/python bench/bench_block_scale.py [--sizes 50,200,1000,5000]
+        [--method known-base,relative,base-free] [--datum auto]
 
 Each size runs in a fresh process (its peak resident memory is its own): a simulated
 block (``tests/scenario.py``'s ``make_large_block``: strips of 50 images, 60 % forward and
 30 % side overlap, ~40 tie points per image seen in up to 6 images, 0.5 px noise, INS
 noise 0.005 rad, boresight (0.002, -0.003, 0.004) rad), then
-``photogrammetry.block.adjust_block`` (known-base, datum none, tie-point ids: joint
-weights; banded algebra from 100 images) and ``photogrammetry.assessment.assess``.  BLAS
+``photogrammetry.block.adjust_block`` (each method of ``--method``; datum ``auto``: none
+for known-base, first for relative and base-free; tie-point ids: joint weights; banded
+algebra from 100 images) and ``photogrammetry.assessment.assess``.  Relative and
+base-free blocks carry two base-direction unknowns per pair: their normal matrix is
+factored whole (bordered), by a sparse LU for the steps and solves and banded for the
+covariance blocks (Takahashi).  BLAS
 is held to one thread (the machine is shared; threads contend).  Prints one row per size
 and the slope of log(time) and log(memory) against log(images).
 
@@ -116,8 +121,10 @@ def dask_run(n_blocks, n_images, workers):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="50,200,1000,5000")
-    ap.add_argument("--method", default="known-base")
-    ap.add_argument("--datum", default="none")
+    ap.add_argument("--method", default="known-base",
+                    help="comma-separated: known-base, relative, base-free")
+    ap.add_argument("--datum", default="auto",
+                    help="first, ins, none or auto (none for known-base, else first)")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--dask", metavar="BLOCKSxIMAGES",
                     help="instead: BLOCKS flights of IMAGES each as Dask tasks (10x1000)")
@@ -130,14 +137,23 @@ def main():
     if args.one:
         print(json.dumps(one(args.one, args.method, args.datum)))
         return
+    for method in args.method.split(","):
+        datum = args.datum if args.datum != "auto" else (
+            "none" if method == "known-base" else "first")
+        print(f"method {method}, datum {datum}")
+        run_sizes(method, datum, [int(v) for v in args.sizes.split(",")])
+
+
+def run_sizes(method, datum, sizes):
+    """One row per size (each in a fresh process) and the slopes."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                MKL_NUM_THREADS="1")
     rows = []
     print(f"{'images':>7} {'pairs':>6} {'adjust_s':>9} {'assess_s':>9} {'total_s':>8} "
           f"{'peak_MB':>8} {'band':>5} {'sigma0':>7}  boresight error (sigmas)")
-    for n in [int(s) for s in args.sizes.split(",")]:
+    for n in sizes:
         out = subprocess.run([sys.executable, __file__, "--one", str(n), "--method",
-                              args.method, "--datum", args.datum], env=env,
+                              method, "--datum", datum], env=env,
                              capture_output=True, text=True)
         if out.returncode:
             print(f"{n:>7} failed: {out.stderr.strip().splitlines()[-1]}")

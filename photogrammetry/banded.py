@@ -13,15 +13,46 @@ from numba import njit
 from scipy import sparse
 from scipy.linalg import cho_solve_banded, cholesky_banded
 from scipy.sparse.csgraph import reverse_cuthill_mckee
+from scipy.sparse.linalg import splu
 
 from ins.errors import InputError
 
-__all__ = ["BandedSPD", "rcm_order"]
+__all__ = ["BandedSPD", "SparseSPD", "rcm_order", "bordered_order"]
 
 
 def rcm_order(A):
     """Reverse Cuthill-McKee permutation of a sparse symmetric matrix."""
     return reverse_cuthill_mckee(sparse.csr_matrix(A), symmetric_mode=True)
+
+
+def bordered_order(A, n_first, k=3):
+    """Ordering of a normal matrix whose first `n_first` unknowns come in groups of `k`
+    (an image's angles) and whose others (nuisances, e.g. a pair's base direction)
+    each touch a few groups: the groups in reverse Cuthill-McKee order of their own
+    graph, every other unknown right after the last group it is coupled with, or the
+    reverse Cuthill-McKee order of the whole matrix if its bandwidth is smaller.  On a
+    relative block's normal matrix (two base parameters per pair) the half-bandwidth
+    is about 25 % below the whole matrix's reverse Cuthill-McKee order on 1000 images
+    (831 against 1119), above it on 24 (173 against 134)."""
+    A = sparse.csr_matrix(A)
+    n = A.shape[0]
+    grp = sparse.csr_matrix((np.ones(n_first), (np.arange(n_first) // k,
+                                                np.arange(n_first))))
+    G = grp @ abs(A[:n_first, :n_first]) @ grp.T
+    rank = np.empty(G.shape[0], dtype=np.int64)
+    rank[rcm_order(G)] = np.arange(G.shape[0])
+    key = np.empty(n)
+    key[:n_first] = rank[np.arange(n_first) // k] + (np.arange(n_first) % k) / (k + 1.0)
+    B = sparse.csc_matrix(A[:n_first, n_first:])
+    last = np.full(n - n_first, -1.0)
+    nz = np.diff(B.indptr) > 0
+    if nz.any():
+        r = rank[B.indices // k]
+        last[nz] = np.maximum.reduceat(r, B.indptr[:-1][nz])
+    key[n_first:] = np.where(last >= 0, last + 0.9, G.shape[0])
+    perm = np.argsort(key, kind="stable")
+    whole = rcm_order(A)
+    return perm if _bandwidth(A[perm][:, perm]) <= _bandwidth(A[whole][:, whole]) else whole
 
 
 def _bandwidth(A):
@@ -115,10 +146,42 @@ class BandedSPD:
             raise ValueError("entry outside the band of the factor")
         return self._zb[d, lo]
 
-    def diagonal_blocks(self, k=3):
-        """The ``k x k`` diagonal blocks of ``A^-1`` (n // k, k, k), original order."""
-        m = self.n // k
+    def diagonal_blocks(self, k=3, m=None):
+        """The ``k x k`` diagonal blocks of ``A^-1`` (m, k, k) of the first ``m k``
+        unknowns (default all: ``m = n // k``), original order."""
+        m = self.n // k if m is None else int(m)
         i = (k * np.arange(m)[:, None, None] + np.arange(k)[None, :, None])
         j = (k * np.arange(m)[:, None, None] + np.arange(k)[None, None, :])
         i, j = np.broadcast_arrays(i, j)
         return self.inverse_entries(i.ravel(), j.ravel()).reshape(m, k, k)
+
+
+class SparseSPD:
+    """Sparse LU factor (SuperLU, minimum-degree order of ``A + A'``, diagonal pivots) of
+    a sparse SPD matrix, for solves only: on a relative block's bordered normal matrix
+    (angles and bases) its fill is ~20 times below the banded factor's (1000 images:
+    0.44 M non-zeros against 9 M, factor 0.08 s against 0.6 s), but it gives no entries
+    of the inverse (:class:`BandedSPD` does).
+
+    Raises
+    ------
+    InputError
+        ``A`` singular or not positive definite (a non-positive pivot).
+    """
+
+    def __init__(self, A, what="normal matrix"):
+        A = sparse.csc_matrix(A)
+        self.n = A.shape[0]
+        bad = InputError(f"{what} is singular or not positive definite (part of the "
+                         "block not connected to the datum, or degenerate geometry)")
+        try:
+            self.lu = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+        except RuntimeError:
+            raise bad from None
+        if not np.all(self.lu.U.diagonal() > 0):
+            raise bad
+
+    def solve(self, rhs):
+        """``A^-1 rhs`` for a vector (n,) or a matrix (n, k)."""
+        return self.lu.solve(np.asarray(rhs, dtype=float))

@@ -43,7 +43,7 @@ from ins.rotation import wrap_to_pi
 
 from . import _coplanarity_kernels as K
 from .coplanarity import MAX_CHANGE, STATUS_TEXT, STATUS_ZERO_BASE, adjust_pairs
-from .banded import BandedSPD
+from .banded import BandedSPD, SparseSPD
 from .block_covariance import banded_covariance
 from .quality import block_quality
 from .rotation import check_system
@@ -448,19 +448,23 @@ def _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot, p
 
 
 def _solve_step(lin, n_ang, banded=False):
-    """Gauss-Newton step of the free angles: ``(step, S, back)`` with S the reduced
-    normal matrix and `back` the base back-substitution (see :func:`_reduced_normals`);
-    banded (known-base): S is the banded factor of the sparse normal matrix."""
+    """Gauss-Newton step: ``(step, S, d_b)``, the free angles' step, S the reduced
+    normal matrix (dense) or the banded factor of the sparse normal matrix, and the
+    base-direction parameters' step (None for known-base).  Banded: the whole normal
+    matrix (angles, then bases: bordered) is factored, no Schur complement formed."""
     if banded:
-        factor = BandedSPD(lin.H, what="block normal matrix")
-        return factor.solve(-lin.grad), factor, None
+        factor = (SparseSPD(lin.H, what="block normal matrix") if lin.H.shape[0] > n_ang
+                  else BandedSPD(lin.H, what="block normal matrix"))
+        full = factor.solve(-lin.grad)
+        return full[:n_ang], factor, (full[n_ang:] if len(full) > n_ang else None)
     S, rhs, back = _reduced_normals(lin.H.tocsr(), lin.grad, n_ang)
     step, ok = K._solve(S[None], rhs[None])
     if not ok[0]:
         raise InputError("block normal equations are singular: part of the block is not "
                          "connected to the datum image, or the geometry is degenerate "
                          "(try --datum ins)")
-    return step[0], S, back
+    d_b = None if back is None else -(back[1] + back[0] @ step[0])
+    return step[0], S, d_b
 
 
 def _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
@@ -525,14 +529,13 @@ class _GaussNewton:
             if n_ang == 0:
                 converged = True
                 break
-            step, S, back = _solve_step(lin, n_ang, self.banded)
+            step, S, d_b = _solve_step(lin, n_ang, self.banded)
             if it == self.max_iter:
                 break
             angles[free] += step.reshape(-1, 3)
             big = np.max(np.abs(step))
-            if back is not None:                # back-substitute the base directions
+            if d_b is not None:                 # update the base directions
                 good = self.good
-                d_b = -(back[1] + back[0] @ step)
                 b[good] = b[good] + np.einsum("pab,pb->pa", lin.E[good], d_b.reshape(-1, 2))
                 b /= np.linalg.norm(b, axis=1, keepdims=True)
                 big = max(big, np.max(np.abs(d_b)))
@@ -699,7 +702,8 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     if banded:
         ps = (None if position_sigma is None
               else np.broadcast_to(np.asarray(position_sigma, float), (m, 3)))
-        cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img, ps)
+        cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img,
+                                   ps if mode == "known" else None, n_angles=n_ang)
         cov = None
         sigma = np.zeros((m, 3))
         sigma[free] = np.sqrt(np.einsum("iaa->ia", cov_op.blocks))
@@ -730,8 +734,4 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
 def _use_banded(algebra, mode, n_ang):
     if algebra not in ALGEBRAS:
         raise InputError(f"algebra {algebra!r}: expected one of {', '.join(ALGEBRAS)}")
-    if algebra == "banded" and mode != "known":
-        raise InputError("the banded algebra needs --method known-base (no base-direction "
-                         "unknowns)")
-    return algebra == "banded" or (algebra == "auto" and mode == "known"
-                                   and n_ang >= BANDED_MIN_ANGLES)
+    return algebra == "banded" or (algebra == "auto" and n_ang >= BANDED_MIN_ANGLES)

@@ -12,13 +12,23 @@ second term without position sigmas) is kept as an operator: its 3x3 block per i
 (the Takahashi entries of ``S^-1`` inside the band, plus the position term by banded
 solves), its product with vectors, and the sparse ``S`` and ``K`` for the assessment's
 ``V^-1 = S (lambda K + S D S)^-1 S``.
+
+Relative and base-free blocks (bordered): the unknowns are the angles and two
+base-direction parameters per pair; the angles' normal matrix is the Schur complement
+``S = H_aa - H_ab H_bb^-1 H_ba`` of the bases, which is dense (the bases of pairs that
+share tie points are coupled through the joint weights, so ``H_bb^-1`` fills in).  The
+full normal matrix ``H`` (angles first, then bases) is sparse and banded in reverse
+Cuthill-McKee order (a base touches two images), so it is ``H`` that is factored:
+``S^-1 = (H^-1)_aa``, the angles' covariance blocks are Takahashi entries of ``H^-1``
+and ``C v = sigma0^2 (H^-1 [v; 0])_a``.  ``n_angles`` < ``H.shape[0]`` marks this form
+(no position term: the bases are unknowns).
 """
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
-from .banded import BandedSPD
+from .banded import BandedSPD, SparseSPD, bordered_order
 
 __all__ = ["BandedCovariance", "banded_covariance"]
 
@@ -29,10 +39,11 @@ class BandedCovariance:
 
     Attributes
     ----------
-    S : scipy.sparse.csr_matrix (n, n)
-        Normal matrix of the free angles (a-priori weights).
+    S : scipy.sparse.csr_matrix (N, N)
+        Normal matrix of the free angles (a-priori weights); bordered (relative
+        methods): of the angles and then the base-direction parameters (``N > n``).
     factor : photogrammetry.banded.BandedSPD
-        Its banded Cholesky factor.
+        Its banded Cholesky factor (the covariance blocks by Takahashi).
     sigma0 : float
     TX : scipy.sparse.csr_matrix (n, 3m) or None
         ``T Sx^(1/2)``: the EO-position term (known-base with position sigmas).
@@ -40,6 +51,11 @@ class BandedCovariance:
         The images of the unknowns (in order).
     blocks : ndarray (k, 3, 3)
         Covariance block of each free image.
+    n_angles : int
+        ``n``, the angle unknowns (the first ``n`` of ``S``).
+    solver : photogrammetry.banded.SparseSPD or BandedSPD
+        Solves with ``S`` (bordered: the sparse LU, cheaper than the band; else
+        `factor`).
     """
     S: object
     factor: BandedSPD
@@ -47,17 +63,43 @@ class BandedCovariance:
     TX: object
     free: np.ndarray
     blocks: np.ndarray
+    n_angles: int = None
+    solver: object = None
+
+    def __post_init__(self):
+        if self.n_angles is None:
+            self.n_angles = self.S.shape[0]
+        if self.solver is None:
+            self.solver = self.factor
+
+    @property
+    def bordered(self):
+        """True when ``S`` holds base-direction unknowns after the angles."""
+        return self.n_angles < self.S.shape[0]
+
+    def solve_angles(self, v):
+        """``(S_full^-1 [v; 0])_a``: the inverse of the angles' (reduced) normal matrix
+        times `v` (n,) or (n, k)."""
+        v = np.asarray(v, dtype=float)
+        if not self.bordered:
+            return self.factor.solve(v)
+        pad = np.zeros((self.S.shape[0],) + v.shape[1:])
+        pad[:self.n_angles] = v
+        return self.solver.solve(pad)[:self.n_angles]
 
     def apply(self, v):
         """``C v`` for a vector (n,) or matrix (n, k)."""
-        x = self.factor.solve(v)
+        x = self.solve_angles(v)
         out = self.sigma0 ** 2 * x
         if self.TX is not None:
             out = out + self.factor.solve(self.TX @ (self.TX.T @ x))
         return out
 
     def K(self):
-        """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1``."""
+        """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1`` (not
+        bordered only)."""
+        if self.bordered:
+            raise ValueError("a bordered block's reduced normal matrix is not sparse")
         K = self.sigma0 ** 2 * self.S
         if self.TX is not None:
             K = K + self.TX @ self.TX.T
@@ -74,30 +116,38 @@ def _position_blocks(factor, TX, k, chunk=256):
     return out
 
 
-def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma=None):
-    """The covariance operator of a known-base block from its normal matrix.
+def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma=None,
+                      n_angles=None):
+    """The covariance operator of a block from its normal matrix.
 
     Parameters
     ----------
-    H : scipy.sparse matrix (n, n)
-        Normal matrix of the free angles (with the prior's weights for datum ins).
+    H : scipy.sparse matrix (N, N)
+        Normal matrix of the free angles (with the prior's weights for datum ins), then
+        (relative methods) of the base-direction parameters.
     sigma0 : float
     free : ndarray of bool (m,)
     WJ, N, img : the block's ``W J`` (C, n), ``dg/db`` (C, 3), images (C, 2) of every
         condition (for the position term).
     position_sigma : ndarray (m, 3), optional
-        Sigma of the EO positions, m.
+        Sigma of the EO positions, m (known-base only).
+    n_angles : int, optional
+        Angle unknowns (default all of ``H``: known-base).
 
     Returns
     -------
     BandedCovariance
     """
     S = sparse.csr_matrix(H)
-    factor = BandedSPD(S, what="block normal matrix")
-    k = S.shape[0] // 3
-    blocks = sigma0 ** 2 * factor.diagonal_blocks(3)
+    n_angles = S.shape[0] if n_angles is None else int(n_angles)
+    perm = bordered_order(S, n_angles) if n_angles < S.shape[0] else None
+    factor = BandedSPD(S, perm=perm, what="block normal matrix")
+    k = n_angles // 3
+    blocks = sigma0 ** 2 * factor.diagonal_blocks(3, k)
     TX = None
     if position_sigma is not None and np.any(position_sigma):
+        if n_angles != S.shape[0]:
+            raise ValueError("position sigmas need the known-base normal matrix")
         m = len(free)
         C = len(img)
         cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
@@ -105,4 +155,5 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
                                (np.repeat(np.arange(C), 6), cols.ravel())), shape=(C, 3 * m))
         TX = sparse.csr_matrix(WJ.T @ G @ sparse.diags(np.ravel(position_sigma)))
         blocks = blocks + _position_blocks(factor, TX, k)
-    return BandedCovariance(S, factor, float(sigma0), TX, free, blocks)
+    solver = SparseSPD(S, what="block normal matrix") if n_angles < S.shape[0] else None
+    return BandedCovariance(S, factor, float(sigma0), TX, free, blocks, n_angles, solver)

@@ -18,8 +18,9 @@ up to the Hutchinson error of the traces (``tests/test_assessment.py`` states it
 """
 import numpy as np
 from scipy import sparse
+from scipy.sparse.linalg import splu
 
-from .banded import BandedSPD, rcm_order
+from .banded import BandedSPD, SparseSPD, rcm_order
 
 __all__ = ["BandedV", "gls_reml_banded", "PROBES"]
 
@@ -38,7 +39,14 @@ class BandedV:
     when every ``d`` is at least :data:`WOODBURY_MIN` of the largest diagonal of ``C``,
     ``V^-1 = D^-1 - D^-1 (S / (lambda sigma0^2) + D^-1)^-1 D^-1`` (Woodbury: the normal
     matrix's bandwidth, about four times cheaper; the cancellation costs at most
-    ``1 / WOODBURY_MIN`` times the rounding error)."""
+    ``1 / WOODBURY_MIN`` times the rounding error).
+
+    Bordered operator (relative methods: ``S^-1 = (H^-1)_aa`` with ``H`` the normal
+    matrix of the angles and the bases): Woodbury with the bordered
+    ``H / (lambda sigma0^2) + diag(D^-1, 0)`` (sparse LU), whose Schur complement of the bases is
+    ``S / (lambda sigma0^2) + D^-1``; else the quasi-definite augmented system
+    ``[[H / (lambda sigma0^2), E], [E', -D]] [z; x] = [0; -v]`` (``E`` selects the
+    angles; sparse LU) gives ``x = V^-1 v``; ``lambda = 0``: ``V = D``."""
 
     def __init__(self, op, lam, d, perm=None):
         self.op, self.lam, self.d = op, float(lam), np.asarray(d, float)
@@ -46,17 +54,46 @@ class BandedV:
         cmax = op.sigma0 ** 2 * np.max(np.einsum("kaa->ka", op.blocks)) if op.blocks.size else 0
         self.woodbury = (op.TX is None and lam > 0 and len(self.d)
                          and np.min(self.d) >= WOODBURY_MIN * max(lam * cmax, 1e-300))
+        self.n = n = len(self.d)
+        self.lu = None
+        if getattr(op, "bordered", False):
+            nb = S.shape[0] - n
+            if self.woodbury:
+                M = S / (lam * op.sigma0 ** 2) + sparse.diags(
+                    np.concatenate([1.0 / self.d, np.zeros(nb)]))
+                self.f = SparseSPD(M, what="assessment covariance")
+            elif lam > 0:
+                E = sparse.eye(S.shape[0], n)
+                aug = sparse.bmat([[S / (lam * op.sigma0 ** 2), E],
+                                   [E.T, -sparse.diags(self.d)]], format="csc")
+                self.lu = splu(aug)
+            return
         if self.woodbury:
             M = S / (lam * op.sigma0 ** 2) + sparse.diags(1.0 / self.d)
         else:
             M = lam * op.K() + S @ sparse.diags(self.d) @ S
         self.f = BandedSPD(M, perm=perm, what="assessment covariance")
 
+    def _solve_woodbury_inner(self, w):
+        if not getattr(self.op, "bordered", False):
+            return self.f.solve(w)
+        pad = np.zeros((self.op.S.shape[0],) + w.shape[1:])
+        pad[:self.n] = w
+        return self.f.solve(pad)[:self.n]
+
     def solve(self, v):
         """``V^-1 v``."""
+        v = np.asarray(v, dtype=float)
+        Di = 1.0 / (self.d if v.ndim == 1 else self.d[:, None])
         if self.woodbury:
-            Di = 1.0 / (self.d if v.ndim == 1 else self.d[:, None])
-            return Di * v - Di * self.f.solve(Di * v)
+            return Di * v - Di * self._solve_woodbury_inner(Di * v)
+        if getattr(self.op, "bordered", False):
+            if self.lu is None:                      # lambda = 0: V = D
+                return Di * v
+            N = self.op.S.shape[0]
+            rhs = np.zeros((N + self.n,) + v.shape[1:])
+            rhs[N:] = -v
+            return self.lu.solve(rhs)[N:]
         return self.op.S @ self.f.solve(self.op.S @ v)
 
     def dot(self, v):
@@ -115,7 +152,7 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
     Gd = [scale * (groups == a) for a in range(3)]
     floor = 1e-12 * scale
     Z = np.random.default_rng(0).choice([-1.0, 1.0], (n, probes))
-    perm = rcm_order(op.S)
+    perm = op.factor.perm if getattr(op, "bordered", False) else rcm_order(op.S)
 
     def stats(theta):
         d = sum(t * g for t, g in zip(theta[1:], Gd)) + floor
