@@ -12,14 +12,20 @@ out) are fitted by the model
 
     I = B + sum_l (A_l1 G_sigma + A_l2 G_(WING sigma)) * disk_l(centre, R; Sun, phase),
 
-where ``disk_l`` are the phased disks of three basis laws (`_limb_kernels.LAWS`: flat,
-Lambert ``mu0``, Lommel-Seeliger ``mu0 / (mu0 + mu)``) with free, linear weights: the
-law is fitted, not assumed.  The span holds the lunar-Lambert (McEwen) family
-``(1 - L) mu0 + 2 L mu0 / (mu0 + mu)`` exactly and Hapke's law to first order in its
-H-functions (``LS (1 + c (mu0 + mu)) = LS + c mu0``).  The geometry (limb circle, the
-terminator from the known phase) is the same for every law, so the centre is measured by
-the lit limb's position whatever the shading (bench/bench_lunar_bias.py: under 0.01 px
-for those laws, 0.03 px at most for a Hapke-like one, on an independent renderer).  The
+where ``disk_l`` are the phased disks of four basis laws (`_limb_kernels.LAWS`: flat,
+Lambert ``mu0``, Lommel-Seeliger ``LS = mu0 / (mu0 + mu)`` and Hapke's isotropic
+multiple scattering ``LS (H(mu0) H(mu) - 1)`` with ``H(x) = (1 + 2 x) / (1 + 2 gamma
+x)``, ``gamma = sqrt(1 - w)``, ``w = _limb_kernels.HAPKE_W`` = 0.25) with free, linear
+weights: the law is fitted, not assumed.  The span holds the lunar-Lambert (McEwen)
+family ``(1 - L) mu0 + 2 L mu0 / (mu0 + mu)`` exactly, and Hapke's law
+``w/4 LS ((1 + B(g)) p(g) + H(mu0) H(mu) - 1)`` of that albedo exactly whatever its
+phase function ``p`` and opposition surge ``B`` (constants within one image), as a
+non-negative mix (other albedos: to first order in ``H - 1``, which ``LS`` and ``mu0``
+span).  The geometry (limb circle, the terminator from the known phase) is the same for
+every law, so the centre is measured by the lit limb's position whatever the shading
+(bench/bench_lunar_bias.py: under 0.01 px for those laws, Hapke-like included, on an
+independent renderer; the three-law basis left 0.021-0.030 px on a Hapke-like 40 px
+Moon at phase 120-140 deg).  The
 model is binned to pixels, with the Sun's direction and the phase angle known
 (ephemeris) and centre, radius, blur ``sigma``, the amplitudes ``A`` (non-negative) and
 sky ``B`` unknown: separable least squares, the amplitudes by NNLS at each step and
