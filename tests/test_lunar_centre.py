@@ -1,7 +1,7 @@
 """Moon centre from the lit limb, on rendered Moons of known centre.
 
 The renderer point-samples 8x with hard edges and blurs with a Moffat PSF (beta 3) on
-the fine grid; the centre fit assumes a Gaussian core + wing PSF, a fitted mix of three
+the fine grid; the centre fit assumes a Gaussian core + wing PSF, a fitted mix of four
 shading laws and an anti-aliased edge, so the test is not circular (the bias across
 shading laws is measured on the integrating renderer of test_lunar_truth.py).
 """

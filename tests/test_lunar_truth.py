@@ -72,7 +72,7 @@ def _bias(law, phase, R, sigma=0.8, saturation=None, trials=4, seed=0):
 
 @pytest.mark.parametrize("law", LAWS[:4])
 def test_centre_bias_across_laws(law):
-    """Under 0.02 px whatever the shading (the fit's law is a free mix of three)."""
+    """Under 0.02 px whatever the shading (the fit's law is a free mix of four)."""
     for phase, R in [(0, 5.0), (70, 9.0), (140, 20.0)]:
         assert abs(_bias(law, phase, R)) < 0.02, (law, phase, R)
 

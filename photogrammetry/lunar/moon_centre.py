@@ -14,8 +14,9 @@
    the same pixels.
 4. With the Sun's direction and the phase known, that circle starts the fit of the
    blurred phased disk to the lit limb's pixels (`fit_lit_limb`, `_limb_model`): the
-   photometric law is fitted too (a non-negative mix of flat, Lambert and
-   Lommel-Seeliger shading), so the centre does not depend on the Moon's shading;
+   photometric law is fitted too (a non-negative mix of flat, Lambert, Lommel-Seeliger
+   shading and Hapke's multiple scattering), so the centre does not depend on the
+   Moon's shading;
    clipped (saturated) pixels are left out; refraction's flattening can be given.
 
 Pixel coordinates ``(u, v)``: column, row; pixel centres at integers.
