@@ -63,32 +63,37 @@ def _bandwidth(A):
 @njit(cache=True)
 def _band_inverse(cb, b):
     """Entries of ``A^-1`` within the band from the banded Cholesky factor ``cb``
-    (lower form: ``cb[d, j] = L[j + d, j]``); returns ``zb`` in the same layout.
+    (lower form: ``cb[d, j] = L[j + d, j]``); returns ``zt`` with ``zt[i, d] = Z[i, i + d]``.
 
     Takahashi: ``Z = A^-1`` satisfies ``L^T Z = L^-1`` (lower triangular with the
     diagonal ``1 / L_ii``), so for ``j >= i``:
-    ``Z_ij = (delta_ij / L_ii - sum_{k > i} L_ki Z_kj) / L_ii`` with ``k <= i + b``."""
+    ``Z_ij = (delta_ij / L_ii - sum_{k > i} L_ki Z_kj) / L_ii`` with ``k <= i + b``.
+    Row by row from the last, each row's sums accumulated over the factor's non-zero
+    ``L_ki`` (a bordered normal matrix has many zeros inside its band), the stored row
+    ``zt[k]`` read contiguously."""
     n = cb.shape[1]
-    zb = np.zeros((b + 1, n))
+    zt = np.zeros((n, b + 1))
+    s = np.zeros(b + 1)
     for i in range(n - 1, -1, -1):
         lii = cb[0, i]
         top = min(i + b, n - 1)
-        for j in range(top, i - 1, -1):
-            s = 0.0
-            for k in range(i + 1, top + 1):
-                lki = cb[k - i, i]
-                if lki == 0.0:
-                    continue
-                # Z_kj with both k, j in (i, i + b]: symmetric, inside the band
-                if k >= j:
-                    s += lki * zb[k - j, j]
-                else:
-                    s += lki * zb[j - k, k]
-            if j == i:
-                zb[0, i] = (1.0 / lii - s) / lii
-            else:
-                zb[j - i, i] = -s / lii
-    return zb
+        w = top - i
+        for t in range(w + 1):
+            s[t] = 0.0
+        for k in range(i + 1, top + 1):
+            lki = cb[k - i, i]
+            if lki == 0.0:
+                continue
+            for j in range(i + 1, k):            # Z_kj = Z_jk, j < k
+                s[j - i] += lki * zt[j, k - j]
+            for j in range(k, top + 1):          # Z_kj, j >= k: row k, contiguous
+                s[j - i] += lki * zt[k, j - k]
+        d = 1.0 / lii
+        for j in range(i + 1, top + 1):
+            zt[i, j - i] = -s[j - i] / lii
+            d -= cb[j - i, i] * zt[i, j - i]
+        zt[i, 0] = d / lii
+    return zt
 
 
 class BandedSPD:
@@ -144,7 +149,7 @@ class BandedSPD:
         d = hi - lo
         if np.any(d > self.b):
             raise ValueError("entry outside the band of the factor")
-        return self._zb[d, lo]
+        return self._zb[lo, d]
 
     def diagonal_blocks(self, k=3, m=None):
         """The ``k x k`` diagonal blocks of ``A^-1`` (m, k, k) of the first ``m k``

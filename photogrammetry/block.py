@@ -64,10 +64,11 @@ RANK_TOL = {"known": 1e-4, "relative": 1e-2, "free": 1e-2}
 #: :data:`photogrammetry.coplanarity.W_CRITICAL`), for the outliers a pair cannot see
 #: alone (too few points of its own); the block tests hundreds of conditions per round.
 BLOCK_W_CRITICAL = 4.0
-#: ``algebra="auto"``: known-base blocks with at least this many free angles are solved
-#: with the banded Cholesky factor of the sparse normal matrix and keep their covariance
-#: as an operator (:mod:`photogrammetry.block_covariance`; ``cov`` is then None), smaller
-#: ones (and the relative methods) with the dense reduced normal matrix.
+#: ``algebra="auto"``: blocks with at least this many free angles are solved with the
+#: sparse normal matrix (banded Cholesky; relative methods: the bordered matrix of angles
+#: and bases, sparse LU) and keep their covariance as an operator
+#: (:mod:`photogrammetry.block_covariance`; ``cov`` is then None), smaller ones with the
+#: dense reduced normal matrix.
 BANDED_MIN_ANGLES = 300
 ALGEBRAS = ("auto", "dense", "banded")
 #: Internal screening status: the pair's screening moved image j beyond MAX_CHANGE
@@ -604,10 +605,13 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         Names of the images in the quality messages (default: indices).
     algebra : {"auto", "dense", "banded"}
         Normal equations dense (the reduced normal matrix, its inverse: cost cubic in
-        the images) or banded (known-base only: sparse normal matrix in reverse
-        Cuthill-McKee order, banded Cholesky, covariance blocks by the Takahashi
-        recurrence: cost ``n b^2``, about linear in the images for strips of a given
-        length); "auto": banded from :data:`BANDED_MIN_ANGLES` free angles.
+        the images) or banded (sparse normal matrix in reverse Cuthill-McKee order,
+        banded Cholesky, covariance blocks by the Takahashi recurrence: cost
+        ``n b^2``, about linear in the images for strips of a given length; relative
+        and base-free: the whole normal matrix of the angles and the base directions
+        (bordered), steps and solves by a sparse LU, see
+        :mod:`photogrammetry.block_covariance`); "auto": banded from
+        :data:`BANDED_MIN_ANGLES` free angles.
 
     Returns
     -------
