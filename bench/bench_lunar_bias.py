@@ -44,6 +44,9 @@ Measured (2026-11-24, 6 images per cell, a machine shared by six jobs; four-law 
   per session on the shared machine); flat through the OpenCV-fisheye lens clipped at
   2000 counts: +5.5 arcsec (sigma 14.4); Hapke-like through an equidistant lens, blur
   1.5 px, clipped at 1500: -12.0 arcsec (sigma 16.2, variance factor 1.47).
+- cost of the fourth basis disk (bench_lunar.py's pipeline, 72 images 1600x1600, same
+  shared machine, old / new / old): user CPU 7.9 / 9.1 / 7.7 s (+17 %), wall 5.5 / 5.0 /
+  7.7 s.
 """
 import argparse
 import os
