@@ -25,6 +25,29 @@ Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed
        5000  20447     31.74     51.47    83.21      897   302   0.998  [0.18, 0.63, 0.3]
     slope of log(total time) vs log(images), 200-5000: 1.03; of log(peak memory): 0.42
 
+Relative and base-free (``--method base-free,relative,known-base --sizes
+50,200,500,1000``, datum first for the relative methods, 2026-11-24 after the bordered
+algebra; the machine less loaded than for the table above):
+
+    method      images  pairs  adjust_s  assess_s  total_s  peak_MB  band
+    base-free       50     69      0.27      0.39     0.66      217     0
+    base-free      200    659      0.57      0.92     1.48      253   129
+    base-free      500   1845      1.57      5.46     7.03      332   313
+    base-free     1000   3920      8.57     19.30    27.86      746   954
+    relative      1000   3920      8.22     19.49    27.71      739   954
+    known-base    1000   3920      1.59      1.38     2.97      324   236
+    slope of log(total time) vs log(images), 200-1000: base-free 1.82, relative 1.79
+    (known-base 0.58); of log(peak memory): 0.65, 0.64 (0.21)
+
+The dense path took 2.6 + 13.7 s at 200 base-free images and 26 + 84 s at 500.  The
+relative methods' 1000 images miss the 15 s target: the base unknowns of all pairs of a
+tie point are coupled by its joint weights, so the bordered normal matrix (10 840
+unknowns) fills in (sparse LU 1.7 M non-zeros, 0.2-0.4 s per factor) and its band is
+954 (3.6 unknowns per image more than known-base); the assessment's REML refactors it
+for each of its ~66 iterates (6 boresight rounds); the band grows with the number of
+strips until it reaches the strips' length (here 50 images: 20 strips at 1000), so the
+slope from 200 to 1000 is above the long-run one.
+
 Dask (``--dask 10x1000``: ten 1000-image flights written as files, read, and refined
 as tasks by ``refine_many`` on a local cluster of 2 single-threaded worker processes):
 10 000 images in 173.6 s (the machine shared with 5 other jobs), peak resident memory
