@@ -125,7 +125,7 @@ def count_returns(path):
 def _ints(a, name, path, lines, lo, hi):
     bad = np.flatnonzero((a != np.round(a)) | (a < lo) | (a > hi))
     if bad.size:
-        raise InputError(f"{name} {a[bad[0]]!r} must be an integer in [{lo}, {hi}]",
+        raise InputError(f"{name} {a[bad[0]].item()!r} must be an integer in [{lo}, {hi}]",
                          path=os.fspath(path), line=int(lines[bad[0]]))
     return a.astype(np.int64)
 
@@ -174,11 +174,11 @@ def _csv_block(path, names, model, v, lines):
     else:
         bad = np.flatnonzero(col["range_m"] <= 0)
         if bad.size:
-            raise InputError(f"range_m {col['range_m'][bad[0]]!r} must be > 0 (m)",
+            raise InputError(f"range_m {float(col['range_m'][bad[0]])!r} must be > 0 (m)",
                              path=os.fspath(path), line=int(lines[bad[0]]))
         big = np.flatnonzero(np.abs(col["scan_angle_deg"]) >= 90)
         if big.size:
-            raise InputError(f"scan_angle_deg {col['scan_angle_deg'][big[0]]!r} must be "
+            raise InputError(f"scan_angle_deg {float(col['scan_angle_deg'][big[0]])!r} must be "
                              "within +-90 deg", path=os.fspath(path), line=int(lines[big[0]]))
         blk.range_m = col["range_m"].copy()
         blk.scan_angle_rad = np.deg2rad(col["scan_angle_deg"])
