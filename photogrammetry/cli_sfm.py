@@ -10,12 +10,14 @@ from ins.fileio import output_folder
 IMPORT_EPILOG = """\
 sources:
   reconstruction.json   OpenSfM / ODM (opensfm/ folder): the first reconstruction; its
-                        tracks.csv beside it (or --tracks) gives the tie points.  Cameras
+                        tracks.csv beside it (or --tracks) gives the tie points (without
+                        one: camera and EO only, and the summary says so).  Cameras
                         "brown" (focal, c_x, c_y normalised by the larger image side;
                         k1, k2, k3, p1, p2) and "perspective" (focal, k1, k2).
   COLMAP model folder   cameras/images/points3D .bin or .txt, read with pycolmap
                         (pip install 'insphoto[colmap]'); SIMPLE_PINHOLE, PINHOLE,
-                        SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV (k4..k6 = 0).
+                        SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV (k4..k6 = 0); a model
+                        with no or an empty points3D gives camera and EO only.
 
 output folder (refused when not empty unless --force):
   camera.toml      the camera file; focal length in mm for --pixel-size-mm (an SfM
@@ -27,7 +29,8 @@ output folder (refused when not empty unless --force):
   eo.csv           the SfM poses as an EO CSV: OpenSfM in ENU at its reference_lla,
                    COLMAP in the model's world frame
   tiepoints.csv    image_id,point_id,x_mm,y_mm (observed photo coordinates); image ids
-                   = image file names without extension
+                   = image file names without extension; written only when the project
+                   has tie points (elsewhere with --tiepoints, which requires them)
 """
 
 EXPORT_EPILOG = """\
@@ -53,7 +56,11 @@ def add_parser(sub):
         epilog=IMPORT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("source", metavar="reconstruction.json|COLMAP_DIR")
     p.add_argument("--tracks", metavar="tracks.csv", help="OpenSfM tracks (default: beside "
-                                                          "the reconstruction)")
+                                                          "the reconstruction; without "
+                                                          "one, camera and EO only)")
+    p.add_argument("--tiepoints", metavar="TIEPOINTS.csv",
+                   help="write the tie points here instead of FOLDER/tiepoints.csv; "
+                        "refused when the project has none (no tracks.csv, no points3D)")
     p.add_argument("--pixel-size-mm", type=float, default=0.01, metavar="MM",
                    help="pixel pitch of the camera file (mm; default 0.01)")
     p.add_argument("--system", choices=["phi-omega-kappa", "omega-phi-kappa"],
@@ -74,6 +81,20 @@ def add_parser(sub):
     e.set_defaults(func=run_export)
 
 
+def _tiepoint_source(args, src):
+    """The OpenSfM tracks file, or None (with the reason) when there is none and no tie
+    point was asked for explicitly."""
+    tracks = args.tracks or os.path.join(os.path.dirname(os.path.abspath(src)), "tracks.csv")
+    if os.path.isfile(tracks):
+        return tracks, None
+    if args.tracks or args.tiepoints:
+        asked = "--tracks" if args.tracks else f"--tiepoints {args.tiepoints}"
+        raise InputError(f"tracks file not found ({asked} needs the project's tie points"
+                         + ("" if args.tracks else f"; none beside {src}, give --tracks")
+                         + ")", path=tracks)
+    return None, f"no tracks.csv beside {src} (give --tracks)"
+
+
 def run_import(args):
     from .camera import write_camera
     from .exposure import write_eo_csv
@@ -81,39 +102,51 @@ def run_import(args):
     if not (args.pixel_size_mm > 0):
         raise InputError(f"--pixel-size-mm must be > 0 mm, got {args.pixel_size_mm}")
     src = args.source
+    if args.tiepoints:
+        check_output_file(args.tiepoints)
+    skipped, why = 0, None
     if os.path.isdir(src):
         from .sfm_colmap import read_colmap
         model = read_colmap(src, args.system, args.pixel_size_mm)
         cams = {model.cameras[c] for c in set(model.image_camera.values())}
         eo, ids, pids, xy, kind = (model.eo, model.image_id, model.point_id, model.xy_mm,
                                    "COLMAP")
-        skipped = 0
+        why = model.no_tiepoints
+        if why and args.tiepoints:
+            raise InputError(f"--tiepoints {args.tiepoints}: {why}", path=src)
     else:
         from .sfm_opensfm import read_reconstruction, read_tracks
         proj = read_reconstruction(src, args.system, args.pixel_size_mm)
-        tracks = args.tracks or os.path.join(os.path.dirname(os.path.abspath(src)),
-                                             "tracks.csv")
-        if not os.path.isfile(tracks):
-            raise InputError("tracks file not found" + ("" if args.tracks else
-                             f" beside {src} (give --tracks)"), path=tracks)
+        tracks, why = _tiepoint_source(args, src)
         cams = {proj.cameras[c][0] for c in set(proj.shot_camera.values())}
-        ids, pids, xy, skipped = read_tracks(tracks, proj)
+        ids, pids, xy = [], [], None
+        if tracks:
+            ids, pids, xy, skipped = read_tracks(tracks, proj)
         eo, kind = proj.eo, "OpenSfM"
     if len(cams) != 1:
         raise InputError(f"{src}: {len(cams)} cameras; the tie-point file and refine take "
                          "one camera per block")
     camera = cams.pop()
+    tp_path = None if why else args.tiepoints
     with output_folder(args.output, args.force) as tmp:
         write_camera(os.path.join(tmp, "camera.toml"), camera)
         write_eo_csv(os.path.join(tmp, "eo.csv"), eo, comments=(f"from the {kind} project "
                                                                 f"{src}",))
-        write_tiepoints(os.path.join(tmp, "tiepoints.csv"), ids, pids, xy,
-                        comments=(f"from the {kind} project {src}",))
+        if not why and not tp_path:
+            write_tiepoints(os.path.join(tmp, "tiepoints.csv"), ids, pids, xy,
+                            comments=(f"from the {kind} project {src}",))
+    if tp_path:
+        write_tiepoints(tp_path, ids, pids, xy, comments=(f"from the {kind} project {src}",))
     if not args.quiet:
-        print(f"{kind}: {len(eo)} images, {len(set(pids))} tracks, {len(ids)} observations"
-              + (f" ({skipped} of images outside the reconstruction left out)" if skipped
-                 else ""))
-        print(f"wrote {args.output}/camera.toml, eo.csv, tiepoints.csv")
+        if why:
+            print(f"{kind}: {len(eo)} images; no tie points written: {why}")
+            print(f"wrote {args.output}/camera.toml, eo.csv")
+        else:
+            print(f"{kind}: {len(eo)} images, {len(set(pids))} tracks, {len(ids)} "
+                  "observations" + (f" ({skipped} of images outside the reconstruction "
+                                    "left out)" if skipped else ""))
+            print(f"wrote {args.output}/camera.toml, eo.csv"
+                  + (f" and {tp_path}" if tp_path else ", tiepoints.csv"))
     return 0
 
 

@@ -116,16 +116,25 @@ class ColmapModel:
         Registered images, in the model's world frame (:data:`COLMAP_FRAME`).
     image_id, point_id : list of str
     xy_mm : ndarray (k, 2)
-        Observations of triangulated points: observed photo coordinates, mm.
+        Observations of triangulated points: observed photo coordinates, mm (none when
+        the model has no points: ``no_tiepoints`` says why).
+    no_tiepoints : str or None
+        Why the model gives no tie point (points3D file missing, or empty), else None.
     """
 
-    def __init__(self, cameras, image_camera, eo, image_id, point_id, xy_mm):
+    def __init__(self, cameras, image_camera, eo, image_id, point_id, xy_mm,
+                 no_tiepoints=None):
         self.cameras, self.image_camera, self.eo = cameras, image_camera, eo
         self.image_id, self.point_id, self.xy_mm = image_id, point_id, xy_mm
+        self.no_tiepoints = no_tiepoints
 
 
 def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
     """Read a COLMAP model folder (binary or text) with pycolmap.
+
+    A model without its ``points3D`` file (cameras and poses only) is read too, from a
+    temporary copy with an empty one; observations are kept only for points the model
+    holds (an image's reference to an absent point is ignored).
 
     Returns
     -------
@@ -136,16 +145,13 @@ def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
     if not os.path.isdir(path):
         raise InputError("not a folder (a COLMAP model: cameras, images, points3D .bin or "
                          ".txt)", path=path)
-    pycolmap = _need_pycolmap()
-    try:
-        rec = pycolmap.Reconstruction(path)
-    except Exception as exc:
-        raise InputError(f"pycolmap cannot read the model: {exc}", path=path) from None
+    rec, missing = _load_model(path)
     cameras = {cid: camera_from_colmap(c.model.name, c.width, c.height, c.params,
                                        pixel_size_mm, f"{path}: camera {cid}")
                for cid, c in rec.cameras.items()}
     ids, pos, R, image_camera = [], [], [], {}
     img_id, pt_id, xy = [], [], []
+    points = set(rec.points3D)
     for iid in sorted(rec.images, key=lambda k: rec.images[k].name):
         im = rec.images[iid]
         if not im.has_pose:
@@ -159,7 +165,7 @@ def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
         image_camera[name] = im.camera_id
         cam = cameras[im.camera_id]
         for p in im.points2D:
-            if p.has_point3D():
+            if p.has_point3D() and p.point3D_id in points:
                 img_id.append(name)
                 pt_id.append(str(p.point3D_id))
                 xy.append(cam.pixel_to_photo(np.asarray(p.xy, float) - 0.5))
@@ -167,8 +173,39 @@ def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
         raise InputError("no registered image in the model", path=path)
     eo = ExposureOrientation(ids, np.zeros(len(ids)), np.array(pos),
                              matrix_to_angles(np.array(R), system), system, COLMAP_FRAME)
+    note = None
+    if missing:
+        note = f"the model has no {missing} file"
+    elif not img_id:
+        note = "the model's points3D are empty (no triangulated point)"
     return ColmapModel(cameras, image_camera, eo, img_id, pt_id,
-                       np.array(xy).reshape(-1, 2))
+                       np.array(xy).reshape(-1, 2), note)
+
+
+def _load_model(path):
+    """``(pycolmap.Reconstruction, missing)``: a model whose points3D file is missing is
+    read from a temporary copy with an empty one (``missing`` then names the file)."""
+    import shutil
+    import tempfile
+    pycolmap = _need_pycolmap()
+    missing = None
+    for ext, empty in ((".bin", b"\0" * 8), (".txt", b"")):
+        have = [os.path.isfile(os.path.join(path, n + ext)) for n in ("cameras", "images")]
+        if all(have) and not os.path.isfile(os.path.join(path, "points3D" + ext)):
+            missing = "points3D" + ext
+            break
+    try:
+        if missing is None:
+            return pycolmap.Reconstruction(path), None
+        with tempfile.TemporaryDirectory(prefix="insphoto-colmap-") as tmp:
+            for name in os.listdir(path):
+                if name.endswith(ext) and os.path.isfile(os.path.join(path, name)):
+                    shutil.copyfile(os.path.join(path, name), os.path.join(tmp, name))
+            with open(os.path.join(tmp, missing), "wb") as fh:
+                fh.write(empty)
+            return pycolmap.Reconstruction(tmp), missing
+    except Exception as exc:
+        raise InputError(f"pycolmap cannot read the model: {exc}", path=path) from None
 
 
 def write_colmap_text(folder, eo, camera, names=None):

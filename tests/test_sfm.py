@@ -272,3 +272,82 @@ def test_colmap_import_collinear(tmp_path):
         d = pts[int(pid) - 1] - eo.position[k]
         angle = np.arctan2(np.linalg.norm(np.cross(ray, d)), ray @ d)
         assert np.degrees(angle) * 3600 < 0.05
+
+
+def test_opensfm_import_without_tracks(tmp_path, capsys):
+    """No tracks.csv: camera and EO written (the EO's centres are the shots'), no
+    tiepoints.csv, the summary says why; an explicit --tiepoints or --tracks without the
+    file fails naming it."""
+    rng = np.random.default_rng(2)
+    pts = np.column_stack([rng.uniform(-40, 40, 5), rng.uniform(-30, 30, 5), np.zeros(5)])
+    _write_project(tmp_path, {"a.jpg": (np.diag([1.0, -1, -1]), np.array([0, 0, 100.0])),
+                              "b.jpg": (np.diag([1.0, -1, -1]), np.array([20.0, 5, 102]))},
+                   pts)
+    (tmp_path / "tracks.csv").unlink()
+    rec = str(tmp_path / "reconstruction.json")
+    out = tmp_path / "imp"
+    assert main(["sfm-import", rec, "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "no tie points written: no tracks.csv beside" in text
+    assert sorted(p.name for p in out.iterdir()) == ["camera.toml", "eo.csv"]
+    eo = read_eo_csv(out / "eo.csv")
+    np.testing.assert_allclose(eo.position, [[0, 0, 100], [20, 5, 102]], atol=1e-9)
+    cam, _ = read_camera(out / "camera.toml")
+    assert (cam.width_px, cam.height_px) == (BROWN["width"], BROWN["height"])
+    assert main(["sfm-import", rec, "-o", str(tmp_path / "o2"), "--tiepoints",
+                 str(tmp_path / "tp.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "tracks.csv" in err and "--tiepoints" in err
+    assert not (tmp_path / "o2").exists() and not (tmp_path / "tp.csv").exists()
+    assert main(["sfm-import", rec, "-o", str(tmp_path / "o3"), "--tracks",
+                 str(tmp_path / "mine.csv")]) == 2
+    assert "mine.csv" in capsys.readouterr().err
+
+
+def test_opensfm_import_tiepoints_elsewhere(tmp_path):
+    """--tiepoints OUT: the tie points at OUT (the same as the folder's would be)."""
+    rng = np.random.default_rng(4)
+    pts = np.column_stack([rng.uniform(-40, 40, 7), rng.uniform(-30, 30, 7), np.zeros(7)])
+    _write_project(tmp_path, {"a.jpg": (np.diag([1.0, -1, -1]), np.array([0, 0, 100.0])),
+                              "b.jpg": (np.diag([1.0, -1, -1]), np.array([20.0, 5, 102]))},
+                   pts)
+    rec = str(tmp_path / "reconstruction.json")
+    assert main(["sfm-import", rec, "-o", str(tmp_path / "a"), "-q"]) == 0
+    assert main(["sfm-import", rec, "-o", str(tmp_path / "b"), "-q", "--tiepoints",
+                 str(tmp_path / "tp.csv")]) == 0
+    assert not (tmp_path / "b" / "tiepoints.csv").exists()
+    t1, t2 = read_tiepoints(tmp_path / "a" / "tiepoints.csv"), read_tiepoints(tmp_path / "tp.csv")
+    assert len(t2) == 14 and t1.image_id == t2.image_id
+    np.testing.assert_array_equal(t1.xy_mm, t2.xy_mm)
+
+
+@pytest.mark.parametrize("points", ["missing", "empty"])
+def test_colmap_import_without_points(tmp_path, capsys, points):
+    """A COLMAP model whose points3D file is missing or empty (the images still refer to
+    point ids): camera and EO, no tie point, the reason in the summary; --tiepoints
+    refused."""
+    pytest.importorskip("pycolmap")
+    pts = np.array([[1.0, 2, 0], [-3, 4, 1], [5, -2, 0]])
+    params = [700.0, 700.0, 321.3, 238.9, -0.08, 0.01, 0.0005, -0.0003]
+    m = tmp_path / "m"
+    _colmap_model(m, {"a.png": (np.diag([1.0, -1, -1]), np.array([0, 0, 80.0])),
+                      "b.png": (np.diag([1.0, -1, -1]), np.array([15.0, 2, 81]))}, pts, params)
+    if points == "missing":
+        (m / "points3D.txt").unlink()
+    else:
+        (m / "points3D.txt").write_text("# 3D point list\n")
+    before = sorted(p.name for p in m.iterdir())
+    out = tmp_path / "imp"
+    assert main(["sfm-import", str(m), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "no tie points written" in text
+    assert ("no points3D.txt file" if points == "missing" else "points3D are empty") in text
+    assert sorted(p.name for p in out.iterdir()) == ["camera.toml", "eo.csv"]
+    assert sorted(p.name for p in m.iterdir()) == before          # the input untouched
+    eo = read_eo_csv(out / "eo.csv")
+    np.testing.assert_allclose(eo.position, [[0, 0, 80], [15, 2, 81]], atol=1e-9)
+    cam, _ = read_camera(out / "camera.toml")
+    assert cam.principal_point_px == pytest.approx((320.8, 238.4))
+    assert main(["sfm-import", str(m), "-o", str(tmp_path / "o2"), "--tiepoints",
+                 str(tmp_path / "tp.csv")]) == 2
+    assert "points3D" in capsys.readouterr().err
