@@ -17,7 +17,8 @@ from ins.rotation import wrap_to_pi
 from .assessment import assess
 from .block import adjust_block
 
-__all__ = ["RefineResult", "refine", "refine_many", "check_quality"]
+__all__ = ["RefineResult", "refine", "refine_many", "check_quality", "prepare",
+           "map_tasks"]
 
 
 @dataclass
@@ -85,27 +86,9 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
         A pair's or the block's sigma0, or an image's angle change, is implausible
         (without `accept_poor`); the message names them.
     """
-    if camera is None:
-        raise InputError("the camera (principal distance) is required: --camera CAM.toml")
-    if system is not None:
-        eo = eo.in_system(system)
+    eo, sigma_mm, prior_sigma_rad, position_sigma_m, pairs, points, point_ids = prepare(
+        eo, tiepoints, camera, system, method, sigma_mm, prior_sigma_rad, position_sigma_m)
     system = eo.system
-    if sigma_mm is None:
-        if tiepoints.sigma_mm == 0:
-            raise InputError("the tie points state a photo-coordinate sigma of 0 "
-                             "(noise-free); the conditions need a weight: give a sigma > 0 "
-                             "(--sigma-px)", path=tiepoints.path)
-        sigma_mm = (tiepoints.sigma_mm if tiepoints.sigma_mm is not None
-                    else 0.5 * camera.pixel_size_mm)
-    if prior_sigma_rad is None:
-        prior_sigma_rad = eo.angle_sigma if eo.angle_sigma is not None else 0.005
-    if position_sigma_m is None and eo.position_sigma is not None:
-        position_sigma_m = eo.position_sigma
-    min_common = 3 if method == "known-base" else 5
-    pairs, points, point_ids = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
-    if len(pairs) == 0:
-        raise InputError(f"no pair of images shares {min_common} or more tie points",
-                         path=tiepoints.path)
     block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
                          datum, positions=eo.position, prior_sigma=prior_sigma_rad,
                          sigma_mm=sigma_mm, position_sigma=position_sigma_m, point_ids=point_ids,
@@ -128,6 +111,44 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                         pairs, points, settings)
 
 
+def prepare(eo, tiepoints, camera, system=None, method="base-free", sigma_mm=None,
+            prior_sigma_rad=None, position_sigma_m=None):
+    """The defaults of :func:`refine` resolved and the block's pairs formed.
+
+    Returns
+    -------
+    eo : ExposureOrientation
+        In the working system.
+    sigma_mm : float
+    prior_sigma_rad : float or ndarray
+    position_sigma_m : float, ndarray or None
+    pairs, points, point_ids
+        As from :meth:`photogrammetry.tiepoints.TiePoints.pairs` (``min_common`` 3 for
+        known-base, else 5).
+    """
+    if camera is None:
+        raise InputError("the camera (principal distance) is required: --camera CAM.toml")
+    if system is not None:
+        eo = eo.in_system(system)
+    if sigma_mm is None:
+        if tiepoints.sigma_mm == 0:
+            raise InputError("the tie points state a photo-coordinate sigma of 0 "
+                             "(noise-free); the conditions need a weight: give a sigma > 0 "
+                             "(--sigma-px)", path=tiepoints.path)
+        sigma_mm = (tiepoints.sigma_mm if tiepoints.sigma_mm is not None
+                    else 0.5 * camera.pixel_size_mm)
+    if prior_sigma_rad is None:
+        prior_sigma_rad = eo.angle_sigma if eo.angle_sigma is not None else 0.005
+    if position_sigma_m is None and eo.position_sigma is not None:
+        position_sigma_m = eo.position_sigma
+    min_common = 3 if method == "known-base" else 5
+    pairs, points, point_ids = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
+    if len(pairs) == 0:
+        raise InputError(f"no pair of images shares {min_common} or more tie points",
+                         path=tiepoints.path)
+    return eo, sigma_mm, prior_sigma_rad, position_sigma_m, pairs, points, point_ids
+
+
 def check_quality(quality, accept_poor=False, where=""):
     """Raise QualityError for a poor result unless `accept_poor` (the first findings)."""
     if quality is None or not quality.poor or accept_poor:
@@ -139,14 +160,19 @@ def check_quality(quality, accept_poor=False, where=""):
                        + " (rule: photogrammetry refine --help, 'trust')")
 
 
-def _run(kwargs):
-    """:func:`refine` on one task; its warnings travel with the result (a Dask worker's
-    own warnings would otherwise be printed raw on the worker's stderr)."""
+def _call(func, kwargs):
+    """``func(**kwargs)`` on one task; its warnings travel with the result (a Dask
+    worker's own warnings would otherwise be printed raw on the worker's stderr)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = refine(**kwargs)
+        result = func(**kwargs)
     result.warnings = [(w.category, str(w.message)) for w in caught]
     return result
+
+
+def _run(kwargs):
+    """:func:`refine` on one task (its warnings with the result)."""
+    return _call(refine, kwargs)
 
 
 def _reemit(results):
@@ -176,14 +202,32 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
     -------
     list of RefineResult, in the order of `tasks`.
     """
+    return map_tasks(refine, tasks, workers, scheduler, progress, processes)
+
+
+def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processes=True):
+    """``func(**task)`` for every task, as Dask tasks (see :func:`refine_many`).
+
+    `func` must be a module-level function (pickled by reference) whose result takes a
+    ``warnings`` attribute (the task's warnings, re-issued here in the caller).  Each
+    task's keyword arguments travel to the worker that runs it, and only there.
+    `progress` is called as ``progress(done, total, index)`` with the index of the task
+    just finished when it takes three arguments, else ``progress(done, total)``.
+
+    Returns
+    -------
+    list of the results, in the order of `tasks`.
+    """
     tasks = list(tasks)
+    note = _progress_call(progress)
     if scheduler is None and workers == 1:
         out = []
         for k, t in enumerate(tasks):
-            out.append(_run(t))
-            if progress is not None:
-                progress(k + 1, len(tasks))
+            out.append(_call(func, t))
+            note(k + 1, len(tasks), k)
         return _reemit(out)
+    from functools import partial
+
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
@@ -193,15 +237,30 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
     else:
         client = Client(scheduler)
     try:
-        futures = client.map(_run, tasks, pure=False)
+        futures = client.map(partial(_call, func), tasks, pure=False)
         index = {f.key: k for k, f in enumerate(futures)}
         results = [None] * len(tasks)
         for done, fut in enumerate(as_completed(futures), 1):
-            results[index[fut.key]] = fut.result()
-            if progress is not None:
-                progress(done, len(tasks))
+            k = index[fut.key]
+            results[k] = fut.result()
+            fut.release()
+            note(done, len(tasks), k)
         return _reemit(results)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _progress_call(progress):
+    """`progress` as a function of (done, total, index)."""
+    if progress is None:
+        return lambda done, total, k: None
+    import inspect
+    try:
+        n = len(inspect.signature(progress).parameters)
+    except (TypeError, ValueError):
+        n = 2
+    if n >= 3:
+        return progress
+    return lambda done, total, k: progress(done, total)
