@@ -42,6 +42,13 @@ formats:
   colmap     a COLMAP text model in the folder -o: cameras.txt (OPENCV), images.txt
              (QW QX QY QZ of R_cw, t), empty points3D.txt: known poses for COLMAP's
              point_triangulator
+  colmap-db  COLMAP pose priors in a database (-o OUT.db; --database IN.db to start
+             from, copied, never changed unless it is -o): per image matched by name
+             (a.jpg is the EO's a) position + covariance (m^2) + gravity (the down
+             vertical in the CV camera frame: the tilt of the refined rotation);
+             WGS84 (lat deg, lon deg, ellipsoidal h m; covariance on local east,
+             north, up) for an enu or EPSG EO, else the EO's frame as CARTESIAN.
+             COLMAP's pose prior holds no full rotation: use --format colmap too.
   orthority  filename x y z omega phi kappa (deg, omega-phi-kappa: R = Rx(omega)
              Ry(phi) Rz(kappa) camera (x right, y up, z backwards) to world), space
              separated, with a .prj beside it for an EPSG frame
@@ -75,8 +82,20 @@ def add_parser(sub):
         epilog=EXPORT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     e.add_argument("eo", metavar="EO.csv")
     e.add_argument("--camera", metavar="CAM.toml", help="camera file (opensfm, colmap)")
-    e.add_argument("--format", required=True, choices=["opensfm", "colmap", "orthority"])
-    e.add_argument("--force", action="store_true", help="colmap: replace a non-empty folder")
+    e.add_argument("--format", required=True,
+                   choices=["opensfm", "colmap", "colmap-db", "orthority"])
+    e.add_argument("--database", metavar="DB", help="colmap-db: the COLMAP database to start "
+                   "from (not modified unless it is -o; default: a new one)")
+    e.add_argument("--prior-coordinates", choices=["auto", "wgs84", "cartesian"],
+                   default="auto", help="colmap-db: WGS84 (lat, lon deg, h m) or the EO's "
+                   "frame (m); auto = WGS84 for an enu or EPSG frame")
+    e.add_argument("--add-missing", action="store_true", help="colmap-db: add EO images "
+                   "missing from --database (with --camera) instead of refusing")
+    e.add_argument("--image-suffix", default=".jpg", metavar="EXT",
+                   help="colmap-db: name of an added image = EO id + EXT (.jpg)")
+    e.add_argument("--force", action="store_true", help="colmap: replace a non-empty "
+                   "folder; colmap-db: replace an existing database other than --database")
+    e.add_argument("-q", "--quiet", action="store_true")
     e.add_argument("-o", "--output", required=True, metavar="OUT")
     e.set_defaults(func=run_export)
 
@@ -156,6 +175,8 @@ def run_export(args):
     eo = read_eo_csv(args.eo)
     if os.path.abspath(args.output) == os.path.abspath(args.eo):
         raise InputError(f"--output {args.output} would overwrite the input file {args.eo}")
+    if args.format == "colmap-db":
+        return _export_database(args, eo)
     if args.format == "orthority":
         from .sfm_opensfm import write_orthority_csv
         check_output_file(args.output)
@@ -172,4 +193,34 @@ def run_export(args):
         from .sfm_colmap import write_colmap_text
         with output_folder(args.output, args.force) as tmp:
             write_colmap_text(tmp, eo, camera)
+    return 0
+
+
+def _export_database(args, eo):
+    from .camera import read_camera
+    from .sfm_colmap_db import write_pose_priors
+    out = os.path.abspath(args.output)
+    same = args.database is not None and os.path.abspath(args.database) == out
+    if os.path.exists(out) and not same and not args.force:
+        raise InputError(f"--output {args.output} exists (give --force to replace it, or "
+                         "name it as --database to update it)")
+    camera = read_camera(args.camera)[0] if args.camera else None
+    if args.database is None and camera is None:
+        raise InputError("--format colmap-db without --database creates one: it needs "
+                         "--camera CAM.toml")
+    res = write_pose_priors(args.output, eo, args.database, camera, args.prior_coordinates,
+                            args.add_missing, args.image_suffix)
+    if not args.quiet:
+        print(f"{len(res.written)} pose priors ({res.system}) written to {args.output}"
+              + (f"; {len(res.replaced)} replaced earlier ones" if res.replaced else ""))
+        if res.added:
+            print(f"added {len(res.added)} images to the database: "
+                  + ", ".join(i + args.image_suffix for i in res.added[:10])
+                  + (", ..." if len(res.added) > 10 else ""))
+        if res.without_prior:
+            print(f"{len(res.without_prior)} database images are not in {args.eo} and "
+                  "have no new prior: " + ", ".join(res.without_prior[:10])
+                  + (", ..." if len(res.without_prior) > 10 else ""))
+        print("the refined rotations: gravity (roll, pitch) in the priors; the full "
+              "rotation with --format colmap (images.txt)")
     return 0
