@@ -20,8 +20,11 @@ method:
   a straight constant-speed log is refused.
 
 sign:
-  offset = GNSS clock - IMU clock (s): a fix stamped t was taken at IMU time
-  t - offset.  -o writes the GNSS log with every stamp less the offset.
+  offset = IMU clock - GNSS clock (s): a fix stamped t was taken at IMU time
+  t + offset.  Paste it as it is into the process config's [gnss] time_shift_s
+  (or --gnss-time-shift-s; [imu] time_shift_s would take -offset).  The same sign as
+  the filter's time_offset state in states.txt ([states] time_offset = true).
+  -o writes the GNSS log with the offset added to every stamp.
 
 --source:
   velocity  the GNSS velocity columns (13-column file)
@@ -102,9 +105,10 @@ def _cmd_time_offset(args):
         print(f"{src:<8}  offset {r.offset_s:+.4f} s  sigma {r.sigma_s:.4f} s  "
               f"({r.n_fixes} epochs, {r.n_eff:.0f} independent; signal {r.signal_rms_mps:.3f} "
               f"m/s RMS, residual {r.residual_rms_mps:.3f} m/s)")
-    print("offset = GNSS clock - IMU clock: a fix stamped t was taken at IMU time t - offset")
+    print("offset = IMU clock - GNSS clock: a fix stamped t was taken at IMU time t + offset "
+          "(the value of [gnss] time_shift_s)")
     if args.output:
         chosen = results.get("velocity", results.get("position"))
         write_gnss(args.output, shift_gnss(gnss, chosen.offset_s))
-        print(f"wrote {args.output}: stamps less {chosen.offset_s:+.4f} s ({chosen.source})")
+        print(f"wrote {args.output}: stamps plus {chosen.offset_s:+.4f} s ({chosen.source})")
     return 0

@@ -9,7 +9,7 @@ The velocity increments of the IMU are resolved in the body frame of its first e
 and summed: ``V_0(t)``.  Over a window of ``W`` seconds centred on each GNSS epoch the
 accelerometers see the velocity change less gravity, in NED::
 
-    C_n0 [V_0(t-offset+W/2) - V_0(t-offset-W/2)] = v(t+W/2) - v(t-W/2) - g_n W + b(t)
+    C_n0 [V_0(t+offset+W/2) - V_0(t+offset-W/2)] = v(t+W/2) - v(t-W/2) - g_n W + b(t)
 
 with ``v`` the GNSS velocity (its velocity columns, or the differences of consecutive
 positions at their mid times; a missing vertical velocity written as 0 matters little
@@ -18,9 +18,15 @@ drift, Earth rate) by Kabsch's least squares: gravity fixes its tilt, the horizo
 changes its heading, so the IMU may sit in any attitude and the vehicle may bank,
 crab or turn.  The north and east residuals are then freed of ``b``: slowly varying
 terms (accelerometer bias, the tilt drift) piecewise linear in time on the same knots.
-All of it is linear least squares at each trial offset.  ``offset`` is the GNSS clock
-minus the IMU clock: a record stamped ``t`` holds the state at IMU time ``t - offset``;
-shifting the GNSS stamps by ``-offset`` puts them on the IMU's time scale.  The residual sum
+All of it is linear least squares at each trial offset.
+
+Sign (one convention across the toolkit): ``offset`` is the IMU clock minus the GNSS
+clock, a record stamped ``t`` holds the state at IMU time ``t + offset``.  It is the
+value to paste into ``[gnss] time_shift_s`` (``--gnss-time-shift-s``, added to the GNSS
+stamps at read time: ``t_imu = t_gnss + shift``; ``[imu] time_shift_s`` would take
+``-offset``), and the sign of the filter's ``time_offset`` state (``states.txt``,
+``[states] time_offset``) and of the simulator's injected offset
+(``ins.simulate.gnss.simulate_gnss``).  The residual sum
 of squares over a grid of offsets (step ``step_s``) is the (negative) cross-correlation
 curve; its minimum is refined by a parabola fitted over +-0.1 s around the best trial
 offset (sub-sample peak; the real curve wiggles at the scale of the GNSS interval).
@@ -69,7 +75,9 @@ class TimeOffset:
     Attributes
     ----------
     offset_s : float
-        GNSS clock minus IMU clock, s: the GNSS stamps less this are on the IMU's scale.
+        IMU clock minus GNSS clock, s: a record stamped ``t`` was taken at IMU time
+        ``t + offset_s``; the GNSS stamps plus this are on the IMU's scale (the value of
+        ``[gnss] time_shift_s``; the sign of the filter's ``time_offset`` state).
     sigma_s : float
         1-sigma of ``offset_s`` (correlation-inflated), s.
     source : str
@@ -191,7 +199,7 @@ class _Problem:
                                       max(len(knots) - 2, 0))
 
     def residuals(self, offset):
-        ts = self.t - offset
+        ts = self.t + offset                   # the records' IMU times (module notes)
         dV = (np.column_stack([np.interp(ts + self.h, self.t_i, self.V[:, j]) for j in range(3)])
               - np.column_stack([np.interp(ts - self.h, self.t_i, self.V[:, j])
                                  for j in range(3)]))
@@ -274,6 +282,7 @@ def estimate_time_offset(imu, gnss, source="velocity", max_offset_s=MAX_OFFSET_S
 
 
 def shift_gnss(gnss, offset_s):
-    """``gnss`` on the IMU's time scale: every stamp less ``offset_s`` (s); a new log."""
+    """``gnss`` on the IMU's time scale: ``offset_s`` (IMU clock minus GNSS clock, s, as
+    :func:`estimate_time_offset` gives it) added to every stamp; a new log."""
     from dataclasses import replace
-    return replace(gnss, time=np.asarray(gnss.time) - float(offset_s))
+    return replace(gnss, time=np.asarray(gnss.time) + float(offset_s))

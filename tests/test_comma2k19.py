@@ -149,8 +149,8 @@ def test_real_segment_beats_the_hand_figures(tmp_path):
     from ins.trajectory import read_nav
     seg = tmp_path / "seg"
     info = comma2k19.convert(REAL, seg)
-    assert -0.13 < info["position_offset_s"] < -0.05
-    assert -0.07 < info["velocity_offset_s"] < 0.0
+    assert 0.05 < info["position_offset_s"] < 0.13          # IMU - GNSS clock
+    assert 0.0 < info["velocity_offset_s"] < 0.07
     # closure: the written fixes are on the IMU's clock (no offset left)
     from ins.time_offset import estimate_time_offset
     from ins.imu_files import read_imu
@@ -184,7 +184,7 @@ def test_command_line(tmp_path, capsys):
     import json
     seg = tmp_path / "seg"
     assert comma2k19.main([str(REAL), "-o", str(seg), "--offsets", "none"]) == 0
-    assert "removed clock offsets (GNSS - IMU): positions +0.0000 s" in capsys.readouterr().out
+    assert "removed clock offsets (IMU - GNSS clock): positions +0.0000 s" in capsys.readouterr().out
     assert comma2k19.main(["--compare", str(seg / "reference.nav"), str(seg), "--json",
                            str(tmp_path / "f.json")]) == 0
     text = capsys.readouterr().out

@@ -20,7 +20,9 @@ INJECTED_S = 0.137
 @pytest.fixture(scope="module")
 def flight():
     """IMU at 100 Hz and GNSS at 10 Hz (2 cm, 1 cm/s white noise, antenna at the IMU)
-    of the short plan; the GNSS stamps LATE by INJECTED_S (GNSS clock - IMU clock)."""
+    of the short plan, with INJECTED_S injected by the simulator (IMU clock - GNSS
+    clock: a record stamped t holds the truth at IMU time t + INJECTED_S, the sign of
+    the filter's time_offset state)."""
     from ins.simulate.gnss import gnss_times, simulate_gnss
     from ins.simulate.imu_synth import synthesize_imu
     from ins.simulate.plan import load_plan
@@ -29,8 +31,9 @@ def flight():
     imu = synthesize_imu(truth, 100.0)
     t = gnss_times(truth.t_start + 2.0, truth.t_end - 2.0, 10.0)
     gnss = simulate_gnss(truth, t, np.zeros(3), np.zeros(3), [0.02, 0.02, 0.04],
-                         np.random.default_rng(7), velocity=True, sigma_vel_mps=0.01)
-    return imu, replace(gnss, time=gnss.time + INJECTED_S)
+                         np.random.default_rng(7), velocity=True, sigma_vel_mps=0.01,
+                         time_offset_s=INJECTED_S)
+    return imu, gnss
 
 
 @pytest.mark.parametrize("source", ["velocity", "position"])
@@ -61,11 +64,14 @@ def test_any_imu_attitude(flight):
 
 
 def test_negative_offset_and_sign(flight):
-    """Stamps EARLY by 0.25 s: the estimate is -0.25 (GNSS clock - IMU clock)."""
+    """Stamps LATE by 0.25 s (a record stamped t holds the IMU time t - 0.25, as a
+    fix stamped on its arrival): the estimate is -0.25 (IMU clock - GNSS clock), and
+    adding it to the stamps ([gnss] time_shift_s) puts them on the IMU's clock."""
     imu, gnss = flight
-    early = replace(gnss, time=gnss.time - INJECTED_S - 0.25)
-    r = estimate_time_offset(imu, early, source="velocity")
+    late = replace(gnss, time=gnss.time + INJECTED_S + 0.25)
+    r = estimate_time_offset(imu, late, source="velocity")
     assert abs(r.offset_s + 0.25) < 0.005
+    np.testing.assert_allclose(shift_gnss(late, -0.25).time, gnss.time + INJECTED_S)  # IMU time
 
 
 def test_no_information_refused(flight):
@@ -74,7 +80,7 @@ def test_no_information_refused(flight):
     with pytest.raises(InputError, match="no information"):
         estimate_time_offset(imu, straight, source="velocity")
     with pytest.raises(InputError, match="edge of the searched range"):
-        estimate_time_offset(imu, replace(gnss, time=gnss.time + 0.6), max_offset_s=0.5)
+        estimate_time_offset(imu, replace(gnss, time=gnss.time - 0.6), max_offset_s=0.5)
     with pytest.raises(InputError, match="no velocity columns"):
         estimate_time_offset(imu, replace(gnss, v_n=None, sigma_vel_ned_mps=None))
 
@@ -95,7 +101,7 @@ def test_command(flight, tmp_path, capsys):
     for value in offsets.values():
         assert abs(value - INJECTED_S) < 0.005
     shifted = read_gnss(out)
-    np.testing.assert_allclose(shifted.time, gnss.time - offsets["velocity"], atol=2e-6)
+    np.testing.assert_allclose(shifted.time, gnss.time + offsets["velocity"], atol=2e-6)
     assert main(["time-offset", "--imu", str(tmp_path / "imu.txt"), "--gnss",
                  str(tmp_path / "nope.txt")]) == 2
 
@@ -104,8 +110,9 @@ def test_command(flight, tmp_path, capsys):
 def test_real_segment_ublox_stamps():
     """The u-blox fixes of comma2k19: with their UTC epochs the Doppler velocities are
     within a few hundredths of a second of the IMU, the positions lead them by about
-    0.09 s; with their boot-clock ARRIVAL stamps the velocities are 0.2 s late.  The
-    reference pose itself is on the IMU's clock."""
+    0.09 s (a position stamped t holds the IMU time t + 0.09); with their boot-clock
+    ARRIVAL stamps the velocities are 0.2 s late (offset -0.2, IMU clock - GNSS clock).
+    The reference pose itself is on the IMU's clock."""
     import sys
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
     import comma2k19
@@ -117,12 +124,65 @@ def test_real_segment_ublox_stamps():
     v = estimate_time_offset(imu, utc, source="velocity")
     p = estimate_time_offset(imu, utc, source="position")
     a = estimate_time_offset(imu, arrival, source="velocity")
-    assert -0.07 < v.offset_s < 0.02 and v.sigma_s < 0.03
-    assert -0.13 < p.offset_s < -0.05 and p.sigma_s < 0.03
-    assert 0.12 < a.offset_s < 0.22
+    assert -0.02 < v.offset_s < 0.07 and v.sigma_s < 0.03
+    assert 0.05 < p.offset_s < 0.13 and p.sigma_s < 0.03
+    assert -0.22 < a.offset_s < -0.12
     ref = comma2k19.read_reference(REAL, boot)
     from ins.gnss import GnssLog
     n = len(ref)
     as_fixes = GnssLog(ref.time, ref.lla, np.ones((n, 3)), ref.v_n, np.ones((n, 3)))
     r = estimate_time_offset(imu, as_fixes, source="velocity")
     assert abs(r.offset_s) < 3 * r.sigma_s + 0.01
+
+
+@pytest.mark.slow
+def test_command_and_filter_state_agree_in_sign_and_value(flight, tmp_path, capsys):
+    """One convention: on the simulated flight with INJECTED_S injected by the simulator,
+    the offset that `ins time-offset` prints and the filter's time_offset state that
+    `ins process` writes into states.txt (from the true start, IMU and GNSS files as
+    they are) both come back as +INJECTED_S (IMU clock - GNSS clock); and pasting the
+    printed value into [gnss] time_shift_s leaves the filter nothing to find.
+    Positions only (use_velocity = false): the GNSS velocity update predicts the node's
+    velocity without the offset (measured with it: 0.1366 as is, then -4.1 +- 0.09 ms
+    left after the shift, where the positions alone give 0.1368 and +0.8 ms)."""
+    from ins.cli import main
+    from ins.simulate.plan import load_plan
+    from ins.simulate.truth import build_truth
+    imu, gnss = flight
+    write_kfgins_text(tmp_path / "imu.txt", imu)
+    write_gnss(tmp_path / "gnss.txt", gnss)
+    assert main(["time-offset", "--imu", str(tmp_path / "imu.txt"), "--gnss",
+                 str(tmp_path / "gnss.txt"), "--source", "velocity"]) == 0
+    printed = float(next(ln.split()[2] for ln in capsys.readouterr().out.splitlines()
+                         if ln.startswith("velocity")))
+    assert abs(printed - INJECTED_S) < 0.003
+    t0 = float(imu.time[0])
+    s = build_truth(load_plan(PLAN)).evaluate(np.array([t0]))
+    from scipy.spatial.transform import Rotation
+    rpy = Rotation.from_quat(s.q_nb[0]).as_euler("ZYX", degrees=True)[::-1]
+    lat, lon = (float(x) for x in np.rad2deg(s.lla[0, :2]))
+    h = float(s.lla[0, 2])
+
+    def run(name, shift_s, velocity=False):
+        cfg = tmp_path / f"{name}.toml"
+        cfg.write_text(
+            '[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\n'
+            f"[gnss]\nlever_arm_b_m = [0.0, 0.0, 0.0]\ntime_shift_s = {shift_s!r}\n"
+            f"use_velocity = {str(velocity).lower()}\n"
+            f"[initial]\nlat_deg = {lat!r}\nlon_deg = {lon!r}\nh_m = {h!r}\n"
+            f"vel_ned_mps = {s.v_n[0].tolist()}\nrpy_deg = {rpy.tolist()}\ntime_s = {t0!r}\n"
+            "pos_std_ned_m = [0.1, 0.1, 0.1]\nvel_std_ned_mps = [0.05, 0.05, 0.05]\n"
+            "att_std_deg = [0.05, 0.05, 0.2]\n"
+            "[imu_noise]\narw_deg_sqrth = 0.01\nvrw_mps_sqrth = 0.01\n"
+            "gyro_bias_std_dph = 0.1\naccel_bias_std_mgal = 50.0\n"
+            "gyro_scale_std_ppm = 10.0\naccel_scale_std_ppm = 10.0\ncorr_time_h = 1.0\n"
+            '[states]\nlayout = "kfgins"\ntime_offset = true\ntime_offset_std_ms = 300.0\n')
+        out = tmp_path / name
+        assert main(["process", "--config", str(cfg), "-o", str(out), "--no-plots"]) == 0
+        rows = np.loadtxt(out / "states.txt")
+        return rows[-1, 1] * 1e-3, rows[-1, 2] * 1e-3       # s
+    state, sd = run("as_is", 0.0)
+    assert abs(state - INJECTED_S) < max(3 * sd, 0.001), (state, sd)
+    assert sd < 0.002 and abs(state - printed) < 0.005     # same sign, same value
+    again, sd2 = run("shifted", printed)
+    assert abs(again) < max(3 * sd2, 0.001) + abs(printed - INJECTED_S), (again, sd2)

@@ -184,13 +184,14 @@ method = "gnss-heading"           # the car drives from the first fix: heading f
 
 def retime_gnss(gnss, position_offset_s, velocity_offset_s):
     """The fixes on the IMU's time scale when their positions and velocities carry
-    different offsets (GNSS clock minus IMU clock, s; ``ins.time_offset``): each record
-    is stamped at its position's IMU time ``t - position_offset_s`` and carries the
-    velocity interpolated (linearly) at that time from the velocities' IMU times
-    ``t - velocity_offset_s``; records outside the velocities' span are dropped."""
+    different offsets (IMU clock minus GNSS clock, s, the sign of ``ins.time_offset``
+    and of ``[gnss] time_shift_s``): each record is stamped at its position's IMU time
+    ``t + position_offset_s`` and carries the velocity interpolated (linearly) at that
+    time from the velocities' IMU times ``t + velocity_offset_s``; records outside the
+    velocities' span are dropped."""
     from dataclasses import replace
-    t_p = gnss.time - position_offset_s
-    t_v = gnss.time - velocity_offset_s
+    t_p = gnss.time + position_offset_s
+    t_v = gnss.time + velocity_offset_s
     keep = (t_p >= t_v[0]) & (t_p <= t_v[-1])
     v_n = np.column_stack([np.interp(t_p, t_v, gnss.v_n[:, j]) for j in range(3)])
     return replace(gnss, time=t_p, v_n=v_n).select(keep)
@@ -209,7 +210,7 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
 
     ``offsets``: ``"estimate"`` (the positions' and velocities' clock offsets estimated
     from the data by ``ins.time_offset`` and removed), ``None`` (the stamps as they are)
-    or a pair ``(position_offset_s, velocity_offset_s)`` (GNSS minus IMU clock, s).
+    or a pair ``(position_offset_s, velocity_offset_s)`` (IMU minus GNSS clock, s).
     """
     from ins.fileio import atomic_open, output_folder
     from ins.gnss import write_gnss
@@ -260,9 +261,9 @@ def _conversion_text(segment, info, gnss):
              f"(frame_times vs frame_gps_times, RMS {info['boot_fit_rms_s']:.1e} s)",
              f"gnss_stamp = \"{info['gnss_stamp']}\"   # utc: fix epoch; arrival: boot clock",
              f"gnss_arrival_minus_epoch_s = {info['gnss_arrival_minus_epoch_s']:.4f}",
-             f"position_offset_s = {info['position_offset_s']:.4f}   # GNSS - IMU clock, "
+             f"position_offset_s = {info['position_offset_s']:.4f}   # IMU - GNSS clock, "
              f"removed{_sigma(info, 'position')}",
-             f"velocity_offset_s = {info['velocity_offset_s']:.4f}   # GNSS - IMU clock, "
+             f"velocity_offset_s = {info['velocity_offset_s']:.4f}   # IMU - GNSS clock, "
              f"removed{_sigma(info, 'velocity')}",
              "[imu]",
              f"epochs = {info['imu_epochs']}",
@@ -393,7 +394,8 @@ tilt about north and east and of heading, deg); the fixes of DIR/gnss.txt alone 
 comparison.  --json writes the same figures.
 
 time base: GPS seconds of week (boot clock + the offset of frame_times to
-frame_gps_times).  Offsets: GNSS clock - IMU clock, s.
+frame_gps_times).  Offsets: IMU clock - GNSS clock, s (a fix stamped t holds the
+IMU time t + offset; the sign of ins time-offset and of [gnss] time_shift_s).
 """
 
 
@@ -409,7 +411,7 @@ def _parser():
                    help="stamp of the fixes: their UTC epoch (default) or their arrival "
                         "on the boot clock (0.2 s later)")
     p.add_argument("--offsets", default="estimate", metavar="POS,VEL|estimate|none",
-                   help="clock offsets (GNSS - IMU, s) of the positions and the velocities "
+                   help="clock offsets (IMU - GNSS, s) of the positions and the velocities "
                         "to remove: 'estimate' (default: ins.time_offset from the data), "
                         "'none', or two numbers")
     p.add_argument("--sigma-h", type=float, default=SIGMA_H_M, metavar="M",
@@ -474,7 +476,7 @@ def main(argv=None):
           f"{info['gnss_records']} fixes, {info['reference_epochs']} reference epochs; "
           f"GPS week {info['gps_week']}, tow = boot + {info['boot_to_gps_tow_s']:.6f} s")
     print(f"fixes stamped by their {info['gnss_stamp']} time; removed clock offsets "
-          f"(GNSS - IMU): positions {info['position_offset_s']:+.4f} s, velocities "
+          f"(IMU - GNSS clock): positions {info['position_offset_s']:+.4f} s, velocities "
           f"{info['velocity_offset_s']:+.4f} s" +
           (f" (estimated, sigma {info['position_offset_sigma_s']:.4f} / "
            f"{info['velocity_offset_sigma_s']:.4f} s)" if "position_offset_sigma_s" in info
