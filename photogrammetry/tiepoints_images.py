@@ -19,6 +19,7 @@ import numpy as np
 
 from ins.errors import InputError
 
+from .feature_cache import FeatureStore, feature_key
 from .features import detect_features
 from .imagery import image_size, read_grey
 from .matching import (PairMatches, PriorView, band_tolerance_mm, build_tracks,
@@ -167,9 +168,17 @@ def _detect(path, camera, settings):
     if (level.width_px, level.height_px) != (camera.width_px, camera.height_px):
         raise InputError(f"image is {level.width_px} x {level.height_px} px, the camera "
                          f"file says {camera.width_px} x {camera.height_px} px", path=path)
-    feats = detect_features(level, settings.max_features)
-    xy = ideal_photo_mm(camera, feats.uv_px)
-    return feats.uv_px, feats.descriptors.astype(np.float16), xy, feats.scale_px
+    return detect_features(level, settings.max_features)
+
+
+def _detect_into(store, k, iid, path, camera, settings):
+    """Detect image `k` into the store (or find it there): ``(n_keypoints, scale_px)``."""
+    key = feature_key(path, settings.max_side_px, settings.max_features)
+    found = store.lookup(k, iid, key)
+    if found is not None:
+        return found
+    feats = _detect(path, camera, settings)
+    return store.put(k, iid, key, feats.uv_px, feats.descriptors, feats.scale_px)
 
 
 def _map(func, items, workers, progress, done0, total):
@@ -190,7 +199,7 @@ def _map(func, items, workers, progress, done0, total):
 
 
 def match_images(paths, eo, camera, z_range_m, settings=MatchSettings(), workers=None,
-                 progress=None, eo_path="the EO file"):
+                 progress=None, eo_path="the EO file", cache_dir=None, cache_images=None):
     """Tie points of a set of images with their prior exterior orientation.
 
     Parameters
@@ -209,6 +218,12 @@ def match_images(paths, eo, camera, z_range_m, settings=MatchSettings(), workers
         Dask threads for detection and matching.
     progress : callable(done, total), optional
         Images detected plus pairs matched.
+    cache_dir : str, optional
+        Keep each image's features there (and reuse them on the next run:
+        :mod:`photogrammetry.feature_cache`); default a temporary folder.
+    cache_images : int, optional
+        Images whose features are held in memory at once (default ``2 workers + 2``,
+        at least 4): the features' memory is bounded by it, not by the block.
 
     Returns
     -------
@@ -222,34 +237,20 @@ def match_images(paths, eo, camera, z_range_m, settings=MatchSettings(), workers
     index = {iid: k for k, iid in enumerate(eo.image_id)}
     all_views = _views(eo, settings)
     views = [all_views[index[i]] for i in ids]
-    f = camera.focal_length_mm
     pairs = select_pairs(views, camera, 0.5 * (z0 + z1), settings.min_overlap)
-    total = len(paths) + len(pairs)
-    feats = _map(lambda p: _detect(p, camera, settings), paths, workers, progress, 0, total)
+    n_lru = cache_images or max(4, 2 * int(workers or 1) + 2)
+    with FeatureStore(cache_dir, n_lru, lambda uv: ideal_photo_mm(camera, uv)) as store:
+        total = len(paths) + len(pairs)
+        counts = _map(lambda k: _detect_into(store, k, ids[k], paths[k], camera, settings),
+                      range(len(paths)), workers, progress, 0, total)
+        results = _map(lambda pair: _match_pair(store, pair, views, camera, (z0, z1),
+                                                settings),
+                       pairs, workers, progress, len(paths), total)
+        n_feat = [c[0] for c in counts]
+        kept = [m for m in results if len(m.idx_i) >= settings.min_inliers]
+        tracks, conflicts = build_tracks(n_feat, kept)
+        img_out, pid_out, xy_out = _observations(store, tracks, ids, camera)
     px = camera.pixel_size_mm
-
-    def match(pair):
-        i, j, _ = pair
-        (_, di, xi, si), (_, dj, xj, sj) = feats[i], feats[j]
-        scale = max(si, sj)
-        depth = 0.5 * (abs(views[i].X0_m[2] - 0.5 * (z0 + z1))
-                       + abs(views[j].X0_m[2] - 0.5 * (z0 + z1)))
-        tol = band_tolerance_mm(camera, views[i], views[j], depth, settings.n_sigma,
-                                3.0 * scale * px)
-        ii, jj, ncand = guided_matches(di, dj, xi, xj, views[i], views[j], f, (z0, z1),
-                                       tol, settings.ratio)
-        inl, samp = verify_pair(xi[ii], xj[jj], f, settings.ransac_px * scale * px)
-        return PairMatches(i, j, ii[inl], jj[inl], ncand, len(ii), samp)
-
-    results = _map(match, pairs, workers, progress, len(paths), total)
-    kept = [m for m in results if len(m.idx_i) >= settings.min_inliers]
-    tracks, conflicts = build_tracks([len(ft[0]) for ft in feats], kept)
-    img_out, pid_out, xy_out = [], [], []
-    for t, tr in enumerate(tracks):
-        for k, kp in tr:
-            img_out.append(ids[k])
-            pid_out.append(str(t + 1))
-            xy_out.append(camera.pixel_to_photo(feats[k][0][kp]))
     samp = np.concatenate([m.sampson_mm for m in kept]) if kept else np.zeros(0)
     sigma_px = (float(1.4826 * np.median(np.abs(samp)) / px) if len(samp)
                 else float("nan"))
@@ -257,6 +258,38 @@ def match_images(paths, eo, camera, z_range_m, settings=MatchSettings(), workers
                   "guided": m.n_guided, "inliers": len(m.idx_i),
                   "kept": len(m.idx_i) >= settings.min_inliers}
                  for m, p in zip(results, pairs)]
-    return ImageTiePoints(img_out, pid_out, np.array(xy_out).reshape(-1, 2), sigma_px,
-                          pair_rows, [len(ft[0]) for ft in feats], len(tracks), conflicts,
+    return ImageTiePoints(img_out, pid_out, xy_out, sigma_px, pair_rows, n_feat,
+                          len(tracks), conflicts,
                           np.array([len(t) for t in tracks], dtype=int))
+
+
+def _match_pair(store, pair, views, camera, z_range, settings):
+    """Verified matches of one pair, its two images' features from the store."""
+    i, j, _ = pair
+    z0, z1 = z_range
+    (_, di, xi, si), (_, dj, xj, sj) = store.get(i), store.get(j)
+    f, px = camera.focal_length_mm, camera.pixel_size_mm
+    scale = max(si, sj)
+    depth = 0.5 * (abs(views[i].X0_m[2] - 0.5 * (z0 + z1))
+                   + abs(views[j].X0_m[2] - 0.5 * (z0 + z1)))
+    tol = band_tolerance_mm(camera, views[i], views[j], depth, settings.n_sigma,
+                            3.0 * scale * px)
+    ii, jj, ncand = guided_matches(di, dj, xi, xj, views[i], views[j], f, (z0, z1), tol,
+                                   settings.ratio)
+    inl, samp = verify_pair(xi[ii], xj[jj], f, settings.ransac_px * scale * px)
+    return PairMatches(i, j, ii[inl].astype(np.int32), jj[inl].astype(np.int32), ncand,
+                       len(ii), samp)
+
+
+def _observations(store, tracks, ids, camera):
+    """The tracks' observed photo coordinates (mm), each image's keypoints read once."""
+    if not tracks:
+        return [], [], np.zeros((0, 2))
+    lengths = np.array([len(t) for t in tracks])
+    obs = np.concatenate(tracks)                  # (image index, keypoint index)
+    pid = np.repeat(np.arange(1, len(tracks) + 1), lengths)
+    xy = np.empty((len(obs), 2))
+    for k in np.unique(obs[:, 0]):
+        rows = np.flatnonzero(obs[:, 0] == k)
+        xy[rows] = camera.pixel_to_photo(store.uv_px(int(k))[obs[rows, 1]])
+    return [ids[k] for k in obs[:, 0]], [str(p) for p in pid], xy

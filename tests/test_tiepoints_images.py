@@ -2,6 +2,8 @@
 (known truth: every pixel's ray of the true EO hits the ground point it shows), then
 refined back to the true angles; the image reader's levels and pixel mapping; tracks;
 bad inputs."""
+import os
+
 import cv2
 import numpy as np
 import pytest
@@ -250,3 +252,54 @@ def test_dem_height_range(tmp_path):
     lo2, hi2 = dem_height_range(tmp_path / "dem.tif", "enu; origin_lat_deg = 30.0; "
                                 "origin_lon_deg = 114.0; origin_h_m = 20.0")
     assert (lo2, hi2) == pytest.approx((lo - 20.0, hi - 20.0))
+
+
+def test_feature_cache_kept_and_reused(block, tmp_path):
+    """--cache DIR: one file per image, the same tie-point file as without it (and with
+    two images in memory at once); a second run reuses the files (not rewritten); a
+    changed setting detects again."""
+    import os
+    cache = tmp_path / "feat"
+    out = str(tmp_path / "c.csv")
+    args = ["tiepoints", *block["paths"], "--eo", block["eo"], "--camera", block["camera"],
+            "--ground-height-m", "0", "--relief-m", "15", "-q", "--cache", str(cache),
+            "--cache-images", "2"]
+    assert main(args + ["-o", out]) == 0
+    assert sorted(p.name for p in cache.iterdir()) == sorted(f"{i}.npz" for i in block["ids"])
+    with open(out) as a, open(block["tp"]) as b:
+        assert a.read() == b.read()
+    stamp = {p.name: p.stat().st_mtime_ns for p in cache.iterdir()}
+    assert main(args + ["-o", str(tmp_path / "d.csv")]) == 0
+    assert {p.name: p.stat().st_mtime_ns for p in cache.iterdir()} == stamp
+    with open(tmp_path / "d.csv") as a, open(block["tp"]) as b:
+        assert a.read() == b.read()
+    assert main(args[:-4] + ["--max-features", "500", "--cache", str(cache), "-o",
+                             str(tmp_path / "e.csv")]) == 0
+    assert all(p.stat().st_mtime_ns != stamp[p.name] for p in cache.iterdir())
+    assert not [n for n in os.listdir(cache) if not n.endswith(".npz") or n.startswith(".")]
+
+
+def test_feature_store_holds_at_most_its_images(tmp_path):
+    """The LRU: at most max_images in memory, the least recently used dropped first;
+    the temporary folder removed on close."""
+    from photogrammetry.feature_cache import FeatureStore
+    rng = np.random.default_rng(1)
+    with FeatureStore(None, 2, ideal=lambda uv: uv * 2.0) as store:
+        folder = store.folder
+        for k in range(4):
+            store.put(k, f"im{k}", "key", rng.normal(size=(5 + k, 2)),
+                      rng.random((5 + k, 128)), 2.0)
+        assert store.lookup(3, "im3", "key") == (8, 2.0)
+        assert store.lookup(3, "im3", "other") is None
+        uv0, d0, xy0, s0 = store.get(0)
+        np.testing.assert_array_equal(xy0, 2.0 * uv0)
+        assert d0.dtype == np.float16 and d0.shape == (5, 128) and s0 == 2.0
+        store.get(1)
+        store.get(0)                                  # 0 most recent: 1 goes next
+        store.get(2)
+        assert list(store._lru) == [0, 2] and store.loads == 3
+        store.get(0)
+        assert store.loads == 3                       # still held
+        store.get(3)
+        assert list(store._lru) == [0, 3] and len(store._lru) <= 2
+    assert not os.path.exists(folder)
