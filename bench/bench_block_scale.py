@@ -80,6 +80,7 @@ def one(n, method, datum):
     from photogrammetry.assessment import assess
     from photogrammetry.block import adjust_block
     B = sc.make_large_block(n, seed=1)
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
     t0 = time.perf_counter()
     res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
                        method, datum, positions=B["positions"], sigma_mm=B["sigma_mm"],
@@ -87,11 +88,15 @@ def one(n, method, datum):
     t1 = time.perf_counter()
     a = assess(res, B["prior"], B["system"], datum, method)
     t2 = time.perf_counter()
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    f = res.cov_op.factor if res.cov_op is not None else None
     err = (a.boresight - B["boresight"]) / np.where(a.boresight_sigma > 0,
                                                    a.boresight_sigma, np.nan)
     return {"images": n, "pairs": len(B["pairs"]), "adjust_s": t1 - t0, "assess_s": t2 - t1,
             "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "band": int(res.cov_op.factor.b) if res.cov_op is not None else 0,
+            "cpu_s": r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime,
+            "factor": ("dense" if f is None else f"b={f.b}" if hasattr(f, "b")
+                       else f"L={f.nnz / 1e6:.2f}M"),
             "sigma0": res.sigma0, "boresight_err_sigmas": np.round(err, 2).tolist(),
             "ins_noise_arcsec": np.round(a.ins_noise * 206264.8, 1).tolist()}
 
@@ -173,7 +178,7 @@ def run_sizes(method, datum, sizes):
                MKL_NUM_THREADS="1")
     rows = []
     print(f"{'images':>7} {'pairs':>6} {'adjust_s':>9} {'assess_s':>9} {'total_s':>8} "
-          f"{'peak_MB':>8} {'band':>5} {'sigma0':>7}  boresight error (sigmas)")
+          f"{'cpu_s':>6} {'peak_MB':>8} {'factor':>8} {'sigma0':>7}  boresight error (sigmas)")
     for n in sizes:
         out = subprocess.run([sys.executable, __file__, "--one", str(n), "--method",
                               method, "--datum", datum], env=env,
@@ -184,7 +189,8 @@ def run_sizes(method, datum, sizes):
         r = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(r)
         print(f"{r['images']:>7} {r['pairs']:>6} {r['adjust_s']:9.2f} {r['assess_s']:9.2f} "
-              f"{r['adjust_s'] + r['assess_s']:8.2f} {r['peak_MB']:8.0f} {r['band']:>5} "
+              f"{r['adjust_s'] + r['assess_s']:8.2f} {r['cpu_s']:6.1f} {r['peak_MB']:8.0f} "
+              f"{r['factor']:>8} "
               f"{r['sigma0']:7.3f}  {r['boresight_err_sigmas']}", flush=True)
     import numpy as np
     big = [r for r in rows if r["images"] >= 200]

@@ -216,6 +216,13 @@ def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
 #: The factor of the adjustment covariance is estimated only when its relative sigma is
 #: below this (else held at 1: the INS noise dominates and the factor does not matter).
 LAMBDA_MAX_REL = 0.3
+#: A banded fit frees ``lambda`` only when the fit with ``lambda = 1`` gives it a relative
+#: sigma below this, twice :data:`LAMBDA_MAX_REL`.  The relative sigma falls slowly as
+#: ``lambda`` grows (1000-image base-free block of ``bench/bench_block_scale.py``: 0.92 at
+#: 1, 0.64 at the free estimate 2.9): above this bound the free estimate would have to be
+#: tens of times the held one to pass :data:`LAMBDA_MAX_REL`, and the data, which enter
+#: the information, would have shown it.
+LAMBDA_TRY_REL = 2 * LAMBDA_MAX_REL
 
 
 def _fit(y, A, C, groups, start=None):
@@ -227,33 +234,89 @@ def _fit(y, A, C, groups, start=None):
     ``C`` is a dense matrix, or a block's covariance operator
     (:class:`photogrammetry.block_covariance.BandedCovariance`: REML by
     :func:`photogrammetry.reml.gls_reml_banded`, started from `start`, a dict that keeps
-    the last components for the next call).
+    the last components (rad^2) for the next call and whether ``lambda`` is held).  A
+    banded fit first holds ``lambda = 1``; it frees it only when the held fit's
+    information gives ``lambda`` a relative sigma below :data:`LAMBDA_TRY_REL` (else the
+    free fit could not pass :data:`LAMBDA_MAX_REL` and would only cost iterations, up to
+    runaway ones where ``lambda`` is not separable from the INS noise).
     """
-    n = len(y)
     banded = not isinstance(C, np.ndarray)
-    trace = np.einsum("kaa->", C.blocks) if banded else np.trace(C)
-    scale = max(trace / n, float(np.mean(y ** 2)), 1e-30)
+    scale = _scale(y, C)
     start = {} if start is None else start
 
-    def solve(fixed):
+    def solve(fixed, info=None):
         if banded:
             key = "free" if fixed is None else "held"
-            res = gls_reml_banded(y, A, C, groups, scale, fixed, start.get(key))
+            t0 = start.get(key)
+            t0 = None if t0 is None else np.concatenate([t0[:1], t0[1:] / scale])
+            if t0 is not None and fixed is not None:
+                t0[0] = fixed[0]
+            res = gls_reml_banded(y, A, C, groups, scale, fixed, t0, info=info)
             if np.all(np.isfinite(res[2])):
-                start[key] = res[2]
+                start[key] = np.concatenate([res[2][:1], res[2][1:] * scale])
             return res
         D = [np.diag((groups == a) * scale) for a in range(3)]
         return gls_variance_components(y, A, [C] + D, fixed=fixed)
-    if banded and "free" not in start:       # the free lambda starts from the held fit
-        start["free"] = solve([1.0, None, None, None])[2]
-    out = solve(None)
+    held = None
+    if start.get("lambda_held"):
+        out = held = solve([1.0, None, None, None])
+    else:
+        if banded and "free" not in start:   # the free lambda starts from the held fit
+            info = {}
+            held = solve([1.0, None, None, None], info)
+            start["free"] = start.get("held")
+            if not info["lambda_rel_sigma"] < LAMBDA_TRY_REL:
+                start["lambda_held"] = True
+        out = held if start.get("lambda_held") else solve(None)
     lam, lam_sigma = out[2][0], out[3][0]
     if not (lam > 0 and lam_sigma < LAMBDA_MAX_REL * lam):
-        out = solve([1.0, None, None, None])
+        out = held if held is not None else solve([1.0, None, None, None])
         lam, lam_sigma = 1.0, 0.0
+        start["lambda_held"] = True
     x, cov_x, theta, sig, r, chi2, signed, negative = out
     return (x, cov_x, lam, lam_sigma, theta[1:] * scale, sig[1:] * scale, r, chi2,
             signed[1:] * scale, negative[1:])
+
+
+def _scale(y, C):
+    """The variance scale of the fit: mean variance of ``C`` or of ``y``."""
+    trace = np.trace(C) if isinstance(C, np.ndarray) else np.einsum("kaa->", C.blocks)
+    return max(trace / len(y), float(np.mean(y ** 2)), 1e-30)
+
+
+def _gls(y, A, C, groups, lam, s2):
+    """GLS estimate of ``y = A x + e`` with the variance components held,
+    ``V = lam C + diag(s2[groups])`` (one factorization of ``V``): ``x`` and its
+    covariance ``(A' V^-1 A)^-1``."""
+    d = s2[groups] + 1e-12 * _scale(y, C)
+    if isinstance(C, np.ndarray):
+        L = np.linalg.cholesky(lam * C + np.diag(d))
+        W = np.linalg.solve(L, np.column_stack([A, y]))
+        Wa, Wy = W[:, :-1], W[:, -1]
+        cov = np.linalg.inv(Wa.T @ Wa)
+        return cov @ (Wa.T @ Wy), cov
+    Vs = BandedV(C, lam, d)
+    ViA = Vs.solve(A)
+    cov = np.linalg.inv(A.T @ ViA)
+    return cov @ (ViA.T @ y), cov
+
+
+def _moment_noise(y, C, groups):
+    """Start of the INS noise variance per angle (rad^2): the scatter of the differences
+    about their mean less the adjustment's own mean variance, at least a tenth of it."""
+    cdiag = np.diag(C) if isinstance(C, np.ndarray) else np.einsum("kaa->ka", C.blocks).ravel()
+    out = np.zeros(3)
+    for a in range(3):
+        va = np.var(y[groups == a]) if np.any(groups == a) else 0.0
+        out[a] = max(va - np.mean(cdiag[groups == a]), 0.1 * va, 1e-30)
+    return out
+
+
+def _small(v, cov):
+    """The Gauss-Newton increment is negligible: below 1e-12 rad, or below 1e-3 of its
+    own sigma in every component."""
+    sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return bool(np.max(np.abs(v)) < 1e-12 or np.all(np.abs(v) <= 1e-3 * sig))
 
 
 def _means(C, lam, s2, ones, d, k):
@@ -326,17 +389,29 @@ def assess(result, angles_ins, system, datum, method):
         R_ins = angles_to_matrix(ins[used], system)
         B_k, P_k = np.eye(3), np.eye(3)
         d_k = d
-        start = {}
-        for boresight_iterations in range(1, 21):
-            (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
-             negative) = _fit(d_k.ravel(), A, C, groups, start)
+        # GLS rounds with the components held (one factorization each) until the
+        # increments are negligible, then the REML fit (several factorizations) at that
+        # point; again until the REML's own increment is negligible
+        start, fits, ready = {}, 0, False
+        lam, theta = 1.0, _moment_noise(d_k.ravel(), C, groups)
+        for boresight_iterations in range(1, 31):
+            final = ready and fits < 4
+            if final:
+                (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
+                 negative) = _fit(d_k.ravel(), A, C, groups, start)
+                fits += 1
+            else:
+                v, cov_g = _gls(d_k.ravel(), A, C, groups, lam, theta)
             B_k = B_k @ rotvec_to_dcm(v[:3])
             if not observable:
                 P_k = P_k @ rotvec_to_dcm(v[3:6])
             d_k = wrap_to_pi(matrix_to_angles(P_k.T @ R_ins @ B_k, system)
                              - result.angles[used])
-            if np.max(np.abs(v)) < 1e-12:
+            ready = _small(v, cov_v if final else cov_g)
+            if final and ready:
                 break
+        if fits == 0:
+            raise RuntimeError("the boresight fit did not converge")   # not reached
         dof = 3 * k - A.shape[1]
         e = r.reshape(k, 3)
         mean_sigma, cov_mean, gls_mean = _means(C, lam, theta[groups], ones, d.ravel(), k)

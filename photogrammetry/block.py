@@ -707,7 +707,8 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         ps = (None if position_sigma is None
               else np.broadcast_to(np.asarray(position_sigma, float), (m, 3)))
         cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img,
-                                   ps if mode == "known" else None, n_angles=n_ang)
+                                   ps if mode == "known" else None, n_angles=n_ang,
+                                   factor=S)
         cov = None
         sigma = np.zeros((m, 3))
         sigma[free] = np.sqrt(np.einsum("iaa->ia", cov_op.blocks))

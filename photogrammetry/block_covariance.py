@@ -17,10 +17,12 @@ Relative and base-free blocks (bordered): the unknowns are the angles and two
 base-direction parameters per pair; the angles' normal matrix is the Schur complement
 ``S = H_aa - H_ab H_bb^-1 H_ba`` of the bases, which is dense (the bases of pairs that
 share tie points are coupled through the joint weights, so ``H_bb^-1`` fills in).  The
-full normal matrix ``H`` (angles first, then bases) is sparse and banded in reverse
-Cuthill-McKee order (a base touches two images), so it is ``H`` that is factored:
-``S^-1 = (H^-1)_aa``, the angles' covariance blocks are Takahashi entries of ``H^-1``
-and ``C v = sigma0^2 (H^-1 [v; 0])_a``.  ``n_angles`` < ``H.shape[0]`` marks this form
+full normal matrix ``H`` (angles first, then bases) is sparse (a base touches two
+images), so it is ``H`` that is factored:
+``S^-1 = (H^-1)_aa``, the angles' covariance blocks are entries of ``H^-1`` on the
+pattern of its sparse ``L D L'`` factor (minimum-degree order; selected inversion, the
+Takahashi recurrence on a sparse pattern, :class:`photogrammetry.banded.SparseSPD`) and
+``C v = sigma0^2 (H^-1 [v; 0])_a``.  ``n_angles`` < ``H.shape[0]`` marks this form
 (no position term: the bases are unknowns).
 """
 from dataclasses import dataclass
@@ -42,8 +44,9 @@ class BandedCovariance:
     S : scipy.sparse.csr_matrix (N, N)
         Normal matrix of the free angles (a-priori weights); bordered (relative
         methods): of the angles and then the base-direction parameters (``N > n``).
-    factor : photogrammetry.banded.BandedSPD
-        Its banded Cholesky factor (the covariance blocks by Takahashi).
+    factor : photogrammetry.banded.BandedSPD or SparseSPD
+        The factor whose inverse entries gave the covariance blocks (Takahashi): banded
+        Cholesky (known-base), sparse ``L D L'`` (bordered).
     sigma0 : float
     TX : scipy.sparse.csr_matrix (n, 3m) or None
         ``T Sx^(1/2)``: the EO-position term (known-base with position sigmas).
@@ -58,7 +61,7 @@ class BandedCovariance:
         `factor`).
     """
     S: object
-    factor: BandedSPD
+    factor: object
     sigma0: float
     TX: object
     free: np.ndarray
@@ -117,7 +120,7 @@ def _position_blocks(factor, TX, k, chunk=256):
 
 
 def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma=None,
-                      n_angles=None):
+                      n_angles=None, factor=None):
     """The covariance operator of a block from its normal matrix.
 
     Parameters
@@ -133,6 +136,9 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
         Sigma of the EO positions, m (known-base only).
     n_angles : int, optional
         Angle unknowns (default all of ``H``: known-base).
+    factor : photogrammetry.banded.SparseSPD, optional
+        The sparse factor of `H` if already computed (bordered blocks: the last
+        Gauss-Newton step's).
 
     Returns
     -------
@@ -140,14 +146,21 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
     """
     S = sparse.csr_matrix(H)
     n_angles = S.shape[0] if n_angles is None else int(n_angles)
-    perm = bordered_order(S, n_angles) if n_angles < S.shape[0] else None
-    factor = BandedSPD(S, perm=perm, what="block normal matrix")
     k = n_angles // 3
+    if n_angles < S.shape[0]:           # bordered: selected inverse of the sparse factor
+        solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
+            S, what="block normal matrix")
+        if solver.has_selected_inverse():
+            blocks = sigma0 ** 2 * solver.diagonal_blocks(3, k)
+            return BandedCovariance(S, solver, float(sigma0), None, free, blocks,
+                                    n_angles, solver)
+        band = BandedSPD(S, perm=bordered_order(S, n_angles), what="block normal matrix")
+        return BandedCovariance(S, band, float(sigma0), None, free,
+                                sigma0 ** 2 * band.diagonal_blocks(3, k), n_angles, solver)
+    factor = BandedSPD(S, what="block normal matrix")
     blocks = sigma0 ** 2 * factor.diagonal_blocks(3, k)
     TX = None
     if position_sigma is not None and np.any(position_sigma):
-        if n_angles != S.shape[0]:
-            raise ValueError("position sigmas need the known-base normal matrix")
         m = len(free)
         C = len(img)
         cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
@@ -155,5 +168,4 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
                                (np.repeat(np.arange(C), 6), cols.ravel())), shape=(C, 3 * m))
         TX = sparse.csr_matrix(WJ.T @ G @ sparse.diags(np.ravel(position_sigma)))
         blocks = blocks + _position_blocks(factor, TX, k)
-    solver = SparseSPD(S, what="block normal matrix") if n_angles < S.shape[0] else None
-    return BandedCovariance(S, factor, float(sigma0), TX, free, blocks, n_angles, solver)
+    return BandedCovariance(S, factor, float(sigma0), TX, free, blocks, n_angles, None)

@@ -123,7 +123,7 @@ def _diverged(y, A, op, theta):
 
 
 def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=60,
-                    tol=1e-7, probes=PROBES):
+                    tol=1e-7, probes=PROBES, info=None):
     """GLS + REML of ``y = A x + e``, ``V = theta_0 C + sum_a theta_{a+1} scale G_a``.
 
     Parameters
@@ -138,6 +138,10 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         Components held (None: estimated).
     theta0 : array_like (4,), optional
         Start (default ones).
+    info : dict, optional
+        Filled with ``lambda_rel_sigma``: the relative sigma of ``theta_0`` from the
+        average information of all four components at the solution (also when
+        ``theta_0`` is held: whether the data could tell it).
 
     Returns
     -------
@@ -152,7 +156,7 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
     Gd = [scale * (groups == a) for a in range(3)]
     floor = 1e-12 * scale
     Z = np.random.default_rng(0).choice([-1.0, 1.0], (n, probes))
-    perm = op.factor.perm if getattr(op, "bordered", False) else rcm_order(op.S)
+    perm = None if getattr(op, "bordered", False) else rcm_order(op.S)
 
     def stats(theta):
         d = sum(t * g for t, g in zip(theta[1:], Gd)) + floor
@@ -201,6 +205,13 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
     sig = np.zeros(4)
     var_theta = np.diag(np.linalg.inv(AI[np.ix_(est, est)]))
     sig[est] = np.where(var_theta >= 0, np.sqrt(np.abs(var_theta)), np.nan)
+    if info is not None:
+        try:
+            v0 = np.linalg.inv(AI)[0, 0]
+        except np.linalg.LinAlgError:
+            v0 = np.inf
+        info["lambda_rel_sigma"] = (np.sqrt(v0) / theta[0] if v0 >= 0 and theta[0] > 0
+                                    else np.inf)
     x = cov_x @ (A.T @ Vs.solve(y))
     r = y - A @ x
     return x, cov_x, theta, sig, r, float(r @ Vs.solve(r)), signed, negative

@@ -1,0 +1,65 @@
+"""Selected inversion of a sparse L D L' factor (photogrammetry.banded.SparseSPD) against
+numpy's dense inverse, and the pattern check it relies on."""
+import numpy as np
+import pytest
+from scipy import sparse
+
+from photogrammetry._sparse_kernels import pattern_is_closed
+from photogrammetry.banded import SparseSPD
+
+
+def _grid_spd(nx, ny, seed):
+    """SPD matrix of a 2-D grid graph with a few long-range couplings (fill-in)."""
+    rng = np.random.default_rng(seed)
+    n = nx * ny
+    idx = np.arange(n).reshape(nx, ny)
+    rows = np.concatenate([idx[:-1].ravel(), idx[:, :-1].ravel(),
+                           rng.integers(0, n, 20)])
+    cols = np.concatenate([idx[1:].ravel(), idx[:, 1:].ravel(), rng.integers(0, n, 20)])
+    keep = rows != cols
+    w = rng.uniform(0.5, 2.0, keep.sum())
+    B = sparse.coo_matrix((w, (rows[keep], cols[keep])), shape=(n, n))
+    B = B + B.T
+    deg = np.asarray(abs(B).sum(axis=1)).ravel()
+    return sparse.csc_matrix(sparse.diags(deg + rng.uniform(0.1, 1.0, n)) - B)
+
+
+def test_inverse_entries_match_dense_inverse():
+    A = _grid_spd(12, 15, 1)
+    f = SparseSPD(A)
+    assert f.has_selected_inverse()
+    Z = np.linalg.inv(A.toarray())
+    coo = sparse.tril(A).tocoo()                  # every coupled pair lies on the pattern
+    got = f.inverse_entries(coo.row, coo.col)
+    np.testing.assert_allclose(got, Z[coo.row, coo.col], rtol=1e-10,
+                               atol=1e-12 * np.abs(Z).max())
+    np.testing.assert_allclose(f.inverse_entries(coo.col, coo.row), got)   # symmetric
+
+
+def test_diagonal_blocks_match_dense_inverse():
+    A = _grid_spd(9, 10, 2)                       # 90 unknowns: 30 blocks of 3
+    # couple each 3-group fully so the blocks lie on the pattern
+    g = np.arange(90) // 3
+    A = sparse.csc_matrix(A + sparse.csc_matrix(0.01 * (g[:, None] == g[None, :])))
+    f = SparseSPD(A)
+    Z = np.linalg.inv(A.toarray())
+    ref = np.stack([Z[3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(30)])
+    np.testing.assert_allclose(f.diagonal_blocks(3), ref, rtol=1e-10)
+
+
+def test_entry_outside_the_pattern_is_refused():
+    A = sparse.csc_matrix(sparse.diags([4.0, 4.0, 4.0, 4.0]) + sparse.csc_matrix(
+        ([1.0, 1.0], ([0, 1], [1, 0])), shape=(4, 4)))
+    f = SparseSPD(A)
+    assert f.inverse_entries([0], [1])[0] == pytest.approx(-1.0 / 15.0)
+    with pytest.raises(ValueError, match="outside the pattern"):
+        f.inverse_entries([0], [3])
+
+
+def test_pattern_check():
+    # column 0: rows 2, 3; column 2 (its parent): row 3 -> closed
+    closed = sparse.csc_matrix(([1.0, 1.0, 1.0], ([2, 3, 3], [0, 0, 2])), shape=(4, 4))
+    assert pattern_is_closed(closed.indptr, closed.indices, 4)
+    # column 2 without row 3: (3, 2) is missing, the inverse would read it
+    open_ = sparse.csc_matrix(([1.0, 1.0], ([2, 3], [0, 0])), shape=(4, 4))
+    assert not pattern_is_closed(open_.indptr, open_.indices, 4)
