@@ -6,7 +6,7 @@ import warnings
 import numpy as np
 
 from ins import interrupts
-from ins.cliutil import Progress, check_output_file
+from ins.cliutil import Progress, check_output_file, nonnegative_int, positive_int
 from ins.errors import InputError, QualityWarning
 
 EPILOG = """\
@@ -67,6 +67,19 @@ trust (exit 3 unless --accept-poor):
   tasks (--workers N local processes, or --scheduler tcp://host:8786); each gets
   refined.csv and report.md unless -o/--report name a single output.
 
+tiles (one large block, --tile-images N):
+  the images are cut into tiles of at most N core images (recursive bisection of the EO
+  positions x, y), each with a halo of the images within --tile-halo-hops pair-hops
+  (default 3: every core image keeps its pairs, its partners theirs, and one ring
+  more); each tile is adjusted on its own as a Dask task (--workers/--scheduler; a
+  worker gets only its tile's data) and every image takes its refined angles and
+  sigmas from the tile where it is core.  Needs a datum in every tile: --method
+  known-base --datum none (GNSS bases) or --datum ins; --datum first is refused.  Lost:
+  the correlation across tile borders (the covariance is per image) and the pull of
+  pairs beyond the halo.  The INS assessment is combined from the tiles' core images
+  (boresight and INS noise by inverse variance); each tile's flags are carried.
+  Progress in tiles and images.
+
 example:
   photogrammetry refine eo.csv tiepoints.csv --camera camera.toml --method base-free \\
       --datum first -o refined.csv --report report.md
@@ -105,6 +118,11 @@ def add_parser(sub):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, metavar="N", help="local Dask workers (several folders)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler address")
+    p.add_argument("--tile-images", type=positive_int, metavar="N",
+                   help="refine one large block in tiles of at most N core images (Dask "
+                        "tasks; datum none or ins; see 'tiles' below)")
+    p.add_argument("--tile-halo-hops", type=nonnegative_int, metavar="HOPS", default=None,
+                   help="pair-hops of each tile's halo (default 3)")
     p.add_argument("-o", "--output", metavar="REFINED.csv")
     p.add_argument("--report", metavar="REPORT.md")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -160,6 +178,17 @@ def _jobs(args):
     return [(_task(args, ins[0], ins[1], args.camera), args.output, args.report)]
 
 
+def _tiled(args, task, bar):
+    """One block refined in tiles (photogrammetry.tiling)."""
+    from .tiling import DEFAULT_HALO_HOPS, check_tiled_datum, refine_tiled
+    check_tiled_datum(task["method"], task["datum"])
+    hops = DEFAULT_HALO_HOPS if args.tile_halo_hops is None else args.tile_halo_hops
+    return refine_tiled(**task, tile_images=args.tile_images, halo_hops=hops,
+                        workers=args.workers, scheduler=args.scheduler,
+                        progress=lambda done, total, images, n: bar.note(
+                            f"refine: {done}/{total} tiles ({images}/{n} images)   "))
+
+
 def run(args):
     from .batch import check_quality, refine, refine_many
     from .exposure import write_eo_csv
@@ -170,7 +199,11 @@ def run(args):
             if path:
                 check_output_file(path)
     bar = Progress("refine", not args.quiet)
-    if len(jobs) == 1 and args.scheduler is None:
+    if args.tile_images is None and args.tile_halo_hops is not None:
+        raise InputError("--tile-halo-hops needs --tile-images N")
+    if args.tile_images is not None:
+        results = [_tiled(args, task, bar) for task, _, _ in jobs]
+    elif len(jobs) == 1 and args.scheduler is None:
         n = len(jobs[0][0]["eo"])
         results = [refine(**jobs[0][0], progress=lambda k, kmax: bar.note(
             f"refine: {n} images, block iteration {k} (at most {kmax})   "))]

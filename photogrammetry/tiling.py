@@ -66,7 +66,7 @@ from .block import BlockResult, adjust_block
 from .block_covariance import banded_covariance
 from .quality import Quality
 
-__all__ = ["Tile", "TileResult", "TiledRefineResult", "partition", "adjust_tile",
+__all__ = ["Tile", "TileResult", "TiledRefineResult", "partition", "adjust_tile", "tile_tasks",
            "refine_tiled", "combine_assessments", "DEFAULT_HALO_HOPS"]
 
 _PAIR_WARNING = re.compile(r"^pair (\d+)-(\d+)")
@@ -283,7 +283,7 @@ def adjust_tile(index, prior, pairs, pair_points, point_ids, core, f_mm, system,
                       block.quality, a)
 
 
-def _tile_tasks(tiles, eo, pairs, points, point_ids, f_mm, system, method, datum,
+def tile_tasks(tiles, eo, pairs, points, point_ids, f_mm, system, method, datum,
                 prior_sigma, sigma_mm, position_sigma, snooping):
     """One task (keyword arguments of :func:`adjust_tile`) per tile: its data only."""
     m = len(eo)
@@ -355,7 +355,7 @@ def refine_tiled(eo, tiepoints, camera=None, tile_images=1000, halo_hops=DEFAULT
         eo, tiepoints, camera, system, method, sigma_mm, prior_sigma_rad, position_sigma_m)
     system = eo.system
     tiles = partition(eo.position, pairs, tile_images, halo_hops)
-    tasks = _tile_tasks(tiles, eo, pairs, points, point_ids, camera.focal_length_mm, system,
+    tasks = tile_tasks(tiles, eo, pairs, points, point_ids, camera.focal_length_mm, system,
                         method, datum, prior_sigma_rad, sigma_mm, position_sigma_m, snooping)
     n_core = [t.n_core for t in tiles]
     done_images = [0]
