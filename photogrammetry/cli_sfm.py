@@ -123,6 +123,10 @@ def run_import(args):
     src = args.source
     if args.tiepoints:
         check_output_file(args.tiepoints)
+        for p in (src, args.tracks):
+            if p and os.path.abspath(p) == os.path.abspath(args.tiepoints):
+                raise InputError(f"--tiepoints {args.tiepoints} would overwrite the input "
+                                 f"file {p}")
     skipped, why = 0, None
     if os.path.isdir(src):
         from .sfm_colmap import read_colmap

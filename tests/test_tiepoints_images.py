@@ -203,7 +203,6 @@ def test_bad_inputs(block, tmp_path, capsys):
     assert "twice" in capsys.readouterr().err
     # output over an input
     assert main(_args(block, block["paths"][:2], block["eo"])) == 2
-    import os
     assert not os.path.exists(out)
 
 
@@ -258,7 +257,6 @@ def test_feature_cache_kept_and_reused(block, tmp_path):
     """--cache DIR: one file per image, the same tie-point file as without it (and with
     two images in memory at once); a second run reuses the files (not rewritten); a
     changed setting detects again."""
-    import os
     cache = tmp_path / "feat"
     out = str(tmp_path / "c.csv")
     args = ["tiepoints", *block["paths"], "--eo", block["eo"], "--camera", block["camera"],
