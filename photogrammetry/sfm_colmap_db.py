@@ -57,9 +57,11 @@ def _need_pycolmap():
         import pycolmap
     except ImportError:
         raise InputError(f"writing a COLMAP database needs pycolmap 4: {_EXTRA}") from None
-    if not hasattr(pycolmap, "PosePriorCoordinateSystem"):
-        raise InputError(f"pycolmap {getattr(pycolmap, '__version__', '?')} has no pose "
-                         f"priors; a COLMAP database needs pycolmap 4: {_EXTRA}")
+    if not (hasattr(pycolmap, "PosePriorCoordinateSystem") and hasattr(pycolmap, "Rig")
+            and hasattr(pycolmap.PosePrior, "corr_data_id")):
+        raise InputError(f"pycolmap {getattr(pycolmap, '__version__', '?')} lacks the pose "
+                         f"priors of data ids (rigs, frames); a COLMAP database needs "
+                         f"pycolmap 4: pip install -U 'insphoto[colmap]'")
     return pycolmap
 
 
