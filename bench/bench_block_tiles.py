@@ -1,0 +1,173 @@
+"""One 10 000-image block refined in tiles on Dask (photogrammetry.tiling).
+
+    .venv/bin/python bench/bench_block_tiles.py [--images 10000] [--tile-images 1000]
+        [--halo-hops 3] [--workers 2] [--method known-base] [--datum none]
+
+A single simulated block (``tests/scenario.py``'s ``make_large_block(images, seed=1)``:
+strips of 50 images, 60 % forward and 30 % side overlap, ~40 tie points per image,
+0.5 px noise, INS noise 0.005 rad, boresight (0.002, -0.003, 0.004) rad) is written as
+files (eo.csv, tiepoints.csv, camera.toml) and read back as ``photogrammetry refine``
+would; then ``photogrammetry.tiling.refine_tiled`` cuts it into tiles of at most
+``--tile-images`` core images with a halo of ``--halo-hops`` pair-hops and adjusts them
+as tasks on a LocalCluster of ``--workers`` single-threaded worker processes (BLAS held
+to one thread).  Printed: the time and the driver's peak resident memory of each stage
+(simulation, files, reading and pairing, tiled refinement), the tiles' sizes, the wall
+time of the refinement, every worker's peak resident memory, the angles' error against
+the simulated truth (RMS per angle, arcsec, and chi-square per angle: the mean of
+(error / sigma)^2, 1 when the sigmas are honest), the combined boresight's error in
+its sigmas and the combined INS noise against the injected one.
+
+Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed):
+see the docstring's table below, filled from a run.
+
+MEASURED
+"""
+import argparse
+import os
+import resource
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+HERE = Path(__file__).resolve().parent
+_AS = 206264.806
+
+
+def _peak_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _worker_peak_mb():
+    import resource as r
+    return r.getrusage(r.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--images", type=int, default=10000)
+    ap.add_argument("--tile-images", type=int, default=1000)
+    ap.add_argument("--halo-hops", type=int, default=3)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--method", default="known-base")
+    ap.add_argument("--datum", default="none")
+    ap.add_argument("--whole", action="store_true",
+                    help="also refine the whole block in the driver (after the tiles) and "
+                         "compare")
+    args = ap.parse_args()
+    import numpy as np
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    import scenario as sc
+    from dask.distributed import Client, LocalCluster
+
+    from photogrammetry.camera import read_camera
+    from photogrammetry.exposure import read_eo_csv
+    from photogrammetry.rotation import angles_to_matrix
+    from photogrammetry.tiepoints import read_tiepoints
+    from photogrammetry.tiling import refine_tiled
+
+    t = time.perf_counter()
+    B = sc.make_large_block(args.images, seed=1)
+    print(f"simulate {args.images} images: {time.perf_counter() - t:.1f} s, "
+          f"{len(B['pairs'])} pairs; driver peak {_peak_mb():.0f} MB", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        eo_p, tp_p, cam_p = sc.write_block_files(B, tmp)
+        size = os.path.getsize(tp_p) / 1e6
+        print(f"write files: {time.perf_counter() - t:.1f} s (tiepoints.csv {size:.0f} MB)",
+              flush=True)
+        t = time.perf_counter()
+        camera, _ = read_camera(cam_p)
+        eo, tp = read_eo_csv(eo_p), read_tiepoints(tp_p, camera)
+        print(f"read files: {time.perf_counter() - t:.1f} s; driver peak {_peak_mb():.0f} MB",
+              flush=True)
+    t = time.perf_counter()
+    pairs = tp.pairs(list(eo.image_id), camera, min_common=3)[0]
+    print(f"pairing in the driver (TiePoints.pairs, again inside refine_tiled): "
+          f"{time.perf_counter() - t:.1f} s, {len(pairs)} pairs; driver peak "
+          f"{_peak_mb():.0f} MB", flush=True)
+    del pairs
+    truth, boresight, noise = B["angles"], B["boresight"], B["ins_noise"]
+    system = B["system"]
+    del B
+    cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1,
+                           dashboard_address=None,
+                           env={"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+                                "MKL_NUM_THREADS": "1"})
+    client = Client(cluster)
+    marks = []
+    try:
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = refine_tiled(eo, tp, camera, tile_images=args.tile_images,
+                               halo_hops=args.halo_hops, method=args.method,
+                               datum=args.datum, scheduler=cluster.scheduler_address,
+                               accept_poor=True,
+                               progress=lambda d, n, i, m: marks.append(
+                                   (d, n, i, time.perf_counter() - t0)))
+        wall = time.perf_counter() - t0
+        peaks = client.run(_worker_peak_mb)
+    finally:
+        client.close()
+        cluster.close()
+    s = res.settings
+    print(f"tiled refinement ({args.method}, datum {args.datum}): {s['n_tiles']} tiles of "
+          f"<= {args.tile_images} core images, halo {args.halo_hops} hops; tile sizes with "
+          f"halo {min(s['tile_sizes'])}-{max(s['tile_sizes'])} (mean "
+          f"{np.mean(s['tile_sizes']):.0f}, {sum(s['tile_sizes']) / s['n_images']:.2f}x the "
+          f"images)")
+    print(f"  wall {wall:.1f} s on {args.workers} workers (first tile done at "
+          f"{marks[0][3]:.1f} s, pairing and partition in the driver included); "
+          f"{len(caught)} warnings")
+    print("  peak resident memory per worker (MB): "
+          + ", ".join(f"{v:.0f}" for v in peaks.values())
+          + f"; driver {_peak_mb():.0f} MB")
+    blk, a = res.block, res.assessment
+    print(f"  sigma0 {blk.sigma0:.3f} (tiles {min(r.sigma0 for r in res.tile_results):.3f}-"
+          f"{max(r.sigma0 for r in res.tile_results):.3f}); quality "
+          f"{'POOR: ' + '; '.join(blk.quality.reasons[:3]) if blk.quality.poor else 'ok'}")
+    ok = blk.adjusted
+    d = np.angle(np.exp(1j * (blk.angles - truth)))[ok]
+    rot = sc.rotation_error(angles_to_matrix(blk.angles[ok], system),
+                            angles_to_matrix(truth[ok], system))
+    chi = np.mean((d / blk.sigma[ok]) ** 2, axis=0)
+    print(f"  angles vs truth ({ok.sum()} images): RMS "
+          + ", ".join(f"{v * _AS:.2f}" for v in np.sqrt(np.mean(d ** 2, axis=0)))
+          + " arcsec (" + "/".join(a.names) + "); chi-square per angle "
+          + ", ".join(f"{v:.2f}" for v in chi)
+          + f"; rotation error RMS {np.sqrt(np.mean(rot ** 2)) * _AS:.2f} arcsec")
+    if a.boresight_observable:
+        err = (a.boresight - boresight) / a.boresight_sigma
+        print("  boresight " + ", ".join(f"{v * _AS:.1f}" for v in a.boresight)
+              + " arcsec +- " + ", ".join(f"{v * _AS:.1f}" for v in a.boresight_sigma)
+              + "; error in sigmas " + ", ".join(f"{v:.2f}" for v in err))
+    if args.whole:
+        from photogrammetry.batch import refine
+        t = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            w = refine(eo, tp, camera, method=args.method, datum=args.datum,
+                       accept_poor=True)
+        z = np.angle(np.exp(1j * (blk.angles - w.block.angles)))[ok] / w.block.sigma[ok]
+        print(f"  whole block in the driver: {time.perf_counter() - t:.1f} s, driver peak "
+              f"{_peak_mb():.0f} MB; tiled minus whole in the whole's sigmas: RMS "
+              + ", ".join(f"{v:.2f}" for v in np.sqrt(np.mean(z ** 2, axis=0))) + ", max "
+              + ", ".join(f"{v:.2f}" for v in np.max(np.abs(z), axis=0)))
+        if w.assessment.boresight_observable:
+            print("  whole-block boresight error in sigmas "
+                  + ", ".join(f"{v:.2f}" for v in (w.assessment.boresight - boresight)
+                              / w.assessment.boresight_sigma))
+    injected = np.std(noise, axis=0)
+    print("  INS noise " + ", ".join(f"{v * _AS:.1f}" for v in a.ins_noise) + " +- "
+          + ", ".join(f"{v * _AS:.1f}" for v in a.ins_noise_sigma) + " arcsec (injected "
+          + ", ".join(f"{v * _AS:.1f}" for v in injected) + ")")
+
+
+if __name__ == "__main__":
+    main()
