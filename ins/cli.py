@@ -226,6 +226,7 @@ COMMAND_MODULES = [
     "ins.cli_process",
     "ins.cli_strip_check",
     "ins.cli_time_offset",
+    "ins.cli_vehicle",
 ]
 #: Entry-point group of the sub-commands that other packages add to ``ins`` (name: the
 #: sub-command; value: ``module:add_parser``).

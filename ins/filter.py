@@ -241,7 +241,7 @@ class _Updater:
         if at_rest:
             meas.append(ZeroVelocity(t_row, self.s.zupt_sigma_mps))
         if self.s.nhc:
-            meas.append(NonHolonomic(t_row, self.s.nhc_sigma_mps))
+            meas.append(NonHolonomic(t_row, self.s.nhc_sigma_mps, self.s.nhc_C_vb))
         for m in meas:
             P, x, _, _ = self.apply(m, point, P)
             if x is not None:

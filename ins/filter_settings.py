@@ -49,8 +49,11 @@ class FilterSettings:
         speed below ``ins.filter.ZUPT_MAX_SPEED_MPS``) or that fall in one of
         ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
     nhc : bool
-        Non-holonomic constraint at every node (lateral and vertical body velocity 0,
-        sigma ``nhc_sigma_mps``): for land vehicles whose body axes are the IMU's.
+        Non-holonomic constraint at every node (lateral and vertical velocity 0 in the
+        vehicle axes, sigma ``nhc_sigma_mps``): for land vehicles.
+    nhc_C_vb : array_like, shape (3, 3), optional
+        The IMU's mounting in the vehicle, ``v_v = C_vb v_b`` (``[vehicle]
+        mounting_rpy_deg``, :mod:`ins.vehicle`); ``None``: the IMU's axes are the vehicle's.
     heading : sequence of ins.measurements.DualAntennaHeading, optional
         Dual-antenna headings, processed at the node of their time.
     """
@@ -76,6 +79,7 @@ class FilterSettings:
     zupt_windows_s: tuple = ()
     nhc: bool = False
     nhc_sigma_mps: float = 0.1
+    nhc_C_vb: object = None
     heading: tuple = ()
 
     def prior_std(self):

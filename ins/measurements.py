@@ -256,29 +256,45 @@ class ZeroVelocity:
 
 
 class NonHolonomic:
-    """Non-holonomic constraint of a land vehicle whose body axes are the IMU's: the
-    lateral and vertical body velocity (``C_nb^T v_n``, y and z) are zero; ``R``
-    (m/s)^2 per axis."""
+    """Non-holonomic constraint of a land vehicle: the lateral and vertical velocity in
+    the VEHICLE axes ``v`` (forward, right, down of the vehicle's direction of travel),
+    ``C_vb C_nb^T v_n`` (y and z), are zero; ``R`` (m/s)^2 per axis.
+
+    ``C_vb`` (3 x 3) takes IMU body vectors into the vehicle frame (``v_v = C_vb v_b``):
+    the IMU's mounting, ``C_vb = Rz(yaw) Ry(pitch) Rx(roll)`` of the config's
+    ``[vehicle] mounting_rpy_deg`` (the IMU's roll, pitch, yaw in the vehicle frame, the
+    Euler convention of ``C_nb``; :func:`ins.vehicle.mounting_dcm`).  ``None`` (the
+    default) is the identity: the IMU's axes are the vehicle's.
+    """
 
     name, axes, unit = "nonholonomic", ("y", "z"), "m/s"
 
-    def __init__(self, time, sigma_mps):
+    def __init__(self, time, sigma_mps, C_vb=None):
         self.time = float(time)
         self.observed = np.zeros(2)
         self.R = np.diag(np.broadcast_to(np.asarray(sigma_mps, float), 2) ** 2)
+        self.C_vb = np.eye(3) if C_vb is None else _check_dcm(C_vb, self.name)
 
     def predict(self, p):
-        return (p.C_nb.T @ p.state[3:6])[1:3]
+        return (self.C_vb @ (p.C_nb.T @ p.state[3:6]))[1:3]
 
     def residual(self, a, b):
         return np.asarray(a) - np.asarray(b)
 
     def jacobian(self, p):
-        C = p.C_nb
+        C_vn = self.C_vb @ p.C_nb.T
         H = np.zeros((2, p.layout.n))
-        H[:, p.layout.vel] = C.T[1:3]
-        H[:, p.layout.att] = -(C.T @ skew(p.state[3:6]))[1:3]
+        H[:, p.layout.vel] = C_vn[1:3]
+        H[:, p.layout.att] = -(C_vn @ skew(p.state[3:6]))[1:3]
         return H
+
+
+def _check_dcm(C, what):
+    C = np.asarray(C, dtype=float)
+    if (C.shape != (3, 3) or not np.all(np.isfinite(C))
+            or not np.allclose(C @ C.T, np.eye(3), atol=1e-9) or np.linalg.det(C) < 0):
+        raise ValueError(f"{what}: expected a (3, 3) rotation matrix, got {C!r}")
+    return C
 
 
 @dataclass

@@ -301,11 +301,11 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
                       f"sigma is widened to {d:.1f} m", QualityWarning, stacklevel=2)
         std["pos_std_ned_m"] = np.maximum(np.broadcast_to(
             np.asarray(std["pos_std_ned_m"], float), 3), d)
+    start = t0 if t0 is not None else cfg.start_s
     settings = FilterSettings(noise=cfg.noise, lever=lever, use_velocity=cfg.use_velocity,
                               reject_probability=cfg.reject_probability,
                               node_interval_s=cfg.node_interval_s, **std,
-                              **filter_options(cfg))
-    start = t0 if t0 is not None else cfg.start_s
+                              heading=_headings(cfg, start), **filter_options(cfg))
     fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
                       progress=progress, workdir=workdir, initial_time=st.initial_time)
     f_std = np.array(fwd.nodes.post_std)
@@ -333,6 +333,16 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     if cfg.truth:
         result = with_truth(result, cfg.truth)
     return result
+
+
+def _headings(cfg, start):
+    """The dual-antenna headings of ``[files] heading`` inside the processed span (on
+    the GNSS clock: ``[gnss] time_shift_s`` applies), or ()."""
+    if not cfg.heading:
+        return ()
+    from .heading_files import read_headings, within
+    return within(read_headings(cfg.heading, cfg.heading_baseline_b_m, cfg.heading_sigma_deg,
+                                cfg.gnss_time_shift_s), start, cfg.end_s)
 
 
 def with_truth(result, truth_path):

@@ -27,6 +27,13 @@ with the unit in the name::
     [measurements] zupt = false, zupt_sigma_mps = 0.005, zupt_accel_std_mps2 = 0.05,
                  zupt_gyro_dps = 0.5, zupt_windows_s = [[t0, t1], ...],
                  nhc = false, nhc_sigma_mps = 0.1
+    [vehicle]    mounting_rpy_deg = [roll, pitch, yaw] (the IMU in the vehicle's
+                 forward-right-down axes, C_vb = Rz(yaw) Ry(pitch) Rx(roll); the
+                 non-holonomic constraint holds in the vehicle axes; ins.vehicle)
+    [heading]    baseline_b_m = [x, y, z] (primary-to-secondary antenna, b frame),
+                 sigma_deg (when the file has no sigma column): the dual-antenna
+                 headings of [files] heading (ins.heading_files; on the GNSS clock:
+                 [gnss] time_shift_s applies)
 
 With a mount, ``[mount]`` replaces ``[gnss] lever_arm_b_m``.  A flight folder's
 ``manifest.toml`` (``docs/interfaces.md``) gives the files, lever arms, IMU error values
@@ -46,7 +53,7 @@ _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bia
                "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h",
                "gyro_bias_instability_dph", "accel_bias_instability_mgal")
 _SECTIONS = {
-    "files": {"imu", "gnss", "mount", "truth"},
+    "files": {"imu", "gnss", "mount", "truth", "heading"},
     "imu": {"format", "rates", "axes", "time_shift_s"},
     "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
@@ -60,6 +67,8 @@ _SECTIONS = {
                "accel_misalignment_std_arcsec", "lever_arm_std_m", "time_offset_std_ms"},
     "measurements": {"zupt", "zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps",
                      "zupt_windows_s", "nhc", "nhc_sigma_mps"},
+    "vehicle": {"mounting_rpy_deg"},
+    "heading": {"baseline_b_m", "sigma_deg"},
 }
 #: The layout of ``ins process`` when ``[states] layout`` is not given.
 DEFAULT_LAYOUT = "survey"
@@ -79,6 +88,9 @@ class ProcessConfig:
     gnss: str
     mount: str = None
     truth: str = None
+    heading: str = None
+    heading_baseline_b_m: np.ndarray = None
+    heading_sigma_deg: float = None
     imu_format: str = None
     imu_rates: bool = False
     imu_axes: str = "FRD"
@@ -163,7 +175,8 @@ def load_config(path, base=None, files=None):
             raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
                              f"or give --{key})")
     return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
-                               truth=rel.get("truth")), data, where, path)
+                               truth=rel.get("truth"), heading=rel.get("heading")),
+                 data, where, path)
 
 
 def _fill(cfg, data, where, path=None):
@@ -218,7 +231,28 @@ def _fill(cfg, data, where, path=None):
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
     _states(cfg, data.get("states", {}), where)
     _measurements(cfg, data.get("measurements", {}), where)
+    _vehicle_and_heading(cfg, data, where)
     return cfg
+
+
+def _vehicle_and_heading(cfg, data, where):
+    """``[vehicle]`` (the NHC's mounting rotation, into ``cfg.measurements``) and
+    ``[heading]`` (the dual-antenna baseline and sigma)."""
+    from .vehicle import mounting_dcm
+    veh = data.get("vehicle", {})
+    if "mounting_rpy_deg" in veh:
+        cfg.measurements["nhc_C_vb"] = mounting_dcm(veh["mounting_rpy_deg"],
+                                                    where("vehicle", "mounting_rpy_deg"))
+    head = data.get("heading", {})
+    if "baseline_b_m" in head:
+        b = _vector(head["baseline_b_m"], where("heading", "baseline_b_m"))
+        if np.linalg.norm(b) < 1e-3:
+            raise InputError(f"{where('heading', 'baseline_b_m')}: expected the primary-to-"
+                             f"secondary antenna vector (m, b frame: forward, right, down), "
+                             f"got {head['baseline_b_m']!r}")
+        cfg.heading_baseline_b_m = b
+    if "sigma_deg" in head:
+        cfg.heading_sigma_deg = _number(head["sigma_deg"], where("heading", "sigma_deg"), True)
 
 
 def _flag(value, where):

@@ -58,6 +58,7 @@ BASE = {
     ("ins", "compare"): ["a.nav", "b.nav"],
     ("ins", "import-bag"): ["drive.bag", "-o", "out"],
     ("ins", "time-offset"): ["--imu", "imu.txt", "--gnss", "gnss.txt"],
+    ("ins", "vehicle-mounting"): ["solution.nav"],
     ("ins", "strip-check"): ["points.laz", "--trajectory", "t.nav", "--scanner", "s.toml"],
     ("photogrammetry", "eo"): ["flight", "-o", "eo.csv"],
     ("photogrammetry", "refine"): ["eo.csv", "tp.csv"],

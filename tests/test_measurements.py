@@ -11,6 +11,7 @@ from ins.measurements import (DualAntennaHeading, GnssPosition, GnssVelocity, Na
                               NonHolonomic, ZeroVelocity, corrected, kalman_update,
                               write_innovations)
 from ins.rotation import euler_to_quat
+from ins.vehicle import mounting_dcm
 
 FULL = StateLayout(tuple(OPTIONAL_GROUPS))
 
@@ -36,7 +37,8 @@ def _measurements():
     return [GnssPosition(100.003, lla, [[4e-4, 1e-4, 0], [1e-4, 4e-4, 0], [0, 0, 1.6e-3]]),
             GnssVelocity(100.0, [40.1, -35.2, 1.4], np.full(3, 1e-4)),
             DualAntennaHeading(100.0, np.deg2rad(137.2), np.deg2rad(0.05), [0.3, 1.0, 0.1]),
-            ZeroVelocity(100.0, 0.01), NonHolonomic(100.0, [0.1, 0.05])]
+            ZeroVelocity(100.0, 0.01), NonHolonomic(100.0, [0.1, 0.05]),
+            NonHolonomic(100.0, 0.1, mounting_dcm([1.0, 3.9, -1.5]))]   # IMU askew
 
 
 # step per state: small against the quantity, large against rounding
@@ -129,3 +131,19 @@ def test_innovation_file_layout(tmp_path):
     assert float(lines[1][3]) == pytest.approx(-0.02) and float(lines[1][5]) == -1.0
     assert lines[3][1:3] == ["heading", "psi"] and float(lines[3][3]) == pytest.approx(1.0)
     assert float(lines[3][5]) == 2.0 and lines[3][7] == "0" and lines[3][8] == "deg"
+
+
+def test_nonholonomic_in_the_vehicle_axes_by_hand():
+    """With the mounting, the predicted value is the vehicle-frame velocity
+    ``C_vb C_nb^T v_n`` (y, z): zero for a velocity along the vehicle's forward axis,
+    whatever the IMU's attitude; identity by default."""
+    p = _point()
+    C_vb = mounting_dcm([1.0, 3.9, -1.5])
+    fwd_n = p.C_nb @ C_vb.T @ np.array([1.0, 0.0, 0.0])
+    p.state[3:6] = 17.0 * fwd_n
+    np.testing.assert_allclose(NonHolonomic(0.0, 0.1, C_vb).predict(p), 0.0, atol=1e-12)
+    assert np.all(np.abs(NonHolonomic(0.0, 0.1).predict(p)) > 0.3)   # askew in b
+    np.testing.assert_allclose(NonHolonomic(0.0, 0.1).predict(p),
+                               (p.C_nb.T @ p.state[3:6])[1:], atol=1e-12)
+    with pytest.raises(ValueError, match="rotation matrix"):
+        NonHolonomic(0.0, 0.1, 2 * np.eye(3))
