@@ -9,9 +9,10 @@ config's key names and units::
     mems       a consumer / phone MEMS IMU (~100 deg/h, ~5 mg; values that process the
                comma2k19 phone at 104 Hz: tools/comma2k19.py, docs/real-data.md)
     land       mems for a land vehicle: ``[measurements] nhc = true`` (lateral and
-               vertical velocity 0 in the BODY axes: the IMU's axes must be the
-               vehicle's) and ``zupt = true`` (zero-velocity updates where the IMU is
-               found at rest)
+               vertical velocity 0 in the VEHICLE axes: give the IMU's mounting as
+               ``[vehicle] mounting_rpy_deg`` unless its axes are the vehicle's;
+               ``ins vehicle-mounting`` estimates it from a first solution) and
+               ``zupt = true`` (zero-velocity updates where the IMU is found at rest)
 
 The values are 1-sigma statistics in KF-GINS's units (deg/sqrt(h), m/s/sqrt(h), deg/h,
 mGal, ppm, h).

@@ -195,3 +195,42 @@ def test_command_line(tmp_path, capsys):
     assert comma2k19.main([str(REAL), "-o", str(seg)]) == 2          # not empty, no --force
     assert comma2k19.main([str(tmp_path / "nothing"), "-o", str(tmp_path / "x")]) == 2
     assert "a comma2k19 segment folder is expected" in capsys.readouterr().err
+
+
+@needs_real
+@pytest.mark.slow
+def test_real_segment_land_preset_with_the_estimated_mounting(tmp_path, capsys):
+    """The land variant (docs/real-data.md): the phone's mounting estimated from the mems
+    solution (pitch -3.87 +- 0.05, yaw +0.39 +- 0.03 deg), then the land preset.  With
+    continuous GNSS the figures stay those of the mems path (0.592 m, heading 0.116 deg);
+    without the mounting the constraint pulls the IMU's pitch by the mounting's 3.9 deg
+    (the camera-to-IMU pitch moves from 0.2 to -3.7 deg), with it the pitch stays."""
+    from ins.gnss import read_gnss
+    from ins.presets import apply_preset
+    from ins.process import process
+    from ins.process_config import load_config
+    from ins.trajectory import read_nav, write_nav
+    seg = tmp_path / "seg"
+    comma2k19.convert(REAL, seg)
+
+    def run(config, preset):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = process(apply_preset(load_config(seg / config), preset))
+        return res.smoothed, comma2k19.compare(res.smoothed, read_nav(seg / "reference.nav"),
+                                               read_gnss(seg / "gnss.txt"))
+    first, mems = run("config.toml", "mems")
+    write_nav(tmp_path / "first.nav", first)
+    assert comma2k19.main(["--land", str(tmp_path / "first.nav"), str(seg)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    text = (seg / "config_land.toml").read_text()
+    import tomllib
+    rpy = tomllib.loads(text)["vehicle"]["mounting_rpy_deg"]
+    assert abs(rpy[1] + 3.87) < 0.2 and abs(rpy[2] - 0.39) < 0.2
+    _, land = run("config_land.toml", "land")
+    _, axes = run("config.toml", "land")
+    assert abs(land["mount_rpy_deg"][1] - mems["mount_rpy_deg"][1]) < 0.2
+    assert abs(axes["mount_rpy_deg"][1] - mems["mount_rpy_deg"][1]) > 3.0
+    assert land["horizontal_rms_m"] < mems["horizontal_rms_m"] + 0.01
+    assert land["att_std_deg"][2] < 0.13 and land["att_std_deg"][1] < 0.105
+    assert land["vel_rms_ned_mps"][2] < 0.06 < axes["vel_rms_ned_mps"][2]

@@ -6,6 +6,13 @@ The real-data path of issue 15 item 5 in two commands (and a comparison)::
     ins process --config seg/config.toml --preset mems -o seg/out
     python tools/comma2k19.py --compare seg/out/solution.nav seg   # the figures
 
+and its land-vehicle variant (non-holonomic constraint in the car's axes, the phone's
+mounting estimated from the first solution by ``ins.vehicle``)::
+
+    python tools/comma2k19.py --land seg/out/solution.nav seg     # seg/config_land.toml
+    ins process --config seg/config_land.toml --preset land -o seg/out_land
+    python tools/comma2k19.py --compare seg/out_land/solution.nav seg
+
 ``SEGMENT`` is a comma2k19 segment folder (``IMU/``, ``GNSS/live_gnss_ublox``,
 ``global_pose/``: numpy ``t.npy``/``value.npy`` pairs; ``../shared/real/README.md``).
 
@@ -31,9 +38,10 @@ What the conversion writes into ``-o DIR`` (a new or empty folder, ``--force`` r
     given and is estimated by ``--compare``.
 ``config.toml``
     processing config for ``ins process`` (files, alignment from the GNSS track, zero
-    lever arm); the IMU noise comes from the preset (``--preset mems``).  Not ``land``:
-    its non-holonomic constraint holds in the IMU's axes, and the phone is pitched
-    3.9 deg against the car's direction of travel (docs/real-data.md).
+    lever arm); the IMU noise comes from the preset (``--preset mems``).  For ``land``
+    the phone's mounting is needed (it is pitched 3.9 deg against the car's direction
+    of travel): ``--land`` writes ``config_land.toml`` = this config + the ``[vehicle]``
+    table estimated from a first solution (docs/real-data.md).
 ``conversion.toml``
     the time base, the assumptions and the figures of the conversion.
 
@@ -164,8 +172,9 @@ def read_reference(segment, offset):
 
 CONFIG = """\
 # ins process config of a comma2k19 segment (written by tools/comma2k19.py).
-# IMU noise: from the preset (ins process --preset mems; not land: the phone's axes
-# are pitched 3.9 deg against the car's, and the NHC holds in the IMU's axes).
+# IMU noise: from the preset (ins process --preset mems).  For --preset land the
+# phone's mounting in the car is needed: tools/comma2k19.py --land writes
+# config_land.toml with the [vehicle] table estimated from a first solution.
 [files]
 imu = "imu.txt"
 gnss = "gnss.txt"
@@ -245,6 +254,23 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
         with atomic_open(os.path.join(stage, "conversion.toml"), "w") as f:
             f.write(_conversion_text(segment, info, gnss))
     return info
+
+
+def land_config(solution, folder):
+    """Write ``folder/config_land.toml``: ``folder/config.toml`` plus the ``[vehicle]``
+    table of the phone's mounting estimated from ``solution`` (a trajectory processed
+    without the constraint; :func:`ins.vehicle.estimate_mounting`).  Returns the
+    :class:`ins.vehicle.Mounting`."""
+    from ins.fileio import atomic_open
+    from ins.trajectory import read_trajectory
+    from ins.vehicle import estimate_mounting
+    m = estimate_mounting(read_trajectory(solution))
+    base = Path(folder, "config.toml").read_text(encoding="utf-8")
+    with atomic_open(os.path.join(folder, "config_land.toml"), "w") as f:
+        f.write(base + f"\n# the phone's mounting estimated from {os.path.abspath(solution)} "
+                f"({m.n_epochs} epochs of straight driving, {m.n_blocks} blocks of 5 s)\n"
+                + m.toml())
+    return m
 
 
 def _sigma(info, name):
@@ -384,6 +410,10 @@ two commands and a comparison:
   python tools/comma2k19.py ../shared/real/comma2k19_segment -o seg
   ins process --config seg/config.toml --preset mems -o seg/out
   python tools/comma2k19.py --compare seg/out/solution.nav seg
+the land variant (non-holonomic constraint in the car's axes):
+  python tools/comma2k19.py --land seg/out/solution.nav seg
+  ins process --config seg/config_land.toml --preset land -o seg/out_land
+  python tools/comma2k19.py --compare seg/out_land/solution.nav seg
 
 --compare SOLUTION.nav DIR interpolates the solution (IMU) at the reference epochs of
 DIR/reference.nav (camera pose, 20 Hz), estimates the constant camera-to-IMU rotation
@@ -426,6 +456,10 @@ def _parser():
     p.add_argument("--compare", nargs=2, metavar=("SOLUTION", "DIR"),
                    help="figures of a solution .nav against DIR/reference.nav")
     p.add_argument("--json", metavar="F", help="with --compare: also write the figures")
+    p.add_argument("--land", nargs=2, metavar=("SOLUTION", "DIR"),
+                   help="write DIR/config_land.toml: DIR/config.toml + the [vehicle] table "
+                        "of the phone's mounting (pitch, yaw in the car, deg) estimated from "
+                        "SOLUTION (processed without the constraint)")
     return p
 
 
@@ -463,6 +497,12 @@ def main(argv=None):
             print("\n".join(format_figures(fig)))
             if args.json:
                 _figures_json(fig, args.json)
+            return 0
+        if args.land:
+            m = land_config(*args.land)
+            print(f"mounting of the IMU in the car: pitch {m.rpy_deg[1]:+.3f} deg (sigma "
+                  f"{m.sigma_deg[0]:.3f}), yaw {m.rpy_deg[2]:+.3f} deg (sigma "
+                  f"{m.sigma_deg[1]:.3f}); wrote {os.path.join(args.land[1], 'config_land.toml')}")
             return 0
         if not args.segment or not args.output:
             raise InputError("SEGMENT and -o DIR are required (or --compare SOLUTION DIR)")
