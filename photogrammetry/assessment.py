@@ -301,17 +301,6 @@ def _gls(y, A, C, groups, lam, s2):
     return cov @ (ViA.T @ y), cov
 
 
-def _moment_noise(y, C, groups):
-    """Start of the INS noise variance per angle (rad^2): the scatter of the differences
-    about their mean less the adjustment's own mean variance, at least a tenth of it."""
-    cdiag = np.diag(C) if isinstance(C, np.ndarray) else np.einsum("kaa->ka", C.blocks).ravel()
-    out = np.zeros(3)
-    for a in range(3):
-        va = np.var(y[groups == a]) if np.any(groups == a) else 0.0
-        out[a] = max(va - np.mean(cdiag[groups == a]), 0.1 * va, 1e-30)
-    return out
-
-
 def _small(v, cov):
     """The Gauss-Newton increment is negligible: below 1e-12 rad, or below 1e-3 of its
     own sigma in every component."""
@@ -389,11 +378,11 @@ def assess(result, angles_ins, system, datum, method):
         R_ins = angles_to_matrix(ins[used], system)
         B_k, P_k = np.eye(3), np.eye(3)
         d_k = d
-        # GLS rounds with the components held (one factorization each) until the
-        # increments are negligible, then the REML fit (several factorizations) at that
-        # point; again until the REML's own increment is negligible
-        start, fits, ready = {}, 0, False
-        lam, theta = 1.0, _moment_noise(d_k.ravel(), C, groups)
+        # the REML fit (several factorizations) at the first round, then GLS rounds with
+        # its components held (one factorization each) until the increments are
+        # negligible, then the REML fit again there (from its last components) until its
+        # own increment is negligible
+        start, fits, ready = {}, 0, True
         for boresight_iterations in range(1, 31):
             final = ready and fits < 4
             if final:

@@ -179,8 +179,10 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
                 ya, ca = y[groups == a] ** 2, cdiag[groups == a]
                 theta[a + 1] = max(np.mean(ya) - np.mean(ca), 0.1 * np.mean(ya)) / scale
     live = est.copy()
+    last = None
     for _ in range(max_iter):
-        _, _, _, u, AI = stats(theta)
+        last = stats(theta)
+        _, _, _, u, AI = last
         step = np.linalg.solve(AI[np.ix_(live, live)], u[live])
         # damped Newton in log(theta): no component changes by more than e^1.5 per step
         t = theta[live]
@@ -192,12 +194,12 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         done = np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new),
                                                                 1e-3 * np.max(new)))
         live &= ~gone
-        theta = new
         if done and not gone.any():
-            break
+            break               # theta kept: its step is below tol, its terms are `last`
+        theta, last = new, None
         if est[0] and not (1e-8 < theta[0] < 1e8 and np.all(theta[1:] < 1e8)):
             return _diverged(y, A, op, theta)   # lambda not separable from the noise
-    Vs, cov_x, Py, u, AI = stats(theta)
+    Vs, cov_x, Py, u, AI = last if last is not None else stats(theta)
     signed = theta.copy()
     signed[est] = theta[est] + np.linalg.solve(AI[np.ix_(est, est)], u[est])
     negative = np.zeros(4, bool)
