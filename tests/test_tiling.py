@@ -234,3 +234,30 @@ def test_tile_flag_carried_once(small):
     mine = [r for r in q.reasons if f"image {name}:" in r]
     assert len(mine) == 1 and mine[0].startswith("tile ")
     assert q.image_flags[k] and q.image_flags.sum() == 1
+
+
+def test_dense_tiles_exact_core_covariance(tmp_path):
+    """Small tiles (dense algebra: the exact covariance of the core images in the
+    assessment): the tiled block against the whole one and the simulated boresight."""
+    import warnings
+    B = sc.make_block(n_strips=4, n_per_strip=12, seed=12)
+    eo_p, tp_p, cam_p = sc.write_block_files(B, str(tmp_path))
+    camera, _ = read_camera(cam_p)
+    eo, tp = read_eo_csv(eo_p), read_tiepoints(tp_p, camera)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = refine(eo, tp, camera, method="known-base", datum="none")
+        tiled = refine_tiled(eo, tp, camera, tile_images=16, halo_hops=3, workers=1)
+    assert tiled.settings["n_tiles"] == 3
+    assert all(len(t.images) < 100 for t in tiled.tiles)     # dense tiles
+    assert all(r.assessment.used.sum() == t.n_core for t, r in zip(tiled.tiles,
+                                                                     tiled.tile_results))
+    z = np.angle(np.exp(1j * (tiled.block.angles - whole.block.angles))) / whole.block.sigma
+    assert np.all(np.sqrt(np.mean(z ** 2, axis=0)) < 0.5) and np.max(np.abs(z)) < 2.0
+    a = tiled.assessment
+    err = (a.boresight - B["boresight"]) / a.boresight_sigma
+    assert np.all(np.abs(err) < 3), err
+    np.testing.assert_allclose(a.boresight_sigma, whole.assessment.boresight_sigma, rtol=0.15)
+    # the combined sigma is the inverse-variance one of the tiles'
+    s = np.array([r.assessment.boresight_sigma for r in tiled.tile_results])
+    np.testing.assert_allclose(a.boresight_sigma, 1 / np.sqrt(np.sum(s ** -2, axis=0)))
