@@ -48,6 +48,23 @@ def _worker_peak_mb():
     return r.getrusage(r.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def _worker_rss_mb():
+    """Current resident memory of the process, MB (Linux /proc)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
+
+
+def _poll(client, samples, stop, every_s=0.5):
+    """Sample every worker's current resident memory until `stop` is set."""
+    import time as _t
+    while not stop.is_set():
+        try:
+            samples.append((_t.perf_counter(), client.run(_worker_rss_mb)))
+        except Exception:                                  # the cluster closing
+            return
+        stop.wait(every_s)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--images", type=int, default=10000)
@@ -100,7 +117,11 @@ def main():
                            env={"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
                                 "MKL_NUM_THREADS": "1"})
     client = Client(cluster)
-    marks = []
+    marks, samples = [], []
+    import threading
+    stop = threading.Event()
+    poller = threading.Thread(target=_poll, args=(client, samples, stop), daemon=True)
+    poller.start()
     try:
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
@@ -113,6 +134,8 @@ def main():
                                    (d, n, i, time.perf_counter() - t0)))
         wall = time.perf_counter() - t0
         peaks = client.run(_worker_peak_mb)
+        stop.set()
+        poller.join()
     finally:
         client.close()
         cluster.close()
@@ -128,6 +151,17 @@ def main():
     print("  peak resident memory per worker (MB): "
           + ", ".join(f"{v:.0f}" for v in peaks.values())
           + f"; driver {_peak_mb():.0f} MB")
+    if samples:
+        workers = sorted(samples[-1][1])
+        cuts = [t for (_, _, _, t) in marks]
+        rows = []
+        for k, t_end in enumerate(cuts):
+            t_start = cuts[k - 1] if k else 0.0
+            inside = [v for (t, v) in samples if t_start <= t - t0 <= t_end]
+            rows.append(" / ".join(f"{max((v.get(w, 0) for v in inside), default=0):.0f}"
+                                   for w in workers))
+        print("  current resident memory per worker, max between successive tiles done "
+              "(MB, sampled every 0.5 s): " + "; ".join(rows))
     blk, a = res.block, res.assessment
     print(f"  sigma0 {blk.sigma0:.3f} (tiles {min(r.sigma0 for r in res.tile_results):.3f}-"
           f"{max(r.sigma0 for r in res.tile_results):.3f}); quality "
