@@ -205,29 +205,34 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
     return map_tasks(refine, tasks, workers, scheduler, progress, processes)
 
 
-def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processes=True):
+def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processes=True,
+              total=None):
     """``func(**task)`` for every task, as Dask tasks (see :func:`refine_many`).
 
     `func` must be a module-level function (pickled by reference) whose result takes a
     ``warnings`` attribute (the task's warnings, re-issued here in the caller).  Each
-    task's keyword arguments travel to the worker that runs it, and only there.
-    `progress` is called as ``progress(done, total, index)`` with the index of the task
-    just finished when it takes three arguments, else ``progress(done, total)``.
+    task's keyword arguments travel to the worker that runs it, and only there; they are
+    submitted a few at a time (twice the workers in flight), so neither the scheduler
+    nor a worker holds the data of all tasks at once, and `tasks` may be a generator
+    (give `total`, its length, for the progress).  `progress` is called as
+    ``progress(done, total, index)`` with the index of the task just finished when it
+    takes three arguments, else ``progress(done, total)``.
 
     Returns
     -------
     list of the results, in the order of `tasks`.
     """
-    tasks = list(tasks)
+    if total is None:
+        tasks = list(tasks)
+        total = len(tasks)
     note = _progress_call(progress)
     if scheduler is None and workers == 1:
         out = []
         for k, t in enumerate(tasks):
             out.append(_call(func, t))
-            note(k + 1, len(tasks), k)
+            note(k + 1, total, k)
         return _reemit(out)
-    from functools import partial
-
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler is None:
@@ -237,14 +242,29 @@ def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processe
     else:
         client = Client(scheduler)
     try:
-        futures = client.map(partial(_call, func), tasks, pure=False)
-        index = {f.key: k for k, f in enumerate(futures)}
-        results = [None] * len(tasks)
-        for done, fut in enumerate(as_completed(futures), 1):
-            k = index[fut.key]
-            results[k] = fut.result()
-            fut.release()
-            note(done, len(tasks), k)
+        window = 2 * max(1, sum(client.nthreads().values()))
+        pending = enumerate(tasks)
+        running = as_completed()
+        index = {}
+
+        def submit_next():
+            for k, task in pending:
+                fut = client.submit(_call, func, task, pure=False)
+                index[fut.key] = k
+                running.add(fut)
+                return
+
+        results = [None] * total
+        # a task's own data (a tile of a block: tens of MB) is meant to travel with it
+        with dask.config.set({"distributed.admin.large-graph-warning-threshold": "4GB"}):
+            for _ in range(window):
+                submit_next()
+            for done, fut in enumerate(running, 1):
+                k = index.pop(fut.key)
+                results[k] = fut.result()
+                fut.release()
+                note(done, total, k)
+                submit_next()
         return _reemit(results)
     finally:
         client.close()
