@@ -44,8 +44,17 @@ def _peak_mb():
 
 
 def _worker_peak_mb():
+    """(VmHWM, ru_maxrss) of the process, MB.  VmHWM (Linux /proc) is the peak resident
+    memory of this process image; ru_maxrss also keeps that of the process before its
+    exec, i.e. a worker spawned by fork + exec reports the parent's (the driver's)
+    resident memory at the fork."""
     import resource as r
-    return r.getrusage(r.RUSAGE_SELF).ru_maxrss / 1024
+    hwm = float("nan")
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                hwm = int(line.split()[1]) / 1024
+    return hwm, r.getrusage(r.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def _worker_rss_mb():
@@ -148,9 +157,11 @@ def main():
     print(f"  wall {wall:.1f} s on {args.workers} workers (first tile done at "
           f"{marks[0][3]:.1f} s, pairing and partition in the driver included); "
           f"{len(caught)} warnings")
-    print("  peak resident memory per worker (MB): "
-          + ", ".join(f"{v:.0f}" for v in peaks.values())
-          + f"; driver {_peak_mb():.0f} MB")
+    print("  peak resident memory per worker (MB, VmHWM): "
+          + ", ".join(f"{v[0]:.0f}" for v in peaks.values())
+          + " (ru_maxrss, which holds the driver's memory at the fork: "
+          + ", ".join(f"{v[1]:.0f}" for v in peaks.values())
+          + f"); driver {_peak_mb():.0f} MB")
     if samples:
         workers = sorted(samples[-1][1])
         cuts = [t for (_, _, _, t) in marks]

@@ -116,7 +116,8 @@ def add_parser(sub):
                         "image's angle change is implausible (flagged in the CSV comments "
                         "and the report; default: exit 3, nothing written)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int, metavar="N", help="local Dask workers (several folders)")
+    g.add_argument("--workers", type=int, metavar="N",
+                   help="local Dask workers (several folders, or the tiles of --tile-images)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler address")
     p.add_argument("--tile-images", type=positive_int, metavar="N",
                    help="refine one large block in tiles of at most N core images (Dask "

@@ -71,7 +71,8 @@ from .block_covariance import banded_covariance
 from .quality import Quality
 
 __all__ = ["Tile", "TileResult", "TiledRefineResult", "partition", "adjust_tile", "tile_tasks",
-           "refine_tiled", "combine_assessments", "DEFAULT_HALO_HOPS"]
+           "refine_tiled", "check_tiled_datum", "core_assessment", "assemble_block",
+           "combine_assessments", "DEFAULT_HALO_HOPS"]
 
 _PAIR_WARNING = re.compile(r"^pair (\d+)-(\d+)")
 _IMAGE_WARNING = re.compile(r"^image (\d+)")
