@@ -15,10 +15,11 @@ cost (``bench/bench_process.py``, "Covariance step").
 
 A GNSS record at time ``t_g`` between IMU epochs ``t_j <= t_g < t_j+1`` is processed at
 node ``j``: the predicted antenna position is the state at ``t_j`` advanced by
-``D^-1 v (t_g + offset - t_j)`` (``offset`` the estimated IMU-GNSS time offset when the
-layout has one; the neglected acceleration term is below 0.1 mm for a 5 ms IMU
-interval), with the lever arm at ``t_g`` (plus the estimated correction); the error
-state over those few ms is taken as unchanged.  Dual-antenna headings, zero-velocity
+``D^-1 (v dt + a dt^2 / 2)``, ``dt = t_g + offset - t_j`` (``offset`` the estimated
+IMU-GNSS time offset when the layout has one; ``a`` the node's acceleration from its
+last specific force, :func:`ins.measurements.node_acceleration`), the predicted
+velocity by ``v + a dt``, with the lever arm at ``t_g`` (plus the estimated
+correction); the error state over those few ms is taken as unchanged.  Dual-antenna headings, zero-velocity
 and non-holonomic updates (:class:`ins.filter_settings.FilterSettings`) follow the GNSS
 records of a node.
 
@@ -51,7 +52,7 @@ from .errors import InputError, InputWarning
 from .filter_settings import FilterSettings  # noqa: F401
 from .filter_stores import NodeStore, TrajectoryStore
 from .measurements import (GnssPosition, GnssVelocity, NavPoint, NonHolonomic, UpdateRecord,
-                           ZeroVelocity, kalman_update)
+                           ZeroVelocity, kalman_update, node_acceleration)
 
 
 class ForwardResult:
@@ -210,7 +211,7 @@ class _Updater:
         self.n_updates += 1
         return P, x, nis, z
 
-    def update(self, k, t_row, state, sensors, P, w_meas_b):
+    def update(self, k, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
         """Process GNSS record ``k`` at the node of time ``t_row``; returns (P, dx)."""
         g = self.gnss
         dx = np.zeros(self.layout.n)
@@ -218,7 +219,8 @@ class _Updater:
         l_b, dl_b, valid = self.s.lever.at(tg)
         if not valid[0]:
             self.n_fallback += 1
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0])
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0],
+                         None if f_meas_b is None else node_acceleration(state, f_meas_b))
         cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
         P, x, nis, z = self.apply(GnssPosition(tg, g.lla[k], cov), point, P)
         self.nis.append(nis)
@@ -468,10 +470,11 @@ class _ForwardRun:
         _, P = up.kf_predict(np.zeros(L.n), self.P, Phi, Qd)
         P_prior = P
         w_meas_b = th[r] / (t[r] - t[r - 1])
+        f_meas_b = dv[r] / (t[r] - t[r - 1])
         dx = np.zeros(L.n)
         gj, g_time = self.gj, self.g_time
         while gj < len(g_time) and at_node(gj):
-            P, d = up.update(gj, t[r], self.state, self.sensors, P, w_meas_b)
+            P, d = up.update(gj, t[r], self.state, self.sensors, P, w_meas_b, f_meas_b)
             dx += d
             gj += 1
         heads = []

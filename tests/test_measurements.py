@@ -28,7 +28,8 @@ def _point(layout=FULL):
     if layout.time_offset is not None:
         sensors[layout.time_offset.start - 9] = 0.004
     return NavPoint(100.0, state, sensors, layout, w_meas_b=np.array([0.05, -0.12, 0.2]),
-                    l_b=np.array([0.55, 0.15, -1.2]), dl_b=np.array([0.01, -0.02, 0.005]))
+                    l_b=np.array([0.55, 0.15, -1.2]), dl_b=np.array([0.01, -0.02, 0.005]),
+                    a_n=np.array([1.2, -0.8, 0.3]))
 
 
 def _measurements():
@@ -147,3 +148,23 @@ def test_nonholonomic_in_the_vehicle_axes_by_hand():
                                (p.C_nb.T @ p.state[3:6])[1:], atol=1e-12)
     with pytest.raises(ValueError, match="rotation matrix"):
         NonHolonomic(0.0, 0.1, 2 * np.eye(3))
+
+
+def test_gnss_predictions_carried_by_the_node_acceleration():
+    """A record 3 ms after its node with a 4 ms time offset: the predicted velocity is
+    v + a dt and the position v dt + a dt^2 / 2 further (dt = 7 ms, by hand in NED);
+    node_acceleration of a level IMU at rest is zero (f_b = -g_n)."""
+    from ins import earth
+    from ins.measurements import node_acceleration
+    p = _point()
+    dt = 0.003 + 0.004
+    a = p.a_n
+    v = GnssVelocity(100.003, np.zeros(3), np.ones(3))
+    p0 = NavPoint(p.time, p.state, p.sensors, p.layout, p.w_meas_b, p.l_b, p.dl_b)
+    np.testing.assert_allclose(v.predict(p) - v.predict(p0), a * dt, atol=1e-12)
+    g = GnssPosition(100.003, p.state[:3], np.eye(3))
+    moved = earth.ned_offset(g.predict(p0), g.predict(p))
+    np.testing.assert_allclose(moved, 0.5 * a * dt ** 2, atol=1e-9)
+    rest = np.concatenate([[0.5, 1.0, 10.0], np.zeros(3), [0.0, 0.0, 0.0, 1.0]])
+    f_b = -earth.gravity_n(0.5, 10.0)
+    np.testing.assert_allclose(node_acceleration(rest, f_b), 0.0, atol=1e-12)
