@@ -2,6 +2,7 @@
 and the matching of a rendered block.  Prints figures.
 
     .venv/bin/python bench/bench_tiepoints.py [--big] [--strips 2 --per-strip 4]
+        [--memory 16,32,64,128]
 
 ``--big`` writes a 7680 x 13824 RGB frame as JPEG and as tiled, compressed TIFF (zlib)
 in a temporary folder (about 1 min) and reads each in a fresh process (peak RSS:
@@ -10,6 +11,23 @@ VmHWM of /proc/self/status, which exec resets, unlike ru_maxrss), at the default
 band by band ("level"), and for comparison the TIFF decoded whole ("whole").  The block: 640 x 480 px images of a seeded
 terrain (photogrammetry.simulate.render), priors 0.2 deg off; time per stage and the
 tracks' agreement with the truth (ground spread of each track with the true EO).
+
+``--memory N,...``: peak RSS of ``match_images`` (fresh process, VmHWM) against the number
+of images, with every image's features held in memory (``cache_images = N``: what
+tiepoints did before the feature cache) and with the default LRU of 4 images (features
+on disk, :mod:`photogrammetry.feature_cache`).  The images are 1000 x 750 px nadir crops
+of one multi-scale noise texture, strips of 16 with 60 % forward and side overlap
+(pairs: the neighbours along and across the strips), priors exact with sigma 0.1 deg,
+4000 features per image.  Measured (2 shared cores, load 4):
+
+    images pairs tracks |      all held (before) | LRU of 4 (feature cache)
+        16    15  13910 |      215 MiB    25.3 s  |      205 MiB    44.5 s
+        32    46  23335 |      227 MiB   128.0 s  |      206 MiB    64.4 s
+        64   108  40093 |      251 MiB   146.1 s  |      213 MiB   102.6 s
+       128   232  74280 |      305 MiB   262.8 s  |      214 MiB   355.0 s
+
++0.8 MiB per image before, +0.08 after (matches and tracks); the times follow the
+other processes' load (a reload from the cache costs 10 ms).
 """
 import argparse
 import json
@@ -119,12 +137,83 @@ def block(strips, per_strip):
           f"|error|/sigma {(err / (np.rad2deg(r.eo.angle_sigma[1:]) * 3600)).max():.2f}")
 
 
+MATCH = """
+import json, sys, time
+from photogrammetry.camera import read_camera
+from photogrammetry.exposure import read_eo_csv
+from photogrammetry.tiepoints_images import MatchSettings, match_images
+d, lru = sys.argv[1], int(sys.argv[2])
+eo = read_eo_csv(d + "/eo.csv")
+cam, _ = read_camera(d + "/cam.toml")
+paths = [d + "/" + i + ".png" for i in eo.image_id]
+t = time.perf_counter()
+r = match_images(paths, eo, cam, (-1.0, 1.0), MatchSettings(min_overlap=0.5),
+                 cache_images=lru)
+dt = time.perf_counter() - t
+hwm = [ln for ln in open("/proc/self/status") if ln.startswith("VmHWM")][0].split()[1]
+print(json.dumps({"s": dt, "rss_mb": int(hwm) / 1024, "pairs": len(r.pairs),
+                  "tracks": r.n_tracks, "features": sum(r.n_features)}))
+"""
+
+
+def crop_block(d, n, per_strip=16):
+    """n nadir 1000 x 750 crops of one texture (module docstring) with their EO."""
+    import cv2
+
+    from photogrammetry.camera import FrameCamera, write_camera
+    from photogrammetry.exposure import ExposureOrientation, write_eo_csv
+    w, h, step_u, step_v, gsd = 1000, 750, 400, 300, 0.5
+    strips = -(-n // per_strip)
+    W, H = step_u * (min(n, per_strip) - 1) + w, step_v * (strips - 1) + h
+    rng = np.random.default_rng(3)
+    tex = np.zeros((H, W), np.float32)
+    for s, a in ((3, 1.0), (12, 1.5), (48, 2.0)):
+        small = rng.normal(0, a, (H // s + 2, W // s + 2)).astype(np.float32)
+        tex += cv2.resize(small, (W, H), interpolation=cv2.INTER_CUBIC)
+    tex = np.clip(128 + 30 * tex, 0, 255).astype(np.uint8)
+    cam = FrameCamera(10.0, 0.01, w, h, ((w - 1) / 2, (h - 1) / 2), (0, 0, 0), (0, 0))
+    ids, X = [], []
+    for k in range(n):
+        c0, r0 = step_u * (k % per_strip), step_v * (k // per_strip)
+        ids.append(f"C{k:04d}")
+        cv2.imwrite(str(d / f"{ids[-1]}.png"), tex[r0:r0 + h, c0:c0 + w])
+        X.append(((c0 + (w - 1) / 2) * gsd, -(r0 + (h - 1) / 2) * gsd, 500.0))
+    eo = ExposureOrientation(ids, np.arange(n, dtype=float), np.array(X), np.zeros((n, 3)),
+                             "omega-phi-kappa", "enu; origin_lat_deg = 30; origin_lon_deg "
+                             "= 114; origin_h_m = 0", np.full((n, 3), 0.1),
+                             np.full((n, 3), np.deg2rad(0.1)))
+    write_eo_csv(d / "eo.csv", eo)
+    write_camera(d / "cam.toml", cam)
+
+
+def memory(sizes):
+    print("\npeak RSS of match_images against the images (1000 x 750 px, 4000 features "
+          "each; fresh process)")
+    print(f"{'images':>6} {'pairs':>5} {'tracks':>6} | {'all held (before)':>22} | "
+          f"{'LRU of 4 (feature cache)':>24}")
+    for n in sizes:
+        with tempfile.TemporaryDirectory() as d:
+            crop_block(Path(d), n)
+            row = []
+            for lru in (n, 4):
+                out = subprocess.run([sys.executable, "-c", MATCH, d, str(lru)],
+                                     capture_output=True, text=True, check=True).stdout
+                row.append(json.loads(out))
+        a, b = row
+        print(f"{n:6d} {a['pairs']:5d} {a['tracks']:6d} | {a['rss_mb']:8.0f} MiB {a['s']:7.1f} s"
+              f"  | {b['rss_mb']:8.0f} MiB {b['s']:7.1f} s", flush=True)
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--big", action="store_true")
     ap.add_argument("--strips", type=int, default=2)
     ap.add_argument("--per-strip", type=int, default=4)
+    ap.add_argument("--memory", metavar="N,N,...", help="peak RSS against images")
     a = ap.parse_args()
+    if a.memory:
+        memory([int(v) for v in a.memory.split(",")])
+        sys.exit(0)
     if a.big:
         with tempfile.TemporaryDirectory() as d:
             big_frames(Path(d))
