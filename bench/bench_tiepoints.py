@@ -18,7 +18,7 @@ tiepoints did before the feature cache) and with the default LRU of 4 images (fe
 on disk, :mod:`photogrammetry.feature_cache`).  The images are 1000 x 750 px nadir crops
 of one multi-scale noise texture, strips of 16 with 60 % forward and side overlap
 (pairs: the neighbours along and across the strips), priors exact with sigma 0.1 deg,
-4000 features per image.  Measured (2 shared cores, load 4):
+--max-features 4000 (about 2650 found per image).  Measured (2 shared cores, load 4):
 
     images pairs tracks |      all held (before) | LRU of 4 (feature cache)
         16    15  13910 |      215 MiB    25.3 s  |      205 MiB    44.5 s
@@ -187,8 +187,8 @@ def crop_block(d, n, per_strip=16):
 
 
 def memory(sizes):
-    print("\npeak RSS of match_images against the images (1000 x 750 px, 4000 features "
-          "each; fresh process)")
+    print("\npeak RSS of match_images against the images (1000 x 750 px, --max-features 4000 "
+          "; fresh process)")
     print(f"{'images':>6} {'pairs':>5} {'tracks':>6} | {'all held (before)':>22} | "
           f"{'LRU of 4 (feature cache)':>24}")
     for n in sizes:
