@@ -47,7 +47,8 @@ from . import _coplanarity_kernels as K
 from .reml import BandedV, gls_reml_banded
 from .rotation import angles_to_matrix, matrix_to_angles
 
-__all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL"]
+__all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL",
+           "MAX_ROUNDS"]
 
 
 @dataclass
@@ -216,6 +217,8 @@ def gls_variance_components(y, A, G, fixed=None, max_iter=100, tol=1e-7):
 #: The factor of the adjustment covariance is estimated only when its relative sigma is
 #: below this (else held at 1: the INS noise dominates and the factor does not matter).
 LAMBDA_MAX_REL = 0.3
+#: Rounds of the boresight fit at most (REML fits and GLS steps).
+MAX_ROUNDS = 30
 #: A banded fit frees ``lambda`` only when the fit with ``lambda = 1`` gives it a relative
 #: sigma below this, twice :data:`LAMBDA_MAX_REL`.  The relative sigma falls slowly as
 #: ``lambda`` grows (1000-image base-free block of ``bench/bench_block_scale.py``: 0.92 at
@@ -325,7 +328,7 @@ def _means(C, lam, s2, ones, d, k):
     return mean_sigma, cov_mean, cov_mean @ (Vi_ones.T @ d)
 
 
-def assess(result, angles_ins, system, datum, method):
+def assess(result, angles_ins, system, datum, method, progress=None):
     """Compare the INS angles with a block adjustment.
 
     Parameters
@@ -336,6 +339,10 @@ def assess(result, angles_ins, system, datum, method):
     system : str
     datum : {"first", "ins", "none"}
     method : {"known-base", "relative", "base-free"}
+    progress : callable(done, total), optional
+        Called after each round of the boresight fit (a REML fit or a GLS step: one or
+        several factorizations of the block's covariance), with at most
+        :data:`MAX_ROUNDS`.
 
     Returns
     -------
@@ -383,7 +390,7 @@ def assess(result, angles_ins, system, datum, method):
         # negligible, then the REML fit again there (from its last components) until its
         # own increment is negligible
         start, fits, ready = {}, 0, True
-        for boresight_iterations in range(1, 31):
+        for boresight_iterations in range(1, MAX_ROUNDS + 1):
             final = ready and fits < 4
             if final:
                 (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
@@ -397,6 +404,8 @@ def assess(result, angles_ins, system, datum, method):
             d_k = wrap_to_pi(matrix_to_angles(P_k.T @ R_ins @ B_k, system)
                              - result.angles[used])
             ready = _small(v, cov_v if final else cov_g)
+            if progress is not None:
+                progress(boresight_iterations, MAX_ROUNDS)
             if final and ready:
                 break
         if fits == 0:

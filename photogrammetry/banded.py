@@ -7,6 +7,13 @@ Cholesky (``scipy.linalg.cholesky_banded``: cost ``n b^2``, memory ``n b`` for `
 unknowns and half-bandwidth ``b``), solves with it, and gives the entries of the inverse
 inside the band by the Takahashi recurrence (compiled, the same ``n b^2``): the 3x3
 covariance block of every image without the dense inverse.
+
+A relative block's normal matrix also holds two base-direction unknowns per pair, which
+the joint weights of a tie point couple across its pairs: banded, it is about four times
+wider.  :class:`SparseSPD` factors it as ``L D L'`` in minimum-degree order (SuperLU with
+diagonal pivots) and gives the entries of the inverse on the factor's own pattern by the
+same recurrence run over the sparse pattern (selected inversion): cost the sum, over the
+columns, of the rows of the columns they touch, instead of ``n b^2``.
 """
 import numpy as np
 from numba import njit
