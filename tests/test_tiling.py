@@ -191,7 +191,6 @@ def test_dask_tiles_equal_in_process_and_cli(small, tmp_path):
     np.testing.assert_array_equal(one.block.angles, par.block.angles)
     np.testing.assert_array_equal(one.block.sigma, par.block.sigma)
     assert [s[0] for s in seen] == [1, 2, 3] and seen[-1][2:] == (240, 240)
-    assert not one.assessment.boresight_observable or one.settings["datum"] == "ins"
     out, rep = tmp_path / "refined.csv", tmp_path / "report.md"
     code = main(["refine", eo_p, tp_p, "--camera", cam_p, "--method", "known-base",
                  "--datum", "ins", "--tile-images", "100", "--workers", "1", "-q",
@@ -261,3 +260,25 @@ def test_dense_tiles_exact_core_covariance(tmp_path):
     # the combined sigma is the inverse-variance one of the tiles'
     s = np.array([r.assessment.boresight_sigma for r in tiled.tile_results])
     np.testing.assert_allclose(a.boresight_sigma, 1 / np.sqrt(np.sum(s ** -2, axis=0)))
+
+
+def test_warnings_once_in_block_names(small):
+    """A pair left out is warned of once (by the tile of its first image), named by the
+    block's image ids, and the same pairs as in the whole block."""
+    import re
+    import warnings
+    B, eo, tp, camera, _ = small
+    with warnings.catch_warnings(record=True) as whole_w:
+        warnings.simplefilter("always")
+        refine(eo, tp, camera, method="known-base", datum="none", accept_poor=True)
+    with warnings.catch_warnings(record=True) as tiled_w:
+        warnings.simplefilter("always")
+        refine_tiled(eo, tp, camera, tile_images=80, workers=1, accept_poor=True)
+    whole = {(eo.image_id[int(a)], eo.image_id[int(b)]) for a, b in
+             (re.match(r"pair (\d+)-(\d+) left out", str(w.message)).groups()
+              for w in whole_w if re.match(r"pair \d+-\d+ left out", str(w.message)))}
+    texts = [str(w.message) for w in tiled_w if str(w.message).startswith("pair ")]
+    tiled = [re.match(r"pair (\S+)-(\S+) left out", t).groups() for t in texts]
+    assert len(whole) > 0
+    assert len(tiled) == len(set(tiled))                       # once each
+    assert set(tiled) == whole
