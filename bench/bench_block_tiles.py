@@ -17,10 +17,35 @@ the simulated truth (RMS per angle, arcsec, and chi-square per angle: the mean o
 (error / sigma)^2, 1 when the sigmas are honest), the combined boresight's error in
 its sigmas and the combined INS noise against the injected one.
 
-Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed):
-see the docstring's table below, filled from a run.
+Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed;
+defaults: 10 000 images, tiles of 1000, halo 3, known-base, datum none, 2 workers):
 
-MEASURED
+    simulate 10000 images: 80.4 s, 40985 pairs; driver peak 263 MB
+    write files: 2.7 s (tiepoints.csv 20 MB)
+    read files: 4.1 s; driver peak 562 MB
+    pairing in the driver (TiePoints.pairs): 4.6 s, 59760 pairs (3 or more common points)
+    10 tiles of <= 1000 core images, tile sizes with halo 1150-1300 (1.27x the images)
+    wall 97.4 s on 2 workers (89-103 s over four runs as the load varied; first tile
+      done at 32 s, the driver's pairing and partition included)
+    peak resident memory per worker (VmHWM) 424, 428 MB; driver 674 MB
+    current resident memory per worker between successive tiles: 310-424 MB, no trend
+      over the 5 tiles each worker ran
+    sigma0 0.997 (tiles 0.994-0.999); quality ok
+    angles vs truth: RMS 3.94, 4.16, 7.70 arcsec (phi, omega, kappa); chi-square per
+      angle 1.00, 0.95, 1.02
+    boresight error 1.53, 0.49, -0.76 sigma (sigma 10.4, 10.3, 10.3 arcsec)
+    INS noise 1029.0, 1039.1, 1028.7 +- 7.3 arcsec (injected 1031.0, 1040.6, 1031.5)
+
+The simulation itself (``make_large_block``, pure numpy in the driver) is the heaviest
+stage (80 s: the pair search compares every image with all later ones); the refinement
+of one block of 10 000 images in one process was not run here (the 5000-image block
+takes 83 s and 0.9 GB, ``bench_block_scale.py``).  ``--images 3000 --whole``: tiled
+19.4 s wall on 2 workers of 378 MB against 14.7 s and 697 MB for the whole block in one
+process; tiled minus whole 0.26, 0.26, 0.12 of the whole block's sigmas RMS (the
+difference sits at the tiles' borders, docs/interfaces.md), boresight errors 2.01, 0.69,
+1.38 sigma against 1.96, 0.68, 1.41.  The worker memory is VmHWM: ``ru_maxrss`` of a
+worker spawned by fork + exec reports the driver's resident memory at the fork (563 MB
+here), which is also in the ``--dask`` figures of ``bench_block_scale.py``.
 """
 import argparse
 import os
