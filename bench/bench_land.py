@@ -13,14 +13,15 @@ baseline [0.3, 1.2, -0.1] m in b, at the GNSS epochs) without NHC.
 
     python bench/bench_land.py [--seeds 5]
 
-Measured (5 seeds, 36 s on a loaded 2-core VM; medians)::
+Measured (5 seeds, 36 s on a loaded 2-core VM; medians of: forward worst horizontal in
+the outage m, smoothed horizontal RMS m, smoothed heading RMS deg, forward heading RMS
+deg, rejected fixes)::
 
-    configuration             fwd outage max m  smoothed hor RMS m  smoothed heading deg  fwd heading deg  rejected
-    no NHC                               25.94               0.427                 0.129            0.378         0
-    NHC, true mounting                    2.55               0.322                 0.029            0.094         0
-    NHC, estimated mounting               2.68               0.325                 0.070            0.103         0
-    NHC in IMU axes                       7.32              15.201                 0.921            0.900       201
-    dual antenna, no NHC                 19.24               0.413                 0.023            0.065         0
+    no NHC                      25.94   0.427   0.129   0.378     0
+    NHC, true mounting           2.55   0.322   0.029   0.094     0
+    NHC, estimated mounting      2.68   0.325   0.070   0.103     0
+    NHC in IMU axes              7.32  15.201   0.921   0.900   201
+    dual antenna, no NHC        19.24   0.413   0.023   0.065     0
     estimated mounting (roll 0): pitch 3.924 (seeds' scatter 0.018, stated sigma 0.012),
     yaw -1.525 (scatter 0.062, stated 0.018) deg; the truth's forward axis at roll 0:
     pitch 3.873, yaw -1.568

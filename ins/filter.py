@@ -19,9 +19,9 @@ node ``j``: the predicted antenna position is the state at ``t_j`` advanced by
 IMU-GNSS time offset when the layout has one; ``a`` the node's acceleration from its
 last specific force, :func:`ins.measurements.node_acceleration`), the predicted
 velocity by ``v + a dt``, with the lever arm at ``t_g`` (plus the estimated
-correction); the error state over those few ms is taken as unchanged.  Dual-antenna headings, zero-velocity
-and non-holonomic updates (:class:`ins.filter_settings.FilterSettings`) follow the GNSS
-records of a node.
+correction); the error state over those few ms is taken as unchanged.  Dual-antenna
+headings, zero-velocity and non-holonomic updates
+(:class:`ins.filter_settings.FilterSettings`) follow the GNSS records of a node.
 
 Every measurement is an object of :mod:`ins.measurements` (predicted value, ``H``,
 ``R``); the update (:func:`ins.measurements.kalman_update`) factorises

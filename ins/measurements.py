@@ -46,8 +46,8 @@ from .lever_arm import antenna_lla, antenna_velocity
 from .rotation import quat_to_dcm, skew
 
 __all__ = ["NavPoint", "node_acceleration", "GnssPosition", "GnssVelocity",
-           "DualAntennaHeading", "ZeroVelocity", "NonHolonomic", "UpdateRecord", "kalman_update", "corrected",
-           "write_innovations", "INNOVATION_COLUMNS"]
+           "DualAntennaHeading", "ZeroVelocity", "NonHolonomic", "UpdateRecord",
+           "kalman_update", "corrected", "write_innovations", "INNOVATION_COLUMNS"]
 
 
 @dataclass

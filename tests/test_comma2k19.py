@@ -184,7 +184,8 @@ def test_command_line(tmp_path, capsys):
     import json
     seg = tmp_path / "seg"
     assert comma2k19.main([str(REAL), "-o", str(seg), "--offsets", "none"]) == 0
-    assert "removed clock offsets (IMU - GNSS clock): positions +0.0000 s" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "removed clock offsets (IMU - GNSS clock): positions +0.0000 s" in out
     assert comma2k19.main(["--compare", str(seg / "reference.nav"), str(seg), "--json",
                            str(tmp_path / "f.json")]) == 0
     text = capsys.readouterr().out
