@@ -144,6 +144,9 @@ def _chi2_per_angle(B, res):
 def test_tiled_angles_agree_with_whole_block_and_truth(block500):
     B, whole, tiled = block500
     assert tiled.settings["n_tiles"] == 4
+    for t, r in zip(tiled.tiles, tiled.tile_results):          # each image from its core
+        np.testing.assert_array_equal(tiled.block.angles[t.images[t.core]], r.angles[t.core])
+        np.testing.assert_array_equal(tiled.block.sigma[t.images[t.core]], r.sigma[t.core])
     assert not tiled.block.quality.poor and not whole.block.quality.poor
     assert tiled.block.adjusted.all()
     s = whole.block.sigma
