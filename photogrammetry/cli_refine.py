@@ -225,9 +225,14 @@ def run(args):
             q = blk.quality
             flags = (() if q is None or not q.poor else
                      ("QUALITY POOR (written with --accept-poor): " + r for r in q.reasons))
+            s = res.settings
+            tiled = (() if "n_tiles" not in s else
+                     (f"tiled: {s['n_tiles']} tiles of <= {s['tile_images']} core images, "
+                      f"halo {s['halo_hops']} pair-hops; sigma0 pooled over the tiles; "
+                      "sigmas per tile (no covariance across tiles)",))
             write_eo_csv(out, res.eo, comments=(
-                f"refined by photogrammetry refine: method = {res.settings['method']}; "
-                f"datum = {res.settings['datum']}; sigma0 = {blk.sigma0:.4f}",) + tuple(flags))
+                f"refined by photogrammetry refine: method = {s['method']}; "
+                f"datum = {s['datum']}; sigma0 = {blk.sigma0:.4f}",) + tiled + tuple(flags))
             if q is not None and q.poor:
                 warnings.warn(f"{out}: refinement flagged as poor (written with "
                               f"--accept-poor): {q.reasons[0]}", QualityWarning)
@@ -238,5 +243,6 @@ def run(args):
                 print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
                       f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
                       f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
+                      + (f"; {s['n_tiles']} tiles" if tiled else "")
                       + (f"; report {rep}" if rep else ""))
     return 0

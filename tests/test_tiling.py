@@ -200,6 +200,7 @@ def test_dask_tiles_equal_in_process_and_cli(small, tmp_path):
                  "-o", str(out), "--report", str(rep)])
     assert code == 0
     got = read_eo_csv(str(out))
+    assert "# tiled: 3 tiles of <= 100 core images, halo 3 pair-hops" in out.read_text()
     np.testing.assert_allclose(got.angles, np.angle(np.exp(1j * one.block.angles)),
                                atol=1e-8)
     assert "sigma0" in rep.read_text()
