@@ -231,8 +231,11 @@ def core_assessment(block, prior, core, system, datum, method):
     """:func:`photogrammetry.assessment.assess` of a tile on its core images only.
 
     A dense tile: the exact covariance of the core images; a banded tile: their 3x3
-    blocks (correlation between images neglected in the weights)."""
+    blocks (correlation between images neglected in the weights); a tile without halo
+    (the whole block): :func:`~photogrammetry.assessment.assess` itself."""
     keep = np.asarray(core, bool) & block.adjusted
+    if np.array_equal(keep, block.adjusted):            # no halo: the exact assessment
+        return assess(block, prior, system, datum, method)
     if block.cov is not None:
         return assess(replace(block, adjusted=keep), prior, system, datum, method)
     free = keep & (block.sigma.max(axis=1) > 0)

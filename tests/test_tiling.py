@@ -286,3 +286,21 @@ def test_warnings_once_in_block_names(small):
     assert len(whole) > 0
     assert len(tiled) == len(set(tiled))                       # once each
     assert set(tiled) == whole
+
+
+def test_one_tile_is_the_whole_block(small):
+    """A tile as large as the block (no halo): the block adjustment and assessment of
+    refine itself."""
+    import warnings
+    B, eo, tp, camera, _ = small
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = refine(eo, tp, camera, method="known-base", datum="none")
+        one = refine_tiled(eo, tp, camera, tile_images=len(eo), workers=1)
+    assert one.settings["n_tiles"] == 1
+    np.testing.assert_array_equal(one.block.angles, whole.block.angles)
+    np.testing.assert_array_equal(one.block.sigma, whole.block.sigma)
+    np.testing.assert_allclose(one.assessment.boresight, whole.assessment.boresight,
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(one.assessment.ins_noise, whole.assessment.ins_noise,
+                               rtol=1e-9)
