@@ -214,8 +214,8 @@ def main():
         rest = rot - rot.mean(axis=0)
         print(f"  datum {args.datum}: rotation error vs truth after removing the block's "
               f"common model-frame rotation ({np.round(rot.mean(axis=0) * _AS, 1)} arcsec): "
-              f"RMS {np.sqrt(np.mean(rest ** 2)) * _AS:.2f} arcsec (the boresight's heading-dependent part "
-              "and the tiles' own datum rotations remain in it)")
+              f"RMS {np.sqrt(np.mean(rest ** 2)) * _AS:.2f} arcsec (the boresight's "
+              "heading-dependent part and the tiles' own datum rotations remain in it)")
     print(f"  angles vs truth ({ok.sum()} images): RMS "
           + ", ".join(f"{v * _AS:.2f}" for v in np.sqrt(np.mean(d ** 2, axis=0)))
           + " arcsec (" + "/".join(a.names) + "); chi-square per angle "
