@@ -25,7 +25,8 @@ inputs:
   --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
   --imu-time-shift-s / --gnss-time-shift-s  added to that log's stamps at read time (s):
                     the offset of its clock against the common time base (GPS seconds of
-                    week), e.g. a GNSS stamped at reception 0.2 s late: -0.2
+                    week), e.g. a GNSS stamped at reception 0.2 s late: -0.2; the offset
+                    that 'ins time-offset' prints goes into --gnss-time-shift-s as it is
   --mount           mount log 'time roll pitch yaw [deg]' (C_ap = Rz(yaw) Ry(pitch) Rx(roll))
   --config F.toml   initial state and sigma, IMU noise (deg/sqrt(h), m/s/sqrt(h), deg/h,
                     mGal, ppm, h), lever arm (m, body FRD), alignment; see
