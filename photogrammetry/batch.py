@@ -51,7 +51,7 @@ class RefineResult:
 
 def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
            sigma_mm=None, prior_sigma_rad=None, position_sigma_m=None, snooping=True,
-           progress=None, accept_poor=False):
+           progress=None, accept_poor=False, assess_progress=None):
     """Refine the angles of one block.
 
     Parameters
@@ -72,9 +72,13 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
     position_sigma_m : float, optional
         Sigma of the EO positions, m, per coordinate (known-base: propagated into the
         angles' covariance; default: the EO file's position sigmas, else exact bases).
+    progress : callable(done, total), optional
+        Called after each iteration of the block adjustment.
     accept_poor : bool
         Return a result whose pairs or images are flagged as implausible
         (``result.block.quality``, :mod:`photogrammetry.quality`) instead of raising.
+    assess_progress : callable(done, total), optional
+        Called after each round of the INS assessment's boresight fit.
 
     Returns
     -------
@@ -107,7 +111,8 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                     else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
                 "n_images": len(eo), "n_pairs": len(pairs),
                 "n_observations": len(tiepoints)}
-    return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method),
+    return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method,
+                                                    progress=assess_progress),
                         pairs, points, settings)
 
 

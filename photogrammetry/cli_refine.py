@@ -207,7 +207,9 @@ def run(args):
     elif len(jobs) == 1 and args.scheduler is None:
         n = len(jobs[0][0]["eo"])
         results = [refine(**jobs[0][0], progress=lambda k, kmax: bar.note(
-            f"refine: {n} images, block iteration {k} (at most {kmax})   "))]
+            f"refine: {n} images, block iteration {k} (at most {kmax})   "),
+            assess_progress=lambda k, kmax: bar.note(
+                f"refine: {n} images, INS assessment round {k} (at most {kmax})   "))]
     else:
         sizes = [len(j[0]["eo"]) for j in jobs]
         results = refine_many([j[0] for j in jobs], workers=args.workers,

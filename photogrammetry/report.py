@@ -104,6 +104,14 @@ def report_text(result, plots=()):
              f"**sigma0 = {blk.sigma0:.3f}** (= {blk.sigma0 * s['sigma_mm'] / px:.3g} px), "
              f"redundancy {blk.redundancy}, {blk.iterations} iterations, "
              f"{'converged' if blk.converged else 'NOT converged'}", ""]
+    if s.get("n_tiles"):
+        sizes = s.get("tile_sizes") or [0]
+        lines[-1:-1] = [
+            f"- adjusted in **{s['n_tiles']} tiles** of at most {s['tile_images']} core "
+            f"images (with a halo of {s['halo_hops']} pair-hops: {min(sizes)}-{max(sizes)} "
+            "images each); each image's angles and sigmas are those of its core tile, the "
+            "correlation across tile borders is not kept and the assessment combines the "
+            "tiles' own (see docs/interfaces.md, tiled refinement)"]
     lines += _trust_lines(blk.quality)
     bad = [(k, st) for k, st in enumerate(blk.pair_status) if st != 0]
     if bad:

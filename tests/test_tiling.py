@@ -204,6 +204,7 @@ def test_dask_tiles_equal_in_process_and_cli(small, tmp_path):
     np.testing.assert_allclose(got.angles, np.angle(np.exp(1j * one.block.angles)),
                                atol=1e-8)
     assert "sigma0" in rep.read_text()
+    assert "adjusted in **3 tiles** of at most 100 core images" in rep.read_text()
     assert main(["refine", eo_p, tp_p, "--camera", cam_p, "--datum", "first",
                  "--tile-images", "100", "--workers", "1", "-q",
                  "-o", str(tmp_path / "x.csv")]) == 2
