@@ -11,52 +11,59 @@ noise 0.005 rad, boresight (0.002, -0.003, 0.004) rad), then
 for known-base, first for relative and base-free; tie-point ids: joint weights; banded
 algebra from 100 images) and ``photogrammetry.assessment.assess``.  Relative and
 base-free blocks carry two base-direction unknowns per pair: their normal matrix is
-factored whole (bordered), by a sparse LU for the steps and solves and banded for the
-covariance blocks (Takahashi).  BLAS
+factored whole (bordered) as a sparse ``L D L'`` (SuperLU, minimum degree, diagonal
+pivots) for the steps, the solves and, by selected inversion, the covariance blocks.  BLAS
 is held to one thread (the machine is shared; threads contend).  Prints one row per size
 and the slope of log(time) and log(memory) against log(images).
 
-Measured (2 cores shared with 5 other jobs, 2026-11-24, this script as committed):
+Measured (2 cores, the machine otherwise quiet, 2026-11-24, this script as committed;
+``cpu_s`` is the process's CPU time, which a loaded machine does not inflate):
 
-     images  pairs  adjust_s  assess_s  total_s  peak_MB  band  sigma0  boresight error (sigmas)
-         50     69      0.73      0.39     1.13      216     0   0.975  [0.69, 0.84, 0.29]
-        200    659      1.17      1.82     2.99      230    44   0.975  [-0.21, 1.01, -1.14]
-       1000   3920      4.49      3.56     8.05      325   236   0.998  [0.47, -0.79, -1.14]
-       5000  20447     31.74     51.47    83.21      897   302   0.998  [0.18, 0.63, 0.3]
-    slope of log(total time) vs log(images), 200-5000: 1.03; of log(peak memory): 0.42
+    method      images  pairs  adjust_s  assess_s  total_s  cpu_s  peak_MB   factor
+    known-base      50     69      0.26      0.04     0.30    0.3      216    dense
+    known-base     200    659      0.45      0.04     0.48    0.5      227     b=44
+    known-base     500   1845      0.82      0.08     0.91    0.9      252    b=116
+    known-base    1000   3920      1.62      0.27     1.89    1.9      298    b=236
+    known-base    2000   8020      3.68      0.70     4.37    4.4      402    b=296
+    known-base    5000  20447      9.42      2.99    12.41   12.4      674    b=302
+    base-free       50     69      0.29      0.09     0.38    0.4      216    dense
+    base-free      200    659      0.53      0.23     0.76    0.8      240  L=0.12M
+    base-free      500   1845      1.37      0.93     2.30    2.3      307  L=0.59M
+    base-free     1000   3920      4.97      3.23     8.20    8.2      479  L=1.68M
+    base-free     2000   8020     11.25      7.07    18.32   18.3      777  L=4.01M
+    base-free     5000  20447     41.68     42.56    84.23   84.0     1747 L=11.52M
+    relative      1000   3920      4.96      3.24     8.20    8.2      466  L=1.68M
+    slope of log(total time) vs log(images), 1000-5000: known-base 1.17, base-free 1.46;
+    of log(peak memory): 0.51, 0.81
 
-Relative and base-free (``--method base-free,relative,known-base --sizes
-50,200,500,1000``, datum first for the relative methods, 2026-11-24 after the bordered
-algebra; the machine less loaded than for the table above):
+(sigma0 0.975-0.998; known-base boresight errors within 1.14 of their sigmas; relative
+methods: boresight not observable.)  ``factor``: ``b`` the half-bandwidth of the banded
+Cholesky factor (known-base), ``L`` the non-zeros of the sparse ``L D L'`` factor of the
+bordered normal matrix (relative methods).  The same script before the changes of
+2026-11-24 (second session), on a machine shared with 5 other jobs, gave known-base
+8.1 s at 1000 and 83 s at 5000 images (the
+assessment's REML refactored the covariance for every iterate of every boresight round,
+and ran away on a free covariance factor the data could not tell), base-free 27.9 s and
+0.75 GB at 1000 (covariance blocks by Takahashi on a banded factor of half-bandwidth
+954, 81 factorizations in the assessment; now selected inversion of the sparse factor,
+0.6 s, and 12 factorizations).  The relative methods' cost grows faster than the images:
+the joint weights of a tie point couple the bases of all its pairs, so the sparse
+factor's fill per image grows with the block's width in strips until it reaches the
+strips' length (here 50 images: 1680, 2005, 2304 non-zeros per image at 20, 40, 100
+strips), and at 5000 images the data let the assessment try a free covariance factor
+(9 more factorizations; ``photogrammetry.assessment.LAMBDA_TRY_REL``).  Larger relative
+blocks: ``photogrammetry refine --tile-images`` with ``--datum ins``
+(``bench/bench_block_tiles.py``: one 10 000-image block in tiles on Dask).
 
-    method      images  pairs  adjust_s  assess_s  total_s  peak_MB  band
-    base-free       50     69      0.27      0.39     0.66      217     0
-    base-free      200    659      0.57      0.92     1.48      253   129
-    base-free      500   1845      1.57      5.46     7.03      332   313
-    base-free     1000   3920      8.57     19.30    27.86      746   954
-    relative      1000   3920      8.22     19.49    27.71      739   954
-    known-base    1000   3920      1.59      1.38     2.97      324   236
-    slope of log(total time) vs log(images), 200-1000: base-free 1.82, relative 1.79
-    (known-base 0.58); of log(peak memory): 0.65, 0.64 (0.21)
+Dask (``--dask 10x1000``: ten separate 1000-image flights written as files, read, and
+refined as tasks by ``refine_many`` on a local cluster of 2 single-threaded worker
+processes): 10 000 images in 173.6 s (the machine shared with 5 other jobs, first
+session of 2026-11-24), peak resident memory per worker 502 and 562 MB as read from
+``ru_maxrss``, which in a Dask worker includes the driver's memory when the worker was
+forked (``bench_block_tiles.py`` reads ``VmHWM`` instead).
 
-The dense path took 2.6 + 13.7 s at 200 base-free images and 26 + 84 s at 500.  The
-relative methods' 1000 images miss the 15 s target: the base unknowns of all pairs of a
-tie point are coupled by its joint weights, so the bordered normal matrix (10 840
-unknowns) fills in (sparse LU 1.7 M non-zeros, 0.2-0.4 s per factor) and its band is
-954 (3.6 unknowns per image more than known-base); the assessment's REML refactors it
-for each of its ~66 iterates (6 boresight rounds); the band grows with the number of
-strips until it reaches the strips' length (here 50 images: 20 strips at 1000), so the
-slope from 200 to 1000 is above the long-run one.
-
-Dask (``--dask 10x1000``: ten 1000-image flights written as files, read, and refined
-as tasks by ``refine_many`` on a local cluster of 2 single-threaded worker processes):
-10 000 images in 173.6 s (the machine shared with 5 other jobs), peak resident memory
-per worker 502 and 562 MB, sigma0 0.993-1.004.
-
-(50 images: dense algebra, band 0; the issue's 945-image block took 203 s and 1.24 GB,
-216 s of it in the dense assessment.)  The half-bandwidth grows with the strips' length
-(here 50 images), not with their number; the 5000-image assessment is slower per image
-because the REML takes more iterations there.
+(50 images: dense algebra; the issue's 945-image block took 203 s and 1.24 GB, 216 s of
+it in the dense assessment.)
 """
 import argparse
 import json
