@@ -99,18 +99,8 @@ def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="f
                          snooping=snooping, progress=progress,
                          image_ids=[str(i) for i in eo.image_id])
     check_quality(block.quality, accept_poor)
-    # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
-    # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
-    result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
-                        position_sigma=(eo.position_sigma if eo.position_sigma is not None
-                                        else np.zeros((len(eo), 3))))
-    settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,
-                "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
-                "snooping": snooping, "position_sigma_m": (
-                    0.0 if position_sigma_m is None
-                    else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
-                "n_images": len(eo), "n_pairs": len(pairs),
-                "n_observations": len(tiepoints)}
+    result_eo, settings = refined_eo_and_settings(eo, block, camera, method, datum, sigma_mm,
+                                                  snooping, position_sigma_m, pairs, tiepoints)
     return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method,
                                                     progress=assess_progress),
                         pairs, points, settings)
@@ -152,6 +142,25 @@ def prepare(eo, tiepoints, camera, system=None, method="base-free", sigma_mm=Non
         raise InputError(f"no pair of images shares {min_common} or more tie points",
                          path=tiepoints.path)
     return eo, sigma_mm, prior_sigma_rad, position_sigma_m, pairs, points, point_ids
+
+
+def refined_eo_and_settings(eo, block, camera, method, datum, sigma_mm, snooping,
+                            position_sigma_m, pairs, tiepoints):
+    """The refined EO (the block's angles and sigmas, positions as given) and the
+    settings of a refinement (the report's header)."""
+    # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
+    # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
+    result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
+                        position_sigma=(eo.position_sigma if eo.position_sigma is not None
+                                        else np.zeros((len(eo), 3))))
+    settings = {"method": method, "datum": datum, "system": eo.system, "sigma_mm": sigma_mm,
+                "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
+                "snooping": snooping, "position_sigma_m": (
+                    0.0 if position_sigma_m is None
+                    else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
+                "n_images": len(eo), "n_pairs": len(pairs),
+                "n_observations": len(tiepoints)}
+    return result_eo, settings
 
 
 def check_quality(quality, accept_poor=False, where=""):

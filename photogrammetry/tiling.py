@@ -65,7 +65,8 @@ from ins.errors import InputError
 from ins.rotation import wrap_to_pi
 
 from .assessment import Assessment, assess
-from .batch import RefineResult, check_quality, map_tasks, prepare
+from .batch import (RefineResult, check_quality, map_tasks, prepare,
+                    refined_eo_and_settings)
 from .block import BlockResult, adjust_block
 from .block_covariance import banded_covariance
 from .quality import Quality
@@ -377,18 +378,10 @@ def refine_tiled(eo, tiepoints, camera=None, tile_images=1000, halo_hops=DEFAULT
     block = assemble_block(tiles, results, eo, pairs, points)
     check_quality(block.quality, accept_poor)
     assessment = combine_assessments(tiles, results, eo.angles, block, system)
-    result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
-                        position_sigma=(eo.position_sigma if eo.position_sigma is not None
-                                        else np.zeros((len(eo), 3))))
-    settings = {"method": method, "datum": datum, "system": system, "sigma_mm": sigma_mm,
-                "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
-                "snooping": snooping, "position_sigma_m": (
-                    0.0 if position_sigma_m is None
-                    else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
-                "n_images": len(eo), "n_pairs": len(pairs),
-                "n_observations": len(tiepoints), "tile_images": int(tile_images),
-                "halo_hops": int(halo_hops), "n_tiles": len(tiles),
-                "tile_sizes": [len(t.images) for t in tiles]}
+    result_eo, settings = refined_eo_and_settings(eo, block, camera, method, datum, sigma_mm,
+                                                  snooping, position_sigma_m, pairs, tiepoints)
+    settings.update({"tile_images": int(tile_images), "halo_hops": int(halo_hops),
+                     "n_tiles": len(tiles), "tile_sizes": [len(t.images) for t in tiles]})
     out = TiledRefineResult(result_eo, eo, block, assessment, pairs, points, settings,
                             tiles=tiles, tile_results=results)
     return out
