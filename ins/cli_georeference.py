@@ -22,7 +22,8 @@ frames and units:
   --mount: C_bs(t) = C_ap(t)^T C_as, l_b(t) = l_bp + C_ap(t)^T l_a.
 
 returns:
-  CSV with a header: time_s,range_m,scan_angle_deg[,intensity,return_number,strip]
+  CSV with a header: time_s,range_m,scan_angle_deg[,intensity,return_number,
+  number_of_returns,strip]
   (model points: time_s,x_s_m,y_s_m,z_s_m[,...]), or LAS/LAZ with the points in the
   scanner frame (m) and GPS time (model points).  Times on the trajectory's time scale
   (s).  Returns outside the trajectory's time span are counted, dropped and reported;
@@ -143,7 +144,8 @@ def _cmd_georeference(args):
                 i = pts.index
                 angle = (np.rad2deg(blk.scan_angle_rad[i]) if blk.scan_angle_rad is not None
                          else np.rad2deg(np.arctan2(r_s[i, 1], r_s[i, 2])))
-                w.write(pts, blk.intensity[i], blk.return_number[i], angle, blk.strip[i])
+                w.write(pts, blk.intensity[i], blk.return_number[i], angle, blk.strip[i],
+                        blk.number_of_returns[i])
                 done += len(blk)
                 kept += len(i)
                 t_min, t_max = min(t_min, blk.time.min()), max(t_max, blk.time.max())

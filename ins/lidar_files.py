@@ -4,14 +4,19 @@
 Returns CSV (``docs/interfaces.md``): a header line naming the columns, then one return
 a line, commas or blanks between the numbers, ``#`` comments allowed::
 
-    time_s,range_m,scan_angle_deg[,intensity][,return_number][,strip]      line scanners
-    time_s,x_s_m,y_s_m,z_s_m[,intensity][,return_number][,strip]           model "points"
+    time_s,range_m,scan_angle_deg[,intensity][,return_number][,number_of_returns][,strip]
+    time_s,x_s_m,y_s_m,z_s_m[,intensity][,return_number][,number_of_returns][,strip]
+
+(line scanners; model "points").  Without ``number_of_returns``, the returns of one pulse
+are the consecutive lines of equal ``time_s`` (and strip): their number of returns is
+the largest return number among them (a block never splits such a group).
 
 Returns LAS/LAZ: points in the scanner frame (x, y, z in m), GPS time in s on the
-trajectory's time scale, intensity, return number and point source id (the strip) kept.
+trajectory's time scale, intensity, return number, number of returns and point source id
+(the strip) kept.
 
-Points LAS/LAZ out: LAS 1.4, point format 6 (GPS time, intensity, return number, scan
-angle in 0.006 deg, point source id = strip), extra dimensions ``sigma_h_m``
+Points LAS/LAZ out: LAS 1.4, point format 6 (GPS time, intensity, return number and
+number of returns, scan angle in 0.006 deg, point source id = strip), extra dimensions ``sigma_h_m``
 (``sqrt(var_N + var_E)``) and ``sigma_v_m`` (float32), the CRS as a WKT VLR; z is the
 ellipsoidal height (WGS84) whatever the horizontal CRS.
 """
@@ -28,7 +33,7 @@ __all__ = ["ReturnsBlock", "count_returns", "iter_returns", "LasPointWriter", "u
 
 _LINE_COLS = ("time_s", "range_m", "scan_angle_deg")
 _POINT_COLS = ("time_s", "x_s_m", "y_s_m", "z_s_m")
-_OPTIONAL = ("intensity", "return_number", "strip")
+_OPTIONAL = ("intensity", "return_number", "number_of_returns", "strip")
 LIDAR_EXTRA = "pip install 'insphoto[lidar]'"
 
 
@@ -55,6 +60,8 @@ class ReturnsBlock:
         Model "points".
     intensity, return_number, strip : ndarray (n,) of int
         Zeros / ones when not given.
+    number_of_returns : ndarray (n,) of int
+        Returns of the pulse (given, or from the pulse's lines: see the module).
     """
 
     time: np.ndarray
@@ -64,6 +71,7 @@ class ReturnsBlock:
     intensity: np.ndarray = None
     return_number: np.ndarray = None
     strip: np.ndarray = None
+    number_of_returns: np.ndarray = None
 
     def __len__(self):
         return len(self.time)
@@ -150,16 +158,38 @@ def iter_returns(path, model, block_size=1_000_000):
                                               skip_header_lines=nhead):
         pending.append((values, lines))
         npend += len(values)
-        while npend >= block_size:
+        while npend > block_size:
             v = np.concatenate([p[0] for p in pending])
             ln = np.concatenate([p[1] for p in pending])
-            yield _csv_block(path, names, model, v[:block_size], ln[:block_size])
-            pending = [(v[block_size:], ln[block_size:])]
+            cut = _pulse_cut(v, block_size, names)
+            yield _csv_block(path, names, model, v[:cut], ln[:cut])
+            pending = [(v[cut:], ln[cut:])]
             npend = len(pending[0][0])
     if npend:
         v = np.concatenate([p[0] for p in pending])
         ln = np.concatenate([p[1] for p in pending])
         yield _csv_block(path, names, model, v, ln)
+
+
+def _pulse_cut(v, block_size, names):
+    """Where to end a block of `block_size` lines or fewer without splitting the lines of
+    one pulse (equal time and strip); the whole block if one pulse fills it."""
+    key = [0] + ([names.index("strip")] if "strip" in names else [])
+    cut = block_size
+    while cut > 0 and np.array_equal(v[cut, key], v[cut - 1, key]):
+        cut -= 1
+    return cut if cut > 0 else block_size
+
+
+def _pulse_counts(time, strip, return_number):
+    """Number of returns of each line's pulse: the largest return number among the
+    consecutive lines of equal time and strip."""
+    if len(time) == 0:
+        return return_number.copy()
+    new = np.concatenate([[True], (np.diff(time) != 0) | (np.diff(strip) != 0)])
+    start = np.flatnonzero(new)
+    top = np.maximum.reduceat(return_number, start)
+    return np.repeat(top, np.diff(np.append(start, len(time))))
 
 
 def _csv_block(path, names, model, v, lines):
@@ -188,6 +218,16 @@ def _csv_block(path, names, model, v, lines):
                          if "return_number" in col else np.ones(n, np.int64))
     blk.strip = (_ints(col["strip"], "strip", path, lines, 0, 65535)
                  if "strip" in col else np.zeros(n, np.int64))
+    if "number_of_returns" in col:
+        blk.number_of_returns = _ints(col["number_of_returns"], "number_of_returns", path,
+                                      lines, 1, 15)
+        bad = np.flatnonzero(blk.return_number > blk.number_of_returns)
+        if bad.size:
+            raise InputError(f"return_number {int(blk.return_number[bad[0]])} above "
+                             f"number_of_returns {int(blk.number_of_returns[bad[0]])}",
+                             path=os.fspath(path), line=int(lines[bad[0]]))
+    else:
+        blk.number_of_returns = _pulse_counts(blk.time, blk.strip, blk.return_number)
     return blk
 
 
@@ -211,7 +251,10 @@ def _iter_las(path, model, block_size):
                                                         np.asarray(chunk.z, float)]),
                                intensity=np.asarray(chunk.intensity, np.int64),
                                return_number=np.asarray(chunk.return_number, np.int64),
-                               strip=np.asarray(chunk.point_source_id, np.int64))
+                               strip=np.asarray(chunk.point_source_id, np.int64),
+                               number_of_returns=np.maximum(
+                                   np.asarray(chunk.number_of_returns, np.int64),
+                                   np.asarray(chunk.return_number, np.int64)))
 
 
 def utm_crs(lat_deg, lon_deg):
@@ -264,8 +307,10 @@ class LasPointWriter:
         self._writer.close()
         return False
 
-    def write(self, points, intensity, return_number, scan_angle_deg, strip):
-        """Append a block (``points``: :class:`ins.georeference.Points`)."""
+    def write(self, points, intensity, return_number, scan_angle_deg, strip,
+              number_of_returns=None):
+        """Append a block (``points``: :class:`ins.georeference.Points`; the number of
+        returns defaults to the return number)."""
         n = len(points.time)
         if n == 0:
             return
@@ -276,7 +321,8 @@ class LasPointWriter:
         rec.gps_time = points.time
         rec.intensity = np.clip(intensity, 0, 65535).astype(np.uint16)
         rec.return_number = np.clip(return_number, 1, 15).astype(np.uint8)
-        rec.number_of_returns = np.clip(return_number, 1, 15).astype(np.uint8)
+        rec.number_of_returns = np.clip(return_number if number_of_returns is None
+                                        else number_of_returns, 1, 15).astype(np.uint8)
         rec.scan_angle = np.clip(np.round(np.asarray(scan_angle_deg) / 0.006), -30000,
                                  30000).astype(np.int16)
         rec.point_source_id = np.clip(strip, 0, 65535).astype(np.uint16)

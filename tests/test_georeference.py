@@ -346,3 +346,42 @@ def test_scanner_on_the_aircraft_by_hand():
     _close(_lla_deg(pts), _expected(ned))
     with pytest.raises(Exception, match="mount"):
         georeference(traj, [2.0], scanner_rays([rho], [0.0]), sc)
+
+
+def test_cli_number_of_returns_per_pulse(static_flight, capsys):
+    """Returns of one pulse share its time: their number of returns is the pulse's
+    largest return number, also for pulses that straddle the reader's blocks (block size
+    5, pulses of 1-4 returns); a given column is kept and checked."""
+    import laspy
+    tmp = static_flight[0]
+    rng = np.random.default_rng(3)
+    rows, expect = ["time_s,range_m,scan_angle_deg,return_number,strip"], []
+    t = 0.5
+    for pulse in range(60):
+        k = int(rng.integers(1, 5))
+        for r in range(1, k + 1):
+            rows.append(f"{t:.4f},{1000 + 5 * r:.1f},{rng.uniform(-20, 20):.3f},{r},1")
+            expect.append(k)
+        t += 0.1
+    (tmp / "pulses.csv").write_text("\n".join(rows) + "\n")
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "pulses.csv", "-o", tmp / "p.las",
+                         "--block-size", "5", "-q"], capsys)
+    assert code == 0, err
+    las = laspy.read(tmp / "p.las")
+    assert np.array_equal(las.number_of_returns, expect)
+    assert np.all(np.asarray(las.return_number) <= np.asarray(las.number_of_returns))
+    # given: kept as written; a return number above it is refused with its line
+    (tmp / "given.csv").write_text(rows[0].replace(",strip", ",number_of_returns,strip")
+                                   + "\n" + "\n".join(
+        r.rsplit(",", 1)[0] + ",4,1" for r in rows[1:]) + "\n")
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "given.csv", "-o", tmp / "g.las", "-q"], capsys)
+    assert code == 0, err
+    assert np.all(laspy.read(tmp / "g.las").number_of_returns == 4)
+    (tmp / "bad.csv").write_text(rows[0].replace(",strip", ",number_of_returns,strip")
+                                 + "\n0.5,1000,0,3,2,1\n")
+    code, _, err = _run(["georeference", "--trajectory", tmp / "t.nav", "--scanner",
+                         tmp / "s.toml", tmp / "bad.csv", "-o", tmp / "b.las"], capsys)
+    assert code == 2 and "bad.csv:2" in err and "above number_of_returns 2" in err
+    assert not (tmp / "b.las").exists()
