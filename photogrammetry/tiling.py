@@ -1,7 +1,7 @@
 """Tiled refinement of ONE large block: tiles of about N images adjusted as Dask tasks.
 
-A block of many thousand images does not fit one small worker (5000 known-base images:
-83 s and 0.9 GB in one process).  :func:`refine_tiled` cuts it into tiles and adjusts
+A block of many thousand images does not fit one small worker (5000 images in one
+process: 0.67 GB known-base, 1.75 GB base-free; ``bench/bench_block_scale.py``).  :func:`refine_tiled` cuts it into tiles and adjusts
 each tile on its own (:func:`photogrammetry.block.adjust_block`, a Dask task through
 :func:`photogrammetry.batch.map_tasks`); a worker receives only its tile's data (priors,
 positions, the pairs inside the tile and their points), never the whole block.
