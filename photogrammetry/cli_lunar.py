@@ -32,14 +32,15 @@ inputs:
                pixel_size_mm), width_px, height_px required; optional:
                principal_point_px = [(width_px-1)/2, (height_px-1)/2], pixel_size_mm,
                radial_k = [0, 0, 0] (rad, eq. 1; equisolid only), opencv_k =
-               [0, 0, 0, 0] (opencv-fisheye only); any other key is an error.
+               [0, 0, 0, 0] (opencv-fisheye only), focal_length_y_px (fy, px, for
+               non-square pixels; default f); any other key is an error.
                model (theta = off-axis angle, r = px from the principal point):
                  fisheye-equisolid      r = 2 f sin(theta/2), radial_k (paper eq. 1)
                  fisheye-equidistant    r = f theta
                  fisheye-stereographic  r = 2 f tan(theta/2)
                  fisheye-orthographic   r = f sin(theta)
                  opencv-fisheye         r = f theta (1 + k1 theta^2 + .. + k4 theta^8)
-                                        (cv2.fisheye with fx = fy = f, D = opencv_k)
+                                        (cv2.fisheye with fx = f, fy, D = opencv_k)
 
 the Moon in the images:
   The centre is fitted on the lit limb (the half of the outline facing the Sun, known

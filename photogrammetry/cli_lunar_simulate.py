@@ -185,10 +185,12 @@ def _lens(args):
         cam = dict(focal_length_px=c.focal_length_px, width_px=c.width_px,
                    height_px=c.height_px, principal_point_px=tuple(c.principal_point_px),
                    radial_k=tuple(c.radial_k), pixel_size_mm=c.pixel_size_mm, model=c.model,
-                   opencv_k=tuple(c.opencv_k))
+                   opencv_k=tuple(c.opencv_k), focal_length_y_px=c.focal_length_y_px)
     if args.focal_length_px is not None:
         if not np.isfinite(args.focal_length_px) or args.focal_length_px <= 0:
             raise InputError(f"--focal-length-px: expected px > 0, got {args.focal_length_px}")
+        if cam.get("focal_length_y_px") is not None:      # the file's pixel aspect kept
+            cam["focal_length_y_px"] *= args.focal_length_px / cam["focal_length_px"]
         cam["focal_length_px"] = args.focal_length_px
     if args.size is not None:
         try:

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from ins.errors import InputError
-from photogrammetry.lunar.fisheye import FisheyeCamera, read_camera
+from photogrammetry.lunar.fisheye import FisheyeCamera, camera_file_text, read_camera
 
 CAM = FisheyeCamera(800.0, 1600, 1600, (799.5, 801.25), (0.01, -0.02, 0.005))
 
@@ -140,3 +140,33 @@ def test_read_lens_models(tmp_path, model, extra, ok):
         assert cam.opencv_k == (0.02, -0.01, 0.004, -0.0007)
     path.write_text(camera_file_text(cam))                  # written, read back the same
     assert read_camera(path) == cam
+
+
+def test_opencv_fisheye_non_square_pixels_match_cv2():
+    """fy != fx (``focal_length_y_px``): projection and its inverse against OpenCV's
+    fisheye with K = [[fx, 0, cx], [0, fy, cy]]."""
+    cv2 = pytest.importorskip("cv2")
+    _, _, d = _cv_setup()
+    fx, fy = 410.0, 412.7
+    cam = FisheyeCamera(fx, 1280, 960, PP, model="opencv-fisheye", opencv_k=KB,
+                        focal_length_y_px=fy)
+    K = np.array([[fx, 0, PP[0]], [0, fy, PP[1]], [0, 0, 1.0]])
+    uv_cv, _ = cv2.fisheye.projectPoints((d * [1, -1, -1])[:, None, :], np.zeros(3),
+                                         np.zeros(3), K, np.array(KB))
+    np.testing.assert_allclose(cam.direction_to_image(d), uv_cv[:, 0], atol=1e-8)
+    back = cam.image_to_direction(uv_cv[:, 0])
+    np.testing.assert_allclose(back, d, atol=1e-9)
+    square = FisheyeCamera(fx, 1280, 960, PP, model="opencv-fisheye", opencv_k=KB)
+    assert np.max(np.abs(square.direction_to_image(d) - uv_cv[:, 0])) > 0.5   # it matters
+
+
+def test_non_square_pixels_in_the_camera_file(tmp_path):
+    cam = FisheyeCamera(800.0, 1600, 1600, (799.5, 799.5), radial_k=(0.002, 0, 0),
+                        focal_length_y_px=801.2)
+    p = tmp_path / "cam.toml"
+    p.write_text(camera_file_text(cam))
+    got = read_camera(p)
+    assert got == cam and got.y_scale == pytest.approx(801.2 / 800.0)
+    p.write_text(camera_file_text(cam).replace("801.2", "2000.0"))
+    with pytest.raises(InputError, match=r"focal_length_y_px.*aspect outside 0.5-2"):
+        read_camera(p)

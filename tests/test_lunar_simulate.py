@@ -188,6 +188,38 @@ def test_lens_shading_saturation_two_commands(tmp_path, capsys):
     assert abs(np.rad2deg(err) * 3600) < 3 * sig
 
 
+def test_non_square_pixels_two_commands(tmp_path, capsys):
+    """A camera file with fy = 1.0075 fx (``focal_length_y_px``): the session is rendered
+    with it and written with it; lunar-heading finds the heading within its sigma with
+    that file, and is biased by far more than its sigma when the file says square."""
+    cam_file = tmp_path / "cam.toml"
+    cam_file.write_text('[camera]\nmodel = "opencv-fisheye"\nfocal_length_px = 800.0\n'
+                        'focal_length_y_px = 806.0\nwidth_px = 1000\nheight_px = 1000\n'
+                        'opencv_k = [0.01, -0.002, 0.0, 0.0]\n')
+    out = tmp_path / "moon"
+    assert main(["lunar-simulate", *[("24" if a == "36" else a) for a in SESSION
+                                     if a not in ("--size", "1000,1000")],
+                 "--camera", str(cam_file), "-o", str(out)]) == 0
+    assert read_camera(out / "camera.toml").focal_length_y_px == 806.0
+    truth = tomllib.loads((out / "truth.toml").read_text())["camera_orientation"]
+    square = out / "square.toml"
+    square.write_text("\n".join(x for x in (out / "camera.toml").read_text().splitlines()
+                                if not x.startswith("focal_length_y_px")) + "\n")
+    errs = []
+    for cam in (out / "camera.toml", square):
+        capsys.readouterr()
+        assert main(["lunar-heading", "--images", str(out / "images"), "--times",
+                     str(out / "times.csv"), "--station", STATION, "--camera", str(cam),
+                     "-q"]) == 0
+        line = next(x for x in capsys.readouterr().out.splitlines()
+                    if x.startswith("heading"))
+        hdg, sig = float(line.split()[6]), float(line.split()[9])
+        err = np.angle(np.exp(1j * np.deg2rad(hdg - truth["heading_deg"])))
+        errs.append((abs(np.rad2deg(err) * 3600), sig))
+    assert errs[0][0] < 3 * errs[0][1]
+    assert errs[1][0] > 5 * errs[1][1]
+
+
 @pytest.mark.parametrize("extra,words", [
     (["--lens", "fisheye-equidistant", "--opencv-k", "0,0,0,0"], ["--opencv-k", "opencv"]),
     (["--lens", "pinhole"], ["--lens", "fisheye-equisolid"]),

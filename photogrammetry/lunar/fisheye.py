@@ -16,9 +16,13 @@ principal point; ``f`` is the focal length in px:
 ``fisheye-orthographic``    ``r = f sin(theta)`` (theta <= 90 deg)
 ``opencv-fisheye``          ``r = f theta_d``, ``theta_d = theta (1 + k1 theta**2 +
                             k2 theta**4 + k3 theta**6 + k4 theta**8)`` (``opencv_k``:
-                            OpenCV's ``cv2.fisheye`` ``D``, with ``fx = fy = f``,
+                            OpenCV's ``cv2.fisheye`` ``D``, with ``fx = f``,
                             ``cx, cy`` = the principal point, no skew)
 ==========================  =============================================================
+
+Non-square pixels (OpenCV's ``fy != fx``): ``focal_length_y_px`` (``fy``; default ``f``)
+scales the image's rows, in every model: the radius and azimuth above hold for
+``(x, y * f / fy)`` with ``x, y`` the pixel offsets from the principal point.
 
 Camera frame ``c`` (``conventions.md``): x, y along the image axes of the photo
 coordinates ``x = (u - u0) * pixel``, ``y = -(v - v0) * pixel`` (x right, y up), z
@@ -65,6 +69,8 @@ class FisheyeCamera:
         One of `MODELS`.
     opencv_k : tuple of float
         ``(k1, k2, k3, k4)`` of OpenCV's fisheye model (``opencv-fisheye`` only).
+    focal_length_y_px : float or None
+        ``fy``, px, for non-square pixels (None: ``focal_length_px``).
     """
     focal_length_px: float
     width_px: int
@@ -74,6 +80,13 @@ class FisheyeCamera:
     pixel_size_mm: float | None = None
     model: str = "fisheye-equisolid"
     opencv_k: tuple = (0.0, 0.0, 0.0, 0.0)
+    focal_length_y_px: float | None = None
+
+    @property
+    def y_scale(self):
+        """``fy / f``: the rows' scale against the columns' (1 for square pixels)."""
+        fy = self.focal_length_y_px
+        return 1.0 if fy is None else fy / self.focal_length_px
 
     def __post_init__(self):
         if self.model not in MODELS:
@@ -149,7 +162,7 @@ class FisheyeCamera:
         """
         uv = np.asarray(uv, dtype=float)
         x = uv[..., 0] - self.principal_point_px[0]
-        y = -(uv[..., 1] - self.principal_point_px[1])
+        y = -(uv[..., 1] - self.principal_point_px[1]) / self.y_scale
         theta = self.theta_of_radius(np.hypot(x, y))
         a = np.arctan2(y, x)
         return np.stack([np.sin(theta) * np.cos(a), np.sin(theta) * np.sin(a),
@@ -173,7 +186,7 @@ class FisheyeCamera:
         a = np.arctan2(d[..., 1], d[..., 0])
         r = self.radius_of_theta(theta)
         u = self.principal_point_px[0] + r * np.cos(a)
-        v = self.principal_point_px[1] - r * np.sin(a)
+        v = self.principal_point_px[1] - r * np.sin(a) * self.y_scale
         return np.stack([u, v], axis=-1)
 
     def direction_jacobian(self, uv, step_px=1e-3):
@@ -194,7 +207,7 @@ class FisheyeCamera:
 #: ``pixel_size_mm`` (needed only with ``focal_length_mm``).
 FISHEYE_KEYS = {"camera": ("model", "focal_length_px", "focal_length_mm", "pixel_size_mm",
                            "width_px", "height_px", "principal_point_px", "radial_k",
-                           "opencv_k")}
+                           "opencv_k", "focal_length_y_px")}
 
 
 def read_camera(path):
@@ -205,7 +218,9 @@ def read_camera(path):
     ``principal_point_px = [u0, v0]`` (default: the image centre); ``radial_k =
     [k1, k2, k3]`` in rad (eq. 1; default zeros; ``fisheye-equisolid`` only);
     ``opencv_k = [k1, k2, k3, k4]`` (OpenCV's fisheye ``D``; default zeros;
-    ``opencv-fisheye`` only).  Any other section or key is an error (:data:`FISHEYE_KEYS`).
+    ``opencv-fisheye`` only); ``focal_length_y_px`` (OpenCV's ``fy`` for non-square
+    pixels; default the focal length).  Any other section or key is an error
+    (:data:`FISHEYE_KEYS`).
 
     Raises
     ------
@@ -241,13 +256,17 @@ def read_camera(path):
                     scalar=False)
     kb = cam.numbers("opencv_k", (0.0, 0.0, 0.0, 0.0), "k1, k2, k3, k4 of OpenCV's fisheye D",
                      length=4, scalar=False)
+    fy = cam.number("focal_length_y_px", None, "px > 0", lo=0.0, lo_open=True)
+    if fy is not None and not 0.5 < fy / f_px < 2.0:
+        raise cam.error("focal_length_y_px", f"{fy!r} px against a focal length of "
+                        f"{f_px!r} px: a pixel aspect outside 0.5-2", "px > 0")
     for key, owner in (("radial_k", "fisheye-equisolid"), ("opencv_k", "opencv-fisheye")):
         if cam.has(key) and model != owner:
             raise cam.error(key, f"applies to model = \"{owner}\" only, not {model!r}")
     cam.finish()
     return FisheyeCamera(focal_length_px=f_px, width_px=int(width), height_px=int(height),
                          principal_point_px=pp, radial_k=k, pixel_size_mm=pixel, model=model,
-                         opencv_k=kb)
+                         opencv_k=kb, focal_length_y_px=fy)
 
 
 def camera_file_text(camera, title="Fisheye camera"):
@@ -256,6 +275,8 @@ def camera_file_text(camera, title="Fisheye camera"):
         return repr(float(x))
     lines = [f"# {title}.", "[camera]", f'model = "{camera.model}"',
              f"focal_length_px = {num(camera.focal_length_px)}"]
+    if camera.focal_length_y_px is not None:
+        lines.append(f"focal_length_y_px = {num(camera.focal_length_y_px)}   # fy")
     if camera.pixel_size_mm is not None:
         lines.append(f"pixel_size_mm = {num(camera.pixel_size_mm)}")
     lines += [f"width_px = {int(camera.width_px)}", f"height_px = {int(camera.height_px)}",
