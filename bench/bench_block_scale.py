@@ -26,15 +26,17 @@ Measured (2 cores, the machine otherwise quiet, 2026-11-24, this script as commi
     known-base    1000   3920      1.62      0.27     1.89    1.9      298    b=236
     known-base    2000   8020      3.68      0.70     4.37    4.4      402    b=296
     known-base    5000  20447      9.42      2.99    12.41   12.4      674    b=302
+    known-base   10000  40985     23.87      6.94    30.80   30.8     1052    b=302
     base-free       50     69      0.29      0.09     0.38    0.4      216    dense
     base-free      200    659      0.53      0.23     0.76    0.8      240  L=0.12M
     base-free      500   1845      1.37      0.93     2.30    2.3      307  L=0.59M
     base-free     1000   3920      4.97      3.23     8.20    8.2      479  L=1.68M
     base-free     2000   8020     11.25      7.07    18.32   18.3      777  L=4.01M
     base-free     5000  20447     41.68     42.56    84.23   84.0     1747 L=11.52M
+    base-free    10000  40985     97.42    115.45   212.87  199.4     3245 L=23.64M
     relative      1000   3920      4.96      3.24     8.20    8.2      466  L=1.68M
     slope of log(total time) vs log(images), 1000-5000: known-base 1.17, base-free 1.46;
-    of log(peak memory): 0.51, 0.81
+    of log(peak memory): 0.51, 0.81; 5000-10000 (CPU): known-base 1.31, base-free 1.25
 
 (sigma0 0.975-0.998; known-base boresight errors within 1.14 of their sigmas; relative
 methods: boresight not observable.)  ``factor``: ``b`` the half-bandwidth of the banded
@@ -49,8 +51,8 @@ and ran away on a free covariance factor the data could not tell), base-free 27.
 0.6 s, and 12 factorizations).  The relative methods' cost grows faster than the images:
 the joint weights of a tie point couple the bases of all its pairs, so the sparse
 factor's fill per image grows with the block's width in strips until it reaches the
-strips' length (here 50 images: 1680, 2005, 2304 non-zeros per image at 20, 40, 100
-strips), and at 5000 images the data let the assessment try a free covariance factor
+strips' length (here 50 images: 1680, 2005, 2304, 2364 non-zeros per image at 20, 40,
+100, 200 strips: it levels off, and so does the slope), and at 5000 images the data let the assessment try a free covariance factor
 (9 more factorizations; ``photogrammetry.assessment.LAMBDA_TRY_REL``).  Larger relative
 blocks: ``photogrammetry refine --tile-images`` with ``--datum ins``
 (``bench/bench_block_tiles.py``: one 10 000-image block in tiles on Dask).
