@@ -49,7 +49,8 @@ start position:
 trust (checked before anything is written):
   GNSS measurements rejected by the innovation test: more than 5 % is a warning; more
   than 50 %, none accepted, or the written solution farther than 10 fix sigmas from
-  every fix for 30 s or more stops with exit 3, naming the counts and the likely cause
+  every fix for 30 s or more (10 s or more up to the last fix: the solution ends
+  drifted) stops with exit 3, naming the counts and the likely cause
   (start state, IMU noise settings, lever arm, time base).  --accept-poor writes the
   outputs anyway (exit 0, the warning printed).  A negative variance or a covariance
   that is not positive definite stops with exit 3, naming the time and the state.

@@ -31,7 +31,8 @@ from .mount import read_mount
 from .process_config import (METHODS, POSITION_KEYS, ProcessConfig,  # noqa: F401
                              config_from_manifest, filter_options, load_config)
 from .process_outputs import euler_std_deg, write_outputs  # noqa: F401
-from .process_trust import (DEPART_SIGMAS, DEPART_SPAN_S, NIS_FACTOR,  # noqa: F401
+from .process_trust import (DEPART_END_S, DEPART_SIGMAS, DEPART_SPAN_S,  # noqa: F401
+                            NIS_FACTOR,
                             REJECT_ERROR_FRACTION, REJECT_WARN_FRACTION, SENSOR_SIGMAS,
                             START_FIX_WINDOW_S, START_SIGMAS, START_SLACK_M, assess_quality,
                             check_start, first_fix_at, fix_name, fix_residuals)

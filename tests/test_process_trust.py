@@ -243,6 +243,24 @@ def test_a_lasting_departure_stops_a_minority_of_rejections(flight, tmp_path, ca
     assert "warning: 20 of 251 GNSS measurements rejected" in err and "fix sigmas" not in err
 
 
+def test_a_departure_to_the_end_stops_sooner(flight, tmp_path, capsys):
+    """The last 15 fixes 20 m off: 14 s of departure that lasts to the end of the
+    solution (nothing after it brings the solution back or shows the fixes wrong) is
+    exit 3 from 10 s; the last 8 (7 s) are only rejected: exit 0 with the warning."""
+    cfg = _config(tmp_path, flight, noise=TACTICAL)
+    n = len(read_gnss(flight / "gnss.txt"))
+    path = _gnss_with(flight, tmp_path, lambda g, lla: _north(lla, slice(n - 15, None), 20.0))
+    out = tmp_path / "out"
+    assert _run(flight, cfg, out, gnss=path) == 3
+    err = capsys.readouterr().err
+    assert "from all 15 GNSS fixes" in err and "to the end of the solution" in err
+    _nothing_left(out)
+    path = _gnss_with(flight, tmp_path, lambda g, lla: _north(lla, slice(n - 8, None), 20.0),
+                      "gnss_8.txt")
+    assert _run(flight, cfg, out, "-q", gnss=path) == 0
+    assert "fix sigmas" not in capsys.readouterr().err
+
+
 def test_gnss_on_another_time_scale_names_the_time_base(flight, tmp_path, capsys):
     """GNSS stamped 1000 s late (UTC seconds of day against GPS seconds of week, say):
     no fix in the processed span, exit 3 naming the time base."""
@@ -383,6 +401,8 @@ def test_help_states_exit_codes_start_rule_and_thresholds(capsys):
                    f"more than {100 * proc.REJECT_WARN_FRACTION:g} % is a warning",
                    f"more than {100 * proc.REJECT_ERROR_FRACTION:g} %",
                    f"farther than {proc.DEPART_SIGMAS:g} fix sigmas",
-                   f"for {proc.DEPART_SPAN_S:g} s or more stops with exit 3",
+                   f"for {proc.DEPART_SPAN_S:g} s or more",
+                   f"{proc.DEPART_END_S:g} s or more up to the last fix: the solution ends "
+                   "drifted) stops with exit 3",
                    "less the lever arm"):
         assert phrase in text, phrase
