@@ -7,9 +7,9 @@ Each size runs in a fresh process (its peak resident memory is its own): a simul
 block (``tests/scenario.py``'s ``make_large_block``: strips of 50 images, 60 % forward and
 30 % side overlap, ~40 tie points per image seen in up to 6 images, 0.5 px noise, INS
 noise 0.005 rad, boresight (0.002, -0.003, 0.004) rad), then
-``photogrammetry.block.adjust_block`` (each method of ``--method``; datum ``auto``: none
+``photogrammetry.adjustment.block.adjust_block`` (each method of ``--method``; datum ``auto``: none
 for known-base, first for relative and base-free; tie-point ids: joint weights; banded
-algebra from 100 images) and ``photogrammetry.assessment.assess``.  Relative and
+algebra from 100 images) and ``photogrammetry.adjustment.assessment.assess``.  Relative and
 base-free blocks carry two base-direction unknowns per pair: their normal matrix is
 factored whole (bordered) as a sparse ``L D L'`` (SuperLU, minimum degree, diagonal
 pivots) for the steps, the solves and, by selected inversion, the covariance blocks.  BLAS
@@ -53,7 +53,7 @@ the joint weights of a tie point couple the bases of all its pairs, so the spars
 factor's fill per image grows with the block's width in strips until it reaches the
 strips' length (here 50 images: 1680, 2005, 2304, 2364 non-zeros per image at 20, 40,
 100, 200 strips: it levels off, and so does the slope), and at 5000 images the data let the assessment try a free covariance factor
-(9 more factorizations; ``photogrammetry.assessment.LAMBDA_TRY_REL``).  Larger relative
+(9 more factorizations; ``photogrammetry.adjustment.assessment.LAMBDA_TRY_REL``).  Larger relative
 blocks: ``photogrammetry refine --tile-images`` with ``--datum ins``
 (``bench/bench_block_tiles.py``: one 10 000-image block in tiles on Dask).
 
@@ -86,8 +86,8 @@ def one(n, method, datum):
     sys.path.insert(0, str(HERE.parent / "tests"))
     import scenario as sc
 
-    from photogrammetry.assessment import assess
-    from photogrammetry.block import adjust_block
+    from photogrammetry.adjustment.assessment import assess
+    from photogrammetry.adjustment.block import adjust_block
     B = sc.make_large_block(n, seed=1)
     r0 = resource.getrusage(resource.RUSAGE_SELF)
     t0 = time.perf_counter()
@@ -112,7 +112,7 @@ def one(n, method, datum):
 
 def dask_run(n_blocks, n_images, workers):
     """``n_blocks`` flights of ``n_images`` each written as files and refined as Dask
-    tasks (``photogrammetry.batch.refine_many``) on a local cluster of `workers`
+    tasks (``photogrammetry.adjustment.batch.refine_many``) on a local cluster of `workers`
     processes; prints the wall time and every worker's peak resident memory."""
     import resource
     import tempfile
@@ -121,10 +121,10 @@ def dask_run(n_blocks, n_images, workers):
     import scenario as sc
     from dask.distributed import Client, LocalCluster
 
-    from photogrammetry.batch import refine_many
-    from photogrammetry.camera import read_camera
-    from photogrammetry.exposure import read_eo_csv
-    from photogrammetry.tiepoints import read_tiepoints
+    from photogrammetry.adjustment.batch import refine_many
+    from photogrammetry.imagery.tiepoints import read_tiepoints
+    from photogrammetry.orientation.camera import read_camera
+    from photogrammetry.orientation.exposure import read_eo_csv
     with tempfile.TemporaryDirectory() as tmp:
         tasks = []
         for k in range(n_blocks):

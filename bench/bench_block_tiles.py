@@ -1,4 +1,4 @@
-"""One 10 000-image block refined in tiles on Dask (photogrammetry.tiling).
+"""One 10 000-image block refined in tiles on Dask (photogrammetry.adjustment.tiling).
 
     .venv/bin/python bench/bench_block_tiles.py [--images 10000] [--tile-images 1000]
         [--halo-hops 3] [--workers 2] [--method known-base] [--datum none]
@@ -7,7 +7,7 @@ A single simulated block (``tests/scenario.py``'s ``make_large_block(images, see
 strips of 50 images, 60 % forward and 30 % side overlap, ~40 tie points per image,
 0.5 px noise, INS noise 0.005 rad, boresight (0.002, -0.003, 0.004) rad) is written as
 files (eo.csv, tiepoints.csv, camera.toml) and read back as ``photogrammetry refine``
-would; then ``photogrammetry.tiling.refine_tiled`` cuts it into tiles of at most
+would; then ``photogrammetry.adjustment.tiling.refine_tiled`` cuts it into tiles of at most
 ``--tile-images`` core images with a halo of ``--halo-hops`` pair-hops and adjusts them
 as tasks on a LocalCluster of ``--workers`` single-threaded worker processes (BLAS held
 to one thread).  Printed: the time and the driver's peak resident memory of each stage
@@ -116,11 +116,11 @@ def main():
     import scenario as sc
     from dask.distributed import Client, LocalCluster
 
-    from photogrammetry.camera import read_camera
-    from photogrammetry.exposure import read_eo_csv
-    from photogrammetry.rotation import angles_to_matrix
-    from photogrammetry.tiepoints import read_tiepoints
-    from photogrammetry.tiling import refine_tiled
+    from photogrammetry.adjustment.tiling import refine_tiled
+    from photogrammetry.imagery.tiepoints import read_tiepoints
+    from photogrammetry.orientation.camera import read_camera
+    from photogrammetry.orientation.exposure import read_eo_csv
+    from photogrammetry.orientation.rotation import angles_to_matrix
 
     t = time.perf_counter()
     B = sc.make_large_block(args.images, seed=1)
@@ -227,7 +227,7 @@ def main():
               + " arcsec +- " + ", ".join(f"{v * _AS:.1f}" for v in a.boresight_sigma)
               + "; error in sigmas " + ", ".join(f"{v:.2f}" for v in err))
     if args.whole:
-        from photogrammetry.batch import refine
+        from photogrammetry.adjustment.batch import refine
         t = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

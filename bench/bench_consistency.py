@@ -25,7 +25,7 @@ of its epochs inside and a mean near ``d``.
 Measured (30 seeds, 2026-11-24, about 1 min with the flights cached):
 
 - survey layout (default), sensor states random constants plus the bias instability
-  (the model of ``ins.error_model`` when the manifest gives the instability): smoothed
+  (the model of ``ins.estimation.error_model`` when the manifest gives the instability): smoothed
   tilt NEES 0.83-1.05 and heading 1.14-1.40 per class, all inside their bands; forward
   heading before the first turn 0.07 (the 0.5 deg in-air alignment), the rest inside;
   position NEES 2.8-3.0, NIS 3.0.  Smoothed RMS tilt N/E/heading 37.6/28.3/69.3 arcsec
@@ -97,6 +97,7 @@ def filter_statistics(cfg, plan):
     """The filter's sensor statistics for the drawn errors: the preset's magnitudes as
     the standard deviations (not the drawn values the manifest gives)."""
     from dataclasses import replace
+
     from ins.simulate.sensor_errors import PRESETS
     p = PRESETS[_grade(Path(plan).read_text())]
     mag = lambda k: np.abs(np.broadcast_to(np.asarray(p[k], float), 3))  # noqa: E731
@@ -116,6 +117,7 @@ def flight(plan, seed):
     """The INS products of the demo flight for ``seed`` with its drawn constant errors
     (simulated once, cached)."""
     import hashlib
+
     from ins.simulate.folder import simulate_flight
     text = drawn_plan(plan, seed)
     key = hashlib.sha256(text.encode()
@@ -140,13 +142,14 @@ def run_seed(folder, layout, plan, gauss_markov=False):
     """Per-node normalized errors and NIS of one flight (``gauss_markov``: every sensor
     state a Gauss-Markov process of its total sigma, the model before the constant
     sensor states)."""
-    from ins.accuracy import compare
-    from ins.error_model import LAYOUTS, StateLayout
-    from ins.process import process
-    from ins.process_config import config_from_manifest
-    from ins.rotation import quat_to_euler
-    from ins.smoother import rts_errors
-    from ins.trajectory import Trajectory, read_nav
+    from ins.estimation.error_model import LAYOUTS, StateLayout
+    from ins.estimation.process import process
+    from ins.estimation.process_config import config_from_manifest
+    from ins.estimation.smoother import rts_errors
+    from ins.io.navfiles import read_nav
+    from ins.nav.accuracy import compare
+    from ins.nav.rotation import quat_to_euler
+    from ins.nav.trajectory import Trajectory
     cfg = filter_statistics(config_from_manifest(str(folder)), plan)
     if gauss_markov:
         from dataclasses import replace

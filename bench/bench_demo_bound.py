@@ -130,11 +130,12 @@ def variants(preset):
 
 def figures(folder, gauss_markov):
     """Smoothed attitude error RMS and stated sigma RMS (arcsec), whole and late."""
-    from ins.accuracy import compare
-    from ins.process import process
-    from ins.process_config import config_from_manifest
-    from ins.smoother import rts_errors
-    from ins.trajectory import Trajectory, read_nav
+    from ins.estimation.process import process
+    from ins.estimation.process_config import config_from_manifest
+    from ins.estimation.smoother import rts_errors
+    from ins.io.navfiles import read_nav
+    from ins.nav.accuracy import compare
+    from ins.nav.trajectory import Trajectory
     cfg = config_from_manifest(str(folder))
     cfg.truth = None
     if gauss_markov:
@@ -162,6 +163,7 @@ def main():
                     help="only preset, preset-gm and arw-only")
     args = ap.parse_args()
     import tomllib
+
     from ins.simulate.folder import simulate_flight
     from ins.simulate.sensor_errors import PRESETS
     text = Path(args.plan).read_text()

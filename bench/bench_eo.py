@@ -26,13 +26,14 @@ ROOT = Path(__file__).resolve().parents[1]
 ARCSEC = np.pi / 180.0 / 3600.0
 sys.path.insert(0, str(ROOT / "tests"))
 
-from ins.earth import ned_offset                          # noqa: E402
-from ins.interpolation import interpolate_trajectory      # noqa: E402
-from ins.rotation import euler_to_quat                     # noqa: E402
-from photogrammetry.camera import NADIR_AXES, CameraMounting  # noqa: E402
-from photogrammetry.exposure import compute_eo, read_eo_csv   # noqa: E402
-from photogrammetry.mapping import EnuFrame                   # noqa: E402
-from test_interpolation import Turn, attitude_error_arcsec    # noqa: E402
+from test_interpolation import Turn, attitude_error_arcsec  # noqa: E402
+
+from ins.nav.earth import ned_offset  # noqa: E402
+from ins.nav.interpolation import interpolate_trajectory  # noqa: E402
+from ins.nav.rotation import euler_to_quat  # noqa: E402
+from photogrammetry.orientation.camera import NADIR_AXES, CameraMounting  # noqa: E402
+from photogrammetry.orientation.exposure import compute_eo, read_eo_csv  # noqa: E402
+from photogrammetry.orientation.mapping import EnuFrame  # noqa: E402
 
 
 def interpolation_errors():
@@ -84,7 +85,7 @@ def flight(work):
     except ImportError:
         print("\nflight: photogrammetry.simulate not available")
         return
-    from photogrammetry.cli import main
+    from photogrammetry.cli.main import main
     plan = work / "short200.toml"
     text = (ROOT / "tests/data/flights/short.toml").read_text()
     plan.write_text(text.replace("rate_hz = 100.0", "rate_hz = 200.0", 1))

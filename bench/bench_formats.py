@@ -3,7 +3,7 @@ beside the KF-GINS text reader.
 
 Files are made here from one simulated motion (N records each; the writers of the
 toolkit, so the bytes are the documented layouts): the IMU as KF-GINS text (the
-reference, ``ins.imu_files.read_kfgins_text``), KF-GINS binary and CSV; GNSS as
+reference, ``ins.io.imu_files.read_kfgins_text``), KF-GINS binary and CSV; GNSS as
 KF-GINS text and as RTKLIB ``.pos`` (llh, week/tow, full covariance columns; and the
 date-time variant); the trajectory as SBET and its SMRMSG; IMU messages in a ROS 1 and
 a ROS 2 bag (``sensor_msgs/Imu``, fewer records: deserialized in Python).  Peers on the
@@ -67,10 +67,10 @@ def best_of(fn, repeat):
 
 def motion(n, rate_hz=200.0):
     """A smooth simulated motion: IMU increments, GNSS fixes (1 in 200), a trajectory."""
-    from ins.gnss import GnssLog
-    from ins.imu import ImuLog
-    from ins.rotation import euler_to_quat
-    from ins.trajectory import Trajectory
+    from ins.io.gnss_log import GnssLog
+    from ins.nav.imu import ImuLog
+    from ins.nav.rotation import euler_to_quat
+    from ins.nav.trajectory import Trajectory
     rng = np.random.default_rng(0)
     t = 345600.0 + np.arange(n) / rate_hz
     dt = 1.0 / rate_hz
@@ -144,11 +144,17 @@ def main():
     ap.add_argument("--bag-n", type=int, default=20_000, help="IMU messages in the bags")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    from ins.gnss import read_gnss, write_gnss
-    from ins.imu_files import (read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
-                               write_kfgins_binary, write_kfgins_text)
-    from ins.rtklib import read_pos, write_pos
-    from ins.sbet import read_sbet, read_smrmsg, write_sbet, write_smrmsg
+    from ins.io.gnss import read_gnss, write_gnss
+    from ins.io.imu_files import (
+        read_csv,
+        read_kfgins_binary,
+        read_kfgins_text,
+        write_csv,
+        write_kfgins_binary,
+        write_kfgins_text,
+    )
+    from ins.io.rtklib import read_pos, write_pos
+    from ins.io.sbet import read_sbet, read_smrmsg, write_sbet, write_smrmsg
 
     imu, gnss, traj = motion(args.n)
     rows = []
@@ -187,7 +193,7 @@ def main():
             except ImportError as exc:
                 print(f"(shared peerlib not run: {exc})")
         try:
-            from ins.rosbag import read_bag
+            from ins.io.rosbag import read_bag
             small = imu.slice_time(None, imu.time[min(args.bag_n, args.n) - 1])
             make_bag(tmp / "imu.bag", small, ros1=True)
             make_bag(tmp / "imu_ros2", small, ros1=False)

@@ -1,6 +1,6 @@
 """Throughput and peak memory of LiDAR georeferencing (issue 18).
 
-1. Library: ``ins.georeference.georeference`` on N returns (default 10 million) in
+1. Library: ``ins.lidar.georeference.georeference`` on N returns (default 10 million) in
    blocks of 250 000 (the CLI default), a 200 Hz trajectory of a straight 1000 s flight, trajectory
    sigmas and every scanner sigma on (the full kernel).
 2. Command line: ``ins georeference`` on a CSV of N returns to LAZ and to LAS (a
@@ -23,9 +23,10 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from ins.georeference import TrajectoryStd, georeference  # noqa: E402
-from ins.scanner import Scanner, scanner_rays  # noqa: E402
-from ins.trajectory import Trajectory, write_nav  # noqa: E402
+from ins.io.navfiles import write_nav
+from ins.lidar.georeference import TrajectoryStd, georeference  # noqa: E402
+from ins.lidar.scanner import Scanner, scanner_rays  # noqa: E402
+from ins.nav.trajectory import Trajectory  # noqa: E402
 
 
 def make_trajectory(duration_s=1000.0, rate_hz=200.0):
@@ -93,7 +94,7 @@ def bench_cli(traj, n, folder):
           f"{time.perf_counter() - start:.1f} s")
     for ext in (".laz", ".las"):
         out = os.path.join(folder, "points" + ext)
-        cmd = [sys.executable, "-m", "ins.cli", "georeference", "--trajectory", nav,
+        cmd = [sys.executable, "-m", "ins.cli.main", "georeference", "--trajectory", nav,
                "--scanner", scanner, csv, "-o", out, "-q"]
         start = time.perf_counter()
         before = peak_mib(resource.RUSAGE_CHILDREN)

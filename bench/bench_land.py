@@ -8,7 +8,7 @@ Per seed and configuration: the forward pass's worst horizontal error in the out
 the smoothed horizontal RMS (m), the smoothed heading error RMS (deg) and the rejected
 GNSS records; then the median over the seeds.  Configurations: no NHC; NHC with the
 true mounting; NHC with the mounting estimated from the no-NHC solution
-(ins.vehicle.estimate_mounting); NHC in the IMU's axes; dual-antenna headings (0.1 deg,
+(ins.estimation.vehicle.estimate_mounting); NHC in the IMU's axes; dual-antenna headings (0.1 deg,
 baseline [0.3, 1.2, -0.1] m in b, at the GNSS epochs) without NHC.
 
     python bench/bench_land.py [--seeds 5]
@@ -49,15 +49,16 @@ BASELINE = (0.3, 1.2, -0.1)
 
 
 def make_drive(folder, seed):
+    from land_vehicle import CarTruth
     from scipy.spatial.transform import Rotation
 
-    from ins import earth
-    from ins.gnss import GnssLog, write_gnss
-    from ins.heading_files import write_headings
-    from ins.imu_files import write_kfgins_text
+    from ins.estimation.heading_files import write_headings
+    from ins.io.gnss import write_gnss
+    from ins.io.gnss_log import GnssLog
+    from ins.io.imu_files import write_kfgins_text
+    from ins.nav import earth
     from ins.simulate.imu_synth import synthesize_imu
     from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
-    from land_vehicle import CarTruth
     car = CarTruth(MOUNT)
     imu = apply_errors(synthesize_imu(car, 100.0), ImuErrorModel.preset("mems"), seed=seed)
     tg = car.t_start + np.arange(1.0, car.t_end - car.t_start, 1.0)
@@ -86,10 +87,10 @@ def make_drive(folder, seed):
 def run(car, folder, base, name, extra="", heading=False):
     from scipy.spatial.transform import Rotation
 
-    from ins import earth
-    from ins.presets import apply_preset
-    from ins.process import process
-    from ins.process_config import load_config
+    from ins.estimation.presets import apply_preset
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
+    from ins.nav import earth
     path = folder / f"{name}.toml"
     path.write_text(base.format(heading='heading = "heading.txt"\n' if heading else "")
                     + extra)
@@ -110,7 +111,7 @@ def run(car, folder, base, name, extra="", heading=False):
 
 
 def main(argv=None):
-    from ins.vehicle import estimate_mounting
+    from ins.estimation.vehicle import estimate_mounting
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=5)
     args = p.parse_args(argv)
@@ -146,7 +147,8 @@ def main(argv=None):
         print(f"{n:<26}{v[0]:>18.2f}{v[1]:>20.3f}{v[2]:>22.3f}{v[3]:>17.3f}{v[4]:>10.0f}")
     e = np.array(est)
     from land_vehicle import CarTruth
-    from ins.trajectory import Trajectory
+
+    from ins.nav.trajectory import Trajectory
     car = CarTruth(MOUNT)
     t = np.arange(car.t_start, car.t_end, 0.1)
     tr = car.evaluate(t)

@@ -32,9 +32,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from ins import earth, textformat  # noqa: E402
-from ins.gnss import GnssLog, write_gnss  # noqa: E402
-from ins.imu import DPH, MGAL  # noqa: E402
+from ins.common import textformat
+from ins.io.gnss import write_gnss
+from ins.io.gnss_log import GnssLog  # noqa: E402
+from ins.nav import earth  # noqa: E402
+from ins.nav.imu import DPH, MGAL  # noqa: E402
 
 LAT_DEG, LON_DEG, H_M = 30.5, 114.3, 20.0
 T0 = 100000.0
@@ -123,7 +125,7 @@ def run(argv):
 
 def horizontal_error_m(nav_path, every=1):
     """Horizontal distance (m) of every ``every``-th epoch from the static truth."""
-    from ins.trajectory import read_nav
+    from ins.io.navfiles import read_nav
     traj = read_nav(nav_path)
     lat0, lon0 = np.deg2rad(LAT_DEG), np.deg2rad(LON_DEG)
     rm, rn = earth.radii(lat0)
@@ -158,7 +160,7 @@ def main():
               f"in {time.perf_counter() - t:.1f} s ({work})")
         print(f"for scale: the log as float64 arrays is {n * 7 * 8 / 2**20:.0f} MiB; one 21x21 "
               f"covariance per epoch would be {n * 21 * 21 * 8 / 2**30:.1f} GiB")
-        cli = [sys.executable, "-m", "ins.cli"]
+        cli = [sys.executable, "-m", "ins.cli.main"]
         every = int(round(args.rate))
         code, wall, rss, tail = run(cli + [
             "mechanize", str(imu), "--init-lla", f"{LAT_DEG},{LON_DEG},{H_M}",

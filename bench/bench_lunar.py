@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 from scipy.stats import chi2
 
-from ins.rotation import euler_to_dcm
+from ins.nav.rotation import euler_to_dcm
 from photogrammetry.lunar import centre_directions, heading_from_images
 from photogrammetry.lunar.ephemeris import moon_sun_directions
 from photogrammetry.lunar.fisheye import FisheyeCamera

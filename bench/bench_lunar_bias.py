@@ -54,16 +54,17 @@ import re
 import sys
 import tempfile
 import time
-import tomllib
 from contextlib import redirect_stdout
 from io import StringIO
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from lunar_truth import LAWS, render  # noqa: E402
+
 from photogrammetry.lunar.moon_centre import extract_centre, lit_centroid  # noqa: E402
 
 PHASES = (0, 30, 60, 90, 120, 140)
@@ -136,7 +137,7 @@ SESSIONS = [(law, []) for law in ("lommel-seeliger", "lambert", "flat", "hapke")
 
 
 def sessions(rows=SESSIONS):
-    from photogrammetry.cli import main
+    from photogrammetry.cli.main import main
     print()
     print("sessions: 72 images over 15 min, 2017-05-02T14:00Z at 40 N 116 E, equisolid "
           "f = 800 px, heading 123.4 deg, tilt 20 deg")

@@ -37,7 +37,7 @@ def _best(fn, repeat):
 
 
 def kernel_speed(log, init, repeat):
-    from ins import _kernels
+    from ins.nav import _kernels
     state0 = init.as_vector()
     out = np.empty((len(log) - 1, _kernels.N_STATE))
 
@@ -115,8 +115,8 @@ def end_to_end(imu_path, init_args, out_path, repeat):
 
 def one_hour_log(log, path_txt, path_bin):
     """A 1 h 200 Hz log: the benchmark flight's increments repeated, time continued."""
-    from ins.imu import ImuLog
-    from ins.imu_files import write_kfgins_binary, write_kfgins_text
+    from ins.io.imu_files import write_kfgins_binary, write_kfgins_text
+    from ins.nav.imu import ImuLog
     n = 720_001
     reps = -(-n // len(log))
     t = log.time[0] + np.arange(n) * 0.005
@@ -141,8 +141,8 @@ def main():
     if data is None:
         raise SystemExit(f"no benchmark data in {args.data} and no shared script under "
                          f"{benchdata.SHARED}")
-    from ins.imu_files import read_kfgins_text, write_kfgins_binary
-    from ins.mechanization import NavState
+    from ins.io.imu_files import read_kfgins_text, write_kfgins_binary
+    from ins.nav.mechanization import NavState
 
     args.work.mkdir(parents=True, exist_ok=True)
     meta = json.loads((data / "meta.json").read_text())
@@ -172,7 +172,7 @@ def main():
         e_bin, m_bin = end_to_end(binf, init_args, args.work / "out_bin.nav", args.repeat)
         rows.append((name, len(log), ours, p_int, p_bare, e_txt, m_txt, e_bin, m_bin))
         print(f"\n{name}: {len(log)} epochs")
-        print(f"  kernel (ins._kernels.mechanize_rows)  {ours / 1e6:6.2f} M epochs/s")
+        print(f"  kernel (ins.nav._kernels.mechanize_rows)  {ours / 1e6:6.2f} M epochs/s")
         print(f"  pyins Integrator.integrate            {p_int / 1e6:6.2f} M epochs/s"
               f"   ratio ours/pyins {ours / p_int:5.1f}x")
         print(f"  pyins bare kernel strapdown.integrate {p_bare / 1e6:6.2f} M epochs/s"
@@ -180,8 +180,8 @@ def main():
         print(f"  ins mechanize from text   {e_txt:6.2f} s   peak RSS {m_txt:6.0f} MB")
         print(f"  ins mechanize from binary {e_bin:6.2f} s   peak RSS {m_bin:6.0f} MB")
         if log is flight:                  # accuracy of the written .nav against the truth
-            from ins.accuracy import compare
-            from ins.trajectory import read_nav
+            from ins.io.navfiles import read_nav
+            from ins.nav.accuracy import compare
             err = compare(read_nav(args.work / "out_txt.nav"), read_nav(data / "truth.nav"))
             att = np.max(np.linalg.norm(err.att_n, axis=1)) / ARCSEC
             print(f"  error at {err.time[-1] - err.time[0]:.0f} s: horizontal "

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """GNSS/INS post-processing on the shared benchmark flight, beside the peers' figures.
 
-Runs ``ins.process`` (forward filter + RTS smoother) on the shared dataset
+Runs ``ins.estimation.process`` (forward filter + RTS smoother) on the shared dataset
 (../shared/bench/ins, built once into .cache/ins-bench-data) with the noise settings
 and the perturbed start that every peer is given (meta.json), and prints, in the layout
 of that README (errors from its own peerlib over [t0 + 60 s, end]):
@@ -48,8 +48,8 @@ LAYOUT = "kfgins"
 
 
 def config_for(data, gnss_file, node_interval_s=1.0):
-    from ins.error_model import LAYOUTS, ImuNoise, StateLayout
-    from ins.process_config import ProcessConfig
+    from ins.estimation.error_model import LAYOUTS, ImuNoise, StateLayout
+    from ins.estimation.process_config import ProcessConfig
     meta = json.loads((data / "meta.json").read_text())
     fn, ini, st = meta["filter_noise"], meta["init_filter"], meta["init_std"]
     noise = ImuNoise(fn["arw_dpsh"], fn["vrw_mpsph"], fn["gyro_bias_std_dph"],
@@ -96,7 +96,7 @@ def _fmt(r):
 
 
 def accuracy(args, peerlib, truth, data):
-    from ins.process import process
+    from ins.estimation.process import process
     out = {}
     print("\nGNSS/INS filter, noisy IMU, perturbed start, errors over [t0+60 s, end] "
           "(README layout)")
@@ -131,7 +131,7 @@ def accuracy(args, peerlib, truth, data):
 
 
 def rate_check(peerlib, truth, data):
-    from ins.process import process
+    from ins.estimation.process import process
     print("\nCovariance step (node interval): accuracy it costs (gnss_outage.txt, smoothed "
           "and forward pos RMS N/E/D mm, heading RMS arcsec)")
     for dt in (1.0, 0.1):
@@ -149,7 +149,7 @@ def rate_check(peerlib, truth, data):
 
 
 def speed(args, data):
-    from ins.process import process
+    from ins.estimation.process import process
     cfg, _ = config_for(data, "gnss.txt")
     process(cfg)                                   # warm the numba cache
     best = []
@@ -190,7 +190,7 @@ def speed(args, data):
 # The child runs the CLI and reports its own peak RSS (VmHWM, kB) on the last stderr line.
 _CHILD = """
 import sys
-from ins.cli import main
+from ins.cli.main import main
 code = main(['process'] + sys.argv[1:])
 import os
 t = os.times()
@@ -235,8 +235,9 @@ def lever_arm_tables(folder):
     """The lever-arm paper's Tables 1 and 2: position and attitude errors of the
     varying-arm compensation (method 1) and the constant arm l_bp + l_ap (method 2)."""
     from test_filter import given_config
-    from ins.process import process
-    from ins.trajectory import read_nav
+
+    from ins.estimation.process import process
+    from ins.io.navfiles import read_nav
     arcsec = np.pi / 180 / 3600
     rows = {}
     for method, varying in (("1 varying arm", True), ("2 constant arm", False)):

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photogrammetry.rotation import C_CV_C, angles_to_matrix
+from photogrammetry.orientation.rotation import C_CV_C, angles_to_matrix
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -89,7 +89,7 @@ def colmap(p):
 def one_per_call(p):
     """``adjust_pair`` called once per pair (robust start, Gauss-Newton, snooping): the
     per-call cost a caller with one pair at a time sees (best of 3 sweeps)."""
-    from photogrammetry.coplanarity import adjust_pair
+    from photogrammetry.adjustment.coplanarity import adjust_pair
     best, R2 = np.inf, np.empty_like(p["R2"])
     for _ in range(3):
         t0 = time.perf_counter()

@@ -8,19 +8,19 @@ Run: .venv/bin/python bench/bench_simulate.py
 import copy
 import resource
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
-from ins.accuracy import compare
-from ins.mechanization import NavState, mechanize
-from ins.rotation import quat_to_euler
+from ins.nav.accuracy import compare
+from ins.nav.mechanization import NavState, mechanize
+from ins.nav.rotation import quat_to_euler
+from ins.nav.trajectory import Trajectory
 from ins.simulate.imu_synth import GL_NODES, synthesize_imu
-from ins.simulate.plan import load_plan, parse_plan
+from ins.simulate.plan_read import load_plan, parse_plan
 from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
 from ins.simulate.truth import build_truth
-from ins.trajectory import Trajectory
 
 DEMO = Path(__file__).resolve().parents[1] / "data" / "flights" / "demo.toml"
 

@@ -2,7 +2,7 @@
 
 Reads the shared benchmark's IMU log (302 001 lines x 7 columns, 48 MB of text, 18-digit
 numbers) and GNSS log with:
-- ours: ``ins.textfiles.read_table`` (whole table, blocks of 16 MiB) and ``iter_table``
+- ours: ``ins.common.textfiles.read_table`` (whole table, blocks of 16 MiB) and ``iter_table``
   (streaming);
 - pandas' C engine (``float_precision="round_trip"`` before pandas 3, the default
   since), whole and in chunks;
@@ -100,9 +100,10 @@ def exact_reference(path, rows=20000):
 
 
 def readers(ncols):
-    from ins import textfiles
     import pandas as pd
     import pyarrow.csv as pacsv
+
+    from ins.common import textfiles
 
     names = [f"c{i}" for i in range(ncols)]
 
@@ -185,8 +186,9 @@ def bench_reads(path, ncols, repeat, tmpdir):
 
 
 def bench_writes(values, decimals, repeat):
-    from ins import textformat
     import pandas as pd
+
+    from ins.common import textformat
     dec = np.array(decimals, dtype=np.int64)
     fmt = " ".join(f"%.{d}f" for d in decimals)
     ours = textformat.format_fixed(values, dec).tobytes()
@@ -262,7 +264,7 @@ def bench_gil(path, ncols):
 
 
 # The child runs ``ins process`` with the IMU text table read by ours or by pandas' C
-# engine in chunks (ins.textfiles.iter_table replaced; same values, lines approximate).
+# engine in chunks (ins.common.textfiles.iter_table replaced; same values, lines approximate).
 _PROCESS_CHILD = """
 import sys, time
 import numpy as np
@@ -280,7 +282,7 @@ if reader == "pandas":
                 yield v, np.arange(line, line + len(v))
                 line += len(v)
     textfiles.iter_table = iter_table
-from ins.cli import main
+from ins.cli.main import main
 t = time.perf_counter()
 code = main(['process'] + sys.argv[1:])
 sys.stderr.write(f"{time.perf_counter() - t}\\n")
@@ -321,7 +323,7 @@ def main():
     if data is None:
         print("shared benchmark dataset unavailable (../shared/bench/ins missing)")
         return 0
-    from ins import textfiles
+    from ins.common import textfiles
     textfiles.read_table(data / "gnss.txt", 7, 7)            # compile / warm the kernels
     with tempfile.TemporaryDirectory() as tmpdir:
         bench_reads(data / "imu_noisy.txt", 7, args.repeat, tmpdir)

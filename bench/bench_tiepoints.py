@@ -15,7 +15,7 @@ tracks' agreement with the truth (ground spread of each track with the true EO).
 ``--memory N,...``: peak RSS of ``match_images`` (fresh process, VmHWM) against the number
 of images, with every image's features held in memory (``cache_images = N``: what
 tiepoints did before the feature cache) and with the default LRU of 4 images (features
-on disk, :mod:`photogrammetry.feature_cache`).  The images are 1000 x 750 px nadir crops
+on disk, :mod:`photogrammetry.imagery.feature_cache`).  The images are 1000 x 750 px nadir crops
 of one multi-scale noise texture, strips of 16 with 60 % forward and side overlap
 (pairs: the neighbours along and across the strips), priors exact with sigma 0.1 deg,
 --max-features 4000 (about 2650 found per image).  Measured (2 shared cores, load 4):
@@ -41,7 +41,7 @@ import numpy as np
 
 READ = """
 import json, sys, time
-import photogrammetry.imagery as im
+import photogrammetry.imagery.images as im
 if sys.argv[3] == 'whole':
     im.BANDED_PIXELS = 10**12
 t = time.perf_counter()
@@ -73,14 +73,14 @@ def big_frames(d):
 def block(strips, per_strip):
     import cv2
 
-    from photogrammetry.batch import refine
-    from photogrammetry.camera import FrameCamera
-    from photogrammetry.exposure import ExposureOrientation
-    from photogrammetry.rotation import angles_to_matrix
+    from photogrammetry.adjustment.batch import refine
+    from photogrammetry.imagery.tiepoints import TiePoints
+    from photogrammetry.imagery.tiepoints_images import match_images
+    from photogrammetry.orientation.camera import FrameCamera
+    from photogrammetry.orientation.exposure import ExposureOrientation
+    from photogrammetry.orientation.rotation import angles_to_matrix
     from photogrammetry.simulate.render import make_texture, ray_ground, render_view
     from photogrammetry.simulate.terrain import make_terrain
-    from photogrammetry.tiepoints import TiePoints
-    from photogrammetry.tiepoints_images import match_images
     rng = np.random.default_rng(5)
     cam = FrameCamera(5.0, 0.01, 640, 480, (319.5, 239.5), (1e-3, 0, 0), (0, 0))
     terrain = make_terrain(15.0, 200.0, rng)
@@ -139,9 +139,9 @@ def block(strips, per_strip):
 
 MATCH = """
 import json, sys, time
-from photogrammetry.camera import read_camera
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.tiepoints_images import MatchSettings, match_images
+from photogrammetry.orientation.camera import read_camera
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.imagery.tiepoints_images import MatchSettings, match_images
 d, lru = sys.argv[1], int(sys.argv[2])
 eo = read_eo_csv(d + "/eo.csv")
 cam, _ = read_camera(d + "/cam.toml")
@@ -160,8 +160,8 @@ def crop_block(d, n, per_strip=16):
     """n nadir 1000 x 750 crops of one texture (module docstring) with their EO."""
     import cv2
 
-    from photogrammetry.camera import FrameCamera, write_camera
-    from photogrammetry.exposure import ExposureOrientation, write_eo_csv
+    from photogrammetry.orientation.camera import FrameCamera, write_camera
+    from photogrammetry.orientation.exposure import ExposureOrientation, write_eo_csv
     w, h, step_u, step_v, gsd = 1000, 750, 400, 300, 0.5
     strips = -(-n // per_strip)
     W, H = step_u * (min(n, per_strip) - 1) + w, step_v * (strips - 1) + h

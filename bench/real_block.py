@@ -19,15 +19,15 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from photogrammetry.batch import refine
-from photogrammetry.camera import read_camera, write_camera
-from photogrammetry.cli import main
-from photogrammetry.drone import camera_from_dji, gimbal_angles, read_drone_shot
-from photogrammetry.mapping import EnuFrame
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.rotation import matrix_to_angles
-from photogrammetry.sfm_opensfm import read_reconstruction
-from photogrammetry.tiepoints import read_tiepoints
+from photogrammetry.adjustment.batch import refine
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import read_camera, write_camera
+from photogrammetry.orientation.drone import camera_from_dji, gimbal_angles, read_drone_shot
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.orientation.mapping import EnuFrame
+from photogrammetry.orientation.rotation import matrix_to_angles
+from photogrammetry.sfm.opensfm import read_reconstruction
 
 SYSTEM = "omega-phi-kappa"
 

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ins.rotation import wrap_to_pi
-from photogrammetry.assessment import assess
-from photogrammetry.block import adjust_block
-from photogrammetry.coplanarity import adjust_pairs
-from photogrammetry.rotation import angles_to_matrix
+from ins.nav.rotation import wrap_to_pi
+from photogrammetry.adjustment.assessment import assess
+from photogrammetry.adjustment.block import adjust_block
+from photogrammetry.adjustment.coplanarity import adjust_pairs
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import scenario as sc  # noqa: E402  (test scaffolding: tests/scenario.py)
@@ -118,11 +118,11 @@ def flight(folder, eo_path=None, boresight_deg=(0.1, -0.15, 0.2), ins_sigma_deg=
     boresight misalignment plus white angle noise (``FOLDER/eo_ins.csv``).
     """
     import os
-
-    from photogrammetry.cli import main as cli
-    from photogrammetry.exposure import read_eo_csv, write_eo_csv
-    from photogrammetry.rotation import boresight_matrix, matrix_to_angles
     from dataclasses import replace
+
+    from photogrammetry.cli.main import main as cli
+    from photogrammetry.orientation.exposure import read_eo_csv, write_eo_csv
+    from photogrammetry.orientation.rotation import boresight_matrix, matrix_to_angles
     truth = read_eo_csv(os.path.join(folder, "eo_true.csv"))
     if eo_path is None:
         rng = np.random.default_rng(seed)

@@ -10,14 +10,28 @@ of their integration interval.
 
 __version__ = "0.1.0"
 
-from .errors import InputError, InputWarning  # noqa: E402
+from ins.common.errors import InputError, InputWarning, QualityError  # noqa: E402
 
-# The rest is imported on first use (PEP 562): ``import ins.cli`` stays light, so that
-# the command-line tools install their Ctrl-C handler before numpy and numba load.
-_LAZY = {"ImuLog": "imu", "compensate": "imu", "read_imu": "imu_files",
-         "NavState": "mechanization", "iter_mechanize": "mechanization",
-         "mechanize": "mechanization",
-         "Trajectory": "trajectory", "read_nav": "trajectory", "write_nav": "trajectory"}
+# The public API, imported on first use (PEP 562): ``import ins.cli.main`` stays light, so
+# that the command-line tools install their Ctrl-C handler before numpy and numba load.
+_LAZY = {
+    # nav: IMU model, mechanization, trajectories
+    "ImuLog": "nav.imu", "compensate": "nav.imu",
+    "NavState": "nav.mechanization", "iter_mechanize": "nav.mechanization",
+    "mechanize": "nav.mechanization",
+    "Trajectory": "nav.trajectory", "interpolate_trajectory": "nav.interpolation",
+    "compare": "nav.accuracy", "TrajectoryErrors": "nav.accuracy",
+    # io: files
+    "read_imu": "io.imu_files", "GnssLog": "io.gnss_log", "read_gnss": "io.gnss",
+    "read_nav": "io.navfiles", "write_nav": "io.navfiles", "read_trajectory": "io.navfiles",
+    "read_sbet": "io.sbet", "write_sbet": "io.sbet",
+    # estimation: GNSS/INS post-processing
+    "ProcessConfig": "estimation.process_config", "load_config": "estimation.process_config",
+    "config_from_manifest": "estimation.process_config",
+    "process": "estimation.process", "ProcessResult": "estimation.process",
+    "write_outputs": "estimation.process_outputs", "write_plots": "estimation.plots",
+    "allan_deviation": "estimation.allan",
+}
 
 
 def __getattr__(name):
@@ -28,5 +42,9 @@ def __getattr__(name):
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
-__all__ = ["ImuLog", "InputError", "InputWarning", "NavState", "Trajectory", "compensate",
-           "iter_mechanize", "mechanize", "read_imu", "read_nav", "write_nav"]
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+__all__ = ["InputError", "InputWarning", "QualityError"] + sorted(_LAZY)

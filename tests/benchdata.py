@@ -14,8 +14,8 @@ the simulated test flights and numba's compiled kernels.
   and the seed, so any code change simulates the flight again.
 - numba's on-disk cache (``cache=True``) is invalidated only by the timestamp of the file
   that defines a kernel, not by a change to a function or a constant it calls from
-  another module (a changed gravity coefficient in ``ins/earth.py`` kept the old one
-  compiled into ``ins/_kernels.py``).  :func:`numba_cache_dir` is a folder per
+  another module (a changed gravity coefficient in ``ins/nav/earth.py`` kept the old one
+  compiled into ``ins/nav/_kernels.py``).  :func:`numba_cache_dir` is a folder per
   :func:`source_hash`; ``conftest.py`` points ``NUMBA_CACHE_DIR`` there before numba is
   imported, so a changed formula anywhere recompiles and an unchanged tree stays warm.
 

@@ -7,7 +7,7 @@ import benchdata
 
 # numba's on-disk cache is invalidated only by the timestamp of the file that defines a
 # kernel, not by a change in a function or constant it calls from another module: a
-# stale cache let a gravity change in ins/earth.py pass the shared-dataset test.  Point
+# stale cache let a gravity change in ins/nav/earth.py pass the shared-dataset test.  Point
 # it at a folder per hash of every ins/ and photogrammetry/ source, before numba is
 # imported (subprocesses of the tests inherit the variable).  INS_TEST_NUMBA_CACHE=keep
 # leaves numba's own setting alone.
@@ -19,7 +19,6 @@ if os.environ.get("INS_TEST_NUMBA_CACHE") != "keep":
         _numba_config.CACHE_DIR = _NUMBA_DIR
 
 import pytest  # noqa: E402
-
 from benchdata import SHARED, ensure_bench_data  # noqa: E402
 
 

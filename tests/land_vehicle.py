@@ -18,7 +18,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from ins import earth
+from ins.nav import earth
 
 T0 = 300000.0
 DURATION_S = 240.0

@@ -11,8 +11,8 @@ of a level camera points down.
 """
 import numpy as np
 
-from ins.rotation import dcm_to_rotvec, rotvec_to_dcm
-from photogrammetry.rotation import angles_to_matrix
+from ins.nav.rotation import dcm_to_rotvec, rotvec_to_dcm
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 SYSTEM = "phi-omega-kappa"
 
@@ -154,7 +154,7 @@ def make_block(n_strips=5, n_per_strip=10, seed=0, f_px=10000.0, pixel_mm=0.01,
     of each pair's points], ``ins_noise`` (m, 3) injected,
     ``boresight`` (3,), ``f_mm``, ``sigma_mm``, ``system``, ``obs`` {image: (ids, xy)}.
     """
-    from photogrammetry.rotation import boresight_matrix, matrix_to_angles
+    from photogrammetry.orientation.rotation import boresight_matrix, matrix_to_angles
     rng = np.random.default_rng(seed)
     f_mm = f_px * pixel_mm
     scale = height_m / f_mm
@@ -220,8 +220,8 @@ def write_block_files(block, folder, width_px=8000, height_px=6000, outlier=None
     """
     import os
 
-    from photogrammetry.camera import FrameCamera, write_camera
-    from photogrammetry.exposure import ExposureOrientation, write_eo_csv
+    from photogrammetry.orientation.camera import FrameCamera, write_camera
+    from photogrammetry.orientation.exposure import ExposureOrientation, write_eo_csv
     m = len(block["prior"])
     ids = [f"img{i:03d}" for i in range(m)]
     pixel = block["pixel_mm"]
@@ -258,7 +258,7 @@ def make_large_block(n_images, n_per_strip=50, seed=0, f_px=10000.0, pixel_mm=0.
     images: strips of `n_per_strip` (the last one shorter), ground points projected only
     into the images near them, pairs only between neighbouring images (a different random
     stream from :func:`make_block`).  Same returned keys (``obs`` and ``X`` included)."""
-    from photogrammetry.rotation import boresight_matrix, matrix_to_angles
+    from photogrammetry.orientation.rotation import boresight_matrix, matrix_to_angles
     rng = np.random.default_rng(seed)
     f_mm = f_px * pixel_mm
     scale = height_m / f_mm

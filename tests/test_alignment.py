@@ -4,13 +4,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins import earth
-from ins.alignment import (align_gnss_heading, align_static, static_accuracy,
-                           static_attitude)
-from ins.error_model import DEG_SQRTH, DPH, MGAL, ImuNoise
-from ins.errors import InputError
-from ins.gnss import GnssLog
-from ins.imu import ImuLog
+from ins.common.errors import InputError
+from ins.estimation.alignment import align_gnss_heading, align_static, static_attitude
+from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL, ImuNoise
+from ins.io.gnss_log import GnssLog
+from ins.nav import earth
+from ins.nav.imu import ImuLog
 
 LAT = np.deg2rad(30.5)
 
@@ -148,13 +147,14 @@ def test_in_air_start_heading_does_not_run_away_in_straight_flight():
     straight flight).  Heading is weakly observable there (Earth-rate coupling, lever-arm
     motion): the forward filter must keep it within 3 sigma of the truth, the alignment's
     stated sigma must cover the real error, and the attitude NEES stay in its band."""
-    import tomllib
     import warnings
 
+    import tomllib
     from scipy.stats import chi2
     from test_filter import short_flight
 
-    from ins.process import config_from_manifest, process
+    from ins.estimation.process import process
+    from ins.estimation.process_config import config_from_manifest
     folder = short_flight(seed=5, plan=_in_air_plan())
     man = tomllib.loads((folder / "manifest.toml").read_text())
     t_a, t_b = man["stationary"]["segments_s"][0]
@@ -236,7 +236,7 @@ def test_a_rocking_log_is_flagged():
     body rotates: a warning naming the rotation; the exact static log gives none."""
     import warnings
 
-    from ins.errors import InputWarning
+    from ins.common.errors import InputWarning
     imu, _ = static_imu([1.0, -2.0, 30.0], [0, 0, 0], [0, 0, 0], 0.003, duration=120.0)
     lla = np.array([LAT, 0.3, 100.0])
     nav = ImuNoise(arw_deg_sqrth=0.003, gyro_bias_std_dph=0.01)

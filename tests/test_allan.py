@@ -2,12 +2,12 @@
 a static simulation; the `ins allan` command."""
 import numpy as np
 import pytest
-
-from ins.allan import allan_deviation, noise_densities
-from ins.cli import main
-from ins.imu_files import write_kfgins_text
-from ins.simulate.sensor_errors import DEG_SQRTH, MPS_SQRTH, ImuErrorModel, apply_errors
 from test_sensor_errors import static_log
+
+from ins.cli.main import main
+from ins.estimation.allan import allan_deviation, noise_densities
+from ins.io.imu_files import write_kfgins_text
+from ins.simulate.sensor_errors import DEG_SQRTH, MPS_SQRTH, ImuErrorModel, apply_errors
 
 
 def test_white_noise_is_n_over_sqrt_tau():
@@ -58,11 +58,16 @@ def test_cli_bad_file(tmp_path, capsys):
 # ---------------------------------------------------------------------------------------
 # a moving log is refused (issue 12): the static check and --start/--end/--allow-motion
 
-from ins import earth  # noqa: E402
-from ins.allan import (GRAVITY_MARGIN, GRAVITY_RANGE, MIN_FORCE_DEPARTURE,  # noqa: E402
-                       MIN_RATE_DEPARTURE, static_check)
-from ins.imu import ImuLog  # noqa: E402
-from ins.rotation import euler_to_dcm  # noqa: E402
+from ins.estimation.allan import (  # noqa: E402
+    GRAVITY_MARGIN,
+    GRAVITY_RANGE,
+    MIN_FORCE_DEPARTURE,
+    MIN_RATE_DEPARTURE,
+    static_check,
+)
+from ins.nav import earth  # noqa: E402
+from ins.nav.imu import ImuLog  # noqa: E402
+from ins.nav.rotation import euler_to_dcm  # noqa: E402
 from ins.simulate.sensor_errors import PRESETS  # noqa: E402
 
 

@@ -2,13 +2,12 @@
 injected INS noise and boresight are known."""
 import numpy as np
 import pytest
-
-from photogrammetry.assessment import assess
-from photogrammetry.block import adjust_block
-from photogrammetry.reml import BandedV
-from photogrammetry.report import report_text
-
 import scenario as sc
+
+from photogrammetry.adjustment.assessment import assess
+from photogrammetry.adjustment.block import adjust_block
+from photogrammetry.adjustment.reml import BandedV
+from photogrammetry.adjustment.report import report_text
 
 
 @pytest.fixture(scope="module")
@@ -122,9 +121,9 @@ def test_assessment_regressors_against_differences(system):
     """The assessment's regressors: d angles / d (camera-frame rotation) = M^-1 R (the
     boresight) and d angles / d (model-frame rotation) = M^-1 (the datum), against
     central differences of the angles of R exp([e]) and exp([e]) R (issue 12)."""
-    from ins.rotation import rotvec_to_dcm
-    from photogrammetry import _coplanarity_kernels as K
-    from photogrammetry.rotation import angles_to_matrix, matrix_to_angles
+    from ins.nav.rotation import rotvec_to_dcm
+    from photogrammetry.adjustment import _coplanarity_kernels as K
+    from photogrammetry.orientation.rotation import angles_to_matrix, matrix_to_angles
     a = np.random.default_rng(27).uniform(-0.6, 0.6, (4, 3))
     R, M = K.rotation_and_axes(a, system)
     J_cam, J_model = np.linalg.solve(M, R), np.linalg.inv(M)

@@ -12,15 +12,15 @@ The valid inputs the broken files replace come from one simulated flight
 """
 import os
 import shutil
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
-from ins import cli as ins_cli
-from photogrammetry import cli as pg_cli
+from ins.cli import main as ins_cli
+from photogrammetry.cli import main as pg_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 BAD = ROOT / "tests" / "data" / "bad"
@@ -255,7 +255,7 @@ NAV_CASES = [
 TOML_GARBAGE = [("empty.txt", None, ()), ("garbage.bin", None, ())]
 
 
-# failures in modules another helper is finishing (ins/process.py, ins/cli_process.py)
+# failures in modules another helper is finishing (ins/estimation/process.py, ins/cli/process.py)
 
 def _cases():
     cases = []
@@ -472,8 +472,8 @@ def test_imu_gap_warns_without_strict(good, tmp_path, capsys):
 def test_mount_stops_early_falls_back_with_count(good, tmp_path, capsys):
     """Issue 4: GNSS records after the end of the mount log use the static arm, counted
     in one warning and in the summary; the run succeeds."""
-    from ins.gnss import read_gnss
-    from ins.mount import read_mount
+    from ins.io.gnss import read_gnss
+    from ins.io.mount import read_mount
     mount_end = read_mount(BAD / "mount_stops_early.txt").time[-1]
     gnss = read_gnss(good / "flight" / "gnss.txt")
     imu_t = np.loadtxt(good / "flight" / "imu.txt", usecols=0)
@@ -499,8 +499,8 @@ def test_mount_stops_early_falls_back_with_count(good, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("module, argv", [
-    ("ins.cli", ["mechanize", BAD / "garbage.bin", *INIT, "--format", "kfgins", "-o", "X"]),
-    ("photogrammetry.cli", ["refine", BAD / "eo_nan.csv", BAD / "tiepoints_nan.csv",
+    ("ins.cli.main", ["mechanize", BAD / "garbage.bin", *INIT, "--format", "kfgins", "-o", "X"]),
+    ("photogrammetry.cli.main", ["refine", BAD / "eo_nan.csv", BAD / "tiepoints_nan.csv",
                             "--camera", BAD / "garbage.bin", "-o", "X"]),
 ])
 def test_real_process_exit_code_and_no_traceback(tmp_path, module, argv):

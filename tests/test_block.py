@@ -4,14 +4,13 @@ import warnings
 
 import numpy as np
 import pytest
-
-from ins.errors import InputError
-from photogrammetry._coplanarity_kernels import rotation_and_axes
-from photogrammetry.block import adjust_block
-from photogrammetry.coplanarity import adjust_pairs
-from photogrammetry.rotation import angles_to_matrix
-
 import scenario as sc
+
+from ins.common.errors import InputError
+from photogrammetry.adjustment._coplanarity_kernels import rotation_and_axes
+from photogrammetry.adjustment.block import adjust_block
+from photogrammetry.adjustment.coplanarity import adjust_pairs
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 
 @pytest.fixture(scope="module")
@@ -155,7 +154,7 @@ def _close(analytic, fd, rtol=1e-7):
 
 def _triangle(system, seed=25, n=5):
     """Three images (centres in a triangle, random attitudes), n points seen by all."""
-    from photogrammetry.block import _condition_index, pad_pairs
+    from photogrammetry.adjustment.block_conditions import _condition_index, pad_pairs
     rng = np.random.default_rng(seed)
     m, f = 3, 100.0
     angles = rng.uniform(-0.5, 0.5, (m, 3))
@@ -195,8 +194,9 @@ def test_block_derivatives_and_joint_weights_against_differences(system):
     central differences of g built from scratch, to 1e-7 (issue 12)."""
     from scipy import sparse
 
-    from photogrammetry import _coplanarity_kernels as K
-    from photogrammetry.block import _condition_terms, _joint_weights, _position_cov
+    from photogrammetry.adjustment import _coplanarity_kernels as K
+    from photogrammetry.adjustment.block import _position_cov
+    from photogrammetry.adjustment.block_conditions import _condition_terms, _joint_weights
     T = _triangle(system)
     R, M = K.rotation_and_axes(T["angles"], system)
     base = T["X"][T["pairs"][:, 1]] - T["X"][T["pairs"][:, 0]]
@@ -246,9 +246,9 @@ def test_pair_whose_screening_did_not_converge_is_left_out_with_a_warning(block,
     """A pair whose pair-wise screening did not converge has no valid outlier tests: it
     is left out with a QualityWarning naming it (it used to enter the block silently),
     and the block is the one adjusted without that pair."""
-    from ins.errors import QualityWarning
-    from photogrammetry import block as block_mod
-    from photogrammetry import _coplanarity_kernels as K
+    from ins.common.errors import QualityWarning
+    from photogrammetry.adjustment import _coplanarity_kernels as K
+    from photogrammetry.adjustment import block as block_mod
     real = block_mod.adjust_pairs
     k_bad = 4
 

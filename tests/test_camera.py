@@ -1,13 +1,18 @@
-"""Tests of photogrammetry.camera: pixel convention, Brown distortion (against OpenCV),
+"""Tests of photogrammetry.orientation.camera: pixel convention, Brown distortion (against OpenCV),
 undistortion as the inverse, mounting checks and the camera file."""
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from ins.errors import InputError
-from photogrammetry.camera import (NADIR_AXES, CameraMounting, FrameCamera, read_camera,
-                                   write_camera)
-from photogrammetry.rotation import boresight_matrix
+from ins.common.errors import InputError
+from photogrammetry.orientation.camera import (
+    NADIR_AXES,
+    CameraMounting,
+    FrameCamera,
+    read_camera,
+    write_camera,
+)
+from photogrammetry.orientation.rotation import boresight_matrix
 
 rng = np.random.default_rng(3)
 CAM = FrameCamera(100.0, 0.01, 8000, 6000, (3999.5, 2999.5),

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins import cli, earth
-from ins.imu import ImuLog
-from ins.imu_files import write_kfgins_binary
-from ins.trajectory import read_nav
+from ins.cli import main as cli
+from ins.io.imu_files import write_kfgins_binary
+from ins.io.navfiles import read_nav
+from ins.nav import earth
+from ins.nav.imu import ImuLog
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "data" / "example"
@@ -55,7 +56,7 @@ def test_example_log_matches_truth(tmp_path, capsys):
     assert np.all((nav[:, 10] >= 0) & (nav[:, 10] < 360))
     code, stdout, _ = _run(capsys, "compare", out, EXAMPLE / "truth.nav")
     assert code == 0 and "601 common epochs" in stdout
-    from ins.accuracy import compare
+    from ins.nav.accuracy import compare
     err = compare(read_nav(out), read_nav(EXAMPLE / "truth.nav"))
     assert np.max(err.horizontal) < 1e-5 and np.max(np.abs(err.pos_n[:, 2])) < 1e-4
 
@@ -206,7 +207,7 @@ def test_missing_file(tmp_path, capsys):
 
 def test_console_script_help_names_units():
     exe = Path(sys.executable).with_name("ins")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "ins.cli"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "ins.cli.main"]
     res = subprocess.run(cmd + ["mechanize", "--help"], capture_output=True, text=True,
                          env={**os.environ, "COLUMNS": "100"})
     assert res.returncode == 0

@@ -12,12 +12,12 @@ import numpy as np
 import pymap3d
 import pytest
 
-from ins import cli as ins_cli
-from ins import earth
-from ins.cli import NEGATIVE_VALUE, user_path
-from ins.cliutil import triplet
-from ins.errors import QualityError
-from photogrammetry import cli as pg_cli
+from ins.cli import main as ins_cli
+from ins.cli.main import user_path
+from ins.cli.util import NEGATIVE_VALUE, triplet
+from ins.common.errors import QualityError
+from ins.nav import earth
+from photogrammetry.cli import main as pg_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ROOT / "tests" / "data" / "flights" / "short.toml"
@@ -166,7 +166,7 @@ def southern_flight(tmp_path_factory):
 def test_eo_origin_south_and_west(southern_flight, tmp_path, capsys, form):
     """``--origin -33.9,-70.7,20`` (the block origin) reproduces the simulator's true EO;
     another negative origin moves the positions as pymap3d says."""
-    from photogrammetry.exposure import read_eo_csv
+    from photogrammetry.orientation.exposure import read_eo_csv
     truth = read_eo_csv(southern_flight / "eo_true.csv")
     for origin in ("-33.9,-70.7,20", "-33.95,-70.61,-12.5"):
         out = tmp_path / f"eo{origin}.csv"
@@ -188,7 +188,7 @@ def test_eo_origin_south_and_west(southern_flight, tmp_path, capsys, form):
 def test_lunar_heading_south_and_west(tmp_path, capsys):
     """A station at -33.9, -70.7 (--station -33.9,-70.7,500 and --temperature -5) gives the
     heading of simulated centres back."""
-    from ins.rotation import euler_to_dcm
+    from ins.nav.rotation import euler_to_dcm
     from photogrammetry.lunar.ephemeris import moon_sun_directions
     from photogrammetry.lunar.fisheye import FisheyeCamera
     lat, lon, h, heading = -33.9, -70.7, 500.0, 211.5
@@ -249,8 +249,8 @@ def _commands(flight, out):
     f = flight
     static = f.parent / "static_imu.txt"
     if not static.exists():
-        from ins.imu import ImuLog
-        from ins.imu_files import write_kfgins_text
+        from ins.io.imu_files import write_kfgins_text
+        from ins.nav.imu import ImuLog
         from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
         rows = _static_rows(30.5, n=4000)
         log = ImuLog(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
@@ -292,7 +292,7 @@ def test_output_under_a_regular_file(flight, tmp_path, capsys, name):
 def test_disk_full_and_read_only(flight, tmp_path, capsys, monkeypatch, name, failure):
     """No space while writing (an OSError without a file name) or a read-only directory
     (creating the temporary): one line naming the user's output, exit 2, nothing left."""
-    import ins.fileio as fileio
+    import ins.common.fileio as fileio
     out = tmp_path / "res"
     main, argv = _commands(flight, out)[name]
     if failure == "ENOSPC":
@@ -348,7 +348,7 @@ def test_error_inside_a_folder_being_built_names_the_users_folder(tmp_path, caps
 
 
 def test_quality_error_exits_3(tmp_path, capsys, monkeypatch):
-    import ins.cli_allan as cli_allan
+    import ins.cli.allan as cli_allan
 
     def untrustworthy(args):
         raise QualityError("the solution is 308 km from the GNSS fixes")
@@ -377,10 +377,10 @@ def _cli(module):
 
 
 @pytest.mark.parametrize("module, argv, output", [
-    ("photogrammetry.cli", ["eo", "{flight}", "-o", "{tmp}/eo.csv"], "eo.csv"),
-    ("ins.cli", ["compare", "{flight}/truth.nav", "{flight}/truth.nav"], None),
-    ("ins.cli", ["simulate", str(SHORT), "-o", "{tmp}/sim"], "sim"),
-    ("ins.cli", ["--help"], None),
+    ("photogrammetry.cli.main", ["eo", "{flight}", "-o", "{tmp}/eo.csv"], "eo.csv"),
+    ("ins.cli.main", ["compare", "{flight}/truth.nav", "{flight}/truth.nav"], None),
+    ("ins.cli.main", ["simulate", str(SHORT), "-o", "{tmp}/sim"], "sim"),
+    ("ins.cli.main", ["--help"], None),
 ])
 def test_closed_stdout_is_quiet(flight, tmp_path, module, argv, output):
     """The reader of stdout goes away before the command writes (``| true``): no
@@ -399,7 +399,7 @@ def test_closed_stdout_is_quiet(flight, tmp_path, module, argv, output):
 def test_head_of_lunar_heading(tmp_path):
     """The issue's case: ``photogrammetry lunar-heading ... | head -n 2`` in a shell with
     pipefail: exit 0, two lines, nothing on stderr, the plot written."""
-    from ins.rotation import euler_to_dcm
+    from ins.nav.rotation import euler_to_dcm
     from photogrammetry.lunar.ephemeris import moon_sun_directions
     from photogrammetry.lunar.fisheye import FisheyeCamera
     cam = FisheyeCamera(800.0, 1600, 1600, (799.5, 799.5))
@@ -413,7 +413,7 @@ def test_head_of_lunar_heading(tmp_path):
         f"m{k:03d},{t}Z\n" for k, t in enumerate(utc)))
     (tmp_path / "c.csv").write_text("image_id,u_px,v_px\n" + "".join(
         f"m{k:03d},{u:.5f},{v:.5f}\n" for k, (u, v) in enumerate(uv)))
-    cmd = " ".join(_cli("photogrammetry.cli") + [
+    cmd = " ".join(_cli("photogrammetry.cli.main") + [
         "lunar-heading", "--centres", "c.csv", "--times", "t.csv", "--station", "40,116,50",
         "--camera", "cam.toml", "--plot", "conv.png"])
     proc = subprocess.run(["bash", "-c", f"set -o pipefail; {cmd} | head -n 2"],
@@ -428,7 +428,7 @@ def test_head_of_lunar_heading(tmp_path):
 
 @pytest.mark.parametrize("command", ["eo", "refine"])
 def test_help_states_the_textbook_phi_omega_kappa(command, capsys):
-    from photogrammetry.rotation import angles_to_matrix
+    from photogrammetry.orientation.rotation import angles_to_matrix
     with pytest.raises(SystemExit):
         pg_cli.main([command, "--help"])
     out = capsys.readouterr().out
@@ -447,7 +447,7 @@ def test_help_states_the_textbook_phi_omega_kappa(command, capsys):
 
 @pytest.fixture
 def handler_installed():
-    from ins import interrupts
+    from ins.common import interrupts
     interrupts.reset()
     restore = interrupts.install()
     yield interrupts
@@ -458,7 +458,8 @@ def handler_installed():
 def _interrupt_now():
     """What the SIGINT handler does when the signal arrives at this point."""
     import signal as signal_
-    from ins import interrupts
+
+    from ins.common import interrupts
     interrupts.handler(signal_.SIGINT, None)
 
 
@@ -492,7 +493,7 @@ def test_an_interrupt_never_cuts_an_install(tmp_path, capsys, monkeypatch,
     """SIGINT while a finished output is being renamed into place: the install completes,
     the interrupt takes effect after it, and the message says the output is complete;
     SIGINT while writing: nothing left (no file, no hidden temporary)."""
-    import ins.fileio as fileio
+    import ins.common.fileio as fileio
     real_rename, real_replace = os.rename, os.replace
 
     def rename_with_signal(src, dst):     # the signal lands in the middle of the swap

@@ -14,8 +14,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 import comma2k19  # noqa: E402
 
-from ins import earth  # noqa: E402
-from ins.trajectory import Trajectory  # noqa: E402
+from ins.nav import earth  # noqa: E402
+from ins.nav.trajectory import Trajectory  # noqa: E402
 
 REAL = ROOT.parent / "shared" / "real" / "comma2k19_segment"
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason="../shared/real is absent")
@@ -95,9 +95,9 @@ def test_compare_known_errors():
 
 @needs_real
 def test_conversion_files(tmp_path):
-    from ins.gnss import read_gnss
-    from ins.imu_files import read_imu
-    from ins.trajectory import read_nav
+    from ins.io.gnss import read_gnss
+    from ins.io.imu_files import read_imu
+    from ins.io.navfiles import read_nav
     info = comma2k19.convert(REAL, tmp_path / "seg", offsets=(0.0, 0.0))
     imu = read_imu(tmp_path / "seg" / "imu.txt")
     gnss = read_gnss(tmp_path / "seg" / "gnss.txt")
@@ -142,18 +142,18 @@ HAND = {"horizontal_m": 1.46, "vel_mps": (0.04, 0.02, 0.05), "att_deg": (0.09, 0
 def test_real_segment_beats_the_hand_figures(tmp_path):
     """The documented path (convert with the offsets estimated from the data, process
     with the mems preset, compare) on the real segment."""
-    from ins.gnss import read_gnss
-    from ins.presets import apply_preset
-    from ins.process import process
-    from ins.process_config import load_config
-    from ins.trajectory import read_nav
+    from ins.estimation.presets import apply_preset
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
+    from ins.io.gnss import read_gnss
+    from ins.io.navfiles import read_nav
     seg = tmp_path / "seg"
     info = comma2k19.convert(REAL, seg)
     assert 0.05 < info["position_offset_s"] < 0.13          # IMU - GNSS clock
     assert 0.0 < info["velocity_offset_s"] < 0.07
     # closure: the written fixes are on the IMU's clock (no offset left)
-    from ins.time_offset import estimate_time_offset
-    from ins.imu_files import read_imu
+    from ins.estimation.time_offset import estimate_time_offset
+    from ins.io.imu_files import read_imu
     imu, gnss = read_imu(seg / "imu.txt"), read_gnss(seg / "gnss.txt")
     for source in ("velocity", "position"):
         assert abs(estimate_time_offset(imu, gnss, source=source).offset_s) < 0.01
@@ -206,11 +206,11 @@ def test_real_segment_land_preset_with_the_estimated_mounting(tmp_path, capsys):
     continuous GNSS the figures stay those of the mems path (0.591 m, heading 0.116 deg);
     without the mounting the constraint pulls the IMU's pitch by the mounting's 3.9 deg
     (the camera-to-IMU pitch moves from 0.2 to -3.7 deg), with it the pitch stays."""
-    from ins.gnss import read_gnss
-    from ins.presets import apply_preset
-    from ins.process import process
-    from ins.process_config import load_config
-    from ins.trajectory import read_nav, write_nav
+    from ins.estimation.presets import apply_preset
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
+    from ins.io.gnss import read_gnss
+    from ins.io.navfiles import read_nav, write_nav
     seg = tmp_path / "seg"
     comma2k19.convert(REAL, seg)
 

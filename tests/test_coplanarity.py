@@ -2,17 +2,20 @@
 paper's form, Cramer-Rao efficiency, outliers and degenerate input."""
 import numpy as np
 import pytest
+import scenario as sc
 from scipy.spatial.transform import Rotation
 
-from ins.errors import InputError
-from ins.rotation import skew
-from photogrammetry import _coplanarity_kernels as K
-from photogrammetry.coplanarity import (_paper_terms, adjust_pair, adjust_pairs,
-                                        pencil_determinants)
-from photogrammetry.quality import sigma0_limit
-from photogrammetry.rotation import angles_to_matrix
-
-import scenario as sc
+from ins.common.errors import InputError
+from ins.nav.rotation import skew
+from photogrammetry.adjustment import _coplanarity_kernels as K
+from photogrammetry.adjustment.coplanarity import (
+    _paper_terms,
+    adjust_pair,
+    adjust_pairs,
+    pencil_determinants,
+)
+from photogrammetry.adjustment.quality import sigma0_limit
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 ARCSEC = np.pi / 180 / 3600
 
@@ -195,7 +198,7 @@ def test_zero_redundancy_flags_sigma0_and_not_converged_warns():
     """Three points, known base: 3 conditions for 3 angles.  No variance factor can be
     estimated: sigma0 is NaN, the covariance is the a-priori one (sigma0 = 1), marked,
     with a QualityWarning (it used to set s0^2 = 1 silently)."""
-    from ins.errors import QualityWarning
+    from ins.common.errors import QualityWarning
     p = sc.make_pairs(1, 3, seed=17)
     args = (p["u1"][0, :, :2], p["u2"][0, :, :2], p["f_mm"], p["ang1"][0], p["prior2"][0],
             p["system"], "known-base")
@@ -289,7 +292,7 @@ def test_every_analytic_derivative_against_central_differences(engine, system, m
     """The solvers' Jacobian (by image 2's angles in the named system and by the two
     base-direction parameters) and the condition variances (from the derivatives by the
     four photo coordinates) against central differences of g = b . (R1 u1 x R2 u2) built
-    from photogrammetry.rotation (itself checked against the textbooks' elements), to
+    from photogrammetry.orientation.rotation (itself checked against the textbooks' elements), to
     1e-7: a 5 % error in any derivative term fails (issue 12, mutation 'a 5 % error in a
     coplanarity derivative passes every Cramer-Rao band')."""
     rng = np.random.default_rng(23)

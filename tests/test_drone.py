@@ -8,12 +8,12 @@ import cv2
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from photogrammetry.cli import main
-from photogrammetry.drone import eo_from_drone, read_drone_shot
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.mapping import EnuFrame, parse_frame
-from photogrammetry.rotation import angles_to_matrix
+from ins.common.errors import InputError
+from photogrammetry.cli.main import main
+from photogrammetry.orientation.drone import eo_from_drone, read_drone_shot
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.orientation.mapping import EnuFrame, parse_frame
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "odm_drone_block"
 
@@ -143,7 +143,7 @@ def test_real_dji_images_against_bundle(tmp_path):
     degrees off)."""
     from scipy.spatial.transform import Rotation
 
-    from photogrammetry.sfm_opensfm import read_reconstruction
+    from photogrammetry.sfm.opensfm import read_reconstruction
     images = sorted(str(p) for p in (REAL / "images").glob("*.tif"))
     out = tmp_path / "eo.csv"
     assert main(["eo", "--from-exif", *images, "--frame", "EPSG:32651", "--system",
@@ -172,7 +172,7 @@ def test_dji_dewarp_camera_projects_as_opencv(tmp_path):
     """DewarpData (full sensor 5472 x 3648, fx = fy here) on a 1368 x 912 image: our
     camera projects as cv2.projectPoints with the scaled matrix (principal point W0/2 +
     cx in corner coordinates, then to pixel centres) and OpenCV's distortion."""
-    from photogrammetry.drone import camera_from_dji
+    from photogrammetry.orientation.drone import camera_from_dji
     xmp = XMP.replace('drone-dji:RtkFlag="{flag}"', 'drone-dji:RtkFlag="{flag}"\n'
                       '   drone-dji:CalibratedOpticalCenterX="2736.000000"\n'
                       '   drone-dji:CalibratedOpticalCenterY="1824.000000"\n'
@@ -203,7 +203,7 @@ def test_dji_dewarp_camera_projects_as_opencv(tmp_path):
 def test_gimbal_angles_invert_the_chain(tmp_path):
     """eo_from_drone then gimbal_angles gives the XMP's roll, pitch, yaw back (oblique,
     away from the pitch -90 lock), with a boresight too."""
-    from photogrammetry.drone import gimbal_angles
+    from photogrammetry.orientation.drone import gimbal_angles
     s = _shot(tmp_path, roll=1.2, pitch=-60.0, yaw=-175.8)
     frame = EnuFrame(np.deg2rad(29.9), np.deg2rad(113.9), 0.0)
     bore = np.deg2rad([0.3, -0.2, 0.5])

@@ -1,10 +1,10 @@
-"""ins.earth against closed forms, pymap3d and the GRS80 normal-gravity field."""
+"""ins.nav.earth against closed forms, pymap3d and the GRS80 normal-gravity field."""
 import numpy as np
 import pymap3d
 import pytest
 from pymap3d import rcurve
 
-from ins import earth
+from ins.nav import earth
 
 RNG = np.random.default_rng(7)
 LAT = np.deg2rad(RNG.uniform(-89.9, 89.9, 500))

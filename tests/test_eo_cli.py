@@ -3,8 +3,8 @@ simulator's true EO from the true 200 Hz trajectory; explicit inputs, formats, e
 import numpy as np
 import pytest
 
-from photogrammetry.cli import main
-from photogrammetry.exposure import read_eo_applanix, read_eo_csv, read_eo_patb
+from photogrammetry.cli.main import main
+from photogrammetry.orientation.exposure import read_eo_applanix, read_eo_csv, read_eo_patb
 
 ARCSEC = np.pi / 180 / 3600
 PLAN = __import__("pathlib").Path(__file__).parent / "data" / "flights" / "short.toml"

@@ -1,4 +1,4 @@
-"""Tests of photogrammetry.exposure and photogrammetry.mapping: the EO chain on a
+"""Tests of photogrammetry.orientation.exposure and photogrammetry.orientation.mapping: the EO chain on a
 closed-form flight, the effect sizes of convergence and boresight, the files."""
 import numpy as np
 import pymap3d
@@ -6,14 +6,14 @@ import pyproj
 import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
-
-from ins.errors import InputError
-from ins.rotation import euler_to_dcm
-from photogrammetry import exposure as ex
-from photogrammetry.camera import NADIR_AXES, CameraMounting
-from photogrammetry.mapping import EnuFrame, ProjectedFrame, parse_frame, utm_epsg
-from photogrammetry.rotation import P_NED_ENU, dcm_mn_enu
 from test_interpolation import Turn
+
+from ins.common.errors import InputError
+from ins.nav.rotation import euler_to_dcm
+from photogrammetry.orientation import exposure as ex
+from photogrammetry.orientation.camera import NADIR_AXES, CameraMounting
+from photogrammetry.orientation.mapping import EnuFrame, ProjectedFrame, parse_frame, utm_epsg
+from photogrammetry.orientation.rotation import P_NED_ENU, dcm_mn_enu
 
 ARCSEC = np.pi / 180 / 3600
 SCIPY_SEQ = {"phi-omega-kappa": "YXZ", "omega-phi-kappa": "XYZ"}
@@ -56,8 +56,8 @@ def test_chain_reproduces_closed_form_eo(system):
 def level_trajectory(lat_deg, lon_deg, heading_deg=0.0):
     t = np.arange(0.0, 2.0, 0.005)
     n = len(t)
-    from ins.trajectory import Trajectory
-    from ins.rotation import euler_to_quat
+    from ins.nav.rotation import euler_to_quat
+    from ins.nav.trajectory import Trajectory
     lla = np.column_stack([np.full(n, np.deg2rad(lat_deg)), np.full(n, np.deg2rad(lon_deg)),
                            np.full(n, 1000.0)])
     return Trajectory(t, lla, np.zeros((n, 3)),

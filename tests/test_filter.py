@@ -1,24 +1,26 @@
 """Forward filter: consistency (NEES in its chi-square band) on simulated flights, bias
 estimates, innovation test, node schedule."""
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 from scipy.stats import chi2
 
-from ins import imu_files
-from ins.accuracy import compare
-from ins.filter import run_forward, schedule_nodes
-from ins.filter_settings import FilterSettings
-from ins.gnss import GnssLog, read_gnss
-from ins.lever_arm import LeverArm
-from ins.mount import read_mount
-from ins.process import _initial
-from ins.process_config import ProcessConfig, config_from_manifest
-from ins.smoother import smooth
-from ins.trajectory import Trajectory, read_nav
+from ins.estimation.filter import run_forward, schedule_nodes
+from ins.estimation.filter_settings import FilterSettings
+from ins.estimation.lever_arm import LeverArm
+from ins.estimation.process import _initial
+from ins.estimation.process_config import ProcessConfig, config_from_manifest
+from ins.estimation.smoother import smooth
+from ins.io import imu_files
+from ins.io.gnss import read_gnss
+from ins.io.gnss_log import GnssLog
+from ins.io.mount import read_mount
+from ins.io.navfiles import read_nav
+from ins.nav.accuracy import compare
+from ins.nav.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 FLIGHT_CACHE = Path(os.environ.get("INS_TEST_FLIGHTS", ROOT / ".cache" / "ins-test-flights"))
@@ -116,7 +118,8 @@ def short_flight(seed=3, plan=PLAN):
     and cached on disk, keyed on the plan, the seed and the sources of ins/ and
     photogrammetry/ (``benchdata.cached_flight``): a code change simulates it again."""
     from benchdata import cached_flight
-    from ins.errors import InputError
+
+    from ins.common.errors import InputError
     from photogrammetry.simulate.folder import simulate_flight
 
     def simulate(path, folder, seed):
@@ -184,7 +187,7 @@ def test_forward_and_smoothed_nees_within_chi_square_band(flight):
     lo, hi = nees_band(int(duration // 60), 9)         # errors decorrelate within ~60 s
     e_f = errors(fwd.states)
     n_f = nees(e_f, fwd.P_post[:, :9, :9])[settle]
-    from ins.smoother import rts_errors
+    from ins.estimation.smoother import rts_errors
     _, Ps = rts_errors(fwd)
     sm = smooth(fwd)
     n_s = nees(errors(sm.states), Ps[:, :9, :9])[settle]
@@ -242,7 +245,7 @@ def test_gnss_between_imu_epochs_is_used_at_its_own_time(flight):
     settings = FilterSettings(noise=cfg.noise, lever=LeverArm(cfg.lever_bp + cfg.lever_ap),
                               pos_std_ned_m=[0.1] * 3, vel_std_ned_mps=[0.05] * 3,
                               att_std_deg=[0.05, 0.05, 0.2])
-    from ins import earth
+    from ins.nav import earth
     k = np.searchsorted(truth.time, gnss.time)
     k = np.clip(k, 0, len(truth.time) - 1)
     shift = 0.0025
@@ -273,7 +276,7 @@ def test_schedule_nodes_fills_outages():
 
 
 def test_filter_settings_refuse_zero_sigma():
-    from ins.errors import InputError
+    from ins.common.errors import InputError
     with pytest.raises(InputError, match="> 0"):
         FilterSettings(pos_std_ned_m=[0.0, 1, 1]).initial_covariance()
 
@@ -284,8 +287,8 @@ def test_process_config_dataclass_defaults():
 
 
 def test_missing_mount_data_counted_with_a_warning(flight, tmp_path):
-    from ins.errors import InputWarning
-    from ins.mount import MountLog
+    from ins.common.errors import InputWarning
+    from ins.io.mount import MountLog
     cfg = given_config(flight)
     t0 = tomllib.loads((Path(flight) / "manifest.toml").read_text())["flight"]["start_time_s"]
     mount = read_mount(cfg.mount)
@@ -307,9 +310,9 @@ def test_velocity_updates_with_the_varying_arm(flight):
     """GNSS velocities of the antenna (from the truth: central difference of the antenna
     positions, mount included) are accepted by the innovation test and improve the
     velocity over position-only updates."""
-    from ins import earth
-    from ins.lever_arm import antenna_lla
-    from ins.rotation import quat_to_dcm
+    from ins.estimation.lever_arm import antenna_lla
+    from ins.nav import earth
+    from ins.nav.rotation import quat_to_dcm
     cfg = given_config(flight)
     t0 = tomllib.loads((Path(flight) / "manifest.toml").read_text())["flight"]["start_time_s"]
     end = t0 + 300.0
@@ -349,9 +352,9 @@ def test_velocity_updates_with_the_varying_arm(flight):
 def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
     """A negative variance in a node's covariance raises (it used to print as sigma 0),
     naming the node time and the state; rounding-level negatives give 0."""
-    from ins.errors import QualityError
-    from ins.filter import std_of
-    from ins.filter_stores import NodeStore
+    from ins.common.errors import QualityError
+    from ins.estimation.filter import std_of
+    from ins.estimation.filter_stores import NodeStore
     store = NodeStore()
     P = np.eye(21) * 1e-2
     store.append(P, 0.5 * P, np.eye(21), 10.0)
@@ -377,7 +380,7 @@ def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
 
 def test_manifest_gives_constant_sensor_states_with_the_instability(tmp_path):
     """A flight manifest's bias instability makes the sensor states random constants plus
-    the instability (ins.error_model notes): prior = hypot(constant, instability) of the
+    the instability (ins.estimation.error_model notes): prior = hypot(constant, instability) of the
     hand-written values, decay none, bias driving noise 2 sigma_inst^2 / T, scale none;
     a config without the keys keeps the KF-GINS Gauss-Markov model."""
     (tmp_path / "manifest.toml").write_text(

@@ -5,9 +5,9 @@ import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins.georeference import TrajectoryStd, georeference, read_trajectory_std
-from ins.scanner import Scanner, scanner_rays
-from ins.trajectory import Trajectory
+from ins.lidar.georeference import TrajectoryStd, georeference, read_trajectory_std
+from ins.lidar.scanner import Scanner, scanner_rays
+from ins.nav.trajectory import Trajectory
 
 LAT, LON, H = 30.5, 114.3, 1200.0
 
@@ -156,7 +156,7 @@ def test_each_source_alone():
 
 
 def test_read_solution_std_and_smrmsg(tmp_path):
-    from ins.sbet import write_smrmsg
+    from ins.io.sbet import write_smrmsg
     p = tmp_path / "solution_std.txt"
     p.write_text("# time_s std_n_m ...\n0.0 0.1 0.2 0.3 0 0 0 0.01 0.02 0.03\n"
                  "2.0 0.3 0.4 0.5 0 0 0 0.03 0.04 0.05\n")
@@ -168,7 +168,7 @@ def test_read_solution_std_and_smrmsg(tmp_path):
     s = read_trajectory_std(tmp_path / "smrmsg_x.out")
     assert np.allclose(s.std[0], [1, 2, 3, *np.deg2rad([0.1, 0.2, 0.3])])
     p.write_text("0.0 0.1 -0.2 0.3 0 0 0 0.01 0.02 0.03\n")
-    from ins.errors import InputError
+    from ins.common.errors import InputError
     with pytest.raises(InputError, match="solution_std.txt:1"):
         read_trajectory_std(p)
 
@@ -177,7 +177,7 @@ def test_read_solution_std_and_smrmsg(tmp_path):
 # ins georeference (CLI): CSV in, LAS/LAZ out, read back with laspy, CRS by pyproj
 
 def _run(argv, capsys):
-    from ins import cli
+    from ins.cli import main as cli
     try:
         code = cli.main([str(a) for a in argv])
     except SystemExit as exc:
@@ -188,7 +188,7 @@ def _run(argv, capsys):
 
 @pytest.fixture
 def static_flight(tmp_path):
-    from ins.trajectory import write_nav
+    from ins.io.navfiles import write_nav
     traj = _static([2.0, -1.0, 30.0], n=11)
     write_nav(tmp_path / "t.nav", traj)
     (tmp_path / "std.txt").write_text("# time_s ...\n0 0.02 0.03 0.05 0 0 0 0.01 0.01 0.02\n"
@@ -302,11 +302,11 @@ def test_cli_las_in_scanner_frame(static_flight, capsys):
 
 
 def test_fast_interpolation_equals_the_eo_interpolation():
-    """interpolate_pose ("cubic", numba) against ins.interpolation.interpolate_trajectory
+    """interpolate_pose ("cubic", numba) against ins.nav.interpolation.interpolate_trajectory
     on a turning, rolling trajectory crossing 180 deg of longitude."""
-    from ins.georeference import interpolate_pose
-    from ins.interpolation import interpolate_trajectory
-    from ins.rotation import quat_multiply, quat_conjugate, quat_to_rotvec
+    from ins.lidar.georeference import interpolate_pose
+    from ins.nav.interpolation import interpolate_trajectory
+    from ins.nav.rotation import quat_conjugate, quat_multiply, quat_to_rotvec
     n = 400
     t = 1000.0 + 0.005 * np.arange(n) + 0.001 * np.sin(np.arange(n))
     lat = np.deg2rad(-33.9) + 1e-6 * np.arange(n)
@@ -332,7 +332,7 @@ def test_scanner_on_the_aircraft_by_hand():
     """IMU level on the platform heading north, the platform rolled +10 deg relative to the
     aircraft (C_ap = Rx(10 deg)): a nadir scanner on the aircraft looks 10 deg to the
     right of the body's nadir; its arm is l_bp + Rx(-10 deg) l_a (written by hand)."""
-    from ins.mount import MountLog
+    from ins.io.mount import MountLog
     traj = _static([0.0, 0.0, 0.0])
     mount = MountLog(np.array([0.0, 10.0]), np.tile(np.deg2rad([10.0, 0.0, 0.0]), (2, 1)))
     l_a, l_bp = np.array([0.5, 0.2, -0.4]), np.array([0.1, -0.05, -0.2])

@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from ins.gnss import GnssLog, read_gnss, write_gnss
+from ins.common.errors import InputError
+from ins.io.gnss import read_gnss, write_gnss
+from ins.io.gnss_log import GnssLog
 
 LINES = ["300001.000 30.440548159583 114.470002215064 1001.76681 0.020 0.020 0.050",
          "300002.000 30.441088797341 114.470001933699 1001.63390 0.020 0.020 0.050",

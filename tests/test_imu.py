@@ -1,4 +1,4 @@
-"""Tests of ins.imu: ImuLog, readers/writers, input checks, axes, rates, compensation."""
+"""Tests of ins.nav.imu: ImuLog, readers/writers, input checks, axes, rates, compensation."""
 import math
 import os
 import warnings
@@ -9,9 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins import imu, imu_files, textparse
-from ins.errors import InputError, InputWarning
-from ins.imu import ImuLog
+from ins.common import textparse
+from ins.common.errors import InputError, InputWarning
+from ins.io import imu_files
+from ins.nav import imu
+from ins.nav.imu import ImuLog
 
 G = 9.80665
 

@@ -1,13 +1,13 @@
 """Error-free increments: the mechanization reproduces the truth; pyins agrees."""
 import numpy as np
 import pytest
+from test_simulate_truth import short_plan
 
-from ins.accuracy import compare
-from ins.mechanization import NavState, mechanize
+from ins.nav.accuracy import compare
+from ins.nav.mechanization import NavState, mechanize
+from ins.nav.trajectory import Trajectory
 from ins.simulate.imu_synth import synthesize_imu
 from ins.simulate.truth import build_truth
-from ins.trajectory import Trajectory
-from test_simulate_truth import short_plan
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,8 @@ def test_increments_are_integrals_of_the_rates(flight):
 def test_agrees_with_pyins(flight):
     pytest.importorskip("pyins")
     from pyins import sim
-    from ins.rotation import quat_to_euler
+
+    from ins.nav.rotation import quat_to_euler
     truth, log = flight
     i0, n = 200 * 100, 200 * 60                    # one minute inside the turn
     t = log.time[i0:i0 + n]

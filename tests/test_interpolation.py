@@ -1,14 +1,14 @@
-"""Tests of ins.interpolation on a closed-form 200 Hz trajectory (a climbing, banked
+"""Tests of ins.nav.interpolation on a closed-form 200 Hz trajectory (a climbing, banked
 constant-rate turn with roll and pitch oscillations)."""
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from ins.earth import ned_offset, radii
-from ins.errors import InputError
-from ins.interpolation import interpolate_linear, interpolate_trajectory
-from ins.rotation import euler_to_quat, quat_conjugate, quat_multiply, quat_to_rotvec
-from ins.trajectory import Trajectory
+from ins.common.errors import InputError
+from ins.nav.earth import ned_offset, radii
+from ins.nav.interpolation import interpolate_linear, interpolate_trajectory
+from ins.nav.rotation import euler_to_quat, quat_conjugate, quat_multiply, quat_to_rotvec
+from ins.nav.trajectory import Trajectory
 
 ARCSEC = np.pi / 180 / 3600
 

@@ -37,7 +37,7 @@ RUNS = int(os.environ.get("INS_INTERRUPT_RUNS", "10"))
 SEED = int(os.environ.get("INS_INTERRUPT_SEED", "12"))
 SENTINEL = "an earlier run's output\n"
 #: The interpreter's own start-up (about 20 ms idle, then 10 ms to import the light
-#: ins.cli that installs the handler; more on a loaded machine) is Python's: a SIGINT
+#: ins.cli.main that installs the handler; more on a loaded machine) is Python's: a SIGINT
 #: there gives Python's KeyboardInterrupt traceback.  The signals come after it.
 START_UP_S = 0.25
 
@@ -57,19 +57,19 @@ def _command(name, flight):
     """(argv, outputs, is_folder, takes --force)."""
     f = flight
     if name == "simulate":
-        return (["-m", "ins.cli", "simulate", str(SHORT), "-q", "-o", "out"], ["out"], True,
+        return (["-m", "ins.cli.main", "simulate", str(SHORT), "-q", "-o", "out"], ["out"], True,
                 True)
     if name == "mechanize":
-        return (["-m", "ins.cli", "mechanize", str(f / "imu.txt"), "--init-lla",
+        return (["-m", "ins.cli.main", "mechanize", str(f / "imu.txt"), "--init-lla",
                  "30.5,114.3,300", "--init-vel", "0,0,0", "--init-att", "0,0,0", "-q", "-o",
                  "out.nav"], ["out.nav"], False, False)
     if name == "refine":
-        return (["-m", "photogrammetry.cli", "refine", str(f / "eo_true.csv"),
+        return (["-m", "photogrammetry.cli.main", "refine", str(f / "eo_true.csv"),
                  str(f / "tiepoints.csv"), "--camera", str(f / "camera.toml"), "-q", "-o",
                  "out.csv", "--report", "rep.md"],
                 ["out.csv", "rep.md", "rep_corrections.png", "rep_residuals.png"], False, False)
     if name == "process":
-        return (["-m", "ins.cli", "process", str(f), "--accept-poor", "-q", "-o", "out"],
+        return (["-m", "ins.cli.main", "process", str(f), "--accept-poor", "-q", "-o", "out"],
                 ["out"], True, True)
     raise KeyError(name)
 
@@ -160,7 +160,7 @@ def _campaign(name, flight, tmp_path):
 @pytest.mark.parametrize("name", NAMES)
 def test_ctrl_c_at_random_moments(name, flight, tmp_path):
     if name == "process" and not _process_on_output_folder():
-        pytest.skip("ins process does not build its folder with ins.fileio.output_folder yet")
+        pytest.skip("ins process does not build its folder with ins.common.fileio.output_folder yet")
     duration, outcomes, problems = _campaign(name, flight, tmp_path)
     print(f"\n{name}: {RUNS} runs of {duration:.2f} s: {dict(outcomes)}")
     assert not problems, "\n".join(problems)

@@ -6,12 +6,17 @@ import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins import earth
-from ins.errors import InputError
-from ins.lever_arm import (LeverArm, antenna_lla, antenna_velocity, position_jacobian,
-                           velocity_jacobian)
-from ins.mount import MountLog, read_mount
-from ins.rotation import rotvec_to_dcm, skew
+from ins.common.errors import InputError
+from ins.estimation.lever_arm import (
+    LeverArm,
+    antenna_lla,
+    antenna_velocity,
+    position_jacobian,
+    velocity_jacobian,
+)
+from ins.io.mount import MountLog, read_mount
+from ins.nav import earth
+from ins.nav.rotation import rotvec_to_dcm, skew
 
 L_BP = np.array([0.1, 0.05, -0.1])
 L_AP = np.array([0.5, 0.2, -1.5])
@@ -124,7 +129,8 @@ def test_varying_arm_beats_constant_arm_on_a_flight_with_mount_motion():
     constant arm l_bp + l_ap leaves centimetre position errors that the varying arm
     removes; the attitude stays comparable."""
     from test_filter import given_config, short_flight
-    from ins.process import process
+
+    from ins.estimation.process import process
     folder = short_flight()
     rms = {}
     for varying in (True, False):
@@ -181,7 +187,7 @@ def _antenna_ecef(t):
 
 def _inputs(t):
     """Everything antenna_velocity needs, from the analytic trajectory (independent of
-    ins.earth): v_n from the lat/lon/h rates, w_ib_b from the Euler rates and w_in_n."""
+    ins.nav.earth): v_n from the lat/lon/h rates, w_ib_b from the Euler rates and w_in_n."""
     (lat, lon, h), (d_lat, d_lon, d_h), rpy, d_rpy = _trajectory(t)
     s = np.sin(lat)
     M = _A * (1 - _E2) / (1 - _E2 * s * s) ** 1.5

@@ -64,7 +64,7 @@ def test_fisheye_pipeline_sigmas_honest():
     and the solution's variance factor are within their chi-square bands."""
     from scipy.stats import chi2
 
-    from ins.rotation import euler_to_dcm
+    from ins.nav.rotation import euler_to_dcm
     from photogrammetry.lunar import heading_from_images
     from photogrammetry.lunar.ephemeris import moon_sun_directions
     from photogrammetry.lunar.fisheye import FisheyeCamera

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from ins.rotation import euler_to_dcm
-from photogrammetry.cli import main
+from ins.nav.rotation import euler_to_dcm
+from photogrammetry.cli.main import main
 from photogrammetry.lunar.ephemeris import moon_sun_directions
 from photogrammetry.lunar.fisheye import FisheyeCamera
 from photogrammetry.lunar.render import render_moon_fisheye
@@ -93,7 +93,7 @@ def test_thin_crescent_refused(tmp_path, capsys):
     the radius and the width; 2 days from new Moon through an 800 px lens is refused."""
     from types import SimpleNamespace
 
-    from ins.errors import InputError
+    from ins.common.errors import InputError
     from photogrammetry.lunar import MIN_LIT_WIDTH_PX, check_crescent
     assert MIN_LIT_WIDTH_PX == 2.0
     sky = SimpleNamespace(semidiameter=np.deg2rad([0.26, 0.26]),

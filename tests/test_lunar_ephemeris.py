@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ins.errors import InputError, InputWarning
+from ins.common.errors import InputError, InputWarning
 from photogrammetry.lunar import ephemeris as E
 
 ARCSEC = np.deg2rad(1 / 3600)
@@ -26,6 +26,7 @@ def no_network(monkeypatch):
 def _astropy_altaz(utc, pressure_hpa=0.0, temperature_c=10.0):
     pytest.importorskip("astropy")
     import os
+
     import astropy.units as u
     import skyfield_data
     from astropy.coordinates import AltAz, EarthLocation, get_body, solar_system_ephemeris
@@ -107,10 +108,17 @@ def _astropy_moon_sun(utc):
     station: the independent reference for the parallax, semidiameter and phase."""
     pytest.importorskip("astropy")
     import os
+
     import astropy.units as u
     import skyfield_data
-    from astropy.coordinates import (GCRS, AltAz, EarthLocation, SkyCoord, get_body,
-                                     solar_system_ephemeris)
+    from astropy.coordinates import (
+        GCRS,
+        AltAz,
+        EarthLocation,
+        SkyCoord,
+        get_body,
+        solar_system_ephemeris,
+    )
     from astropy.time import Time
     from astropy.utils import iers
     iers.conf.auto_download = False

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ins.errors import InputError
+from ins.common.errors import InputError
 from photogrammetry.lunar.fisheye import FisheyeCamera, camera_file_text, read_camera
 
 CAM = FisheyeCamera(800.0, 1600, 1600, (799.5, 801.25), (0.01, -0.02, 0.005))

@@ -7,9 +7,14 @@ import sys
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from photogrammetry.lunar.io import (fits_saturation, fits_time, load_image,
-                                     load_image_meta, parse_time_zone)
+from ins.common.errors import InputError
+from photogrammetry.lunar.io import (
+    fits_saturation,
+    fits_time,
+    load_image,
+    load_image_meta,
+    parse_time_zone,
+)
 
 fits = pytest.importorskip("astropy.io.fits")
 
@@ -77,8 +82,8 @@ def test_missing_astropy_names_the_extra(tmp_path, monkeypatch):
 def test_heading_from_fits_headers_in_local_time(tmp_path, capsys):
     """Frames with DATE-OBS in China standard time (start of a 0.2 s exposure), clipped at
     SATURATE; lunar-heading without --times, with --time-zone +08:00."""
-    from ins.rotation import euler_to_dcm
-    from photogrammetry.cli import main
+    from ins.nav.rotation import euler_to_dcm
+    from photogrammetry.cli.main import main
     from photogrammetry.lunar.ephemeris import moon_sun_directions
     from photogrammetry.lunar.fisheye import FisheyeCamera, camera_file_text
     from photogrammetry.lunar.render import render_moon_fisheye
@@ -114,7 +119,7 @@ def test_heading_from_fits_headers_in_local_time(tmp_path, capsys):
     assert "16 images, 2017-05-02T14:00:00.100" in out
     assert abs(hdg - heading) * 3600 < 4 * sig
     # the header times as read: local = UTC + 8 h; the ids in time order
-    from photogrammetry.cli_lunar import header_times
+    from photogrammetry.cli.lunar import header_times
     from photogrammetry.lunar.io import find_images
     folder = str(tmp_path / "img")
     ids, utc = header_times(find_images(folder), parse_time_zone("UTC"), folder)

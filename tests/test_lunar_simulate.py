@@ -2,15 +2,15 @@
 them in a second command finds the true heading; the camera attitude against its
 definition; the Moon below the horizon, too low or outside the image refused by name."""
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 from PIL import Image
 
-from photogrammetry.cli import main
-from photogrammetry.cli_lunar_simulate import DEFAULT_LENS
+from photogrammetry.cli.lunar_simulate import DEFAULT_LENS
+from photogrammetry.cli.main import main
 from photogrammetry.lunar.fisheye import FisheyeCamera, read_camera
 from photogrammetry.lunar.io import read_times, write_times
 from photogrammetry.lunar.render import camera_attitude

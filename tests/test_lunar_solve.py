@@ -2,9 +2,14 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ins.rotation import euler_to_dcm
-from photogrammetry.lunar.solve import (cayley, heading, solve_heading, solve_qmethod,
-                                        solve_rodrigues)
+from ins.nav.rotation import euler_to_dcm
+from photogrammetry.lunar.solve import (
+    cayley,
+    heading,
+    solve_heading,
+    solve_qmethod,
+    solve_rodrigues,
+)
 
 
 def _arc(n=30, span_deg=4.0):

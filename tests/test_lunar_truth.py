@@ -8,8 +8,8 @@ Lommel-Seeliger's ``(pi R^2 / 2) (1 - sin(a/2) tan(a/2) ln cot(a/4))``.
 """
 import numpy as np
 import pytest
-
 from lunar_truth import LAWS, cell_integrals, render
+
 from photogrammetry.lunar.moon_centre import extract_centre
 
 

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins import earth
-from ins.errors import InputError, InputWarning
-from ins.imu import ImuLog
-from ins.mechanization import NavState, iter_mechanize, mechanize
-from ins.trajectory import Trajectory, read_nav
+from ins.common.errors import InputError, InputWarning
+from ins.io.navfiles import read_nav
+from ins.nav import earth
+from ins.nav.imu import ImuLog
+from ins.nav.mechanization import NavState, iter_mechanize, mechanize
+from ins.nav.trajectory import Trajectory
 
 ARCSEC = np.deg2rad(1.0 / 3600.0)
 
@@ -51,7 +52,7 @@ def test_static_one_hour_exact_increments():
 def test_static_at_the_equator_against_published_normal_gravity():
     """At rest on the equator at h = 0 the specific force is the published GRS80
     equatorial normal gravity 9.7803267715 m/s^2 (Moritz 1980; an independent number, not
-    ins.earth).  Fed that, the kernel's own gravity must cancel it: a relative error of
+    ins.nav.earth).  Fed that, the kernel's own gravity must cancel it: a relative error of
     1e-6 in its gravity is 0.5 * 9.8e-6 * 100^2 = 49 mm of height after 100 s (the
     vertical channel adds cosh(100/570) - 1 = 1.5 %).  Measured: below 1e-9 m."""
     lat, lon, h = 0.0, np.deg2rad(30.0), 0.0
@@ -249,7 +250,7 @@ def test_tiny_step_matches_exact_rotation_of_increment():
 
 @pytest.fixture(scope="module")
 def bench_flight(bench_data):
-    from ins.imu_files import read_kfgins_text
+    from ins.io.imu_files import read_kfgins_text
     meta = json.loads((bench_data / "meta.json").read_text())
     x = meta["init_exact"]
     init = NavState.from_degrees(x["lat"], x["lon"], x["alt"], [x["VN"], x["VE"], x["VD"]],

@@ -1,4 +1,4 @@
-"""Tests of photogrammetry.rotation against the textbooks' elements written out, the
+"""Tests of photogrammetry.orientation.rotation against the textbooks' elements written out, the
 Wolf/Dewitt matrix, scipy compositions, pymap3d and OpenCV."""
 import numpy as np
 import pymap3d
@@ -6,9 +6,9 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from ins.earth import lla_to_ecef
-from ins.rotation import euler_to_dcm, wrap_to_pi
-from photogrammetry import rotation as pr
+from ins.nav.earth import lla_to_ecef
+from ins.nav.rotation import euler_to_dcm, wrap_to_pi
+from photogrammetry.orientation import rotation as pr
 
 rng = np.random.default_rng(7)
 N = 2000
@@ -71,8 +71,8 @@ def test_matrix_equals_scipy_composition(system):
     R = pr.angles_to_matrix(a, system)
     # scipy: phi-omega-kappa = from_euler('YXZ', [-phi, omega, kappa])
     assert_allclose(R, scipy_matrix(a, system), atol=2e-15)
-    # and the elementary product of ins.rotation's rot_x/rot_y/rot_z for one item
-    from ins.rotation import rot_x, rot_y, rot_z
+    # and the elementary product of ins.nav.rotation's rot_x/rot_y/rot_z for one item
+    from ins.nav.rotation import rot_x, rot_y, rot_z
     p, m, k = a[0]
     prod = rot_y(-p) @ rot_x(m) @ rot_z(k) if system == "phi-omega-kappa" else \
         rot_x(p) @ rot_y(m) @ rot_z(k)
@@ -218,7 +218,7 @@ def test_dcm_mn_enu_against_pymap3d():
     assert C_mn.shape == (20, 3, 3)
     # a NED vector at (lat, lon) in ECEF, then pymap3d's ecef2enuv at the origin
     v_n = rng.normal(size=(20, 3))
-    from ins.earth import dcm_en
+    from ins.nav.earth import dcm_en
     v_e = np.einsum("nij,nj->ni", dcm_en(lat, lon), v_n)
     ref = np.column_stack(pymap3d.ecef2enuv(v_e[:, 0], v_e[:, 1], v_e[:, 2], lat0, lon0,
                                             deg=False))
@@ -226,7 +226,7 @@ def test_dcm_mn_enu_against_pymap3d():
     # at the origin it is the plain swap
     assert_allclose(pr.dcm_mn_enu(lat0, lon0, lat0, lon0), pr.P_NED_ENU, atol=1e-16)
     # 1 km east of the origin the n frame is tilted by ~32 arcsec about north
-    from ins.earth import radii
+    from ins.nav.earth import radii
     _, rn = radii(lat0)
     C = pr.dcm_mn_enu(lat0, lon0 + 1000 / (rn * np.cos(lat0)), lat0, lon0)
     tilt = np.rad2deg(np.arccos(C[2, 2] * -1)) * 3600
@@ -265,6 +265,6 @@ def test_cv_rotation_projects_like_opencv():
 
 
 def test_lla_to_ecef_used_consistently():
-    # guard: ins.earth and pymap3d agree on WGS84 (the ENU frame relies on both)
+    # guard: ins.nav.earth and pymap3d agree on WGS84 (the ENU frame relies on both)
     x = lla_to_ecef(0.5, 2.0, 100.0)
     assert_allclose(x, pymap3d.geodetic2ecef(0.5, 2.0, 100.0, deg=False), atol=1e-8)

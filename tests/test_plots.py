@@ -1,4 +1,4 @@
-"""The PNG plots of ``ins process`` (ins.plots) and the shared style (ins.plotstyle):
+"""The PNG plots of ``ins process`` (ins.estimation.plots) and the shared style (ins.common.plotstyle):
 titles, labels with units that fit the values, one time-axis convention, legends
 outside the data, y-limits not set by the start transient, injected biases beside
 the estimates.  The Figure objects are inspected, not the pixels."""
@@ -7,14 +7,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ins import plots, plotstyle
-from ins.plotstyle import ARCSEC
+from ins.common import plotstyle
+from ins.common.plotstyle import ARCSEC
+from ins.estimation import plots
 
 T0 = 345600.0
 
 
 def _result(with_errors=True):
-    """A processing result shaped like ins.process.ProcessResult: 400 s of nodes, cm
+    """A processing result shaped like ins.estimation.process.ProcessResult: 400 s of nodes, cm
     level position sigmas, a forward filter that starts 1000 times worse (the first
     10 s), known biases."""
     rng = np.random.default_rng(3)
@@ -167,7 +168,7 @@ def test_strip_starts():
 
 @pytest.fixture
 def style_figures(monkeypatch):
-    """The figures saved through ins.plotstyle.save_png (imported at call time)."""
+    """The figures saved through ins.common.plotstyle.save_png (imported at call time)."""
     saved = {}
     real = plotstyle.save_png
 
@@ -191,7 +192,7 @@ def _strip_lines(ax):
 
 
 def test_refine_corrections_plot_marks_strips(tmp_path, style_figures):
-    from photogrammetry.report import _plot_corrections
+    from photogrammetry.adjustment.report import _plot_corrections
     eo = _eo()
     n = len(eo.image_id)
     diff = np.tile(np.array([-100.0, 150.0, 20.0]) * ARCSEC, (n, 1))
@@ -212,7 +213,7 @@ def test_refine_corrections_plot_marks_strips(tmp_path, style_figures):
 
 
 def test_refine_residual_plot_title_and_units(tmp_path, style_figures):
-    from photogrammetry.report import _plot_residuals
+    from photogrammetry.adjustment.report import _plot_residuals
     rng = np.random.default_rng(1)
     xy = rng.uniform(-30, 30, (50, 2))
     rejected = np.zeros((1, 50), bool)
@@ -253,7 +254,7 @@ def test_demo_angle_plot_marks_strips(tmp_path, style_figures):
 
 
 def test_allan_plot_units_and_legends(tmp_path, style_figures):
-    from ins.cli_allan import plot_allan
+    from ins.cli.allan import plot_allan
     tau = np.logspace(-2, 2, 20)
     gyro = np.column_stack([1e-5 / np.sqrt(tau)] * 3)            # rad/s
     accel = np.column_stack([1e-3 / np.sqrt(tau)] * 3)           # m/s^2
@@ -275,7 +276,7 @@ def test_allan_plot_units_and_legends(tmp_path, style_figures):
 
 
 def test_lunar_convergence_plot(tmp_path, style_figures):
-    from photogrammetry.cli_lunar import _plot
+    from photogrammetry.cli.lunar import _plot
     counts = np.arange(2, 12)
     sig = np.deg2rad(40 / 3600) / np.sqrt(counts - 1)
     final = np.deg2rad(-30.0)

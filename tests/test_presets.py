@@ -1,11 +1,11 @@
-"""Processing presets (ins.presets, ins process --preset): the preset fills only the keys
+"""Processing presets (ins.estimation.presets, ins process --preset): the preset fills only the keys
 the config does not give; the config's own values and a flight manifest's IMU noise win."""
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from ins.presets import PRESETS, apply_preset, names, preset
-from ins.process_config import ProcessConfig, load_config
+from ins.common.errors import InputError
+from ins.estimation.presets import PRESETS, apply_preset, names, preset
+from ins.estimation.process_config import ProcessConfig, load_config
 
 CONFIG = """\
 [files]
@@ -60,8 +60,8 @@ def test_manifest_noise_kept():
 
 
 def test_command_line(tmp_path):
-    from ins.cli import build_parser
-    from ins.cli_process import _config
+    from ins.cli.main import build_parser
+    from ins.cli.process import _config
     path = tmp_path / "c.toml"
     path.write_text(CONFIG)
     args = build_parser().parse_args(["process", "--config", str(path), "--preset", "mems",

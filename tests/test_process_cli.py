@@ -1,13 +1,13 @@
 """``ins process``: flight folder and config runs, outputs, bad inputs (exit code 2, one
 line naming the file/line or key, no output)."""
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
-from ins.cli import main
-from ins.trajectory import read_nav
+from ins.cli.main import main
+from ins.io.navfiles import read_nav
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -27,7 +27,7 @@ def test_flight_folder_run(flight, tmp_path, capsys):
             "sigma.png", "biases.png", "errors.png"} <= names
     assert "forward.nav" not in names                 # only with --forward
     assert not [n for n in names if n.startswith(".process-")]   # temporary files gone
-    from ins.accuracy import compare
+    from ins.nav.accuracy import compare
     truth = read_nav(flight / "truth.nav")
     sol = read_nav(out / "solution.nav")
     e = compare(sol, truth)
@@ -80,7 +80,7 @@ platform_centre_to_antenna_a_m = {arm['platform_centre_to_antenna_a_m']}
 
 
 def test_example_config_is_valid():
-    from ins.process import load_config
+    from ins.estimation.process_config import load_config
     p = ROOT / "data" / "configs" / "kfgins_like.toml"
     text = "[files]\nimu = 'a'\ngnss = 'b'\n" + p.read_text()
     tmp = ROOT / ".cache"
@@ -139,7 +139,9 @@ def test_in_air_start_from_gnss_track(flight):
     """Start in the air (no stationary data): heading from the GNSS track, a few deg off
     (crab); the filter converges and the smoother carries the solution back."""
     from test_filter import short_flight  # noqa: F401  (same cached flight)
-    from ins.process import config_from_manifest, process
+
+    from ins.estimation.process import process
+    from ins.estimation.process_config import config_from_manifest
     man = tomllib.loads((flight / "manifest.toml").read_text())
     cfg = config_from_manifest(str(flight))
     cfg.method = "gnss-heading"
@@ -159,8 +161,8 @@ def test_euler_sigmas_against_a_numerical_jacobian():
     a covariance that is not positive semi-definite raises naming the angle."""
     from scipy.spatial.transform import Rotation
 
-    from ins.errors import QualityError
-    from ins.process import euler_std_deg
+    from ins.common.errors import QualityError
+    from ins.estimation.process_outputs import euler_std_deg
     rng = np.random.default_rng(7)
     for rpy in ([3.0, -2.0, 40.0], [-20.0, 35.0, -150.0], [5.0, 70.0, 10.0]):
         R = Rotation.from_euler("ZYX", rpy[::-1], degrees=True)

@@ -2,15 +2,14 @@
 in RTKLIB's llh layout from the flight's KF-GINS GNSS file) on a shifted clock undone by
 --gnss-time-shift-s gives the same solution as the KF-GINS file; --format nav,sbet writes
 the SBET and SMRMSG beside solution.nav with the same numbers."""
-import tomllib
-
 import numpy as np
 import pytest
+import tomllib
 
-from ins.cli import main
-from ins.gnss import read_gnss
-from ins.sbet import read_sbet, read_smrmsg
-from ins.trajectory import read_nav
+from ins.cli.main import main
+from ins.io.gnss import read_gnss
+from ins.io.navfiles import read_nav
+from ins.io.sbet import read_sbet, read_smrmsg
 
 
 @pytest.fixture(scope="module")
@@ -111,9 +110,9 @@ def test_bad_input_options(flight, tmp_path, capsys):
 
 
 def test_config_keys_and_imu_shift(tmp_path):
-    from ins.imu import ImuLog
-    from ins.imu_files import shift_time, shifted_blocks
-    from ins.process_config import load_config
+    from ins.estimation.process_config import load_config
+    from ins.io.imu_files import shift_time, shifted_blocks
+    from ins.nav.imu import ImuLog
     p = tmp_path / "c.toml"
     p.write_text('[files]\nimu = "i.txt"\ngnss = "g.pos"\n[imu]\ntime_shift_s = 0.25\n'
                  '[gnss]\nformat = "rtklib"\ntime_shift_s = -0.2\nquality = "fix,float"\n'
@@ -129,6 +128,6 @@ def test_config_keys_and_imu_shift(tmp_path):
     assert [b.time[0] for b in shifted_blocks(iter([log, log]), -1.0)] == [0.0, 0.0]
     assert shift_time(log, 0.0) is log
     p.write_text('[files]\nimu = "i.txt"\ngnss = "g.pos"\n[gnss]\nquality = "fixed"\n')
-    from ins.errors import InputError
+    from ins.common.errors import InputError
     with pytest.raises(InputError, match=r"\[gnss\] quality: unknown quality 'fixed'"):
         load_config(p)

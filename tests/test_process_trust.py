@@ -9,17 +9,18 @@ import signal
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pymap3d
 import pytest
+import tomllib
 
-from ins.cli import main
-from ins.errors import QualityWarning
-from ins.gnss import GnssLog, read_gnss, write_gnss
-from ins.trajectory import read_nav
+from ins.cli.main import main
+from ins.common.errors import QualityWarning
+from ins.io.gnss import read_gnss, write_gnss
+from ins.io.gnss_log import GnssLog
+from ins.io.navfiles import read_nav
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -124,7 +125,8 @@ def test_start_position_taken_from_the_first_fix(flight, tmp_path):
     moved back along the velocity to time_s (here 0.4975 s before the fix, between two
     IMU epochs: 30 m): the first solution epoch is within a few cm of the truth (not the
     antenna's 1.1 m away), and the run is trusted."""
-    from ins.process import load_config, process
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
     cfg = load_config(_config(tmp_path, flight, position=False, noise=TACTICAL,
                               time_offset_s=0.5025),
                       files={"imu": str(flight / "imu.txt"), "gnss": str(flight / "gnss.txt")})
@@ -145,7 +147,8 @@ def test_start_position_taken_from_the_first_fix(flight, tmp_path):
 def test_start_a_little_off_is_widened_with_a_warning(flight, tmp_path):
     """100 m off (more than 5 sigma, less than the bound 5 sigma + 300 m): a warning, the
     position sigma widened to the distance, and the filter converges to the fixes."""
-    from ins.process import load_config, process
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
     cfg = load_config(_config(tmp_path, flight, noise=TACTICAL, shift_m=(60.0, -80.0, 0.0)),
                       files={"imu": str(flight / "imu.txt"), "gnss": str(flight / "gnss.txt")})
     cfg.mount = str(flight / "mount.txt")
@@ -283,7 +286,7 @@ def test_gnss_on_another_time_scale_names_the_time_base(flight, tmp_path, capsys
 def test_summary_table_columns_never_run_together(values):
     """Issue 12: `308166.78249427.70` (two columns run together).  Every cell keeps its
     width and a separator, whatever the magnitude, and reads back as the value."""
-    from ins.cli_process import _table
+    from ins.cli.process import _table
     cols = ("N mm", "E mm", "D mm", "tiltN as", "tiltE as", "head as")
     lines = _table("RMS vs truth", cols, [("forward", values), ("smoothed", values)])
     assert len({len(line) for line in lines}) == 1               # aligned
@@ -330,7 +333,7 @@ def test_output_folder_is_refused_or_replaced_whole(flight, tmp_path, capsys):
 # --- Ctrl-C --------------------------------------------------------------------------
 
 def _interrupt_once(args, delay, cwd):
-    proc = subprocess.Popen([sys.executable, "-m", "ins.cli", *args], cwd=cwd,
+    proc = subprocess.Popen([sys.executable, "-m", "ins.cli.main", *args], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=dict(os.environ, PYTHONPATH=str(ROOT)))
     time.sleep(delay)
@@ -345,7 +348,7 @@ def _interrupt_once(args, delay, cwd):
 
 
 def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
-    """SIGINT at random moments of a whole run (after the imports of ins.cli: reading,
+    """SIGINT at random moments of a whole run (after the imports of ins.cli.main: reading,
     filter, smoother, writing, plots): exit 130 with one line and no traceback, and
     neither the output folder nor a staging sibling left; or, when the signal came after
     the run, exit 0 with the complete folder.  INS_SIGINT_REPEATS sets the count (default 8)."""
@@ -353,15 +356,15 @@ def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
     args = ["process", "--imu", str(flight / "imu.txt"), "--gnss", str(flight / "gnss.txt"),
             "--mount", str(flight / "mount.txt"), "--config", str(cfg), "--truth",
             str(flight / "truth.nav"), "--forward", "-q"]
-    # Python's start-up and the imports of ins.cli precede the command's own handling
+    # Python's start-up and the imports of ins.cli.main precede the command's own handling
     # (an interrupt there is the interpreter's: see the report of issue 12)
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", "import ins.cli"], check=True, timeout=120,
+    subprocess.run([sys.executable, "-c", "import ins.cli.main"], check=True, timeout=120,
                    env=dict(os.environ, PYTHONPATH=str(ROOT)))
     startup = time.perf_counter() - t0
     for name in ("warm", "full"):             # the first run may compile numba's cache
         t0 = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "ins.cli", *args, "-o",
+        done = subprocess.run([sys.executable, "-m", "ins.cli.main", *args, "-o",
                                str(tmp_path / name)], env=dict(os.environ, PYTHONPATH=str(ROOT)),
                               capture_output=True, text=True, timeout=300)
         duration = time.perf_counter() - t0
@@ -389,7 +392,7 @@ def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
 def test_help_states_exit_codes_start_rule_and_thresholds(capsys):
     """--help gives the exit codes, the start-position rule and the thresholds, with the
     numbers the code uses."""
-    from ins import process as proc
+    from ins.estimation import process as proc
     with pytest.raises(SystemExit):
         main(["process", "--help"])
     text = " ".join(capsys.readouterr().out.split())

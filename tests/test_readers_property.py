@@ -16,18 +16,31 @@ from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins.errors import InputError
-from ins.gnss import GnssLog, read_gnss, write_gnss
-from ins.imu import ImuLog
-from ins.imu_files import (read_csv, read_kfgins_binary, read_kfgins_text, write_csv,
-                           write_kfgins_binary, write_kfgins_text)
-from ins.mount import read_mount
-from ins.rotation import euler_to_quat, wrap_to_pi
-from ins.trajectory import Trajectory, read_nav, write_nav
-from photogrammetry.camera import FrameCamera
-from photogrammetry.exposure import ExposureOrientation, read_eo_csv, read_events, write_eo_csv
+from ins.common.errors import InputError
+from ins.io.gnss import read_gnss, write_gnss
+from ins.io.gnss_log import GnssLog
+from ins.io.imu_files import (
+    read_csv,
+    read_kfgins_binary,
+    read_kfgins_text,
+    write_csv,
+    write_kfgins_binary,
+    write_kfgins_text,
+)
+from ins.io.mount import read_mount
+from ins.io.navfiles import read_nav, write_nav
+from ins.nav.imu import ImuLog
+from ins.nav.rotation import euler_to_quat, wrap_to_pi
+from ins.nav.trajectory import Trajectory
+from photogrammetry.imagery.tiepoints import read_tiepoints
 from photogrammetry.lunar.io import read_centres, read_times
-from photogrammetry.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import FrameCamera
+from photogrammetry.orientation.exposure import (
+    ExposureOrientation,
+    read_eo_csv,
+    read_events,
+    write_eo_csv,
+)
 
 SETTINGS = settings(max_examples=40, deadline=None, database=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture,

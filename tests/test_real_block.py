@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from photogrammetry.batch import refine
-from photogrammetry.camera import read_camera, write_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.rotation import matrix_to_angles
-from photogrammetry.sfm_opensfm import read_reconstruction
-from photogrammetry.tiepoints import read_tiepoints
+from photogrammetry.adjustment.batch import refine
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import read_camera, write_camera
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.orientation.rotation import matrix_to_angles
+from photogrammetry.sfm.opensfm import read_reconstruction
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "odm_drone_block"
 SYSTEM = "omega-phi-kappa"

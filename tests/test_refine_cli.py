@@ -2,16 +2,15 @@
 errors; Dask tasks giving the single-process results."""
 import numpy as np
 import pytest
-
-from ins.errors import InputError
-from photogrammetry.batch import refine, refine_many
-from photogrammetry.camera import read_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.rotation import angles_to_matrix
-from photogrammetry.tiepoints import read_tiepoints
-
 import scenario as sc
+
+from ins.common.errors import InputError
+from photogrammetry.adjustment.batch import refine, refine_many
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import read_camera
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 
 @pytest.fixture(scope="module")
@@ -127,8 +126,12 @@ def test_angles_wrapped_on_output_for_a_strip_at_kappa_180(tmp_path):
     minus refined differences are wrapped (a few arcmin, not 360 deg)."""
     import re
 
-    from photogrammetry.exposure import (read_eo_applanix, write_eo_applanix, write_eo_csv,
-                                         wrapped_deg)
+    from photogrammetry.orientation.exposure import (
+        read_eo_applanix,
+        wrapped_deg,
+        write_eo_applanix,
+        write_eo_csv,
+    )
     B = sc.make_block(n_strips=2, n_per_strip=6, seed=42, max_angle_deg=0.5)
     eo, tp, cam = sc.write_block_files(B, str(tmp_path))
     camera, _ = read_camera(cam)
@@ -139,7 +142,7 @@ def test_angles_wrapped_on_output_for_a_strip_at_kappa_180(tmp_path):
     assert np.abs(res.assessment.diff).max() < np.deg2rad(1.0)
     # INS angles given the other way round the circle (kappa 180..190 deg instead of
     # -180..-170): the same differences, wrapped, not 360 deg
-    from photogrammetry.assessment import assess
+    from photogrammetry.adjustment.assessment import assess
     ins = res.prior.angles.copy()
     ins[:, 2] = np.where(ins[:, 2] < 0, ins[:, 2] + 2 * np.pi, ins[:, 2] - 2 * np.pi)
     assert np.abs(ins - res.block.angles).max() > np.pi

@@ -8,11 +8,11 @@ import pytest
 pytest.importorskip("rosbags")
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
-from ins.cli import main  # noqa: E402
-from ins.errors import InputError  # noqa: E402
-from ins.gnss import read_gnss  # noqa: E402
-from ins.imu_files import read_imu  # noqa: E402
-from ins.rosbag import read_bag  # noqa: E402
+from ins.cli.main import main  # noqa: E402
+from ins.common.errors import InputError  # noqa: E402
+from ins.io.gnss import read_gnss  # noqa: E402
+from ins.io.imu_files import read_imu  # noqa: E402
+from ins.io.rosbag import read_bag  # noqa: E402
 
 T0 = 1577836800                        # 2020-01-01T00:00:00Z: GPS week 2086, tow 259218 s
 # stamp offsets (ns) in bag order: 10 ms steps, a repeat at 30 ms, 60 ms written before

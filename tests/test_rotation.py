@@ -1,11 +1,11 @@
-"""Tests of ins.rotation against scipy.spatial.transform.Rotation and closed forms."""
+"""Tests of ins.nav.rotation against scipy.spatial.transform.Rotation and closed forms."""
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
-from ins import rotation as rot
+from ins.nav import rotation as rot
 
 N = 1000
 TOL = 1e-12

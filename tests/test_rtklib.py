@@ -6,10 +6,11 @@ import warnings
 import numpy as np
 import pytest
 
-from ins import earth
-from ins.errors import InputError, InputWarning
-from ins.gnss import read_gnss, sniff_format
-from ins.rtklib import LEAP_SECONDS, apply_quality, looks_like_pos, read_pos
+from ins.common.errors import InputError, InputWarning
+from ins.io.gnss import read_gnss, sniff_format
+from ins.io.gnss_quality import apply_quality
+from ins.io.rtklib import LEAP_SECONDS, looks_like_pos, read_pos
+from ins.nav import earth
 
 HEAD_LLH = """\
 % program   : RTKPOST ver.2.4.3 b34
@@ -265,7 +266,7 @@ def test_floor_and_psd(tmp_path):
 
 
 def test_write_pos_round_trip(tmp_path):
-    from ins.rtklib import write_pos
+    from ins.io.rtklib import write_pos
     src = read_pos(write(tmp_path, HEAD_LLH + "\n".join(ROWS_LLH) + "\n"))
     p = tmp_path / "back.pos"
     assert write_pos(p, src, week=2086, comments=["made by a test"]) == 3

@@ -1,18 +1,19 @@
 """Applanix SBET and SMRMSG: a numpy structured dtype as the independent reader (the field
 order of PDAL's readers.sbet / readers.smrmsg), records written by hand with struct,
 round trips, detection, ``ins compare`` on SBET, bad records named by number."""
+import shutil
 import struct
 import subprocess
-import shutil
 
 import numpy as np
 import pytest
 
-from ins.cli import main
-from ins.errors import InputError
-from ins.rotation import euler_to_quat
-from ins.sbet import (read_sbet, read_smrmsg, write_sbet, write_smrmsg, is_sbet)
-from ins.trajectory import Trajectory, read_trajectory, trajectory_format, write_nav
+from ins.cli.main import main
+from ins.common.errors import InputError
+from ins.io.navfiles import read_trajectory, trajectory_format, write_nav
+from ins.io.sbet import is_sbet, read_sbet, read_smrmsg, write_sbet, write_smrmsg
+from ins.nav.rotation import euler_to_quat
+from ins.nav.trajectory import Trajectory
 
 # PDAL SbetCommon.hpp: GpsTime, Y, X, Z, XVelocity, YVelocity, ZVelocity, Roll, Pitch,
 # Azimuth, WanderAngle, XBodyAccel, YBodyAccel, ZBodyAccel, XBodyAngRate, YBodyAngRate,
@@ -184,9 +185,9 @@ def flight():
 def test_eo_reads_sbet(flight, tmp_path):
     """photogrammetry eo on the flight's truth as SBET gives the EO of truth.nav (the .nav
     is rounded to 1e-12 deg and 1e-9 deg; the SBET holds the doubles)."""
-    from photogrammetry.cli import main as pg_main
-    from photogrammetry.exposure import read_eo_csv
-    from ins.trajectory import read_nav
+    from ins.io.navfiles import read_nav
+    from photogrammetry.cli.main import main as pg_main
+    from photogrammetry.orientation.exposure import read_eo_csv
     sbet = tmp_path / "truth.out"
     write_sbet(sbet, read_nav(flight / "truth.nav"))
     assert pg_main(["eo", str(flight), "-q", "-o", str(tmp_path / "nav.csv")]) == 0

@@ -4,8 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from ins.scanner import Scanner, read_scanner, scanner_rays, write_scanner
+from ins.common.errors import InputError
+from ins.lidar.scanner import Scanner, read_scanner, scanner_rays, write_scanner
 
 ROOT = Path(__file__).resolve().parents[1]
 

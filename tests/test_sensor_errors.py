@@ -3,9 +3,9 @@ bias-only static run drifts as the analytic Schuler error model predicts."""
 import numpy as np
 import pytest
 
-from ins.earth import earth_rate_n, gravity_n, radii
-from ins.imu import ImuLog
-from ins.mechanization import NavState, mechanize
+from ins.nav.earth import earth_rate_n, gravity_n, radii
+from ins.nav.imu import ImuLog
+from ins.nav.mechanization import NavState, mechanize
 from ins.simulate.sensor_errors import PRESETS, ImuErrorModel, apply_errors
 
 

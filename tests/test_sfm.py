@@ -9,15 +9,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from photogrammetry.camera import read_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import ExposureOrientation, read_eo_csv
-from photogrammetry.mapping import EnuFrame, ProjectedFrame
-from photogrammetry.rotation import angles_to_matrix
-from photogrammetry.sfm_colmap import camera_from_colmap, camera_to_colmap
-from photogrammetry.sfm_opensfm import (camera_from_opensfm, camera_to_opensfm,
-                                        read_reconstruction)
-from photogrammetry.tiepoints import read_tiepoints
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import read_camera
+from photogrammetry.orientation.exposure import ExposureOrientation, read_eo_csv
+from photogrammetry.orientation.mapping import EnuFrame, ProjectedFrame
+from photogrammetry.orientation.rotation import angles_to_matrix
+from photogrammetry.sfm.colmap import camera_from_colmap, camera_to_colmap
+from photogrammetry.sfm.opensfm import camera_from_opensfm, camera_to_opensfm, read_reconstruction
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "odm_drone_block"
 
@@ -150,8 +149,8 @@ def test_exports_read_back(tmp_path):
     frame = EnuFrame.from_degrees(30.0, 114.0, 20.0)
     eo = ExposureOrientation(["a", "b"], [0.0, 1.0], [[0, 0, 100.0], [30.0, -4, 99]], ang,
                              "omega-phi-kappa", frame.header())
-    from photogrammetry.camera import write_camera
-    from photogrammetry.exposure import write_eo_csv
+    from photogrammetry.orientation.camera import write_camera
+    from photogrammetry.orientation.exposure import write_eo_csv
     write_eo_csv(tmp_path / "eo.csv", eo)
     write_camera(tmp_path / "cam.toml", cam)
     assert main(["sfm-export", str(tmp_path / "eo.csv"), "--camera", str(tmp_path / "cam.toml"),

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from photogrammetry.camera import FrameCamera, write_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import ExposureOrientation, read_eo_csv, write_eo_csv
-from photogrammetry.mapping import EnuFrame
+from photogrammetry.cli.main import main
+from photogrammetry.orientation.camera import FrameCamera, write_camera
+from photogrammetry.orientation.exposure import ExposureOrientation, read_eo_csv, write_eo_csv
+from photogrammetry.orientation.mapping import EnuFrame
 
 pycolmap = pytest.importorskip("pycolmap")
 if not hasattr(pycolmap, "PosePriorCoordinateSystem"):

@@ -2,21 +2,21 @@
 true EO against an independent pymap3d computation, tie points re-intersected from the
 written files, refusal of bad arguments and of non-empty folders, atomic output."""
 import csv
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pymap3d
 import pytest
-
-from ins.cli import main
-from ins.errors import InputError
-from ins.rotation import quat_to_dcm
-from photogrammetry.simulate.folder import FILES, simulate_flight
-from ins.trajectory import read_nav
-from photogrammetry.camera import read_camera
-from photogrammetry.rotation import angles_to_matrix
+import tomllib
 from test_simulate_tiepoints import intersect
+
+from ins.cli.main import main
+from ins.common.errors import InputError
+from ins.io.navfiles import read_nav
+from ins.nav.rotation import quat_to_dcm
+from photogrammetry.orientation.camera import read_camera
+from photogrammetry.orientation.rotation import angles_to_matrix
+from photogrammetry.simulate.folder import FILES, simulate_flight
 
 PLAN = Path(__file__).parent / "data" / "flights" / "short.toml"
 
@@ -31,7 +31,7 @@ def flight(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def truth():
-    from ins.simulate.plan import load_plan
+    from ins.simulate.plan_read import load_plan
     from ins.simulate.truth import build_truth
     return build_truth(load_plan(PLAN))
 
@@ -229,9 +229,9 @@ def test_impossible_plan_names_the_key_and_leaves_nothing(tmp_path, capsys):
 
 
 def test_files_read_by_the_photogrammetry_readers(flight):
-    """eo_true*.csv and tiepoints.csv as photogrammetry.exposure / .tiepoints read them."""
-    from photogrammetry.exposure import read_eo_csv
-    from photogrammetry.tiepoints import read_tiepoints
+    """eo_true*.csv and tiepoints.csv as photogrammetry.orientation.exposure / .tiepoints read them."""
+    from photogrammetry.imagery.tiepoints import read_tiepoints
+    from photogrammetry.orientation.exposure import read_eo_csv
     folder, _ = flight
     a = read_eo_csv(folder / "eo_true.csv")
     b = read_eo_csv(folder / "eo_true_omega-phi-kappa.csv")
@@ -272,7 +272,7 @@ def test_ins_part_alone_is_the_ins_part_of_the_whole(flight, tmp_path):
     """ins.simulate.folder.simulate_flight without product writers writes the INS files
     of the complete folder byte for byte, a manifest holding exactly its INS entries, and
     a folder that ins process reads."""
-    from ins.process import config_from_manifest
+    from ins.estimation.process_config import config_from_manifest
     from ins.simulate import folder as ins_folder
     folder, _ = flight
     alone = ins_folder.simulate_flight(PLAN, tmp_path / "ins", seed=11)
@@ -334,10 +334,10 @@ def test_ins_simulate_comes_from_the_entry_point_group():
     """``ins simulate`` is photogrammetry's command, found through ``ins.commands``."""
     import argparse
 
-    from ins import cli
+    from ins.cli import main as cli
     found = {ep.name: ep.value for ep in cli.command_entry_points()}
-    assert found.get("simulate") == "photogrammetry.simulate.cli:add_parser"
+    assert found.get("simulate") == "photogrammetry.cli.simulate:add_parser"
     parser = cli.build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     func = sub.choices["simulate"].get_default("func")
-    assert func.__module__ == "photogrammetry.simulate.cli"
+    assert func.__module__ == "photogrammetry.cli.simulate"

@@ -7,9 +7,9 @@ import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins.earth import ned_offset
-from ins.gnss import read_gnss, write_gnss
-from ins.rotation import euler_to_dcm, quat_to_dcm
+from ins.io.gnss import read_gnss, write_gnss
+from ins.nav.earth import ned_offset
+from ins.nav.rotation import euler_to_dcm
 from ins.simulate.gnss import antenna_state, gnss_times, lever_arm_b, simulate_gnss
 
 PLAN = Path(__file__).parent / "data" / "flights" / "short.toml"
@@ -19,7 +19,7 @@ L_AP = np.array([0.4, 0.2, -1.5])
 
 @pytest.fixture(scope="module")
 def truth():
-    from ins.simulate.plan import load_plan
+    from ins.simulate.plan_read import load_plan
     from ins.simulate.truth import build_truth
     return build_truth(load_plan(PLAN))
 
@@ -34,7 +34,7 @@ def test_lever_arm_geometry_and_rate():
     t = np.linspace(0.0, 10.0, 41)
     rpy, rate = _mount_motion(t)
     l_b, dl_b = lever_arm_b(rpy, rate, L_BP, L_AP)
-    # l_b = l_bp + C_pa l_ap with C_ap = Rz Ry Rx (ins.rotation.euler_to_dcm)
+    # l_b = l_bp + C_pa l_ap with C_ap = Rz Ry Rx (ins.nav.rotation.euler_to_dcm)
     assert np.allclose(l_b, L_BP + np.einsum("nji,j->ni", euler_to_dcm(rpy), L_AP), atol=1e-14)
     # mount at zero: the fixed arm l_bp + l_ap
     l0, dl0 = lever_arm_b(np.zeros((1, 3)), np.zeros((1, 3)), L_BP, L_AP)
@@ -107,14 +107,14 @@ def _exact_antenna_velocity(truth, t, h=0.005):
 
 def test_antenna_velocity_of_simulator_and_processor_against_exact(truth):
     """The simulator's antenna velocity (antenna_state) and the post-processor's
-    (ins.lever_arm.LeverArm on the mount log + antenna_velocity) against the exact one.
+    (ins.estimation.lever_arm.LeverArm on the mount log + antenna_velocity) against the exact one.
 
     Both use the first-order form, which neglects w_en x (C_nb l_b) and the turn of n
     between IMU and antenna, ~|v| |l_b| / R = 1.5e-5 m/s; a wrong sign of its
     w_in x (C_nb l_b) term would be off by 2 |w_ie| |l_b| ~ 2e-4 m/s."""
-    from ins.earth import earth_rate_n, transport_rate_n
-    from ins.lever_arm import LeverArm, antenna_velocity
-    from ins.mount import MountLog
+    from ins.estimation.lever_arm import LeverArm, antenna_velocity
+    from ins.io.mount import MountLog
+    from ins.nav.earth import earth_rate_n, transport_rate_n
     t = np.linspace(truth.t_start + 1.0, truth.t_end - 1.0, 40)
     v_exact = _exact_antenna_velocity(truth, t)
     s = truth.evaluate(t)

@@ -1,13 +1,13 @@
 """Flight plan: the demo file, derived geometry, and clear errors for impossible plans."""
 import copy
 import math
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
-from ins.errors import InputError
-from ins.simulate.plan import load_plan, parse_plan
+from ins.common.errors import InputError
+from ins.simulate.plan_read import load_plan, parse_plan
 
 DEMO = Path(__file__).resolve().parents[1] / "data" / "flights" / "demo.toml"
 

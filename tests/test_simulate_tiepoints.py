@@ -2,8 +2,8 @@
 the TRUE exterior orientation reproduces the ground points within the injected noise."""
 import numpy as np
 
-from photogrammetry.camera import FrameCamera
-from photogrammetry.rotation import angles_to_matrix
+from photogrammetry.orientation.camera import FrameCamera
+from photogrammetry.orientation.rotation import angles_to_matrix
 from photogrammetry.simulate.exposures import TrueExposures
 from photogrammetry.simulate.terrain import make_terrain
 from photogrammetry.simulate.tiepoints import project, simulate_tiepoints

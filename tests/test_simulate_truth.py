@@ -1,17 +1,17 @@
 """Truth trajectory: its rates are the derivatives of its states, the block geometry,
 the coordinated turn, the static segment and the stabilized mount."""
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from ins.earth import earth_rate_n, gravity_n, lla_rate, ned_offset, radii, transport_rate_n
-from ins.rotation import quat_to_dcm, quat_to_euler
-from ins.simulate.plan import parse_plan
-from ins.simulate.truth import KNEE, build_truth
+import tomllib
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
+
+from ins.nav.earth import earth_rate_n, gravity_n, lla_rate, ned_offset, radii, transport_rate_n
+from ins.nav.rotation import quat_to_dcm, quat_to_euler
+from ins.simulate.plan_read import parse_plan
+from ins.simulate.truth import KNEE, build_truth
 
 DEMO = Path(__file__).resolve().parents[1] / "data" / "flights" / "demo.toml"
 

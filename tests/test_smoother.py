@@ -1,6 +1,5 @@
 """RTS smoother: the closed-loop formulation against filterpy's open-loop smoother on a
 linear system, and the accuracy on the shared benchmark flight against the peers."""
-import json
 import sys
 from types import SimpleNamespace
 
@@ -8,7 +7,7 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from ins.smoother import rts_errors
+from ins.estimation.smoother import rts_errors
 
 
 def test_closed_loop_rts_equals_open_loop_rts():
@@ -72,7 +71,8 @@ def bench_runs(bench_data):
     from benchdata import SHARED
     sys.path.insert(0, str(SHARED / "bench" / "ins"))
     import peerlib
-    from ins.process import process
+
+    from ins.estimation.process import process
     truth = peerlib.load_nav(str(bench_data / "truth.nav"))
     out = {}
     for name in ("gnss.txt", "gnss_outage.txt"):
@@ -143,7 +143,7 @@ def _chain(m=5, n=21, seed=0):
 
 
 def test_smoother_cholesky_failure_names_the_node_time():
-    from ins.errors import QualityError
+    from ins.common.errors import QualityError
     rec = _chain()
     rts_errors(rec)                                       # consistent: no error
     good = rec.P_prior.copy()
@@ -167,7 +167,7 @@ def test_negative_smoothed_variance_is_a_failure_not_a_zero_sigma():
     from) drives a smoothed variance negative: P+ + A (Ps - P-) A^T with A = P+ / P- =
     10 and Ps - P- = -0.09 gives 1 - 9 < 0.  Raised naming the time and the state (it
     used to print as sigma 0)."""
-    from ins.errors import QualityError
+    from ins.common.errors import QualityError
     n = 21
     rec = SimpleNamespace(P_prior=np.array([np.eye(n), 0.1 * np.eye(n)]),
                           P_post=np.array([np.eye(n), 0.01 * np.eye(n)]),
@@ -177,7 +177,7 @@ def test_negative_smoothed_variance_is_a_failure_not_a_zero_sigma():
                                            r"variance -8\.000e\+00 for state pos_N"):
         rts_errors(rec, full=False)
     # rounding-level negatives are not failures: -1e-12 of the scale gives sigma 0
-    from ins.error_model import checked_std
+    from ins.estimation.error_model import checked_std
     np.testing.assert_array_equal(checked_std([-1e-12, 4.0], [1.0, 4.0]), [0.0, 2.0])
 
 
@@ -190,10 +190,12 @@ def test_smoothed_constant_sensor_errors_are_constant_and_match_the_truth():
     for the whole flight (the smoothed estimate of a constant), within 3 sigma of the
     injected value, and has learnt something (four sigmas below half their prior: the accelerometer biases
     and scale factors of this gentle navigation-grade flight)."""
-    import tomllib
     from pathlib import Path
-    from ins.process import process
+
+    import tomllib
     from test_filter import PLAN, given_config, short_flight
+
+    from ins.estimation.process import process
     plan = PLAN.replace('grade = "navigation"\n', 'grade = "navigation"\n'
                         'gyro_bias_instability_dph = 0.0\n'
                         'accel_bias_instability_mgal = 0.0\n')

@@ -1,11 +1,11 @@
-"""Selected inversion of a sparse L D L' factor (photogrammetry.banded.SparseSPD) against
+"""Selected inversion of a sparse L D L' factor (photogrammetry.adjustment.banded.SparseSPD) against
 numpy's dense inverse, and the pattern check it relies on."""
 import numpy as np
 import pytest
 from scipy import sparse
 
-from photogrammetry._sparse_kernels import pattern_is_closed
-from photogrammetry.banded import SparseSPD
+from photogrammetry.adjustment._sparse_kernels import pattern_is_closed
+from photogrammetry.adjustment.banded import SparseSPD
 
 
 def _grid_spd(nx, ny, seed):

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins.earth import dcm_en
-from ins.georeference import georeference, read_trajectory_std, returns_to_scanner
-from ins.scanner import Scanner
-from ins.strip_check import estimate_boresight, pair_differences
-from ins.trajectory import read_trajectory
+from ins.io.navfiles import read_trajectory
+from ins.lidar.georeference import georeference, read_trajectory_std, returns_to_scanner
+from ins.lidar.scanner import Scanner
+from ins.lidar.strip_check import estimate_boresight, pair_differences
+from ins.nav.earth import dcm_en
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ROOT / "tests" / "data" / "flights" / "short.toml"
@@ -22,7 +22,7 @@ B_TRUE = np.deg2rad([0.1, -0.08, 0.15])
 def lidar_flight(tmp_path_factory):
     """The short test flight, processed (smoothed + forward), and a polygon scanner with a
     boresight of (0.1, -0.08, 0.15) deg over hilly terrain (relief 30 m)."""
-    from ins import cli
+    from ins.cli import main as cli
     from ins.simulate.lidar import SineTerrain, simulate_returns, strip_windows
     from photogrammetry.simulate.folder import simulate_flight
     tmp = tmp_path_factory.mktemp("lidar")
@@ -77,7 +77,7 @@ def test_points_within_sigmas_smoothed_vs_forward(lidar_flight):
 @pytest.mark.slow
 @pytest.mark.parametrize("which", ["truth", "smoothed"])
 def test_boresight_from_strips(lidar_flight, which):
-    from ins.strip_check import boresight_from_strips
+    from ins.lidar.strip_check import boresight_from_strips
     f = lidar_flight
     sim = f["sim"]
     std = f["std"] if which == "smoothed" else None
@@ -95,7 +95,7 @@ def test_plane_differences_exact():
     """Four strips on the plane z = 0.1 E - 0.05 N + 3, each moved by its own constant
     Jacobian times delta: the height differences are exact (by hand) and the estimate
     from all pairs recovers delta."""
-    from ins.strip_check import overlapping_pairs
+    from ins.lidar.strip_check import overlapping_pairs
     rng = np.random.default_rng(0)
     n, m = 3000, 4
     en = rng.uniform(0, 100, (m * n, 2))
@@ -125,8 +125,8 @@ def test_plane_differences_exact():
 def test_cli_georeference_then_strip_check(lidar_flight, capsys):
     """The simulated returns through `ins georeference` (smoothed trajectory, LAZ) and
     `ins strip-check`: the boresight written to --scanner-out within 3 sigma."""
-    from ins import cli
-    from ins.scanner import read_scanner, write_scanner
+    from ins.cli import main as cli
+    from ins.lidar.scanner import read_scanner, write_scanner
     f = lidar_flight
     tmp = f["tmp"]
     f["sim"].write_csv(tmp / "returns.csv")
@@ -160,9 +160,10 @@ def test_scanner_on_the_aircraft(lidar_flight):
     """A scanner on the aircraft (the IMU on the stabilized platform of the simulated
     flight, its mount log): with the mount angles the points match the truth within the
     scanner's noise; treated as rigid on the IMU they are off by metres."""
-    from ins.mount import read_mount
-    from ins.simulate.lidar import SineTerrain, simulate_returns, strip_windows
     import tomllib
+
+    from ins.io.mount import read_mount
+    from ins.simulate.lidar import SineTerrain, simulate_returns, strip_windows
     f = lidar_flight
     man = tomllib.loads((f["tmp"] / "flight" / "manifest.toml").read_text())
     mount = read_mount(f["tmp"] / "flight" / "mount.txt")

@@ -5,16 +5,16 @@ and the sigma small enough that the test could fail (a state that learns nothing
 pass the 3-sigma check with its prior)."""
 import functools
 import shutil
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-from ins.error_model import StateLayout
-from ins.process import process
-from ins.process_config import config_from_manifest
+import tomllib
 from test_filter import PLAN, given_config, short_flight
+
+from ins.estimation.error_model import StateLayout
+from ins.estimation.process import process
+from ins.estimation.process_config import config_from_manifest
 
 ARCSEC = np.pi / 180 / 3600
 GYRO_MIS = [150.0, -120.0, 100.0]           # arcsec
@@ -52,7 +52,7 @@ def test_misalignment_states_against_injected():
     # and the attitude is better than with the 21 states
     cfg21 = given_config(folder)
     cfg21.layout = StateLayout(())
-    from ins.errors import QualityWarning
+    from ins.common.errors import QualityWarning
     with pytest.warns(QualityWarning, match="rejected by the innovation test"):
         res21 = process(cfg21, accept_poor=True)        # it loses the fixes
     tilt = lambda r: np.sqrt(np.mean(r.errors_smoothed.att_n[:, :2] ** 2))  # noqa: E731
@@ -62,9 +62,9 @@ def test_misalignment_states_against_injected():
 def _with_gnss_errors(src, dst, time_offset_s, lever_error_b_m):
     """A copy of flight folder ``src`` whose gnss.txt holds the antenna with a lever-arm
     error and a time offset (simulate_gnss, the same epochs and noise level)."""
-    from ins.gnss import read_gnss, write_gnss
+    from ins.io.gnss import read_gnss, write_gnss
     from ins.simulate.gnss import simulate_gnss
-    from ins.simulate.plan import load_plan
+    from ins.simulate.plan_read import load_plan
     from ins.simulate.truth import build_truth
     shutil.copytree(src, dst)
     man = tomllib.loads((Path(src) / "manifest.toml").read_text())
@@ -120,12 +120,14 @@ def _static_part(flight, **settings):
     at rest), from the true state with the given measurement settings; returns the
     forward result and its velocity errors at the nodes (m/s, NED)."""
     from dataclasses import replace
-    from ins.accuracy import compare
-    from ins.filter import run_forward
-    from ins.filter_settings import FilterSettings
-    from ins.lever_arm import LeverArm
-    from ins.mechanization import NavState
-    from ins.trajectory import Trajectory, read_nav
+
+    from ins.estimation.filter import run_forward
+    from ins.estimation.filter_settings import FilterSettings
+    from ins.estimation.lever_arm import LeverArm
+    from ins.io.navfiles import read_nav
+    from ins.nav.accuracy import compare
+    from ins.nav.mechanization import NavState
+    from ins.nav.trajectory import Trajectory
     cfg = given_config(flight, varying=False)
     man = tomllib.loads((Path(flight) / "manifest.toml").read_text())
     ini, t0 = man["initial"], man["flight"]["start_time_s"]
@@ -152,9 +154,9 @@ STATIC_S = 55.0
 @functools.lru_cache(maxsize=2)
 def _static_logs(imu_path, gnss_path, t0):
     """The IMU rows of the static minute and the GNSS log (read once)."""
-    from ins.gnss import read_gnss
-    from ins.imu import ImuLog
-    from ins.imu_files import read_imu
+    from ins.io.gnss import read_gnss
+    from ins.io.imu_files import read_imu
+    from ins.nav.imu import ImuLog
     imu = read_imu(imu_path)
     k = np.searchsorted(imu.time, t0 + STATIC_S + 2.0)
     return (ImuLog.adopt(imu.time[:k].copy(), imu.dtheta_b[:k].copy(), imu.dvel_b[:k].copy()),
@@ -191,7 +193,7 @@ def test_nonholonomic_constraint_on_the_ground():
     late = e.time > e.time[0] + 20
     # the constraint holds the cross-track (east: the aircraft points north or south?
     # any heading: the body y and z) velocity; the along-track one drifts freely
-    from ins.rotation import quat_to_dcm
+    from ins.nav.rotation import quat_to_dcm
     C = quat_to_dcm(fwd.node_states[:, 6:10])
     vb = np.einsum("nji,nj->ni", C, e.v_n)[late]
     vb_free = np.einsum("nji,nj->ni", C, e_free.v_n)[late]

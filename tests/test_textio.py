@@ -1,4 +1,4 @@
-"""Tests of the text I/O modules (ins.textparse, ins.textformat, ins.textfiles, ins.exactdecimal):
+"""Tests of the text I/O modules (ins.common.textparse, ins.common.textformat, ins.common.textfiles, ins.common.exactdecimal):
 exact parsing against np.loadtxt / float(), formatting against '%'."""
 import io
 
@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ins import exactdecimal, textfiles, textformat, textparse
-from ins.errors import InputError
+from ins.common import exactdecimal, textfiles, textformat, textparse
+from ins.common.errors import InputError
 
 ENGINES = ["numba", "python"]
 

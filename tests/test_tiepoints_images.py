@@ -8,16 +8,16 @@ import cv2
 import numpy as np
 import pytest
 
-from photogrammetry.batch import refine
-from photogrammetry.camera import FrameCamera, read_camera, write_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import ExposureOrientation, read_eo_csv, write_eo_csv
-from photogrammetry.imagery import read_grey
-from photogrammetry.matching import PairMatches, build_tracks, guided_matches, PriorView
-from photogrammetry.rotation import angles_to_matrix
+from photogrammetry.adjustment.batch import refine
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.images import read_grey
+from photogrammetry.imagery.matching import PairMatches, PriorView, build_tracks, guided_matches
+from photogrammetry.imagery.tiepoints import read_tiepoints, write_tiepoints
+from photogrammetry.orientation.camera import FrameCamera, read_camera, write_camera
+from photogrammetry.orientation.exposure import ExposureOrientation, read_eo_csv, write_eo_csv
+from photogrammetry.orientation.rotation import angles_to_matrix
 from photogrammetry.simulate.render import make_texture, ray_ground, render_view
 from photogrammetry.simulate.terrain import make_terrain
-from photogrammetry.tiepoints import read_tiepoints, write_tiepoints
 
 SYSTEM = "phi-omega-kappa"
 FRAME = "enu; origin_lat_deg = 30.0; origin_lon_deg = 114.0; origin_h_m = 0.0"
@@ -124,7 +124,7 @@ def test_read_grey_segment_by_segment(tmp_path, monkeypatch, layout):
     band by band: the same level as the whole frame in memory (16 bit too)."""
     import tifffile
 
-    import photogrammetry.imagery as imagery
+    import photogrammetry.imagery.images as imagery
     rng = np.random.default_rng(1)
     img = cv2.GaussianBlur(rng.integers(0, 255, (3000, 700)).astype(np.uint8), (0, 0), 3)
     kw = dict(rowsperstrip=64) if layout == "strips" else dict(tile=(256, 128))
@@ -210,8 +210,8 @@ def test_pairs_ignore_points_folded_back_by_the_distortion():
     """Strong barrel distortion (OpenSfM k1 = -0.26, the DJI camera's) folds points at
     2 x the frame's radius back onto it: two nadir views 200 m apart at 100 m, which
     share no ground, are no pair; 60 m apart they are."""
-    from photogrammetry.matching import select_pairs
-    from photogrammetry.sfm_opensfm import camera_from_opensfm
+    from photogrammetry.imagery.matching import select_pairs
+    from photogrammetry.sfm.opensfm import camera_from_opensfm
     cam = camera_from_opensfm({"projection_type": "brown", "width": 1368, "height": 912,
                                "focal_x": 0.666, "focal_y": 0.666, "c_x": 0.0, "c_y": 0.0,
                                "k1": -0.264, "k2": 0.102, "k3": -0.0258, "p1": 0.0,
@@ -240,7 +240,7 @@ def test_dem_height_range(tmp_path):
     heights, less origin_h_m for an ENU frame, as is for a projected frame."""
     import tifffile
 
-    from photogrammetry.tiepoints_images import dem_height_range
+    from photogrammetry.imagery.tiepoints_images import dem_height_range
     z = np.linspace(80.0, 120.0, 200 * 100).reshape(100, 200).astype(np.float32)
     z[:10] = -9999.0
     tifffile.imwrite(tmp_path / "dem.tif", z, extratags=[(42113, "s", 0, "-9999", True)])
@@ -280,7 +280,7 @@ def test_feature_cache_kept_and_reused(block, tmp_path):
 def test_feature_store_holds_at_most_its_images(tmp_path):
     """The LRU: at most max_images in memory, the least recently used dropped first;
     the temporary folder removed on close."""
-    from photogrammetry.feature_cache import FeatureStore
+    from photogrammetry.imagery.feature_cache import FeatureStore
     rng = np.random.default_rng(1)
     with FeatureStore(None, 2, ideal=lambda uv: uv * 2.0) as store:
         folder = store.folder

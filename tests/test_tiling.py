@@ -1,4 +1,4 @@
-"""Tiled refinement of one block (photogrammetry.tiling): the partition, the datum rule,
+"""Tiled refinement of one block (photogrammetry.adjustment.tiling): the partition, the datum rule,
 and on a simulated 500-image block with known truth the tiled angles against the
 whole-block adjustment and both against the truth; the combined boresight against the
 simulated one; the CLI; the Dask path equal to the in-process one; a tile's flag."""
@@ -6,17 +6,16 @@ from collections import deque
 
 import numpy as np
 import pytest
-
-from ins.errors import InputError, QualityError
-from photogrammetry.batch import refine
-from photogrammetry.camera import read_camera
-from photogrammetry.cli import main
-from photogrammetry.exposure import read_eo_csv
-from photogrammetry.rotation import angles_to_matrix
-from photogrammetry.tiepoints import read_tiepoints
-from photogrammetry.tiling import partition, refine_tiled, tile_tasks
-
 import scenario as sc
+
+from ins.common.errors import InputError, QualityError
+from photogrammetry.adjustment.batch import refine
+from photogrammetry.adjustment.tiling import partition, refine_tiled, tile_tasks
+from photogrammetry.cli.main import main
+from photogrammetry.imagery.tiepoints import read_tiepoints
+from photogrammetry.orientation.camera import read_camera
+from photogrammetry.orientation.exposure import read_eo_csv
+from photogrammetry.orientation.rotation import angles_to_matrix
 
 
 def _bfs_hops(pairs, m, start, hops):

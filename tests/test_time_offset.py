@@ -1,4 +1,4 @@
-"""IMU-GNSS clock offset from the data (ins.time_offset, ins time-offset): a simulated
+"""IMU-GNSS clock offset from the data (ins.estimation.time_offset, ins time-offset): a simulated
 flight (ins.simulate, the short test plan: turns and a stabilized, nearly level IMU)
 with a known offset injected into the GNSS stamps, and the real comma2k19 segment."""
 from dataclasses import replace
@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins.errors import InputError
-from ins.gnss import read_gnss, write_gnss
-from ins.imu_files import write_kfgins_text
-from ins.time_offset import estimate_time_offset, shift_gnss
+from ins.common.errors import InputError
+from ins.estimation.time_offset import estimate_time_offset, shift_gnss
+from ins.io.gnss import read_gnss, write_gnss
+from ins.io.imu_files import write_kfgins_text
 
 PLAN = Path(__file__).parent / "data" / "flights" / "short.toml"
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "comma2k19_segment"
@@ -25,7 +25,7 @@ def flight():
     the filter's time_offset state)."""
     from ins.simulate.gnss import gnss_times, simulate_gnss
     from ins.simulate.imu_synth import synthesize_imu
-    from ins.simulate.plan import load_plan
+    from ins.simulate.plan_read import load_plan
     from ins.simulate.truth import build_truth
     truth = build_truth(load_plan(PLAN))
     imu = synthesize_imu(truth, 100.0)
@@ -54,7 +54,7 @@ def test_any_imu_attitude(flight):
     roll 150 deg: far from FRD) give the same offset: the attitude is fitted."""
     from scipy.spatial.transform import Rotation
 
-    from ins.imu import ImuLog
+    from ins.nav.imu import ImuLog
     imu, gnss = flight
     C = Rotation.from_euler("ZYX", [90.0, 30.0, 150.0], degrees=True).as_matrix()
     turned = ImuLog(imu.time, imu.dtheta_b @ C, imu.dvel_b @ C)
@@ -86,7 +86,7 @@ def test_no_information_refused(flight):
 
 
 def test_command(flight, tmp_path, capsys):
-    from ins.cli import main
+    from ins.cli.main import main
     imu, gnss = flight
     write_kfgins_text(tmp_path / "imu.txt", imu)
     write_gnss(tmp_path / "gnss.txt", gnss)
@@ -128,7 +128,7 @@ def test_real_segment_ublox_stamps():
     assert 0.05 < p.offset_s < 0.13 and p.sigma_s < 0.03
     assert -0.22 < a.offset_s < -0.12
     ref = comma2k19.read_reference(REAL, boot)
-    from ins.gnss import GnssLog
+    from ins.io.gnss_log import GnssLog
     n = len(ref)
     as_fixes = GnssLog(ref.time, ref.lla, np.ones((n, 3)), ref.v_n, np.ones((n, 3)))
     r = estimate_time_offset(imu, as_fixes, source="velocity")
@@ -146,8 +146,8 @@ def test_command_and_filter_state_agree_in_sign_and_value(flight, tmp_path, caps
     shift (positions and velocities; positions alone 0.13681 and +0.84 ms).  Before the
     GNSS velocity prediction was carried by the node's acceleration over the offset, the
     velocities left -4.1 +- 0.09 ms after the shift."""
-    from ins.cli import main
-    from ins.simulate.plan import load_plan
+    from ins.cli.main import main
+    from ins.simulate.plan_read import load_plan
     from ins.simulate.truth import build_truth
     imu, gnss = flight
     write_kfgins_text(tmp_path / "imu.txt", imu)

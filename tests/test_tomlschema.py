@@ -1,22 +1,22 @@
-"""Strict TOML files (issue 12): one helper (ins.tomlschema), the same messages for the
+"""Strict TOML files (issue 12): one helper (ins.common.tomlschema), the same messages for the
 camera file, the lunar fisheye camera file and the flight plan; a misspelt key is an
 error naming the file, the [section] key and the known keys, never a silent default."""
 import copy
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 import tomli_w
+import tomllib
 
-from ins.errors import InputError
-from ins.simulate.plan import PLAN_KEYS, load_plan, parse_plan
-from ins.tomlschema import REQUIRED, Table, check_keys
-from photogrammetry.camera import CAMERA_KEYS, NADIR_AXES, read_camera
-from photogrammetry.cli import main as pg_main
+from ins.common.errors import InputError
+from ins.common.tomlschema import REQUIRED, Table, check_keys
+from ins.simulate.plan_read import PLAN_KEYS, load_plan, parse_plan
+from photogrammetry.cli.main import main as pg_main
 from photogrammetry.lunar.fisheye import FISHEYE_KEYS
 from photogrammetry.lunar.fisheye import read_camera as read_fisheye
+from photogrammetry.orientation.camera import CAMERA_KEYS, NADIR_AXES, read_camera
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMERA = """[camera]
@@ -269,9 +269,9 @@ def test_docs_name_every_camera_key(keys):
 
 
 def test_docs_name_the_process_config_keys():
-    """docs/interfaces.md lists every key the processing config accepts (ins/process.py,
-    another part's file: read its table of known keys, now in ins/process_config.py)."""
-    from ins import process_config
+    """docs/interfaces.md lists every key the processing config accepts (ins/estimation/process.py,
+    another part's file: read its table of known keys, now in ins/estimation/process_config.py)."""
+    from ins.estimation import process_config
     sections = process_config._SECTIONS
     assert isinstance(sections, dict)
     doc = _doc()
@@ -297,7 +297,7 @@ def test_help_states_the_optional_camera_tables(capsys):
 
 def test_roundtrip_of_written_camera_files_stays_strict(tmp_path):
     """The simulator's camera.toml (write_camera) is read back under the strict rules."""
-    from photogrammetry.camera import camera_to_dict
+    from photogrammetry.orientation.camera import camera_to_dict
     cam, m = read_camera(_write(tmp_path, CAMERA))
     doc = camera_to_dict(cam, m)
     check_keys(doc, CAMERA_KEYS, "written")
@@ -312,7 +312,7 @@ def _write(tmp_path, text):
 
 
 @pytest.mark.parametrize("module, keys, text, reader", [
-    ("photogrammetry.camera", CAMERA_KEYS, CAMERA + "", "read_camera"),
+    ("photogrammetry.orientation.camera", CAMERA_KEYS, CAMERA + "", "read_camera"),
     ("photogrammetry.lunar.fisheye", FISHEYE_KEYS, FISHEYE, "read_camera"),
 ], ids=["camera", "fisheye"])
 def test_camera_readers_read_every_declared_key(tmp_path, monkeypatch, module, keys, text,

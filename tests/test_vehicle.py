@@ -1,6 +1,6 @@
 """Land vehicles: the IMU's mounting rotation for the non-holonomic constraint
-(``[vehicle] mounting_rpy_deg``, ins.vehicle, ``ins vehicle-mounting``) and dual-antenna
-headings (``[files] heading``, ins.heading_files) on a simulated car
+(``[vehicle] mounting_rpy_deg``, ins.estimation.vehicle, ``ins vehicle-mounting``) and dual-antenna
+headings (``[files] heading``, ins.estimation.heading_files) on a simulated car
 (tests/land_vehicle.py: an analytic drive, its truth written from its definition) with
 a consumer-MEMS IMU mounted askew and 1 Hz GNSS positions with a 60 s outage."""
 import sys
@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins import earth
-from ins.errors import InputError
-from ins.gnss import GnssLog, write_gnss
-from ins.imu_files import write_kfgins_text
-from ins.vehicle import estimate_mounting, mounting_dcm
+from ins.common.errors import InputError
+from ins.estimation.vehicle import estimate_mounting, mounting_dcm
+from ins.io.gnss import write_gnss
+from ins.io.gnss_log import GnssLog
+from ins.io.imu_files import write_kfgins_text
+from ins.nav import earth
 
 sys.path.insert(0, str(Path(__file__).parent))
 from land_vehicle import CarTruth  # noqa: E402
@@ -56,7 +57,7 @@ def test_mounting_dcm_convention_by_hand():
 def test_car_truth_is_consistent_and_holonomic():
     """The helper's truth: its IMU mechanized from its start stays on it (0.3 mm over
     240 s) and its velocity is along the vehicle's forward axis, not the IMU's."""
-    from ins.mechanization import NavState, mechanize
+    from ins.nav.mechanization import NavState, mechanize
     from ins.simulate.imu_synth import synthesize_imu
     car = CarTruth(MOUNT_RPY_DEG)
     imu = synthesize_imu(car, 100.0)
@@ -74,7 +75,7 @@ def test_estimate_mounting_from_the_truth():
     """On the true trajectory the estimated forward axis is the true one (any roll with
     its pitch and yaw is the same constraint), sigma ~0; too little straight driving is
     refused."""
-    from ins.trajectory import Trajectory
+    from ins.nav.trajectory import Trajectory
     car = CarTruth(MOUNT_RPY_DEG)
     t = np.arange(car.t_start, car.t_end, 0.05)
     tr = car.evaluate(t)
@@ -122,9 +123,9 @@ def drive(tmp_path_factory):
 def run_drive(drive, name, extra="", preset="mems"):
     """Process the drive with ``base + extra`` and the preset; the figures against the
     truth (smoothed; the forward pass's worst horizontal error in the outage)."""
-    from ins.presets import apply_preset
-    from ins.process import process
-    from ins.process_config import load_config
+    from ins.estimation.presets import apply_preset
+    from ins.estimation.process import process
+    from ins.estimation.process_config import load_config
     car, d, base = drive
     path = d / f"{name}.toml"
     path.write_text(base + extra)
@@ -174,8 +175,8 @@ def test_nhc_with_the_mounting_beats_no_nhc_and_the_wrong_mounting(drive, tmp_pa
         assert bad[s]["att_rms_deg"][2] > 2 * right[s]["att_rms_deg"][2]
         assert bad["rejected"] > 50
     # the estimate from the first pass, through the command, then the land preset
-    from ins.cli import main
-    from ins.trajectory import write_nav
+    from ins.cli.main import main
+    from ins.io.navfiles import write_nav
     car, d, _ = drive
     write_nav(tmp_path / "first.nav", none["result"].smoothed)
     assert main(["vehicle-mounting", str(tmp_path / "first.nav")]) == 0
@@ -193,7 +194,7 @@ def test_nhc_with_the_mounting_beats_no_nhc_and_the_wrong_mounting(drive, tmp_pa
 
 
 def test_vehicle_table_in_the_config(tmp_path):
-    from ins.process_config import load_config
+    from ins.estimation.process_config import load_config
     p = tmp_path / "c.toml"
     p.write_text('[files]\nimu = "i.txt"\ngnss = "g.txt"\n[vehicle]\n'
                  "mounting_rpy_deg = [1.0, 3.9, -1.5]\n")
@@ -221,7 +222,7 @@ def _baseline_azimuth_deg(car, t):
 
 
 def test_heading_file_by_hand(tmp_path):
-    from ins.heading_files import read_headings, within, write_headings
+    from ins.estimation.heading_files import read_headings, within, write_headings
     p = tmp_path / "h.txt"
     p.write_text("# time_s heading_deg sigma_deg\n100.0 350.0 0.2\n\n101.0, -10.5, 0.3\n"
                  "102.0 190.0 0.1  # comment\n")
@@ -261,7 +262,7 @@ def test_dual_antenna_heading_improves_heading(drive):
     0.031 deg, the smoothed heading sigma (RMS over the nodes) 0.251 -> 0.030 deg,
     forward worst horizontal error in the outage 40.1 -> 28.2 m (smoothed horizontal RMS
     0.50 -> 0.58 m, within the fixes' noise)."""
-    from ins.heading_files import write_headings
+    from ins.estimation.heading_files import write_headings
     car, d, _ = drive
     tg = np.loadtxt(d / "gnss.txt")[:, 0]
     head = (_baseline_azimuth_deg(car, tg)

@@ -7,7 +7,7 @@ The real-data path of issue 15 item 5 in two commands (and a comparison)::
     python tools/comma2k19.py --compare seg/out/solution.nav seg   # the figures
 
 and its land-vehicle variant (non-holonomic constraint in the car's axes, the phone's
-mounting estimated from the first solution by ``ins.vehicle``)::
+mounting estimated from the first solution by ``ins.estimation.vehicle``)::
 
     python tools/comma2k19.py --land seg/out/solution.nav seg     # seg/config_land.toml
     ins process --config seg/config_land.toml --preset land -o seg/out_land
@@ -80,7 +80,7 @@ def _npy(path):
     try:
         return np.load(path)
     except OSError as exc:
-        from ins.errors import InputError
+        from ins.common.errors import InputError
         raise InputError(f"{path}: {exc.strerror or exc} (a comma2k19 segment folder is "
                          f"expected: IMU/, GNSS/live_gnss_ublox/, global_pose/)") from None
 
@@ -113,8 +113,8 @@ def imu_increments(t, gyro, accel):
 
 
 def read_imu(segment, offset):
-    """The segment's IMU as an :class:`ins.imu.ImuLog` in GPS seconds of week."""
-    from ins.imu import ImuLog
+    """The segment's IMU as an :class:`ins.nav.imu.ImuLog` in GPS seconds of week."""
+    from ins.nav.imu import ImuLog
     tg, gyro = _load(segment, "IMU/gyro")
     ta, accel = _load(segment, "IMU/accelerometer")
     if len(tg) != len(ta) or np.max(np.abs(tg - ta)) > 1e-6:
@@ -125,12 +125,12 @@ def read_imu(segment, offset):
 
 def read_ublox(segment, offset, week, stamp="utc", sigma_h=SIGMA_H_M, sigma_v=SIGMA_V_M,
                sigma_vel=SIGMA_VEL_MPS, sigma_vd=SIGMA_VD_MPS):
-    """The u-blox fixes as an :class:`ins.gnss.GnssLog` (GPS seconds of week).
+    """The u-blox fixes as an :class:`ins.io.gnss_log.GnssLog` (GPS seconds of week).
 
     ``stamp`` = ``"utc"`` (the fix epoch) or ``"arrival"`` (boot clock of arrival).
     Returns the log and the mean of (arrival - epoch), s.
     """
-    from ins.gnss import GnssLog
+    from ins.io.gnss_log import GnssLog
     t_boot, v = _load(segment, "GNSS/live_gnss_ublox")
     t_utc = v[:, 3] / 1e3 + LEAP_SECONDS - GPS_EPOCH_UNIX - week * WEEK_S
     t_arr = t_boot + offset
@@ -148,14 +148,14 @@ def read_ublox(segment, offset, week, stamp="utc", sigma_h=SIGMA_H_M, sigma_v=SI
 
 
 def read_reference(segment, offset):
-    """comma.ai's camera pose as an :class:`ins.trajectory.Trajectory` (GPS seconds of
+    """comma.ai's camera pose as an :class:`ins.nav.trajectory.Trajectory` (GPS seconds of
     week): position and velocity of the camera, attitude ``C_nc`` of the camera's
     forward-right-down axes."""
     import pymap3d
     from scipy.spatial.transform import Rotation
 
-    from ins import earth
-    from ins.trajectory import Trajectory
+    from ins.nav import earth
+    from ins.nav.trajectory import Trajectory
     gp = Path(segment) / "global_pose"
     t = _npy(gp / "frame_times.npy") + offset
     r_e = _npy(gp / "frame_positions.npy")
@@ -193,7 +193,7 @@ method = "gnss-heading"           # the car drives from the first fix: heading f
 
 def retime_gnss(gnss, position_offset_s, velocity_offset_s):
     """The fixes on the IMU's time scale when their positions and velocities carry
-    different offsets (IMU clock minus GNSS clock, s, the sign of ``ins.time_offset``
+    different offsets (IMU clock minus GNSS clock, s, the sign of ``ins.estimation.time_offset``
     and of ``[gnss] time_shift_s``): each record is stamped at its position's IMU time
     ``t + position_offset_s`` and carries the velocity interpolated (linearly) at that
     time from the velocities' IMU times ``t + velocity_offset_s``; records outside the
@@ -207,8 +207,8 @@ def retime_gnss(gnss, position_offset_s, velocity_offset_s):
 
 
 def estimate_offsets(imu, gnss):
-    """``ins.time_offset`` estimates of the positions' and the velocities' offsets."""
-    from ins.time_offset import estimate_time_offset
+    """``ins.estimation.time_offset`` estimates of the positions' and the velocities' offsets."""
+    from ins.estimation.time_offset import estimate_time_offset
     return (estimate_time_offset(imu, gnss, source="position"),
             estimate_time_offset(imu, gnss, source="velocity"))
 
@@ -218,13 +218,13 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
     ``conversion.toml`` (module notes) into ``out_dir``; returns a dict of figures.
 
     ``offsets``: ``"estimate"`` (the positions' and velocities' clock offsets estimated
-    from the data by ``ins.time_offset`` and removed), ``None`` (the stamps as they are)
+    from the data by ``ins.estimation.time_offset`` and removed), ``None`` (the stamps as they are)
     or a pair ``(position_offset_s, velocity_offset_s)`` (IMU minus GNSS clock, s).
     """
-    from ins.fileio import atomic_open, output_folder
-    from ins.gnss import write_gnss
-    from ins.imu_files import write_kfgins_text
-    from ins.trajectory import write_nav
+    from ins.common.fileio import atomic_open, output_folder
+    from ins.io.gnss import write_gnss
+    from ins.io.imu_files import write_kfgins_text
+    from ins.io.navfiles import write_nav
     week, offset, fit_rms = boot_to_gps(segment)
     imu = read_imu(segment, offset)
     gnss, arrival_lag = read_ublox(segment, offset, week, stamp, **sigmas)
@@ -259,11 +259,11 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
 def land_config(solution, folder):
     """Write ``folder/config_land.toml``: ``folder/config.toml`` plus the ``[vehicle]``
     table of the phone's mounting estimated from ``solution`` (a trajectory processed
-    without the constraint; :func:`ins.vehicle.estimate_mounting`).  Returns the
-    :class:`ins.vehicle.Mounting`."""
-    from ins.fileio import atomic_open
-    from ins.trajectory import read_trajectory
-    from ins.vehicle import estimate_mounting
+    without the constraint; :func:`ins.estimation.vehicle.estimate_mounting`).  Returns the
+    :class:`ins.estimation.vehicle.Mounting`."""
+    from ins.common.fileio import atomic_open
+    from ins.estimation.vehicle import estimate_mounting
+    from ins.io.navfiles import read_trajectory
     m = estimate_mounting(read_trajectory(solution))
     base = Path(folder, "config.toml").read_text(encoding="utf-8")
     with atomic_open(os.path.join(folder, "config_land.toml"), "w") as f:
@@ -313,10 +313,10 @@ def _conversion_text(segment, info, gnss):
 
 def interpolate(traj, t):
     """``traj`` at times ``t`` (inside its span): position and velocity linear, attitude
-    by slerp (scipy); a :class:`ins.trajectory.Trajectory`."""
+    by slerp (scipy); a :class:`ins.nav.trajectory.Trajectory`."""
     from scipy.spatial.transform import Rotation, Slerp
 
-    from ins.trajectory import Trajectory
+    from ins.nav.trajectory import Trajectory
     lla = np.column_stack([np.interp(t, traj.time, traj.lla[:, i]) for i in range(3)])
     v_n = np.column_stack([np.interp(t, traj.time, traj.v_n[:, i]) for i in range(3)])
     q = Slerp(traj.time, Rotation.from_quat(traj.q_nb))(t).as_quat()
@@ -355,7 +355,7 @@ def compare(solution, reference, gnss=None):
     """
     from scipy.spatial.transform import Rotation
 
-    from ins import earth
+    from ins.nav import earth
     inside = (reference.time >= solution.time[0]) & (reference.time <= solution.time[-1])
     t = reference.time[inside]
     sol = interpolate(solution, t)
@@ -442,7 +442,7 @@ def _parser():
                         "on the boot clock (0.2 s later)")
     p.add_argument("--offsets", default="estimate", metavar="POS,VEL|estimate|none",
                    help="clock offsets (IMU - GNSS, s) of the positions and the velocities "
-                        "to remove: 'estimate' (default: ins.time_offset from the data), "
+                        "to remove: 'estimate' (default: ins.estimation.time_offset from the data), "
                         "'none', or two numbers")
     p.add_argument("--sigma-h", type=float, default=SIGMA_H_M, metavar="M",
                    help=f"assumed horizontal sigma of a fix, m (default {SIGMA_H_M:g})")
@@ -477,7 +477,7 @@ def _offsets(text):
 def _figures_json(fig, path):
     import json
 
-    from ins.fileio import atomic_open
+    from ins.common.fileio import atomic_open
     clean = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v)
              for k, v in fig.items()}
     with atomic_open(path, "w") as f:
@@ -485,9 +485,9 @@ def _figures_json(fig, path):
 
 
 def main(argv=None):
-    from ins.errors import InputError
-    from ins.gnss import read_gnss
-    from ins.trajectory import read_nav
+    from ins.common.errors import InputError
+    from ins.io.gnss import read_gnss
+    from ins.io.navfiles import read_nav
     args = _parser().parse_args(argv)
     try:
         if args.compare:

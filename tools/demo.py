@@ -12,7 +12,6 @@ adjustment estimates it.
 Run by ``make demo``; ``python tools/demo.py --help`` for the options.
 """
 import argparse
-import os
 import shlex
 import subprocess
 import sys
@@ -41,7 +40,7 @@ def run(cmd):
 
 def uncalibrated_camera(flight, out_path):
     """The flight's camera file with the boresight set to zero (what a user knows)."""
-    from photogrammetry.camera import read_camera, write_camera
+    from photogrammetry.orientation.camera import read_camera, write_camera
     camera, mounting = read_camera(flight / "camera.toml")
     write_camera(out_path, camera, replace(mounting, boresight_rad=np.zeros(3)))
     return camera, mounting
@@ -54,7 +53,7 @@ def rms(x, axis=0):
 def angle_errors(eo, truth):
     """Per-image angle errors (rad) of ``eo`` against ``truth`` as a rotation vector of
     ``C_mc_eo C_mc_true^T`` in the mapping frame, and the per-angle differences."""
-    from ins.rotation import dcm_to_rotvec, wrap_to_pi
+    from ins.nav.rotation import dcm_to_rotvec, wrap_to_pi
     idx = [truth.image_id.index(i) for i in eo.image_id]
     t = truth.in_system(eo.system)
     R_true = t.matrices()[idx]
@@ -63,16 +62,16 @@ def angle_errors(eo, truth):
 
 
 def trajectory_figures(nav, truth_nav):
-    from ins.accuracy import compare
-    from ins.trajectory import read_nav
+    from ins.io.navfiles import read_nav
+    from ins.nav.accuracy import compare
     err = compare(read_nav(nav), truth_nav)
     return {"pos_cm": rms(err.pos_n) * 100, "att_as": rms(err.att_n) / ARCSEC, "err": err}
 
 
 def refine_figures(out, flight, camera, eo_ins, method, datum, accept_poor=False):
     """The assessment of the refinement (the same computation as the CLI's report)."""
-    from photogrammetry.batch import refine
-    from photogrammetry.tiepoints import read_tiepoints
+    from photogrammetry.adjustment.batch import refine
+    from photogrammetry.imagery.tiepoints import read_tiepoints
     tie = read_tiepoints(flight / "tiepoints.csv", camera=camera)
     with warnings.catch_warnings():      # the command above has already shown them
         warnings.simplefilter("ignore")
@@ -139,9 +138,9 @@ def main(argv=None):
 
 def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, method, datum,
               accept_poor=False):
-    from ins.trajectory import read_nav
-    from photogrammetry.exposure import read_eo_csv
-    from photogrammetry.rotation import matrix_to_angles
+    from ins.io.navfiles import read_nav
+    from photogrammetry.orientation.exposure import read_eo_csv
+    from photogrammetry.orientation.rotation import matrix_to_angles
     truth_nav = read_nav(flight / "truth.nav")
     fwd = trajectory_figures(proc / "forward.nav", truth_nav)
     smo = trajectory_figures(proc / "solution.nav", truth_nav)
@@ -282,7 +281,7 @@ def misalignment_rows(flight, proc, row):
 
 def plot_angles(out, eo, d_ins, d_ref, names):
     """Exposure angle errors against the truth (arcsec) per image, strips marked."""
-    from ins.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
+    from ins.common.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
     plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
     x = np.arange(len(eo.image_id))
@@ -305,7 +304,7 @@ def plot_angles(out, eo, d_ins, d_ref, names):
 
 
 def write_report(out, table):
-    from ins.fileio import atomic_open
+    from ins.common.fileio import atomic_open
     text = f"""# Demo: the whole chain against the simulator's truth
 
 Flight: `flight/` (`ins simulate`, plan `data/flights/demo.toml`); processing:

@@ -21,7 +21,7 @@ A batch file (TOML) lists mutations::
 
     [[mutation]]
     name = "transport rate sign"
-    file = "ins/earth.py"
+    file = "ins/nav/earth.py"
     old = "return (v_east / (rn + h), -v_north"
     new = "return (-v_east / (rn + h), -v_north"
     tests = ["tests/test_mechanization.py", "tests/test_earth.py"]
@@ -39,8 +39,9 @@ import subprocess
 import sys
 import tempfile
 import time
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_TESTS = ["tests"]

@@ -11,7 +11,7 @@ writer of :func:`ins.simulate.folder.simulate_flight`; the complete folder of
 Modules
 -------
 plan
-    :func:`~ins.simulate.plan.load_plan`: the TOML flight plan, validated, SI inside.
+    :func:`~ins.simulate.plan_read.load_plan`: the TOML flight plan, validated, SI inside.
 path
     The horizontal/vertical flight path in the plane: heading, ground speed, climbs.
 truth

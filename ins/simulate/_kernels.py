@@ -6,7 +6,7 @@ import numba as nb
 import numpy as np
 from numba.extending import register_jitable
 
-from ..earth import earth_rate_kernel, gravity_kernel, transport_rate_kernel
+from ins.nav.earth import earth_rate_kernel, gravity_kernel, transport_rate_kernel
 
 
 @nb.njit(cache=True)

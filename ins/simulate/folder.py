@@ -17,7 +17,7 @@ which need the camera model) is :func:`photogrammetry.simulate.folder.simulate_f
 this function with the image writer of :mod:`photogrammetry.simulate.images`; without
 writers the folder holds the INS products only (enough for ``ins process``).
 
-The folder is built aside and swapped into place whole (:func:`ins.fileio.output_folder`,
+The folder is built aside and swapped into place whole (:func:`ins.common.fileio.output_folder`,
 the rule of every command that writes a folder): a non-empty folder is refused unless
 ``force=True``, and replaced only once the new one is complete, so a failure or Ctrl-C
 (also inside a product writer) leaves no partial output and the old folder untouched.
@@ -28,7 +28,6 @@ bytes and changing, e.g., the GNSS rate leaves the IMU noise (and the tie points
 unchanged.
 """
 import os
-import tomllib
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,15 +35,17 @@ from typing import Callable
 
 import numpy as np
 import tomli_w
+import tomllib
 
-from .. import textformat
-from ..errors import InputError
-from ..fileio import atomic_open, check_output_folder, output_folder
-from ..gnss import write_gnss
-from ..imu_files import write_kfgins_text
-from ..trajectory import Trajectory, write_nav
-from .gnss import gnss_times, simulate_gnss
-from .manifest import FORMAT, ins_tables, merge
+from ins.common import textformat
+from ins.common.errors import InputError
+from ins.common.fileio import atomic_open, check_output_folder, output_folder
+from ins.io.gnss import write_gnss
+from ins.io.imu_files import write_kfgins_text
+from ins.io.navfiles import write_nav
+from ins.nav.trajectory import Trajectory
+from ins.simulate.gnss import gnss_times, simulate_gnss
+from ins.simulate.manifest import FORMAT, ins_tables, merge
 
 __all__ = ["simulate_flight", "FlightProducts", "product_seed", "product_rng", "write_bytes",
            "FORMAT", "FILES"]
@@ -73,7 +74,7 @@ def product_rng(seed, name):
 # small writers
 
 def write_bytes(path, data):
-    """Write ``data`` (bytes) to ``path`` atomically (:func:`ins.fileio.atomic_open`)."""
+    """Write ``data`` (bytes) to ``path`` atomically (:func:`ins.common.fileio.atomic_open`)."""
     with atomic_open(path, "wb") as f:
         f.write(data)
 
@@ -107,7 +108,8 @@ def _truth_pieces(truth, time, progress, first):
 
 def _plan_and_text(plan):
     """(FlightPlan, bytes of its TOML file) from a path or a FlightPlan read from a file."""
-    from .plan import FlightPlan, load_plan, parse_plan
+    from ins.simulate.plan_model import FlightPlan
+    from ins.simulate.plan_read import load_plan, parse_plan
     if isinstance(plan, FlightPlan):
         path = plan.source
         try:
@@ -156,7 +158,7 @@ class FlightProducts:
 
     Attributes
     ----------
-    plan : ins.simulate.plan.FlightPlan
+    plan : ins.simulate.plan_model.FlightPlan
         The flight plan (with its ``[camera]``, ``[terrain]``, ``[tie_points]``).
     truth : ins.simulate.truth.FlightTruth
         The true trajectory, evaluable at any time (``truth.evaluate(t)``).
@@ -182,7 +184,7 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
 
     Parameters
     ----------
-    plan : str, os.PathLike or ins.simulate.plan.FlightPlan
+    plan : str, os.PathLike or ins.simulate.plan_model.FlightPlan
         The TOML flight plan (copied verbatim to ``plan.toml``); a FlightPlan must have
         been read from a file (its ``source``), which is copied.
     out_dir : str or os.PathLike
@@ -216,7 +218,7 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
         An output folder that cannot be written (naming ``out_dir``): missing parent, a
         file in the way, not empty without ``force``.
     """
-    from .sensor_errors import PRESETS
+    from ins.simulate.sensor_errors import PRESETS
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"seed must be an integer >= 0, got {seed!r}")
     if grade is not None and grade not in PRESETS:
@@ -231,7 +233,7 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
 
 
 def _write_products(plan, plan_text, folder, seed, grade, progress, products):
-    from .truth import build_truth
+    from ins.simulate.truth import build_truth
     truth = build_truth(plan)
     stages = _Stages(progress, (truth.t_end - truth.t_start) * plan.imu.rate_hz + 1)
     log, model, first = _write_imu_and_truth(plan, truth, folder, seed, grade, stages)
@@ -254,8 +256,8 @@ def _write_products(plan, plan_text, folder, seed, grade, progress, products):
 def _write_imu_and_truth(plan, truth, folder, seed, grade, stages):
     """imu.txt (with the sensor errors) and truth.nav; returns the log, the error model
     and the first truth epoch."""
-    from .imu_synth import synthesize_imu
-    from .sensor_errors import ImuErrorModel, apply_errors
+    from ins.simulate.imu_synth import synthesize_imu
+    from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
     log = synthesize_imu(truth, plan.imu.rate_hz, progress=stages.stage("imu"))
     model = ImuErrorModel.preset(grade, **plan.imu.overrides)
     log = apply_errors(log, model, product_seed(seed, "imu"))

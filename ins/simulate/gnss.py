@@ -14,15 +14,15 @@ The velocity is the usual first-order form (KF-GINS, the lever-arm paper): it ne
 transport-rate term ``w_en_n x (C_nb l_b)`` and the rotation between the n frames of the
 IMU and of the antenna, both about ``|v| |l_b| / R`` (1e-5 m/s for 60 m/s and 1 m).
 
-The log is an :class:`ins.gnss.GnssLog`, written with :func:`ins.gnss.write_gnss` (the
+The log is an :class:`ins.io.gnss_log.GnssLog`, written with :func:`ins.io.gnss.write_gnss` (the
 KF-GINS GNSS text of ``docs/interfaces.md``).
 """
 import numpy as np
 
-from ..earth import earth_rate_n, lla_rate, offset_ecef, offset_lla, transport_rate_n
-from ..gnss import GnssLog
-from ..lever_arm import antenna_velocity
-from ..rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew
+from ins.estimation.lever_arm import antenna_velocity
+from ins.io.gnss_log import GnssLog
+from ins.nav.earth import earth_rate_n, lla_rate, offset_ecef, offset_lla, transport_rate_n
+from ins.nav.rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew
 
 __all__ = ["lever_arm_b", "antenna_state", "offset_ecef", "offset_lla", "gnss_times",
            "simulate_gnss"]
@@ -154,7 +154,7 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
 
     Returns
     -------
-    ins.gnss.GnssLog
+    ins.io.gnss_log.GnssLog
         The standard deviations are the noise sigmas, at least :data:`STD_FLOOR` (an
         error-free simulation still states a positive sigma, which the readers require).
     """

@@ -2,12 +2,12 @@
 ``dvel_k = int f_b dt`` over ``(t[k-1], t[k]]`` by Gauss-Legendre quadrature of the
 analytic rates of :class:`~ins.simulate.truth.FlightTruth` (not by differencing sampled
 attitudes), which is what a real IMU outputs and what the two-sample mechanization of
-:mod:`ins.mechanization` expects.  The truth is evaluated in chunks of
+:mod:`ins.nav.mechanization` expects.  The truth is evaluated in chunks of
 :data:`CHUNK_ROWS` intervals (bounded memory, ~2 s per hour of flight at 200 Hz).
 
 The first row
 -------------
-``time[0] = t_start`` is the epoch of the initial state of :func:`ins.mechanization.mechanize`
+``time[0] = t_start`` is the epoch of the initial state of :func:`ins.nav.mechanization.mechanize`
 (``truth.evaluate(t_start)``).  Its increment only serves as the "previous sample" of the
 coning and sculling corrections: it is the true increment over ``(t_start - dt, t_start]``
 when that lies inside the flight, otherwise (at the very start of the flight) a copy of
@@ -15,7 +15,7 @@ row 1.
 """
 import numpy as np
 
-from ..imu import ImuLog
+from ins.nav.imu import ImuLog
 
 __all__ = ["synthesize_imu", "GL_NODES", "CHUNK_ROWS"]
 
@@ -59,7 +59,7 @@ def synthesize_imu(truth, rate_hz, t_start=None, t_end=None, progress=None, node
 
     Returns
     -------
-    ins.imu.ImuLog
+    ins.nav.imu.ImuLog
         Row 0 at ``t_start`` (see the module docstring), rows k >= 1 cover
         ``(time[k-1], time[k]]``.
     """

@@ -5,7 +5,7 @@ The scanner sits rigidly on the IMU (on the stabilized platform of the simulated
 ``b = p``).  Pulses at ``pulse_rate_hz``; the scan angle follows a saw-tooth (model
 ``"polygon"``: every line left to right) or a triangle wave (``"oscillating"``) across
 ``field_of_view_deg`` at ``scan_rate_hz`` lines per second.  Each ray
-``r_imu + C_nb (l_b + C_bs rho u(theta))`` (:mod:`ins.georeference`) is intersected with
+``r_imu + C_nb (l_b + C_bs rho u(theta))`` (:mod:`ins.lidar.georeference`) is intersected with
 the terrain; the recorded range and angle carry the scanner's noise
 (``range_sigma_m``, ``scan_angle_sigma_rad``), the true points are returned beside them.
 
@@ -18,12 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..earth import dcm_en, lla_to_ecef, ned_offset
-from ..errors import InputError
-from ..georeference import ecef_to_lla
-from ..interpolation import interpolate_trajectory
-from ..rotation import quat_to_dcm, quat_to_euler, wrap_to_pi
-from ..scanner import scanner_rays
+from ins.common.errors import InputError
+from ins.lidar.georeference import ecef_to_lla
+from ins.lidar.scanner import scanner_rays
+from ins.nav.earth import dcm_en, lla_to_ecef, ned_offset
+from ins.nav.interpolation import interpolate_trajectory
+from ins.nav.rotation import quat_to_dcm, quat_to_euler, wrap_to_pi
 
 __all__ = ["SineTerrain", "SimulatedReturns", "simulate_returns", "strip_windows"]
 
@@ -86,7 +86,7 @@ class SimulatedReturns:
 
     def write_csv(self, path):
         """Write the returns CSV of ``ins georeference`` (atomically)."""
-        from ..fileio import atomic_open
+        from ins.common.fileio import atomic_open
         with atomic_open(path, "w") as f:
             f.write("time_s,range_m,scan_angle_deg,intensity,return_number,strip\n")
             for t, r, a, s in zip(self.time, self.range_m, np.rad2deg(self.scan_angle_rad),
@@ -113,9 +113,9 @@ def simulate_returns(truth, scanner, terrain, windows, rng, pulse_rate_hz=2000.0
 
     Parameters
     ----------
-    truth : ins.trajectory.Trajectory
+    truth : ins.nav.trajectory.Trajectory
         True IMU trajectory.
-    scanner : ins.scanner.Scanner
+    scanner : ins.lidar.scanner.Scanner
         The TRUE scanner (its boresight and lever arm make the rays); model polygon or
         oscillating.
     terrain : object with ``height(lat_rad, lon_rad)``
@@ -124,7 +124,7 @@ def simulate_returns(truth, scanner, terrain, windows, rng, pulse_rate_hz=2000.0
     rng : numpy.random.Generator
         Range and scan-angle noise.
     pulse_rate_hz, scan_rate_hz, field_of_view_deg : float
-    mount : ins.mount.MountLog, optional
+    mount : ins.io.mount.MountLog, optional
         The mount angles ``C_ap(t)`` of a scanner on the aircraft (``on = "aircraft"``;
         the IMU on the platform): rays ``C_ap^T C_as u``, arm ``l_bp + C_ap^T l_a``.
 

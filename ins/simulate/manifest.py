@@ -41,11 +41,11 @@ def ins_tables(plan, truth, s0, log, model, files, seed, grade):
 
     Parameters
     ----------
-    plan : ins.simulate.plan.FlightPlan
+    plan : ins.simulate.plan_model.FlightPlan
     truth : ins.simulate.truth.FlightTruth
-    s0 : ins.trajectory.Trajectory
+    s0 : ins.nav.trajectory.Trajectory
         The true state at the first IMU epoch.
-    log : ins.imu.ImuLog
+    log : ins.nav.imu.ImuLog
         The IMU log written (its first and last epochs).
     model : ins.simulate.sensor_errors.ImuErrorModel
         The injected IMU errors.

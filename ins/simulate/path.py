@@ -164,7 +164,7 @@ class FlightPath:
 
 
 def build_path(plan, corrections=None):
-    """Build the :class:`FlightPath` of a :class:`~ins.simulate.plan.FlightPlan`.
+    """Build the :class:`FlightPath` of a :class:`~ins.simulate.plan_model.FlightPlan`.
 
     ``corrections`` (n_strips - 1, 2), m: per turn, added to its lateral offset (the
     strip spacing it is designed for) and to the run-in after it; used by

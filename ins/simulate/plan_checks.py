@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from ..errors import InputError
-from .plan_model import MOUNT_KNEE
+from ins.common.errors import InputError
+from ins.simulate.plan_model import MOUNT_KNEE
 
 __all__ = ["check_feasible", "crab_angle", "max_crab_angle"]
 

@@ -2,7 +2,7 @@
 quantities of the photo block (footprints, exposure interval, strip spacing).
 
 The file format, its geometry and its feasibility rules are described in
-:mod:`ins.simulate.plan`; the reader is :mod:`ins.simulate.plan_read`.
+:mod:`ins.simulate.plan_read`, which reads it.
 """
 import math
 from dataclasses import dataclass, field

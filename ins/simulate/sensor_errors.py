@@ -27,8 +27,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..imu import DPH, MGAL, PPM, ImuLog
-from . import _kernels
+from ins.nav.imu import DPH, MGAL, PPM, ImuLog
+from ins.simulate import _kernels
 
 __all__ = ["ImuErrorModel", "PRESETS", "MANIFEST_KEYS", "apply_errors"]
 
@@ -191,7 +191,7 @@ def apply_errors(log, model, seed, chunk_rows=CHUNK_ROWS):
 
     Parameters
     ----------
-    log : ins.imu.ImuLog
+    log : ins.nav.imu.ImuLog
         Error-free increments (rad, m/s), body FRD, stamped at the end of their interval;
         row 0's interval is ``log.dt[0]`` (the nominal interval).
     model : ImuErrorModel
@@ -201,7 +201,7 @@ def apply_errors(log, model, seed, chunk_rows=CHUNK_ROWS):
 
     Returns
     -------
-    ins.imu.ImuLog
+    ins.nav.imu.ImuLog
     """
     n = len(log)
     dt = np.asarray(log.dt)

@@ -6,7 +6,7 @@ climb ``v_climb``, airborne weight ``s``) and the turbulence:
 * velocity ``v_n = (V cos psi, V sin psi, v_climb - d(s heave)/dt)`` (NED, m/s) and its
   derivative ``a_n`` analytically;
 * height ``h = h0 - int v_climb + s heave`` analytically; latitude and longitude from
-  ``d(lat, lon)/dt = D^-1 v_n`` (:func:`ins.earth.lla_rate`) integrated by DOP853
+  ``d(lat, lon)/dt = D^-1 v_n`` (:func:`ins.nav.earth.lla_rate`) integrated by DOP853
   (rtol 1e-12) piece by piece between the breakpoints of the profiles, forward and
   backward from the start of strip 0, which is the block origin, with dense output;
 * strip placement: the turns are designed in the plane (:mod:`~ins.simulate.path`); the
@@ -37,7 +37,7 @@ climb ``v_climb``, airborne weight ``s``) and the turbulence:
   inside the knee.  The IMU body is the platform: ``C_nb = C_na C_ap``;
 * ``w_ib_b = w_nb_b + C_bn (w_ie_n + w_en_n)`` with ``w_nb_b`` from the Euler-angle
   rates, and ``f_b = C_bn (a_n - g_n + (2 w_ie_n + w_en_n) x v_n)`` (normal gravity of
-  :mod:`ins.earth`), all analytic, evaluated per sample by a numba kernel
+  :mod:`ins.nav.earth`), all analytic, evaluated per sample by a numba kernel
   (:func:`ins.simulate._kernels.platform_state`).
 """
 from dataclasses import dataclass
@@ -46,11 +46,11 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.interpolate import PPoly
 
-from .. import earth
-from ..rotation import dcm_to_quat
-from . import _kernels
-from .path import build_path
-from .plan import G_TURN, MOUNT_KNEE
+from ins.nav import earth
+from ins.nav.rotation import dcm_to_quat
+from ins.simulate import _kernels
+from ins.simulate.path import build_path
+from ins.simulate.plan_model import G_TURN, MOUNT_KNEE
 
 __all__ = ["FlightTruth", "TruthSample", "Strip", "build_truth", "euler_rates_to_body",
            "body_to_euler_rates", "GEOMETRY_TOL", "KNEE"]
@@ -321,5 +321,5 @@ class FlightTruth:
 
 
 def build_truth(plan):
-    """The :class:`FlightTruth` of a :class:`~ins.simulate.plan.FlightPlan`."""
+    """The :class:`FlightTruth` of a :class:`~ins.simulate.plan_model.FlightPlan`."""
     return FlightTruth(plan)

@@ -13,13 +13,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins.errors import InputError
-
-from .ephemeris import moon_sun_directions
-from .io import load_image_meta
-from .moon_centre import (MoonNotFoundError, _Offset, default_saturation, extract_centre,
-                          sun_direction_in_image)
-from .solve import solve_heading
+from ins.common.errors import InputError
+from photogrammetry.lunar.ephemeris import moon_sun_directions
+from photogrammetry.lunar.io import load_image_meta
+from photogrammetry.lunar.moon_centre import (
+    MoonNotFoundError,
+    _Offset,
+    default_saturation,
+    extract_centre,
+    sun_direction_in_image,
+)
+from photogrammetry.lunar.solve import solve_heading
 
 __all__ = ["LunarHeading", "heading_from_centres", "heading_from_images", "centre_directions",
            "check_crescent", "MIN_LIT_WIDTH_PX"]

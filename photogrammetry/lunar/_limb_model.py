@@ -53,7 +53,7 @@ the PSF-form mismatch and pixel phase (0.01-0.02 px RMS on Moffat-rendered Moons
 import numpy as np
 from scipy.optimize import nnls
 
-from . import _limb_kernels as _k
+from photogrammetry.lunar import _limb_kernels as _k
 
 SUPERSAMPLE = 8
 BAND_PX = 3.0          # half width of the limb band beyond 2.5 blur sigmas, px

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins.errors import InputError, InputWarning
+from ins.common.errors import InputError, InputWarning
 
 __all__ = ["SkyDirections", "moon_sun_directions", "direction_ned", "altaz_from_hour_angle",
            "standard_pressure_hpa", "timescale_range", "refraction_flattening"]

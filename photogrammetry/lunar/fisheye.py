@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins import textfiles
-from ins.errors import InputError
-from ins.tomlschema import Table, check_keys
+from ins.common import textfiles
+from ins.common.errors import InputError
+from ins.common.tomlschema import Table, check_keys
 
 __all__ = ["FisheyeCamera", "read_camera", "camera_file_text", "FISHEYE_KEYS", "MODELS"]
 
@@ -202,7 +202,7 @@ class FisheyeCamera:
 
 
 #: Keys of a fisheye camera file (one section ``[camera]``); any other key is refused
-#: (:mod:`ins.tomlschema`).  Optional: ``principal_point_px`` (the image centre),
+#: (:mod:`ins.common.tomlschema`).  Optional: ``principal_point_px`` (the image centre),
 #: ``radial_k`` (zeros; equisolid only), ``opencv_k`` (zeros; opencv-fisheye only),
 #: ``pixel_size_mm`` (needed only with ``focal_length_mm``).
 FISHEYE_KEYS = {"camera": ("model", "focal_length_px", "focal_length_mm", "pixel_size_mm",

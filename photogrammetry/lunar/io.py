@@ -19,9 +19,9 @@ import re
 
 import numpy as np
 
-from ins import textfiles
-from ins.errors import InputError
-from ins.fileio import atomic_open
+from ins.common import textfiles
+from ins.common.errors import InputError
+from ins.common.fileio import atomic_open
 
 __all__ = ["read_times", "write_times", "read_centres", "load_image", "load_image_meta",
            "find_images", "fits_time", "fits_header_time", "fits_saturation", "parse_time_zone", "GPS_EPOCH",

@@ -26,9 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ins.errors import InputError
-
-from . import _limb_kernels, _limb_model
+from ins.common.errors import InputError
+from photogrammetry.lunar import _limb_kernels, _limb_model
 
 __all__ = ["MoonCentre", "MoonNotFoundError", "extract_centre", "fit_lit_limb", "lit_centroid",
            "sun_direction_in_image", "default_saturation"]

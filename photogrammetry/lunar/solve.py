@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins.rotation import rotvec_to_dcm, skew, wrap_to_2pi
-from ins.errors import InputError
+from ins.common.errors import InputError
+from ins.nav.rotation import rotvec_to_dcm, skew, wrap_to_2pi
 
 __all__ = ["cayley", "solve_rodrigues", "solve_qmethod", "refine", "heading",
            "heading_sigma", "HeadingSolution", "solve_heading", "convergence"]

@@ -25,7 +25,7 @@ folder
     (INS products + image products).
 cli
     ``ins simulate PLAN -o FLIGHT_DIR``, added to the ``ins`` tool through the
-    entry-point group ``ins.commands`` (``pyproject.toml``; see :mod:`ins.cli`).
+    entry-point group ``ins.commands`` (``pyproject.toml``; see :mod:`ins.cli.main`).
 
 The submodules are imported on demand (``from photogrammetry.simulate.folder import
 simulate_flight``).

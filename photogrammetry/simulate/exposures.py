@@ -9,9 +9,9 @@ the EO agree exactly.
 True EO (``docs/interfaces.md``, ``conventions.md``): the perspective centre is
 ``r_cam = r_imu + C_nb lever_b`` (exact, through ECEF), its mapping-frame coordinates
 are the ENU of ``r_cam`` at the block origin (``pymap3d.ecef2enu``), and the attitude is
-``C_mc = C_mn C_nb C_bc`` with the exact ``C_mn`` of :func:`photogrammetry.rotation.
+``C_mc = C_mn C_nb C_bc`` with the exact ``C_mn`` of :func:`photogrammetry.orientation.rotation.
 dcm_mn_enu`.  Angles are extracted from ``C_mc`` in both named systems
-(:func:`photogrammetry.rotation.matrix_to_angles`: ``eo_true.csv`` holds
+(:func:`photogrammetry.orientation.rotation.matrix_to_angles`: ``eo_true.csv`` holds
 ``phi-omega-kappa`` with the textbooks' sign of phi, ``R = Ry(-phi) Rx(omega) Rz(kappa)``),
 wrapped to (-pi, pi].
 """
@@ -20,10 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import pymap3d
 
-from ins.earth import offset_ecef
-from ins.rotation import quat_to_dcm
-
-from ..rotation import camera_attitude, dcm_mn_enu, matrix_to_angles
+from ins.nav.earth import offset_ecef
+from ins.nav.rotation import quat_to_dcm
+from photogrammetry.orientation.rotation import camera_attitude, dcm_mn_enu, matrix_to_angles
 
 __all__ = ["TrueExposures", "event_times", "true_exposures", "enu_of_ecef"]
 

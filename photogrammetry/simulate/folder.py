@@ -10,8 +10,7 @@ product writer :func:`photogrammetry.simulate.images.write_images`, and writes t
 of ``docs/interfaces.md`` (byte for byte what the simulator wrote before the split).
 """
 from ins.simulate import folder as ins_folder
-
-from . import images
+from photogrammetry.simulate import images
 
 __all__ = ["FILES", "simulate_flight"]
 

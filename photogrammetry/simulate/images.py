@@ -7,12 +7,12 @@ exterior orientation, tie points and their ground points.
 at the events, and writes (``docs/interfaces.md``)
 
 ``camera.toml``
-    the frame camera and its mounting (:func:`photogrammetry.camera.write_camera`);
+    the frame camera and its mounting (:func:`photogrammetry.orientation.camera.write_camera`);
 ``events.csv``
     ``image_id,time_s`` (mid-exposure, 1 us);
 ``eo_true.csv``, ``eo_true_omega-phi-kappa.csv``
     the true EO (:mod:`photogrammetry.simulate.exposures`) in both angle systems
-    (:func:`photogrammetry.exposure.write_eo_csv`);
+    (:func:`photogrammetry.orientation.exposure.write_eo_csv`);
 ``tiepoints.csv``, ``ground_points.csv``
     tie points on the seeded terrain (:mod:`photogrammetry.simulate.terrain`,
     :mod:`photogrammetry.simulate.tiepoints`) and their ground truth.
@@ -24,15 +24,14 @@ points draw from their own generators (``product_rng(seed, "terrain/<offset>")``
 """
 import numpy as np
 
-from ins import textformat
+from ins.common import textformat
 from ins.simulate.folder import product_rng, write_bytes
-
-from ..camera import CameraMounting, FrameCamera, write_camera
-from ..exposure import ExposureOrientation, write_eo_csv
-from ..mapping import EnuFrame
-from .exposures import event_times, true_exposures
-from .terrain import make_terrain
-from .tiepoints import simulate_tiepoints
+from photogrammetry.orientation.camera import CameraMounting, FrameCamera, write_camera
+from photogrammetry.orientation.exposure import ExposureOrientation, write_eo_csv
+from photogrammetry.orientation.mapping import EnuFrame
+from photogrammetry.simulate.exposures import event_times, true_exposures
+from photogrammetry.simulate.terrain import make_terrain
+from photogrammetry.simulate.tiepoints import simulate_tiepoints
 
 __all__ = ["FILES", "write_images", "camera_of"]
 
@@ -117,7 +116,7 @@ def _frame_text(exposures):
 
 
 def _write_eo(path, exposures, system):
-    """EO CSV of ``docs/interfaces.md`` (:func:`photogrammetry.exposure.write_eo_csv`)."""
+    """EO CSV of ``docs/interfaces.md`` (:func:`photogrammetry.orientation.exposure.write_eo_csv`)."""
     eo = ExposureOrientation(exposures.image_id, exposures.time, exposures.X_m,
                              exposures.angles(system), system, _frame_text(exposures))
     write_eo_csv(path, eo, comments=("true exterior orientation of the simulated flight",))

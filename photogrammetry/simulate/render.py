@@ -70,7 +70,7 @@ def render_view(camera, X0_m, C_mc, terrain, texture):
 
     Parameters
     ----------
-    camera : photogrammetry.camera.FrameCamera
+    camera : photogrammetry.orientation.camera.FrameCamera
     X0_m : array_like (3,)
         Perspective centre, mapping frame, m.
     C_mc : array_like (3, 3)

@@ -126,7 +126,7 @@ def simulate_tiepoints(exposures, camera, terrain, per_image, sigma_px, rng, mar
     ----------
     exposures : photogrammetry.simulate.exposures.TrueExposures
         True EO (mapping frame).
-    camera : photogrammetry.camera.FrameCamera
+    camera : photogrammetry.orientation.camera.FrameCamera
         Focal length, pixel size, format, principal point, distortion.
     terrain : photogrammetry.simulate.terrain.Terrain
     per_image : int

@@ -1,0 +1,305 @@
+"""``ins process``: GNSS/INS post-processing (forward filter + RTS smoother)."""
+import argparse
+import os
+import sys
+import tempfile
+import time as wallclock
+
+import numpy as np
+
+from ins.common.errors import InputError, QualityError
+
+EPILOG = """\
+inputs:
+  FLIGHT_DIR        a flight folder of 'ins simulate' (manifest.toml names the files,
+                    lever arms, IMU errors, stationary segment); --config overrides keys
+  --imu/--gnss      KF-GINS text files as they are: IMU 'time dtheta_xyz[rad]
+                    dvel_xyz[m/s]' (FRD, increment over (t[k-1], t[k]] stamped at its end);
+                    GNSS 'time lat lon[deg] h[m] std_n std_e std_d[m]' of the ANTENNA,
+                    optionally 'vn ve vd std_vn std_ve std_vd [m/s]'; or an RTKLIB .pos
+                    solution of the antenna (detected from its header: lat/lon/height,
+                    d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
+                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+  --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
+                    dgps, single, ppp or numbers 1..6; default all)
+  --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
+  --imu-time-shift-s / --gnss-time-shift-s  added to that log's stamps at read time (s):
+                    the offset of its clock against the common time base (GPS seconds of
+                    week), e.g. a GNSS stamped at reception 0.2 s late: -0.2; the offset
+                    that 'ins time-offset' prints goes into --gnss-time-shift-s as it is
+  --mount           mount log 'time roll pitch yaw [deg]' (C_ap = Rz(yaw) Ry(pitch) Rx(roll))
+  --config F.toml   initial state and sigma, IMU noise (deg/sqrt(h), m/s/sqrt(h), deg/h,
+                    mGal, ppm, h), lever arm (m, body FRD), alignment; see
+                    data/configs/kfgins_like.toml
+
+frames and units:
+  n = north-east-down, b = forward-right-down; lever arm from the IMU to the antenna in
+  b (m); with a mount l_b(t) = l_bp + C_pa(t) l_ap.
+
+start position:
+  checked against the first GNSS fix at or after the start (within 10 s): the start
+  state is moved to the fix time along its velocity and carried to the antenna through
+  the lever arm.  Farther than 5 sigma (fix, start position and velocity sigmas) + 300 m
+  is refused (exit 2, naming the config key and the distance: a start of another
+  flight, a wrong time_s, another time scale); beyond 5 sigma only, the start position
+  sigma is widened with a warning.  Without [initial] lat_deg, lon_deg, h_m the start
+  position is taken from that fix, less the lever arm (as the static and in-air
+  alignments do).
+
+trust (checked before anything is written):
+  GNSS measurements rejected by the innovation test: more than 5 % is a warning; more
+  than 50 %, none accepted, or the written solution farther than 10 fix sigmas from
+  every fix for 30 s or more (10 s or more up to the last fix: the solution ends
+  drifted) stops with exit 3, naming the counts and the likely cause
+  (start state, IMU noise settings, lever arm, time base).  --accept-poor writes the
+  outputs anyway (exit 0, the warning printed).  A negative variance or a covariance
+  that is not positive definite stops with exit 3, naming the time and the state.
+
+exit codes:
+  0 success; 2 bad input (files, config, options, start far from the GNSS fixes, an
+  output folder that is not empty without --force); 3 untrustworthy solution (nothing
+  written without --accept-poor); 130 interrupted (Ctrl-C; nothing written).
+
+outputs (in -o OUT_DIR, a new or empty folder; --force replaces an existing one whole,
+built aside and swapped in: never a mix of two runs):
+  solution.nav      smoothed trajectory, KF-GINS .nav: week t lat lon[deg] h[m]
+                    vN vE vD[m/s] roll pitch yaw[deg] (--format nav, the default)
+  sbet_solution.out with --format sbet: the smoothed trajectory as an Applanix SBET
+                    (17 little-endian doubles: GPS s of week, lat lon[rad], h[m],
+                    velocity x north y west z up[m/s], roll pitch heading[rad], wander
+                    angle 0, body accelerations and rates 0), and smrmsg_solution.out
+                    (its accuracy at the filter nodes: N E D[m], vN vE vD[m/s], roll
+                    pitch heading[arcmin]); --format nav,sbet writes both
+  forward.nav       with --forward: the forward-filter trajectory (same layout; a
+                    diagnostic, not written by default: solution.nav is the product;
+                    sbet_forward.out with --format sbet)
+  solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
+                    roll pitch yaw [deg]
+  imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
+  *.png             plots (errors against the truth when there is one, sigma, biases)
+
+example:
+  ins process --imu imu.txt --gnss gnss.txt --config data/configs/kfgins_like.toml -o out
+  ins process flight_dir -o out
+"""
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "process", help="GNSS/INS post-processing: forward Kalman filter + RTS smoother",
+        description=(
+            "Loosely coupled GNSS/INS post-processing: error-state Kalman filter with\n"
+            "closed-loop feedback (fixed or mount-varying lever arm), then a backward\n"
+            "Rauch-Tung-Striebel pass.  State layout from the config's [states]:\n"
+            "'survey' (default: the 21 KF-GINS states plus gyro and accelerometer axis\n"
+            "misalignment; lever-arm and IMU-GNSS time-offset groups on request) or\n"
+            "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
+            "scale factor)."),
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
+                   help="flight folder with manifest.toml")
+    p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
+    p.add_argument("--gnss", metavar="F",
+                   help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
+    p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
+                   help="GNSS file format (default: detected from the extension and header)")
+    p.add_argument("--gnss-quality", metavar="Q,...",
+                   help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
+    p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
+                   help="RTKLIB: sigma factor per quality, e.g. float=3,single=10")
+    p.add_argument("--imu-time-shift-s", type=float, metavar="S",
+                   help="added to the IMU stamps at read time, s (overrides [imu] "
+                        "time_shift_s)")
+    p.add_argument("--gnss-time-shift-s", type=float, metavar="S",
+                   help="added to the GNSS stamps at read time, s (overrides [gnss] "
+                        "time_shift_s)")
+    p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
+                   help="trajectory output format(s): nav (solution.nav, default), sbet "
+                        "(sbet_solution.out + smrmsg_solution.out), or both")
+    p.add_argument("--preset", metavar="NAME",
+                   help="defaults for the keys the config does not give: tactical, mems, "
+                        "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
+                        "deg/h, mGal, ppm, h)")
+    p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
+    p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
+    p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
+    p.add_argument("--no-smooth", action="store_true", help="forward filter only")
+    p.add_argument("--forward", action="store_true",
+                   help="also write forward.nav (the forward filter's trajectory)")
+    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p.add_argument("--week", type=int, default=0, help="GPS week in the .nav (default 0)")
+    p.add_argument("--accept-poor", action="store_true",
+                   help="write the outputs even when the solution is not to be trusted "
+                        "(exit 0 with the warning; default: exit 3, nothing written)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR",
+                   help="output folder (new or empty; see --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace a non-empty OUT_DIR whole (the new run is built aside "
+                        "and swapped in; nothing of the old run is kept)")
+    p.set_defaults(func=_cmd_process)
+
+
+def _config(args):
+    from ins.estimation.process_config import config_from_manifest, load_config
+    if args.flight_dir:
+        if args.imu or args.gnss:
+            raise InputError("give either FLIGHT_DIR or --imu/--gnss, not both")
+        if not os.path.isdir(args.flight_dir):
+            raise InputError(f"FLIGHT_DIR {args.flight_dir}: not a folder")
+        cfg = config_from_manifest(args.flight_dir, overrides=args.config)
+    else:
+        if not args.config:
+            raise InputError("--config F.toml is required without FLIGHT_DIR")
+        if not os.path.isfile(args.config):
+            raise InputError(f"--config {args.config}: no such file")
+        cfg = _from_args(args, load_config, args.config)
+    if args.mount:
+        cfg.mount = args.mount
+    if args.truth:
+        cfg.truth = args.truth
+    if args.no_smooth:
+        cfg.smooth = False
+    _input_options(cfg, args)
+    if args.preset:
+        from ins.common.textfiles import read_toml
+        from ins.estimation.presets import apply_preset
+        given = read_toml(args.config, "a processing config (TOML)") if args.config else {}
+        cfg = apply_preset(cfg, args.preset, given)
+    return cfg
+
+
+def _input_options(cfg, args):
+    """The GNSS format, quality policy and time shifts of the command line into ``cfg``."""
+    from ins.io.gnss_quality import parse_quality, parse_quality_scale
+    for key, path in (("imu", cfg.imu), ("gnss", cfg.gnss)):
+        if path and (os.path.isdir(path) or os.path.splitext(str(path))[1].lower()
+                     in (".bag", ".db3", ".mcap")):
+            raise InputError(f"--{key} {path}: a ROS bag; convert it first with 'ins "
+                             f"import-bag {path} -o DIR' (imu.txt, gnss.pos)")
+    if args.gnss_format:
+        cfg.gnss_format = args.gnss_format
+    if args.gnss_quality:
+        cfg.gnss_quality = parse_quality(args.gnss_quality, "--gnss-quality")
+    if args.gnss_quality_scale:
+        cfg.gnss_quality_scale = parse_quality_scale(args.gnss_quality_scale,
+                                                     "--gnss-quality-scale")
+    for name in ("imu_time_shift_s", "gnss_time_shift_s"):
+        value = getattr(args, name)
+        if value is not None:
+            if not np.isfinite(value):
+                raise InputError(f"--{name.replace('_', '-')}: expected a finite number of "
+                                 f"seconds, got {value!r}")
+            setattr(cfg, name, float(value))
+
+
+def output_formats(text):
+    """The trajectory formats of ``--format`` (``"nav"``, ``"sbet"``, ``"nav,sbet"``)."""
+    from ins.estimation.process_outputs import OUTPUT_FORMATS
+    formats = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    bad = [f for f in formats if f not in OUTPUT_FORMATS]
+    if bad or not formats:
+        raise InputError(f"--format {text!r}: expected nav, sbet or nav,sbet")
+    return formats
+
+
+def _from_args(args, load_config, path):
+    from ins.common.textfiles import read_toml
+    has_files = "files" in read_toml(path, "a processing config (TOML)")
+    if not has_files and not (args.imu and args.gnss):
+        raise InputError("--imu and --gnss are required (the config has no [files])")
+    return load_config(path, files={"imu": args.imu, "gnss": args.gnss})
+
+
+def _cmd_process(args):
+    from ins.cli.util import Progress
+    from ins.common.fileio import output_folder
+    from ins.estimation.process import process
+    from ins.estimation.process_outputs import write_outputs
+    t0 = wallclock.perf_counter()
+    formats = output_formats(args.format)
+    cfg = _config(args)
+    progress = Progress("process", not args.quiet)
+    progress.note(f"reading {cfg.imu} ...")
+    # the run is built in a hidden sibling of OUT_DIR and swapped in whole at the end;
+    # on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is written
+    with output_folder(args.output, force=args.force) as stage:
+        # the forward trajectory and the node matrices are spilled to temporary files
+        # inside the staged folder (memory bounded whatever the length of the log),
+        # removed before the swap
+        with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
+            try:
+                result = process(cfg, progress=progress, workdir=work,
+                                 accept_poor=args.accept_poor)
+            except QualityError as exc:
+                raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
+                                   f"outputs anyway).") from None
+            t1 = wallclock.perf_counter()
+            names = write_outputs(result, stage, week=args.week, forward=args.forward,
+                                  formats=formats)
+            if not args.no_plots:
+                from ins.estimation.plots import write_plots
+                names += write_plots(result, stage, flight_dir=args.flight_dir)
+        t2 = wallclock.perf_counter()
+    paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
+    if not args.quiet:
+        _summary(result, cfg, paths, t1 - t0, t2 - t1)
+    return 0
+
+
+def _cell(value, width=10, decimals=2):
+    """``value`` right-aligned in exactly ``width`` characters: fixed-point when it
+    fits, else scientific (never wider, so that columns never run together)."""
+    text = f"{value:.{decimals}f}"
+    if len(text) > width:
+        text = f"{value:.{max(width - 7, 1)}e}"
+    return text.rjust(width)
+
+
+def _table(title, columns, rows, width=10):
+    """Lines of a table: a label column, then ``columns`` in cells of ``width``
+    characters separated by a space."""
+    label = max([len(title)] + [len(name) for name, _ in rows])
+    lines = [f"{title:<{label}} " + " ".join(c.rjust(width) for c in columns)]
+    for name, values in rows:
+        lines.append(f"{name:<{label}} " + " ".join(_cell(v, width) for v in values))
+    return lines
+
+
+def _summary(result, cfg, paths, t_proc, t_write):
+    c = result.counts
+    out = sys.stdout
+    print(f"{c['imu_epochs']} IMU epochs, {c['gnss_records']} GNSS records: {c['updates']} "
+          f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
+          f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
+          file=out)
+    q = result.quality
+    if q is not None and np.isfinite(q["residual_rms_m"]):
+        print(f"solution vs GNSS fixes (antenna): residual RMS {q['residual_rms_m']:.3g} m, "
+              f"max {q['residual_max_m']:.3g} m; {q['rejected']} of {q['tested']} "
+              f"measurements rejected ({100 * q['rejected_fraction']:.1f} %)", file=out)
+    if result.start_check is not None:
+        s = result.start_check
+        print(f"start: {s['distance_m']:.3g} m from the first GNSS fix (bound "
+              f"{s['bound_m']:.4g} m)", file=out)
+    if result.alignment is not None:
+        al = result.alignment
+        from ins.estimation.error_model import NAV
+        from ins.nav.rotation import quat_to_euler
+        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, NAV.q_nb]))
+        print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
+              f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
+              f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
+    print(f"processed in {t_proc:.2f} s, wrote {len(paths)} files in {t_write:.2f} s", file=out)
+    if result.errors_smoothed is not None:
+        rows = []
+        for name, e in (("forward", result.errors_forward),
+                        ("smoothed", result.errors_smoothed)):
+            p = 1e3 * np.sqrt(np.mean(e.pos_n ** 2, axis=0))
+            a = np.sqrt(np.mean(e.att_n ** 2, axis=0)) * 180 / np.pi * 3600
+            rows.append((name, (*p, *a)))
+        for line in _table("RMS vs truth", ("N mm", "E mm", "D mm", "tiltN as", "tiltE as",
+                                            "head as"), rows):
+            print(line, file=out)
+    for p in paths:
+        print(f"  {p}", file=out)

@@ -1,0 +1,28 @@
+"""Checks of the rows of a numeric table read from a file: finite values, strictly
+increasing time; errors name the file and the line (through the row-to-line map of
+:func:`ins.common.textfiles.read_table`)."""
+import os
+
+import numpy as np
+
+from ins.common.errors import InputError
+
+__all__ = ["check_rows"]
+
+
+def check_rows(rows, row_line, path, time_col=0, name_duplicates=True):
+    """Every value finite and the time column strictly increasing, else an
+    :class:`InputError` naming the file and line (a duplicated epoch named as such
+    unless ``name_duplicates`` is false)."""
+    path = os.fspath(path)
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+    if bad.size:
+        raise InputError("non-finite value", path=path, line=int(row_line[bad[0]]))
+    t = rows[:, time_col]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        k = back[0] + 1
+        what = ("duplicated epoch" if name_duplicates and t[k] == t[k - 1]
+                else "time not increasing")
+        raise InputError(f"{what}: t = {float(t[k])!r} s after {float(t[k - 1])!r} s",
+                         path=path, line=int(row_line[k]))

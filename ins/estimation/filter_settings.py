@@ -1,0 +1,102 @@
+"""Settings of the forward GNSS/INS filter (:class:`FilterSettings`): IMU noise, lever arm,
+initial standard deviations and sensor estimates, measurement options, node interval."""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ins.common.errors import InputError
+from ins.estimation.error_model import KFGINS, ImuNoise, StateLayout
+from ins.estimation.lever_arm import LeverArm
+
+DEG = np.pi / 180.0
+ARCSEC = DEG / 3600.0
+
+
+@dataclass
+class FilterSettings:
+    """Settings of the forward filter.
+
+    Parameters
+    ----------
+    noise : ImuNoise
+        IMU noise (also gives the initial sigma of the sensor states).
+    lever : LeverArm
+        Antenna lever arm.
+    pos_std_ned_m, vel_std_ned_mps : array_like, shape (3,)
+        Initial position (m) and velocity (m/s) standard deviations, NED.
+    att_std_deg : array_like, shape (3,)
+        Initial attitude standard deviations (roll, pitch, heading), deg.
+    initial_sensors : array_like, shape (12,)
+        Initial gyro bias (rad/s), accel bias (m/s^2), gyro and accel scale (1).
+    use_velocity : bool
+        Use the GNSS velocity columns when the file has them.
+    reject_probability : float
+        Innovation-test false-rejection probability (chi-square with 3 dof).
+    node_interval_s : float
+        Longest interval between two covariance steps, s.
+    layout : ins.estimation.error_model.StateLayout
+        The error states (default: the 21 KF-GINS states).
+    gyro_misalignment_std_arcsec, accel_misalignment_std_arcsec : float or (3,)
+        Prior sigma of the non-orthogonality states, arcsec.
+    lever_arm_std_m : float or (3,)
+        Prior sigma of the lever-arm correction, m (b frame).
+    time_offset_std_ms : float
+        Prior sigma of the IMU-GNSS time offset, ms.
+    zupt : bool
+        Zero-velocity updates at the nodes where the IMU is found at rest (the spread of
+        the specific-force norm below ``zupt_accel_std_mps2`` and every angular rate
+        below ``zupt_gyro_dps`` over the rows since the last node, with the filter's
+        speed below ``ins.estimation.filter.ZUPT_MAX_SPEED_MPS``) or that fall in one of
+        ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
+    nhc : bool
+        Non-holonomic constraint at every node (lateral and vertical velocity 0 in the
+        vehicle axes, sigma ``nhc_sigma_mps``): for land vehicles.
+    nhc_C_vb : array_like, shape (3, 3), optional
+        The IMU's mounting in the vehicle, ``v_v = C_vb v_b`` (``[vehicle]
+        mounting_rpy_deg``, :mod:`ins.estimation.vehicle`); ``None``: the IMU's axes are the vehicle's.
+    heading : sequence of ins.estimation.measurements.DualAntennaHeading, optional
+        Dual-antenna headings, processed at the node of their time.
+    """
+
+    noise: ImuNoise = field(default_factory=ImuNoise)
+    lever: LeverArm = field(default_factory=lambda: LeverArm(np.zeros(3)))
+    pos_std_ned_m: object = (0.05, 0.05, 0.05)
+    vel_std_ned_mps: object = (0.02, 0.02, 0.02)
+    att_std_deg: object = (0.01, 0.01, 0.1)
+    initial_sensors: object = None
+    use_velocity: bool = True
+    reject_probability: float = 1e-5
+    node_interval_s: float = 1.0
+    layout: StateLayout = KFGINS
+    gyro_misalignment_std_arcsec: object = 100.0
+    accel_misalignment_std_arcsec: object = 100.0
+    lever_arm_std_m: object = 0.05
+    time_offset_std_ms: float = 5.0
+    zupt: bool = False
+    zupt_sigma_mps: float = 0.005
+    zupt_accel_std_mps2: float = 0.05
+    zupt_gyro_dps: float = 0.5
+    zupt_windows_s: tuple = ()
+    nhc: bool = False
+    nhc_sigma_mps: float = 0.1
+    nhc_C_vb: object = None
+    heading: tuple = ()
+
+    def prior_std(self):
+        """Prior standard deviations of the optional groups of :attr:`layout`, SI."""
+        edge = {"gyro_misalignment": (self.gyro_misalignment_std_arcsec, ARCSEC, 3),
+                "accel_misalignment": (self.accel_misalignment_std_arcsec, ARCSEC, 3),
+                "lever_arm": (self.lever_arm_std_m, 1.0, 3),
+                "time_offset": (self.time_offset_std_ms, 1e-3, 1)}
+        return np.concatenate([[]] + [np.broadcast_to(np.asarray(edge[g][0], float), edge[g][2])
+                                      * edge[g][1] for g in self.layout.groups])
+
+    def initial_covariance(self):
+        std = np.concatenate([np.broadcast_to(np.asarray(self.pos_std_ned_m, float), 3),
+                              np.broadcast_to(np.asarray(self.vel_std_ned_mps, float), 3),
+                              np.broadcast_to(np.asarray(self.att_std_deg, float), 3) * DEG,
+                              self.noise.sensor_std, self.prior_std()])
+        if np.any(~np.isfinite(std)) or np.any(std <= 0):
+            raise InputError(f"initial standard deviations must be > 0, got "
+                             f"{dict(zip(self.layout.names, std))}")
+        return np.diag(std ** 2)

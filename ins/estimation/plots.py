@@ -1,0 +1,229 @@
+"""PNG plots of a processing result (matplotlib, Agg backend, imported lazily).
+
+Style shared with the other figures of the toolkit (:mod:`ins.common.plotstyle`): titles,
+"time since start, s" with the start as GPS second of week in the title, positions
+in mm/cm as the values need, angles in arcsec, y-limits from the data after the
+forward filter's first minute, legends outside the data, the simulator's injected
+biases beside the estimates when known.
+"""
+import os
+
+import numpy as np
+
+from ins.common.plotstyle import (
+    ARCSEC,
+    TRANSIENT_S,
+    legend_right,
+    length_unit,
+    plain_log_ticks,
+    pyplot,
+    robust_limits,
+    save_png,
+    time_label,
+)
+from ins.estimation.error_model import SENSORS, STATE
+
+__all__ = ["plot_errors", "plot_sigma", "plot_biases", "plot_innovations", "injected_biases",
+           "write_plots"]
+
+_DPH = np.pi / 180.0 / 3600.0          # rad/s per deg/h
+_MGAL = 1e-5                           # m/s^2 per mGal
+_POS = ("north", "east", "down")
+_ATT = ("tilt N", "tilt E", "heading")
+
+
+def _decimate(time, values, limit=20000):
+    step = max(1, len(time) // limit)
+    return time[::step], values[::step]
+
+
+def _shade_transient(ax, t_end):
+    ax.axvspan(0.0, min(TRANSIENT_S, t_end / 3.0), color="0.92", zorder=0, lw=0)
+
+
+def plot_errors(result, path):
+    """Position (mm or cm) and attitude (arcsec) errors against the truth, forward and
+    smoothed, with the smoothed 3-sigma envelope; y-limits from the smoothed curve and
+    its envelope after the first minute (the forward curve beyond them is clipped and
+    its largest value given in the legend)."""
+    plt = pyplot()
+    fig, axes = plt.subplots(6, 1, figsize=(10, 13), sharex=True)
+    t0 = result.node_time[0]
+    tn = result.node_time - t0
+    xlabel, origin = time_label(t0)
+    es, ef = result.errors_smoothed, result.errors_forward
+    pos_scale, pos_unit = length_unit(3 * result.smoothed_std[:, STATE.pos])
+    for i, ax in enumerate(axes):
+        att = i >= 3
+        scale, unit = (1.0 / ARCSEC, "arcsec") if att else (pos_scale, pos_unit)
+        name = _ATT[i - 3] if att else _POS[i]
+        sig = 3 * scale * result.smoothed_std[:, STATE.att.start + i - 3 if att
+                                                  else STATE.pos.start + i]
+        curves = {}
+        for label, e, style, lw in (("forward", ef, "C1", 0.6), ("smoothed", es, "C0", 0.9)):
+            if e is None:
+                continue
+            series = e.att_n[:, i - 3] if att else e.pos_n[:, i]
+            t, v = _decimate(e.time - t0, scale * series)
+            curves[label] = (t, v)
+            ax.plot(t, v, style, lw=lw, label=label)
+        ax.plot(tn, sig, "k:", lw=0.8, label="smoothed 3 sigma")
+        ax.plot(tn, -sig, "k:", lw=0.8)
+        fit = [sig] + ([curves["smoothed"][1]] if "smoothed" in curves else [])
+        lims = robust_limits(tn, fit, symmetric=True, margin=0.3)
+        if "smoothed" in curves:       # the smoothed curve has its own time axis
+            ts, vs = curves["smoothed"]
+            more = robust_limits(ts, [vs], symmetric=True, margin=0.3)
+            lims = (min(lims[0], more[0]), max(lims[1], more[1]))
+        ax.set_ylim(*lims)
+        handles, labels = ax.get_legend_handles_labels()
+        if "forward" in curves:
+            peak = np.nanmax(np.abs(curves["forward"][1]))
+            if peak > lims[1]:
+                labels[0] = f"forward (clipped;\nmax |error| {peak:.0f} {unit})"
+        legend_right(ax, handles, labels, fontsize=7)
+        _shade_transient(ax, tn[-1])
+        ax.set_ylabel(f"{name} error, {unit}")
+        ax.axhline(0, color="k", lw=0.4)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    fig.suptitle(f"Trajectory errors against the truth (position {pos_unit}, attitude arcsec)"
+                 f"\n{origin}")
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def plot_sigma(result, path):
+    """Forward and smoothed 1-sigma of position (mm or cm), velocity (mm/s or cm/s) and
+    attitude (arcsec: tilt N, tilt E, heading); log axes limited to the values after
+    the first minute."""
+    plt = pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    t0 = result.node_time[0]
+    t = result.node_time - t0
+    xlabel, origin = time_label(t0)
+    ps, pu = length_unit(result.smoothed_std[:, STATE.pos])
+    vs, vu = length_unit(result.smoothed_std[:, STATE.vel])
+    for ax, sl, scale, label, comps in (
+            (axes[0], STATE.pos, ps, f"position sigma, {pu}", _POS),
+            (axes[1], STATE.vel, vs, f"velocity sigma, {vu}/s", _POS),
+            (axes[2], STATE.att, 1 / ARCSEC, "attitude sigma, arcsec", _ATT)):
+        fwd, smo = scale * result.forward_std[:, sl], scale * result.smoothed_std[:, sl]
+        for k, comp in enumerate(comps):
+            ax.semilogy(t, fwd[:, k], f"C{k}--", lw=0.7, label=f"{comp} forward")
+            ax.semilogy(t, smo[:, k], f"C{k}", lw=0.9, label=f"{comp} smoothed")
+        lims = robust_limits(t, [fwd, smo], log=True)
+        if lims is not None:
+            ax.set_ylim(*lims)
+        plain_log_ticks(ax)
+        _shade_transient(ax, t[-1])
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, which="both")
+        legend_right(ax, fontsize=7)
+    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    fig.suptitle(f"Standard deviations of the solution, forward filter and smoother\n{origin}")
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def injected_biases(flight_dir):
+    """The constant biases a simulated flight injected (``manifest.toml`` ``[imu]``):
+    ``{"gyro_bias_dph": (3,), "accel_bias_mgal": (3,)}``, or None when the folder has
+    no manifest or the manifest no such values."""
+    path = os.path.join(flight_dir, "manifest.toml")
+    if not os.path.isfile(path):
+        return None
+    import tomllib
+    try:                 # decoration only: ins process has read the manifest already
+        with open(path, "rb") as f:
+            imu = tomllib.load(f).get("imu", {})
+        return {k: np.asarray(imu[k], float).reshape(3) for k in
+                ("gyro_bias_dph", "accel_bias_mgal")}
+    except (OSError, tomllib.TOMLDecodeError, KeyError, ValueError, TypeError):
+        return None
+
+
+def plot_biases(result, path, injected=None):
+    """Gyro (deg/h) and accelerometer (mGal) bias estimates, forward and smoothed, and
+    the injected constant biases of a simulation (``injected``, as returned by
+    :func:`injected_biases`) beside them."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
+    t0 = result.node_time[0]
+    t = result.node_time - t0
+    xlabel, origin = time_label(t0)
+    for ax, sl, scale, label, key in (
+            (axes[0], SENSORS.gyro_bias, 1 / _DPH, "gyro bias, deg/h", "gyro_bias_dph"),
+            (axes[1], SENSORS.accel_bias, 1 / _MGAL, "accel bias, mGal", "accel_bias_mgal")):
+        fwd = scale * result.forward_sensors[:, sl]
+        smo = scale * result.smoothed_sensors[:, sl]
+        fit = [fwd, smo]
+        for k, axis in enumerate("xyz"):
+            ax.plot(t, fwd[:, k], f"C{k}--", lw=0.7, label=f"{axis} forward")
+            ax.plot(t, smo[:, k], f"C{k}", lw=1.0, label=f"{axis} smoothed")
+            if injected is not None:
+                ax.axhline(injected[key][k], color=f"C{k}", ls=":", lw=1.6,
+                           label=f"{axis} injected (manifest)")
+        if injected is not None:
+            fit.append(injected[key])
+        ax.set_ylim(*robust_limits(t, fit, margin=0.08))
+        _shade_transient(ax, t[-1])
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        legend_right(ax, fontsize=7)
+    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    truth = ("; dotted: the constant biases the simulator injected (its bias "
+             "instability comes on top)" if injected is not None else "")
+    fig.suptitle(f"Sensor bias estimates (body axes x, y, z){truth}\n{origin}", fontsize=10)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def plot_innovations(result, path):
+    """Standardized innovations ``z_i / sqrt(S_ii)`` of every tested measurement against
+    time, one panel per measurement type, one colour per axis, the +-3 band; rejected
+    records as crosses."""
+    plt = pyplot()
+    recs = getattr(getattr(result, "fwd", None), "records", None) or []
+    kinds = list(dict.fromkeys(r.name for r in recs))
+    if not kinds:
+        return None
+    t0 = float(result.node_time[0])
+    fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
+                             squeeze=False)
+    for ax, kind in zip(axes[:, 0], kinds):
+        sel = [r for r in recs if r.name == kind]
+        t = np.array([r.time for r in sel]) - t0
+        z = np.array([r.standardized for r in sel])
+        ok = np.array([r.accepted for r in sel])
+        for i, axis in enumerate(sel[0].axes):
+            rms = np.sqrt(np.mean(z[ok, i] ** 2)) if np.any(ok) else np.nan
+            ax.plot(t[ok], z[ok, i], ".", ms=2, label=f"{axis}: RMS {rms:.2f}")
+            if np.any(~ok):
+                ax.plot(t[~ok], np.clip(z[~ok, i], -10, 10), "x", ms=4, color="k")
+        ax.axhline(3, color="0.5", lw=0.8, ls="--")
+        ax.axhline(-3, color="0.5", lw=0.8, ls="--")
+        ax.set_ylim(-6, 6)
+        ax.set_ylabel(f"{kind}\ninnovation / sigma")
+        ax.grid(alpha=0.3)
+        legend_right(ax, fontsize=7)
+    xlabel, origin = time_label(t0)
+    axes[-1, 0].set_xlabel(xlabel)
+    fig.suptitle("Standardized innovations (predicted - measured) / sqrt(S_ii); dashed: "
+                 f"+-3; crosses: rejected (clipped at +-10)\n{origin}", fontsize=10)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
+def write_plots(result, out_dir, flight_dir=None):
+    """Write the PNG plots into ``out_dir``; returns their paths.  ``flight_dir``: a
+    simulated flight folder whose manifest gives the injected biases (optional)."""
+    injected = injected_biases(flight_dir) if flight_dir else None
+    paths = [plot_sigma(result, os.path.join(out_dir, "sigma.png")),
+             plot_biases(result, os.path.join(out_dir, "biases.png"), injected)]
+    if result.errors_smoothed is not None:
+        paths.append(plot_errors(result, os.path.join(out_dir, "errors.png")))
+    inn = plot_innovations(result, os.path.join(out_dir, "innovations.png"))
+    if inn is not None:
+        paths.append(inn)
+    return paths

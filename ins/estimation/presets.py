@@ -1,0 +1,83 @@
+"""Named processing presets for ``ins process --preset NAME``: default values of the
+processing config's keys (``ins.estimation.process_config``) for a class of IMU.
+
+A preset fills only what the config (or the flight folder's manifest) does not give:
+the user's own values always win.  Each preset is a table of TOML tables, in the
+config's key names and units::
+
+    tactical   a tactical-grade IMU (fibre-optic or good MEMS gyros, ~1 deg/h)
+    mems       a consumer / phone MEMS IMU (~100 deg/h, ~5 mg; values that process the
+               comma2k19 phone at 104 Hz: tools/comma2k19.py, docs/real-data.md)
+    land       mems for a land vehicle: ``[measurements] nhc = true`` (lateral and
+               vertical velocity 0 in the VEHICLE axes: give the IMU's mounting as
+               ``[vehicle] mounting_rpy_deg`` unless its axes are the vehicle's;
+               ``ins vehicle-mounting`` estimates it from a first solution) and
+               ``zupt = true`` (zero-velocity updates where the IMU is found at rest)
+
+The values are 1-sigma statistics in KF-GINS's units (deg/sqrt(h), m/s/sqrt(h), deg/h,
+mGal, ppm, h).
+"""
+from dataclasses import replace
+
+from ins.common.errors import InputError
+
+_MEMS_NOISE = {"arw_deg_sqrth": 0.3, "vrw_mps_sqrth": 0.1, "gyro_bias_std_dph": 100.0,
+               "accel_bias_std_mgal": 5000.0, "gyro_scale_std_ppm": 1000.0,
+               "accel_scale_std_ppm": 1000.0, "corr_time_h": 1.0}
+
+#: The presets: name -> {table: {key: value}} in the processing config's names and units.
+PRESETS = {
+    "tactical": {"imu_noise": {"arw_deg_sqrth": 0.05, "vrw_mps_sqrth": 0.05,
+                               "gyro_bias_std_dph": 1.0, "accel_bias_std_mgal": 200.0,
+                               "gyro_scale_std_ppm": 100.0, "accel_scale_std_ppm": 100.0,
+                               "corr_time_h": 1.0}},
+    "mems": {"imu_noise": dict(_MEMS_NOISE)},
+    "land": {"imu_noise": dict(_MEMS_NOISE),
+             "measurements": {"nhc": True, "zupt": True}},
+}
+
+#: Tables of a preset whose keys go into the ``ProcessConfig`` dictionary of that name
+#: (``[measurements]`` -> ``cfg.measurements``, the ``[states]`` priors -> ``cfg.priors``).
+_DICT_TABLES = {"measurements": "measurements", "states": "priors"}
+
+
+def names():
+    """The preset names, sorted."""
+    return sorted(PRESETS)
+
+
+def preset(name):
+    """A copy of preset ``name`` ({table: {key: value}}).
+
+    Raises
+    ------
+    InputError
+        An unknown name (the known ones listed).
+    """
+    if name not in PRESETS:
+        raise InputError(f"--preset {name!r}: unknown preset; known presets: "
+                         f"{', '.join(names())}")
+    return {table: dict(keys) for table, keys in PRESETS[name].items()}
+
+
+def apply_preset(cfg, name, given=None):
+    """``cfg`` (an ``ins.estimation.process_config.ProcessConfig``) with the preset's values for
+    every key NOT in ``given`` (a parsed config TOML, {table: {key: value}}: the user's
+    own values).  A config built from a flight folder's manifest keeps the manifest's
+    IMU noise (``cfg.source == "manifest"``).  Returns a new config; ``cfg`` is not
+    modified.
+    """
+    from copy import copy
+    values = preset(name)
+    given = given or {}
+    out = copy(cfg)
+    noise = {k: v for k, v in values.get("imu_noise", {}).items()
+             if k not in given.get("imu_noise", {})}
+    if noise and cfg.source != "manifest":
+        out.noise = replace(cfg.noise, **noise)
+    for table, attr in _DICT_TABLES.items():
+        fill = {k: v for k, v in values.get(table, {}).items()
+                if k not in given.get(table, {})}
+        if fill:
+            setattr(out, attr, {**getattr(cfg, attr), **fill})
+    return out

@@ -1,0 +1,378 @@
+"""GNSS/INS post-processing pipeline: configuration or flight manifest -> files -> forward
+filter -> RTS smoother -> results (and the output files).
+
+The configuration (TOML keys, the flight manifest) is read by :mod:`ins.estimation.process_config`;
+the output files are written by :mod:`ins.estimation.process_outputs`.
+Library code: nothing is printed; progress goes to ``progress(done, total)``.
+
+The trust checks (the start position against the first GNSS fix; the assessment after the
+run) are in :mod:`ins.estimation.process_trust`.
+"""
+import itertools
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+
+from ins.common.errors import InputError, QualityError, QualityWarning
+from ins.estimation import _filter_kernels
+from ins.estimation.alignment import align_gnss_heading, align_static, check_static_heading
+from ins.estimation.error_model import NAV, STATE
+from ins.estimation.filter import filterpy_functions, run_forward
+from ins.estimation.filter_settings import FilterSettings
+from ins.estimation.lever_arm import LeverArm
+from ins.estimation.process_config import POSITION_KEYS, filter_options
+from ins.estimation.process_trust import (
+    START_FIX_WINDOW_S,
+    START_SIGMAS,
+    assess_quality,
+    check_start,
+    first_fix_at,
+    fix_name,
+)
+from ins.estimation.smoother import iter_smoothed, rts_errors
+from ins.io.gnss import read_gnss
+from ins.io.imu_blocks import iter_imu, prefetch
+from ins.io.imu_files import shifted_blocks
+from ins.io.mount import read_mount
+from ins.nav import earth
+from ins.nav.imu import ImuLog
+from ins.nav.mechanization import NavState
+from ins.nav.trajectory import Trajectory
+
+
+@dataclass
+class ProcessResult:
+    """Results of :func:`process` (SI units).
+
+    The trajectories at every IMU epoch are streamed: :meth:`iter_forward` and
+    :meth:`iter_smoothed` yield :class:`~ins.nav.trajectory.Trajectory` pieces in time order
+    (from the forward pass's store, in memory or a temporary file); :attr:`forward` and
+    :attr:`smoothed` give them whole (in memory).  ``node_time`` holds the filter nodes
+    with ``forward_std``/``smoothed_std`` (m, 21) and ``forward_sensors``/
+    ``smoothed_sensors`` (m, 12: gyro bias rad/s, accel bias m/s^2, scales);
+    ``errors_forward``/``errors_smoothed`` (:class:`ins.nav.accuracy.TrajectoryErrors`) when
+    a truth file was given; ``quality`` the assessment of :func:`assess_quality` and
+    ``start_check`` that of :func:`check_start` (when the run made them).
+    """
+
+    fwd: object
+    xs: object
+    node_time: np.ndarray
+    forward_std: np.ndarray
+    smoothed_std: np.ndarray
+    forward_sensors: np.ndarray
+    smoothed_sensors: np.ndarray
+    alignment: object
+    counts: dict
+    errors_forward: object = None
+    errors_smoothed: object = None
+    quality: dict = None
+    start_check: dict = None
+
+    def iter_forward(self):
+        for _, time, states in self.fwd.trajectory.chunks():
+            yield _trajectory(time, states)
+
+    def iter_smoothed(self):
+        if self.xs is None:
+            yield from self.iter_forward()
+            return
+        for time, states in iter_smoothed(self.fwd, self.xs):
+            yield _trajectory(time, states)
+
+    @cached_property
+    def forward(self):
+        return Trajectory.concatenate(self.iter_forward())
+
+    @cached_property
+    def smoothed(self):
+        return Trajectory.concatenate(self.iter_smoothed())
+
+    def node_solution(self):
+        """The written solution (smoothed, else forward) at the nodes (after their
+        updates), shape (m, 10) in the ``ins.nav._kernels`` layout."""
+        states = self.fwd.node_states.copy()
+        if self.xs is not None:
+            for j in range(len(states)):
+                _filter_kernels.correct_state(states[j], self.xs[j, STATE.nav])
+        return states
+
+    def node_attitude(self):
+        """Smoothed attitude quaternions at the nodes, shape (m, 4)."""
+        return self.node_solution()[:, NAV.q_nb]
+
+
+def _initial(cfg, imu, gnss):
+    """Initial state, its time and the alignment (``None`` for a given state) for a
+    whole :class:`~ins.nav.imu.ImuLog`."""
+    st = _start(cfg, [imu], gnss)
+    return st.state, st.time, st.alignment
+
+
+@dataclass
+class _Start:
+    """The start of a run: state, its time, the alignment (or None), the IMU blocks to
+    process, ``initial_time`` for :func:`ins.estimation.filter.run_forward` (the state's exact time
+    when it is not an IMU epoch), sigmas implied by a position taken from GNSS, and the
+    name of what gave the position (for messages)."""
+
+    state: NavState
+    time: float
+    alignment: object
+    blocks: object
+    initial_time: float = None
+    std: dict = field(default_factory=dict)
+    position_source: str = None
+
+
+def _lever(cfg, mount=None):
+    return LeverArm(cfg.lever_bp, cfg.lever_ap, mount)
+
+
+def _config_position(cfg):
+    """Name of the config keys that gave the start position (for messages)."""
+    keys = "[initial] lat_deg, lon_deg, h_m"
+    return f"{cfg.initial_source}: {keys}" if cfg.initial_source else keys
+
+
+def _less_lever_arm(lla_ant, q_nb, lever, t):
+    """IMU position (lat, lon rad, h m) of an antenna position, through the arm at ``t``."""
+    from ins.nav.rotation import quat_to_dcm
+    l_b = lever.at(t)[0][0]
+    return earth.offset_lla(lla_ant, -(quat_to_dcm(q_nb) @ l_b))[0]
+
+
+def _peek(blocks):
+    """The first IMU block and an iterator giving all of them."""
+    blocks = iter(blocks)
+    first = next(blocks, None)
+    if first is None:
+        raise InputError("the IMU log is empty")
+    return first, itertools.chain([first], blocks)
+
+
+def _start(cfg, blocks, gnss, lever=None):
+    """The start of a run (:class:`_Start`); the IMU blocks read for a static window (or
+    peeked at for the start time) are given back in ``blocks``."""
+    lever = _lever(cfg) if lever is None else lever
+    init = cfg.initial
+    if cfg.method == "given":
+        need = ("vel_ned_mps", "rpy_deg")
+        missing = [k for k in need if k not in init]
+        have = [k for k in POSITION_KEYS if k in init]
+        if 0 < len(have) < 3:
+            missing += [k for k in POSITION_KEYS if k not in init]
+        if missing:
+            where = f"{cfg.initial_source}: " if cfg.initial_source else ""
+            raise InputError(f"{where}[initial] {', '.join(missing)}: needed with alignment "
+                             f"method 'given' (lat_deg, lon_deg, h_m all three or none: "
+                             f"without them the start position is taken from the first "
+                             f"GNSS fix, less the lever arm)")
+        t0 = init.get("time_s", cfg.start_s)
+        if t0 is None:
+            first, blocks = _peek(blocks)
+            t0 = float(first.time[0])
+        if have:
+            state = NavState.from_degrees(init["lat_deg"], init["lon_deg"], init["h_m"],
+                                          init["vel_ned_mps"], init["rpy_deg"])
+            return _Start(state, t0, None, blocks, position_source=_config_position(cfg))
+        k = first_fix_at(gnss, t0)
+        if k is None or gnss.time[k] - t0 > START_FIX_WINDOW_S:
+            raise InputError(f"[initial] lat_deg, lon_deg, h_m: not given and no GNSS fix "
+                             f"within {START_FIX_WINDOW_S:g} s after the start {t0!r} s to "
+                             f"take the start position from (give them, or check time_s "
+                             f"and the time scales of the logs)")
+        v_n = np.asarray(init["vel_ned_mps"], dtype=float)
+        q = NavState.from_degrees(0.0, 0.0, 0.0, v_n, init["rpy_deg"]).q_nb
+        dt = float(gnss.time[k] - t0)
+        lla = _less_lever_arm(gnss.lla[k], q, lever, gnss.time[k])
+        lla = lla - earth.lla_rate(lla[0], lla[2], v_n) * dt           # back to t0
+        vel_std = np.broadcast_to(np.asarray(init.get("vel_std_ned_mps", 0.02), float), 3)
+        std = {"pos_std_ned_m": np.hypot(np.hypot(gnss.sigma_ned_m[k], 0.01), vel_std * dt)}
+        return _Start(NavState(lla, v_n, q), t0, None, blocks, initial_time=t0, std=std,
+                      position_source=f"the start position from {fix_name(gnss, k)}")
+    if cfg.method == "static":
+        if cfg.static_window_s is None:
+            raise InputError("[alignment] static_window_s: needed with method 'static'")
+        t_a, t_b = cfg.static_window_s
+        lla_w, k = _window_lla(cfg, gnss, t_a, t_b)
+        if not check_static_heading(cfg.noise, float(lla_w[0]), t_b - t_a, gnss):
+            return _in_air(cfg, gnss, t_b, lever, blocks)
+        head, blocks = _read_until(blocks, t_b)
+        imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
+                             for k_ in ("time", "dtheta_b", "dvel_b")))
+        al = align_static(imu, t_a, t_b, lla_w, cfg.noise)
+        blocks = itertools.chain(head, blocks)
+        if k is None:                                   # the config gave the position
+            return _Start(al.state, al.time, al, blocks,
+                          position_source=_config_position(cfg))
+        lla = _less_lever_arm(gnss.lla[k], al.state.q_nb, lever, gnss.time[k])
+        al = replace(al, state=NavState(lla, al.state.v_n, al.state.q_nb))
+        return _Start(al.state, al.time, al, blocks,
+                      position_source=f"the static alignment's position ({fix_name(gnss, k)})")
+    t_start = cfg.start_s
+    if t_start is None and cfg.static_window_s is not None:
+        t_start = cfg.static_window_s[0]
+    return _in_air(cfg, gnss, t_start, lever, blocks)
+
+
+def _in_air(cfg, gnss, t_start, lever, blocks):
+    al = align_gnss_heading(gnss, t_start, stabilized=cfg.mount is not None)
+    lla = _less_lever_arm(al.state.lla, al.state.q_nb, lever, al.time)
+    al = replace(al, state=NavState(lla, al.state.v_n, al.state.q_nb))
+    return _Start(al.state, al.time, al, blocks, initial_time=al.time,
+                  position_source="the in-air alignment's position (GNSS)")
+
+
+def _window_lla(cfg, gnss, t_a, t_b):
+    """Position for a static window: from the config (index None) or the first GNSS fix
+    in the window (the antenna's; with its index)."""
+    init = cfg.initial
+    if "lat_deg" in init:
+        return np.array([np.deg2rad(init["lat_deg"]), np.deg2rad(init["lon_deg"]),
+                         init.get("h_m", 0.0)]), None
+    k = int(np.searchsorted(gnss.time, t_a))
+    if k >= len(gnss) or gnss.time[k] > t_b:
+        raise InputError(f"no GNSS epoch in the stationary window {t_a} .. {t_b} s "
+                         f"to position the static alignment")
+    return gnss.lla[k], k
+
+
+def _read_until(blocks, t_end):
+    """The IMU blocks up to the one holding ``t_end``, and the iterator of the rest."""
+    blocks = iter(blocks)
+    head = []
+    for b in blocks:
+        head.append(b)
+        if b.time[-1] >= t_end:
+            break
+    if not head:
+        raise InputError("the IMU log is empty")
+    return head, blocks
+
+
+def process(cfg, progress=None, workdir=None, accept_poor=False):
+    """Run the whole post-processing described by ``cfg`` (a :class:`ProcessConfig`).
+
+    The IMU log is read block by block (in a reader thread) and streamed through the
+    forward filter.  With ``workdir`` (a folder), the forward trajectory and the node
+    matrices go to temporary files there, so that memory does not grow with the length
+    of the log; the result's trajectories are then read back piece by piece (the folder
+    must live as long as the result).  ``progress(done_s, total_s)`` is called as the
+    forward pass advances.
+
+    The start is checked against the GNSS fixes and the result assessed
+    (:func:`assess_quality`, module notes); the assessment is ``result.quality``.
+
+    Raises
+    ------
+    InputError
+        Bad inputs; a start position far from the first GNSS fix.
+    ins.common.errors.QualityError
+        A result not to be trusted (most measurements rejected, the solution departing
+        from the fixes, a numerical failure); with ``accept_poor=True`` the assessment's
+        failure is a :class:`~ins.common.errors.QualityWarning` instead (numerical failures
+        still raise).
+    """
+    import warnings
+    blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
+                                              rates=cfg.imu_rates, axes=cfg.imu_axes),
+                                     cfg.imu_time_shift_s))
+    filterpy_functions()           # the imports overlap the reader thread's parsing
+    gnss = read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
+                     quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale)
+    mount = read_mount(cfg.mount) if cfg.mount else None
+    lever = _lever(cfg, mount)
+    st = _start(cfg, blocks, gnss, lever)
+    state, t0, al, blocks = st.state, st.time, st.alignment, st.blocks
+    std = {"pos_std_ned_m": (0.05, 0.05, 0.05), "vel_std_ned_mps": (0.02, 0.02, 0.02),
+           "att_std_deg": (0.01, 0.01, 0.1)}
+    if al is not None:
+        std = {"pos_std_ned_m": al.pos_std_ned_m, "vel_std_ned_mps": al.vel_std_ned_mps,
+               "att_std_deg": al.att_std_deg}
+    std.update(st.std)
+    std.update({k: cfg.initial[k] for k in std if k in cfg.initial})
+    start_check = check_start(state, t0, gnss, lever, std, st.position_source)
+    if start_check is not None and (start_check["distance_m"]
+                                    > START_SIGMAS * start_check["sigma_m"]):
+        d = start_check["distance_m"]
+        warnings.warn(f"{st.position_source}: the start is {d:.1f} m from the GNSS fix at "
+                      f"t = {start_check['time']:.3f} s, more than {START_SIGMAS:g} sigma "
+                      f"({START_SIGMAS * start_check['sigma_m']:.2f} m): its position "
+                      f"sigma is widened to {d:.1f} m", QualityWarning, stacklevel=2)
+        std["pos_std_ned_m"] = np.maximum(np.broadcast_to(
+            np.asarray(std["pos_std_ned_m"], float), 3), d)
+    start = t0 if t0 is not None else cfg.start_s
+    settings = FilterSettings(noise=cfg.noise, lever=lever, use_velocity=cfg.use_velocity,
+                              reject_probability=cfg.reject_probability,
+                              node_interval_s=cfg.node_interval_s, **std,
+                              heading=_headings(cfg, start), **filter_options(cfg))
+    fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
+                      progress=progress, workdir=workdir, initial_time=st.initial_time)
+    f_std = np.array(fwd.nodes.post_std)
+    if cfg.smooth:
+        xs, s_std = rts_errors(fwd, full=False)
+        s_sens = fwd.sensors + xs[:, fwd.layout.sensors]
+    else:
+        xs, s_std, s_sens = None, f_std, fwd.sensors
+    counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
+              "nodes": len(fwd.node_time), "updates": fwd.n_updates,
+              "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
+              "mount_fallback": fwd.n_mount_fallback}
+    result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
+                           al, counts)
+    result.start_check = start_check
+    result.quality = assess_quality(result, gnss, lever, cfg)
+    q = result.quality
+    for msg in q["warnings"]:
+        warnings.warn(msg, QualityWarning, stacklevel=2)
+    if q["error"] is not None:
+        if not accept_poor:
+            raise QualityError(q["error"])
+        warnings.warn(q["error"] + " (written anyway: accept_poor)", QualityWarning,
+                      stacklevel=2)
+    if cfg.truth:
+        result = with_truth(result, cfg.truth)
+    return result
+
+
+def _headings(cfg, start):
+    """The dual-antenna headings of ``[files] heading`` inside the processed span (on
+    the GNSS clock: ``[gnss] time_shift_s`` applies), or ()."""
+    if not cfg.heading:
+        return ()
+    from ins.estimation.heading_files import read_headings, within
+    return within(read_headings(cfg.heading, cfg.heading_baseline_b_m, cfg.heading_sigma_deg,
+                                cfg.gnss_time_shift_s), start, cfg.end_s)
+
+
+def with_truth(result, truth_path):
+    """``result`` with its errors against a truth ``.nav`` file (piece by piece)."""
+    from ins.io.navfiles import read_trajectory
+    from ins.nav.accuracy import TrajectoryErrors, compare
+    truth = read_trajectory(truth_path)
+
+    def errors(pieces):
+        parts = []
+        for piece in pieces:
+            lo, hi = np.searchsorted(truth.time, [piece.time[0] - 1e-6, piece.time[-1] + 1e-6])
+            if hi > lo:
+                ref = Trajectory(truth.time[lo:hi], truth.lla[lo:hi], truth.v_n[lo:hi],
+                                 truth.q_nb[lo:hi])
+                try:
+                    parts.append(compare(piece, ref))
+                except ValueError:
+                    continue
+        if not parts:
+            raise InputError(f"{truth_path}: the trajectories share no epoch (times must "
+                             f"match within 1 us)")
+        return TrajectoryErrors(*(np.concatenate([getattr(p, f) for p in parts])
+                                  for f in ("time", "pos_n", "v_n", "att_n")))
+    return replace(result, errors_forward=errors(result.iter_forward()),
+                   errors_smoothed=errors(result.iter_smoothed()))
+
+
+def _trajectory(time, states):
+    return Trajectory(time=time, lla=states[:, NAV.lla], v_n=states[:, NAV.vel],
+                      q_nb=states[:, NAV.q_nb])

@@ -1,0 +1,46 @@
+"""Files of the filter's optional states and measurements, written by ``ins process`` beside
+the solution: ``innovations.txt`` (every tested measurement, per axis:
+:func:`ins.estimation.measurements.write_innovations`) and ``states.txt`` (the smoothed estimates
+and sigmas of the optional state groups, in edge units: arcsec, m, ms)."""
+import numpy as np
+
+from ins.estimation.error_model import OPTIONAL_GROUPS
+from ins.estimation.measurements import write_innovations
+
+__all__ = ["write_innovations", "write_optional_states", "GROUP_UNITS"]
+
+ARCSEC = np.pi / 180.0 / 3600.0
+#: Edge unit of each optional group: (suffix, SI per unit).
+GROUP_UNITS = {"gyro_misalignment": ("arcsec", ARCSEC), "accel_misalignment": ("arcsec", ARCSEC),
+               "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3)}
+
+
+def optional_columns(layout):
+    """Column names of ``states.txt`` for a layout (estimates, then sigmas)."""
+    names = [n for n in layout.names[21:]]
+    unit = {}
+    for g in layout.groups:
+        for k in range(OPTIONAL_GROUPS[g]):
+            unit[layout.names[getattr(layout, g).start + k]] = GROUP_UNITS[g][0]
+    return ([f"{n}_{unit[n]}" for n in names] + [f"std_{n}_{unit[n]}" for n in names])
+
+
+def write_optional_states(path, result):
+    """Write ``states.txt``: time_s, the smoothed estimates of the optional groups of
+    ``result.fwd.layout`` and their smoothed sigmas (edge units), one row per filter
+    node; returns ``path`` or ``None`` when the layout has no optional group."""
+    from ins.common.fileio import atomic_open
+    layout = result.fwd.layout
+    if not layout.groups:
+        return None
+    scale = np.concatenate([np.full(OPTIONAL_GROUPS[g], GROUP_UNITS[g][1]) for g in layout.groups])
+    est = result.smoothed_sensors[:, 12:] / scale
+    std = result.smoothed_std[:, 21:] / scale
+    with atomic_open(path, "w") as f:
+        f.write("# time_s " + " ".join(optional_columns(layout))
+                + "  (smoothed, at the filter nodes; lever arm: correction added to the "
+                  "configured arm, b frame; time offset: a GNSS record stamped t is at IMU "
+                  "time t + offset)\n")
+        for t, e, s in zip(result.node_time, est, std):
+            f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s])) + "\n")
+    return path

@@ -1,0 +1,263 @@
+"""Sparse symmetric positive-definite systems as banded ones (block scale).
+
+The normal matrix of a block couples an image only with its neighbours (the images it
+shares tie points with), so after a reverse Cuthill-McKee ordering it is banded: a few
+strips' worth of unknowns wide.  :class:`BandedSPD` factors it with LAPACK's banded
+Cholesky (``scipy.linalg.cholesky_banded``: cost ``n b^2``, memory ``n b`` for ``n``
+unknowns and half-bandwidth ``b``), solves with it, and gives the entries of the inverse
+inside the band by the Takahashi recurrence (compiled, the same ``n b^2``): the 3x3
+covariance block of every image without the dense inverse.
+
+A relative block's normal matrix also holds two base-direction unknowns per pair, which
+the joint weights of a tie point couple across its pairs: banded, it is about four times
+wider.  :class:`SparseSPD` factors it as ``L D L'`` in minimum-degree order (SuperLU with
+diagonal pivots) and gives the entries of the inverse on the factor's own pattern by the
+same recurrence run over the sparse pattern (selected inversion): cost the sum, over the
+columns, of the rows of the columns they touch, instead of ``n b^2``.
+"""
+import numpy as np
+from numba import njit
+from scipy import sparse
+from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+from scipy.sparse.linalg import splu
+
+from ins.common.errors import InputError
+from photogrammetry.adjustment._sparse_kernels import pattern_is_closed, selected_inverse
+
+__all__ = ["BandedSPD", "SparseSPD", "rcm_order", "bordered_order"]
+
+
+def rcm_order(A):
+    """Reverse Cuthill-McKee permutation of a sparse symmetric matrix."""
+    return reverse_cuthill_mckee(sparse.csr_matrix(A), symmetric_mode=True)
+
+
+def bordered_order(A, n_first, k=3):
+    """Ordering of a normal matrix whose first `n_first` unknowns come in groups of `k`
+    (an image's angles) and whose others (nuisances, e.g. a pair's base direction)
+    each touch a few groups: the groups in reverse Cuthill-McKee order of their own
+    graph, every other unknown right after the last group it is coupled with, or the
+    reverse Cuthill-McKee order of the whole matrix if its bandwidth is smaller.  On a
+    relative block's normal matrix (two base parameters per pair) the half-bandwidth
+    is about 25 % below the whole matrix's reverse Cuthill-McKee order on 1000 images
+    (831 against 1119), above it on 24 (173 against 134)."""
+    A = sparse.csr_matrix(A)
+    n = A.shape[0]
+    grp = sparse.csr_matrix((np.ones(n_first), (np.arange(n_first) // k,
+                                                np.arange(n_first))))
+    G = grp @ abs(A[:n_first, :n_first]) @ grp.T
+    rank = np.empty(G.shape[0], dtype=np.int64)
+    rank[rcm_order(G)] = np.arange(G.shape[0])
+    key = np.empty(n)
+    key[:n_first] = rank[np.arange(n_first) // k] + (np.arange(n_first) % k) / (k + 1.0)
+    B = sparse.csc_matrix(A[:n_first, n_first:])
+    last = np.full(n - n_first, -1.0)
+    nz = np.diff(B.indptr) > 0
+    if nz.any():
+        r = rank[B.indices // k]
+        last[nz] = np.maximum.reduceat(r, B.indptr[:-1][nz])
+    key[n_first:] = np.where(last >= 0, last + 0.9, G.shape[0])
+    perm = np.argsort(key, kind="stable")
+    whole = rcm_order(A)
+    return perm if _bandwidth(A[perm][:, perm]) <= _bandwidth(A[whole][:, whole]) else whole
+
+
+def _bandwidth(A):
+    coo = A.tocoo()
+    return int(np.max(np.abs(coo.row - coo.col))) if coo.nnz else 0
+
+
+@njit(cache=True)
+def _band_inverse(cb, b):
+    """Entries of ``A^-1`` within the band from the banded Cholesky factor ``cb``
+    (lower form: ``cb[d, j] = L[j + d, j]``); returns ``zt`` with ``zt[i, d] = Z[i, i + d]``.
+
+    Takahashi: ``Z = A^-1`` satisfies ``L^T Z = L^-1`` (lower triangular with the
+    diagonal ``1 / L_ii``), so for ``j >= i``:
+    ``Z_ij = (delta_ij / L_ii - sum_{k > i} L_ki Z_kj) / L_ii`` with ``k <= i + b``.
+    Row by row from the last, each row's sums accumulated over the factor's non-zero
+    ``L_ki`` (a bordered normal matrix has many zeros inside its band), the stored row
+    ``zt[k]`` read contiguously."""
+    n = cb.shape[1]
+    zt = np.zeros((n, b + 1))
+    s = np.zeros(b + 1)
+    for i in range(n - 1, -1, -1):
+        lii = cb[0, i]
+        top = min(i + b, n - 1)
+        w = top - i
+        for t in range(w + 1):
+            s[t] = 0.0
+        for k in range(i + 1, top + 1):
+            lki = cb[k - i, i]
+            if lki == 0.0:
+                continue
+            for j in range(i + 1, k):            # Z_kj = Z_jk, j < k
+                s[j - i] += lki * zt[j, k - j]
+            for j in range(k, top + 1):          # Z_kj, j >= k: row k, contiguous
+                s[j - i] += lki * zt[k, j - k]
+        d = 1.0 / lii
+        for j in range(i + 1, top + 1):
+            zt[i, j - i] = -s[j - i] / lii
+            d -= cb[j - i, i] * zt[i, j - i]
+        zt[i, 0] = d / lii
+    return zt
+
+
+class BandedSPD:
+    """Cholesky factor of a sparse SPD matrix in a bandwidth-reducing order.
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix (n, n)
+        Symmetric positive definite.
+    perm : ndarray of int (n,), optional
+        Ordering (default: reverse Cuthill-McKee of ``A``).
+    what : str
+        Names the matrix in the error message.
+
+    Raises
+    ------
+    InputError
+        ``A`` is not positive definite (singular normal equations).
+    """
+
+    def __init__(self, A, perm=None, what="normal matrix"):
+        A = sparse.csr_matrix(A)
+        self.n = A.shape[0]
+        self.perm = rcm_order(A) if perm is None else np.asarray(perm)
+        self.iperm = np.empty_like(self.perm)
+        self.iperm[self.perm] = np.arange(self.n)
+        P = A[self.perm][:, self.perm].tocoo()
+        self.b = _bandwidth(P)
+        keep = P.row >= P.col
+        ab = np.zeros((self.b + 1, self.n))
+        ab[P.row[keep] - P.col[keep], P.col[keep]] = P.data[keep]
+        try:
+            self.cb = cholesky_banded(ab, lower=True)
+        except np.linalg.LinAlgError:
+            raise InputError(f"{what} is singular or not positive definite (part of the "
+                             "block not connected to the datum, or degenerate geometry)"
+                             ) from None
+        self._zb = None
+
+    def solve(self, rhs):
+        """``A^-1 rhs`` for a vector (n,) or a matrix (n, k)."""
+        rhs = np.asarray(rhs, dtype=float)
+        x = cho_solve_banded((self.cb, True), rhs[self.perm])
+        return x[self.iperm]
+
+    def inverse_entries(self, rows, cols):
+        """Entries ``(A^-1)[rows, cols]`` (original order); each pair must lie inside
+        the band of the ordered matrix (e.g. unknowns coupled in ``A``)."""
+        if self._zb is None:
+            self._zb = _band_inverse(self.cb, self.b)
+        r, c = self.iperm[np.asarray(rows)], self.iperm[np.asarray(cols)]
+        lo, hi = np.minimum(r, c), np.maximum(r, c)
+        d = hi - lo
+        if np.any(d > self.b):
+            raise ValueError("entry outside the band of the factor")
+        return self._zb[lo, d]
+
+    def diagonal_blocks(self, k=3, m=None):
+        """The ``k x k`` diagonal blocks of ``A^-1`` (m, k, k) of the first ``m k``
+        unknowns (default all: ``m = n // k``), original order."""
+        return _diagonal_blocks(self, k, m)
+
+
+class SparseSPD:
+    """Sparse ``L D L^T`` factor (SuperLU, minimum-degree order of ``A + A'``, diagonal
+    pivots) of a sparse SPD matrix: solves, and the entries of the inverse on the
+    factor's pattern by the sparse Takahashi recurrence (selected inversion,
+    :func:`photogrammetry.adjustment._sparse_kernels.selected_inverse`).  On a relative block's
+    bordered normal matrix (angles and bases) its fill is several times below the
+    banded factor's (1000 images: 1.7 M non-zeros in ``L`` against 10 M in the band),
+    and its selected inverse costs 0.6 s against 3.8 s for the band's.
+
+    Raises
+    ------
+    InputError
+        ``A`` singular or not positive definite (a non-positive pivot).
+    """
+
+    def __init__(self, A, what="normal matrix"):
+        A = sparse.csc_matrix(A)
+        self.n = A.shape[0]
+        bad = InputError(f"{what} is singular or not positive definite (part of the "
+                         "block not connected to the datum, or degenerate geometry)")
+        try:
+            self.lu = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+        except RuntimeError:
+            raise bad from None
+        self.d = self.lu.U.diagonal()
+        if not np.all(self.d > 0):
+            raise bad
+        self._sel = None
+
+    @property
+    def nnz(self):
+        """Non-zeros of the factor's strictly lower part (the fill)."""
+        return int(self.lu.L.nnz - self.n)
+
+    def solve(self, rhs):
+        """``A^-1 rhs`` for a vector (n,) or a matrix (n, k)."""
+        return self.lu.solve(np.asarray(rhs, dtype=float))
+
+    def has_selected_inverse(self):
+        """True when the factor is ``L D L^T`` of one symmetric ordering with a closed
+        pattern (SuperLU kept the diagonal pivots): :meth:`inverse_entries` is exact."""
+        if self._sel is None:
+            ok = np.array_equal(self.lu.perm_r, self.lu.perm_c)
+            L = sparse.tril(self.lu.L, k=-1, format="csc")
+            L.sort_indices()
+            ok = ok and pattern_is_closed(L.indptr, L.indices, self.n)
+            self._sel = (L, None) if ok else False
+        return self._sel is not False
+
+    def inverse_entries(self, rows, cols):
+        """Entries ``(A^-1)[rows, cols]`` (original order); each pair must be coupled in
+        ``A`` or in the factor's fill (else ValueError)."""
+        if not self.has_selected_inverse():
+            raise ValueError("the factor has no closed L D L' pattern (off-diagonal pivots)")
+        L, Z = self._sel
+        if Z is None:
+            Z = selected_inverse(L.indptr, L.indices, L.data, self.d)
+            self._sel = (L, Z)
+        zd, zx = Z
+        p = self.lu.perm_c
+        r, c = p[np.asarray(rows)], p[np.asarray(cols)]
+        lo, hi = np.minimum(r, c), np.maximum(r, c)
+        out = zd[lo].copy()
+        off = np.flatnonzero(hi > lo)
+        if len(off):
+            idx, found = _find_entries(L.indptr, L.indices, lo[off], hi[off])
+            if not np.all(found):
+                raise ValueError("entry outside the pattern of the factor")
+            out[off] = zx[idx]
+        return out
+
+    def diagonal_blocks(self, k=3, m=None):
+        """The ``k x k`` diagonal blocks of ``A^-1`` (m, k, k) of the first ``m k``
+        unknowns (default all: ``m = n // k``), original order."""
+        return _diagonal_blocks(self, k, m)
+
+
+def _find_entries(indptr, indices, cols, rows):
+    """Positions of the entries ``(rows, cols)`` in a CSC pattern with sorted rows."""
+    starts, ends = indptr[cols], indptr[cols + 1]
+    idx = np.empty(len(cols), dtype=np.int64)
+    found = np.zeros(len(cols), bool)
+    for t, (a, b, r) in enumerate(zip(starts, ends, rows)):
+        k = a + np.searchsorted(indices[a:b], r)
+        idx[t] = k
+        found[t] = k < b and indices[k] == r
+    return idx, found
+
+
+def _diagonal_blocks(factor, k, m):
+    m = factor.n // k if m is None else int(m)
+    i = (k * np.arange(m)[:, None, None] + np.arange(k)[None, :, None])
+    j = (k * np.arange(m)[:, None, None] + np.arange(k)[None, None, :])
+    i, j = np.broadcast_arrays(i, j)
+    return factor.inverse_entries(i.ravel(), j.ravel()).reshape(m, k, k)

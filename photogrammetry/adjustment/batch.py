@@ -1,0 +1,299 @@
+"""One refinement run (a block from its files' contents) and many of them on Dask.
+
+:func:`refine` is the unit of work: EO, tie points and camera in, refined EO, block
+adjustment and INS assessment out.  :func:`refine_many` runs several blocks or flights as
+tasks on ``dask.distributed`` (a local cluster by default, or an existing scheduler's
+address); the tasks are pure functions of their inputs, so the results are identical to
+running :func:`refine` on each block in one process.
+"""
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ins.common.errors import InputError, QualityError
+from ins.nav.rotation import wrap_to_pi
+from photogrammetry.adjustment.assessment import assess
+from photogrammetry.adjustment.block import adjust_block
+
+__all__ = ["RefineResult", "refine", "refine_many", "check_quality", "prepare",
+           "map_tasks"]
+
+
+@dataclass
+class RefineResult:
+    """Result of :func:`refine`.
+
+    Attributes
+    ----------
+    eo : photogrammetry.orientation.exposure.ExposureOrientation
+        Refined angles (wrapped to (-pi, pi]) with their sigmas (positions as given).
+    prior : photogrammetry.orientation.exposure.ExposureOrientation
+        The input in the working system.
+    block : photogrammetry.adjustment.block.BlockResult
+    assessment : photogrammetry.adjustment.assessment.Assessment
+    pairs : ndarray (P, 2)
+    pair_points : list of (xy_i, xy_j)
+    settings : dict
+    warnings : list of (category, str)
+        The warnings of the run (re-issued by :func:`refine_many` in the caller).
+    """
+    eo: object
+    prior: object
+    block: object
+    assessment: object
+    pairs: np.ndarray
+    pair_points: list
+    settings: dict
+    warnings: list = field(default_factory=list)
+
+
+def refine(eo, tiepoints, camera=None, system=None, method="base-free", datum="first",
+           sigma_mm=None, prior_sigma_rad=None, position_sigma_m=None, snooping=True,
+           progress=None, accept_poor=False, assess_progress=None):
+    """Refine the angles of one block.
+
+    Parameters
+    ----------
+    eo : photogrammetry.orientation.exposure.ExposureOrientation
+        INS exterior orientation (angles rad, positions m in the mapping frame).
+    tiepoints : photogrammetry.imagery.tiepoints.TiePoints
+    camera : photogrammetry.orientation.camera.FrameCamera, optional
+        Principal distance and distortion (required).
+    system : str, optional
+        Working and output angle system (default: the EO's).
+    method : {"known-base", "relative", "base-free"}
+    datum : {"first", "ins", "none"}
+    sigma_mm : float, optional
+        Photo-coordinate sigma, mm (default: the tie-point file's header, else 0.5 px).
+    prior_sigma_rad : float or array_like (3,), optional
+        INS angle sigma for datum "ins" (default: the EO file's sigmas, else 0.005 rad).
+    position_sigma_m : float, optional
+        Sigma of the EO positions, m, per coordinate (known-base: propagated into the
+        angles' covariance; default: the EO file's position sigmas, else exact bases).
+    progress : callable(done, total), optional
+        Called after each iteration of the block adjustment.
+    accept_poor : bool
+        Return a result whose pairs or images are flagged as implausible
+        (``result.block.quality``, :mod:`photogrammetry.adjustment.quality`) instead of raising.
+    assess_progress : callable(done, total), optional
+        Called after each round of the INS assessment's boresight fit.
+
+    Returns
+    -------
+    RefineResult
+
+    Raises
+    ------
+    ins.common.errors.QualityError
+        A pair's or the block's sigma0, or an image's angle change, is implausible
+        (without `accept_poor`); the message names them.
+    """
+    eo, sigma_mm, prior_sigma_rad, position_sigma_m, pairs, points, point_ids = prepare(
+        eo, tiepoints, camera, system, method, sigma_mm, prior_sigma_rad, position_sigma_m)
+    system = eo.system
+    block = adjust_block(eo.angles, pairs, points, camera.focal_length_mm, system, method,
+                         datum, positions=eo.position, prior_sigma=prior_sigma_rad,
+                         sigma_mm=sigma_mm, position_sigma=position_sigma_m, point_ids=point_ids,
+                         snooping=snooping, progress=progress,
+                         image_ids=[str(i) for i in eo.image_id])
+    check_quality(block.quality, accept_poor)
+    result_eo, settings = refined_eo_and_settings(eo, block, camera, method, datum, sigma_mm,
+                                                  snooping, position_sigma_m, pairs, tiepoints)
+    return RefineResult(result_eo, eo, block, assess(block, eo.angles, system, datum, method,
+                                                    progress=assess_progress),
+                        pairs, points, settings)
+
+
+def prepare(eo, tiepoints, camera, system=None, method="base-free", sigma_mm=None,
+            prior_sigma_rad=None, position_sigma_m=None):
+    """The defaults of :func:`refine` resolved and the block's pairs formed.
+
+    Returns
+    -------
+    eo : ExposureOrientation
+        In the working system.
+    sigma_mm : float
+    prior_sigma_rad : float or ndarray
+    position_sigma_m : float, ndarray or None
+    pairs, points, point_ids
+        As from :meth:`photogrammetry.imagery.tiepoints.TiePoints.pairs` (``min_common`` 3 for
+        known-base, else 5).
+    """
+    if camera is None:
+        raise InputError("the camera (principal distance) is required: --camera CAM.toml")
+    if system is not None:
+        eo = eo.in_system(system)
+    if sigma_mm is None:
+        if tiepoints.sigma_mm == 0:
+            raise InputError("the tie points state a photo-coordinate sigma of 0 "
+                             "(noise-free); the conditions need a weight: give a sigma > 0 "
+                             "(--sigma-px)", path=tiepoints.path)
+        sigma_mm = (tiepoints.sigma_mm if tiepoints.sigma_mm is not None
+                    else 0.5 * camera.pixel_size_mm)
+    if prior_sigma_rad is None:
+        prior_sigma_rad = eo.angle_sigma if eo.angle_sigma is not None else 0.005
+    if position_sigma_m is None and eo.position_sigma is not None:
+        position_sigma_m = eo.position_sigma
+    min_common = 3 if method == "known-base" else 5
+    pairs, points, point_ids = tiepoints.pairs(list(eo.image_id), camera, min_common=min_common)
+    if len(pairs) == 0:
+        raise InputError(f"no pair of images shares {min_common} or more tie points",
+                         path=tiepoints.path)
+    return eo, sigma_mm, prior_sigma_rad, position_sigma_m, pairs, points, point_ids
+
+
+def refined_eo_and_settings(eo, block, camera, method, datum, sigma_mm, snooping,
+                            position_sigma_m, pairs, tiepoints):
+    """The refined EO (the block's angles and sigmas, positions as given) and the
+    settings of a refinement (the report's header)."""
+    # the adjustment may carry unwrapped angles (kappa 180.05 deg beside -179.93 deg in a
+    # strip flown at 180 deg); the refined EO holds them wrapped to (-pi, pi]
+    result_eo = replace(eo, angles=wrap_to_pi(block.angles), angle_sigma=block.sigma,
+                        position_sigma=(eo.position_sigma if eo.position_sigma is not None
+                                        else np.zeros((len(eo), 3))))
+    settings = {"method": method, "datum": datum, "system": eo.system, "sigma_mm": sigma_mm,
+                "pixel_size_mm": camera.pixel_size_mm, "f_mm": camera.focal_length_mm,
+                "snooping": snooping, "position_sigma_m": (
+                    0.0 if position_sigma_m is None
+                    else float(np.sqrt(np.mean(np.square(position_sigma_m))))),
+                "n_images": len(eo), "n_pairs": len(pairs),
+                "n_observations": len(tiepoints)}
+    return result_eo, settings
+
+
+def check_quality(quality, accept_poor=False, where=""):
+    """Raise QualityError for a poor result unless `accept_poor` (the first findings)."""
+    if quality is None or not quality.poor or accept_poor:
+        return
+    more = len(quality.reasons) - 3
+    raise QualityError(f"{where}refinement not to be trusted: "
+                       + "; ".join(quality.reasons[:3])
+                       + (f" (and {more} more)" if more > 0 else "")
+                       + " (rule: photogrammetry refine --help, 'trust')")
+
+
+def _call(func, kwargs):
+    """``func(**kwargs)`` on one task; its warnings travel with the result (a Dask
+    worker's own warnings would otherwise be printed raw on the worker's stderr)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = func(**kwargs)
+    result.warnings = [(w.category, str(w.message)) for w in caught]
+    return result
+
+
+def _run(kwargs):
+    """:func:`refine` on one task (its warnings with the result)."""
+    return _call(refine, kwargs)
+
+
+def _reemit(results):
+    for r in results:
+        for category, message in getattr(r, "warnings", ()):
+            warnings.warn(message, category, stacklevel=3)
+    return results
+
+
+def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=True):
+    """Run :func:`refine` on many blocks as Dask tasks.
+
+    Parameters
+    ----------
+    tasks : sequence of dict
+        Keyword arguments of :func:`refine`, one dict per block.
+    workers : int, optional
+        Size of the local cluster (default: the number of cores); ``1`` with no
+        scheduler runs in this process without Dask.
+    scheduler : str, optional
+        Address of a running ``dask.distributed`` scheduler (``tcp://host:8786``).
+    progress : callable(done, total), optional
+    processes : bool
+        Local cluster of processes (default) or of threads in this process.
+
+    Returns
+    -------
+    list of RefineResult, in the order of `tasks`.
+    """
+    return map_tasks(refine, tasks, workers, scheduler, progress, processes)
+
+
+def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processes=True,
+              total=None):
+    """``func(**task)`` for every task, as Dask tasks (see :func:`refine_many`).
+
+    `func` must be a module-level function (pickled by reference) whose result takes a
+    ``warnings`` attribute (the task's warnings, re-issued here in the caller).  Each
+    task's keyword arguments travel to the worker that runs it, and only there; they are
+    submitted a few at a time (twice the workers in flight), so neither the scheduler
+    nor a worker holds the data of all tasks at once, and `tasks` may be a generator
+    (give `total`, its length, for the progress).  `progress` is called as
+    ``progress(done, total, index)`` with the index of the task just finished when it
+    takes three arguments, else ``progress(done, total)``.
+
+    Returns
+    -------
+    list of the results, in the order of `tasks`.
+    """
+    if total is None:
+        tasks = list(tasks)
+        total = len(tasks)
+    note = _progress_call(progress)
+    if scheduler is None and workers == 1:
+        out = []
+        for k, t in enumerate(tasks):
+            out.append(_call(func, t))
+            note(k + 1, total, k)
+        return _reemit(out)
+    import dask
+    from dask.distributed import Client, LocalCluster, as_completed
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        window = 2 * max(1, sum(client.nthreads().values()))
+        pending = enumerate(tasks)
+        running = as_completed()
+        index = {}
+
+        def submit_next():
+            for k, task in pending:
+                fut = client.submit(_call, func, task, pure=False)
+                index[fut.key] = k
+                running.add(fut)
+                return
+
+        results = [None] * total
+        # a task's own data (a tile of a block: tens of MB) is meant to travel with it
+        with dask.config.set({"distributed.admin.large-graph-warning-threshold": "4GB"}):
+            for _ in range(window):
+                submit_next()
+            for done, fut in enumerate(running, 1):
+                k = index.pop(fut.key)
+                results[k] = fut.result()
+                fut.release()
+                note(done, total, k)
+                submit_next()
+        return _reemit(results)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _progress_call(progress):
+    """`progress` as a function of (done, total, index)."""
+    if progress is None:
+        return lambda done, total, k: None
+    import inspect
+    try:
+        n = len(inspect.signature(progress).parameters)
+    except (TypeError, ValueError):
+        n = 2
+    if n >= 3:
+        return progress
+    return lambda done, total, k: progress(done, total)

@@ -1,0 +1,191 @@
+"""The coplanarity conditions of a block, their weights and Jacobian (:mod:`photogrammetry.adjustment.block`).
+
+One condition per tie point and pair, ``det[b, R_i u_i, R_j u_j] = 0``; the conditions of
+one tie point seen in k >= 3 images share its photo coordinates and are weighted
+together by the pseudo-inverse of their joint covariance (the block's docstring says why).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import splu
+
+from ins.common.errors import InputError
+from photogrammetry.adjustment import _coplanarity_kernels as K
+
+__all__ = ["pad_pairs"]
+
+
+def pad_pairs(pair_points):
+    """Stack per-pair point lists into padded arrays.
+
+    Parameters
+    ----------
+    pair_points : sequence of (xy_i, xy_j)
+        Photo coordinates (n_k, 2) mm of the common points in the two images.
+
+    Returns
+    -------
+    xy_i, xy_j : ndarray (P, n_max, 2); mask : ndarray of bool (P, n_max)
+    """
+    n_max = max([len(a) for a, _ in pair_points] + [1])
+    P = len(pair_points)
+    xy_i, xy_j = np.zeros((P, n_max, 2)), np.zeros((P, n_max, 2))
+    mask = np.zeros((P, n_max), bool)
+    for k, (a, b) in enumerate(pair_points):
+        xy_i[k, :len(a)], xy_j[k, :len(b)], mask[k, :len(a)] = a, b, True
+    return xy_i, xy_j, mask
+
+
+def _condition_index(pairs, mask, point_ids, m):
+    """The conditions (used tie points of the good pairs) grouped by tie point.
+
+    Returns
+    -------
+    p, s : ndarray of int (C,)
+        Pair and slot (point index in the pair) of every condition.
+    obs : ndarray of int (C, 2)
+        Ids of the two observations (image, point) of every condition; equal ids are the
+        same photo coordinates (shared by the conditions of a point seen in 3+ images).
+    buckets : list of ndarray of int (T, c)
+        Condition indices, one row per tie point with c conditions (one array per c).
+    """
+    p, s = np.nonzero(mask)
+    C = len(p)
+    if point_ids is None:                     # every condition on its own (no ids given)
+        group, obs = np.arange(C), np.arange(2 * C).reshape(C, 2)
+    else:
+        codes = {}
+        group = np.fromiter((codes.setdefault(point_ids[a][b], len(codes))
+                             for a, b in zip(p, s)), dtype=np.int64, count=C)
+        obs = group[:, None] * m + pairs[p]
+    order = np.argsort(group, kind="stable")
+    _, start, size = np.unique(group[order], return_index=True, return_counts=True)
+    buckets = [order[start[size == c][:, None] + np.arange(c)] for c in np.unique(size)]
+    return p, s, obs, buckets
+
+
+def _joint_weights(buckets, obs, d, s2, n_cond, tol):
+    """Weight matrix of the conditions: per tie point the pseudo-inverse of the joint
+    covariance of its conditions.
+
+    ``Sigma_ab = s2 * sum over the observations o shared by conditions a and b of
+    d_a,o . d_b,o``; the pseudo-inverse is taken of the correlation matrix (scale-free),
+    dropping eigenvalues below `tol` times the largest (combinations of the conditions
+    that the observations do not move: repeated conditions).
+
+    Parameters
+    ----------
+    d : ndarray (C, 2, 2)
+        Derivative of every condition by the (x, y) of its two observations.
+    s2 : float
+        Variance of one photo coordinate, mm^2.
+
+    Returns
+    -------
+    W : scipy.sparse.csr_matrix (C, C); rank : int (independent conditions);
+    var : ndarray (C,) variance of each condition.
+    """
+    var = s2 * np.einsum("cij,cij->c", d, d)
+    rows, cols, vals, rank = [], [], [], 0
+    for idx in buckets:
+        c = idx.shape[1]
+        o, D = obs[idx], d[idx]                                   # (T, c, 2), (T, c, 2, 2)
+        same = o[:, :, None, :, None] == o[:, None, :, None, :]
+        S = s2 * np.einsum("tabsr,tasx,tbrx->tab", same, D, D)
+        sd = np.sqrt(np.einsum("taa->ta", S))
+        inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
+        lam, U = np.linalg.eigh(S * inv[:, :, None] * inv[:, None, :])
+        keep = lam > tol * lam[:, -1:]
+        rank += int(keep.sum())
+        Wt = np.einsum("tak,tk,tbk->tab", U, np.where(keep, 1.0 / np.where(keep, lam, 1.0),
+                                                      0.0), U)
+        vals.append((Wt * inv[:, :, None] * inv[:, None, :]).ravel())
+        rows.append(np.repeat(idx, c, axis=1).ravel())
+        cols.append(np.tile(idx, (1, c)).ravel())
+    W = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(n_cond, n_cond))
+    return W, rank, var
+
+
+def _condition_terms(U, img, bp, R, M, b):
+    """Per condition: misclosure g (C,), d (C, 2, 2) by the photo coordinates, the
+    Jacobian rows by the angles of the two images (C, 6) and ``N`` (C, 3) = dg/db."""
+    R_i, R_j = R[img[:, 0]], R[img[:, 1]]
+    r_i = np.einsum("cab,cb->ca", R_i, U[:, 0])[:, None]
+    r_j = np.einsum("cab,cb->ca", R_j, U[:, 1])[:, None]
+    g, _, N, A_j = K.condition_terms(r_i, r_j, b[bp], R_i, R_j, 1.0)
+    d_i, d_j = K.obs_derivatives(r_i, r_j, b[bp], R_i, R_j)
+    A_i = np.cross(r_i, np.cross(r_j, b[bp][:, None, :]))[:, 0]
+    J = np.concatenate([np.einsum("ca,cak->ck", A_i, M[img[:, 0]]),
+                        np.einsum("ca,cak->ck", A_j[:, 0], M[img[:, 1]])], axis=1)
+    return g[:, 0], np.stack([d_i[:, 0], d_j[:, 0]], axis=1), J, N[:, 0]
+
+
+@dataclass
+class _Conditions:
+    """The coplanarity conditions (one per used tie point of a good pair) and the two
+    groupings of their weights: joint per tie point, and one by one."""
+    p: np.ndarray           # (C,) pair of every condition
+    s: np.ndarray           # (C,) slot (point index in the pair)
+    img: np.ndarray         # (C, 2) the two images
+    U: np.ndarray           # (C, 2, 3) rays in the two images, mm
+    obs: np.ndarray         # joint grouping (see _condition_index)
+    buckets: list
+    obs_1: np.ndarray       # one by one
+    buckets_1: list
+
+
+def _conditions(pairs, mask, point_ids, m, xy_i, xy_j, f_mm):
+    """Index the conditions of the kept points and build their rays."""
+    p_c, s_c, obs, buckets = _condition_index(pairs, mask, point_ids, m)
+    obs_1, buckets_1 = _condition_index(pairs, mask, None, m)[2:]
+    U = np.stack([np.concatenate([xy[p_c, s_c], np.full((len(p_c), 1), -f_mm)], axis=1)
+                  for xy in (xy_i, xy_j)], axis=1)
+    return _Conditions(p_c, s_c, pairs[p_c], U, obs, buckets, obs_1, buckets_1)
+
+
+def _check_variance(var, cond, point_ids, sigma_mm):
+    """Refuse a condition of zero or non-finite variance, naming its pair and tie point."""
+    if np.all(var > 0):
+        return
+    c = int(np.flatnonzero(~(var > 0))[0])
+    pid = int(cond.s[c]) if point_ids is None else point_ids[cond.p[c]][cond.s[c]]
+    pid = pid.item() if isinstance(pid, np.generic) else pid
+    raise InputError(f"pair {cond.img[c, 0]}-{cond.img[c, 1]}, tie point {pid!r}: the "
+                     f"coplanarity condition has variance {float(var[c])!r} (photo "
+                     f"sigma {float(sigma_mm)!r} mm); a zero or non-finite variance "
+                     "has no weight")
+
+
+def _jacobian(J_ang, NE, img, bp, col, n_ang, n_cols):
+    """Sparse Jacobian (C, n_cols): angles of the free images, then 2 base parameters
+    per pair (``NE``, or none for known-base)."""
+    C = len(img)
+    cols = (3 * col[img][:, :, None] + np.arange(3)).reshape(C, 6)
+    ok = np.repeat(col[img] >= 0, 3, axis=1)
+    data = J_ang
+    if NE is not None:
+        cols = np.concatenate([cols, n_ang + 2 * bp[:, None] + np.arange(2)], axis=1)
+        ok = np.concatenate([ok, np.ones((C, 2), bool)], axis=1)
+        data = np.concatenate([J_ang, NE], axis=1)
+    rows = np.broadcast_to(np.arange(C)[:, None], cols.shape)
+    return sparse.csr_matrix((data[ok], (rows[ok], cols[ok])), shape=(C, n_cols))
+
+
+def _reduced_normals(H, grad, n_ang):
+    """Eliminate the base parameters (Schur complement): returns the angles' normal
+    matrix S (dense), right-hand side and the back-substitution ``(X, y)`` with
+    ``d_b = -(y + X d_a)`` (None for known-base)."""
+    H_aa = H[:n_ang, :n_ang].toarray()
+    if H.shape[0] == n_ang:
+        return H_aa, -grad, None
+    try:
+        lu = splu(H[n_ang:, n_ang:].tocsc())
+    except RuntimeError:
+        raise InputError("block normal equations are singular: a pair's base direction is "
+                         "not determined") from None
+    H_ab = H[:n_ang, n_ang:].toarray()
+    X = lu.solve(np.ascontiguousarray(H_ab.T))
+    y = lu.solve(grad[n_ang:])
+    return H_aa - H_ab @ X, -(grad[:n_ang] - H_ab @ y), (X, y)

@@ -1,0 +1,171 @@
+"""Covariance of a large block's angles without the dense inverse (block scale).
+
+For ``known-base`` blocks above :data:`photogrammetry.adjustment.block.BANDED_MIN_ANGLES` unknowns
+the normal matrix ``S`` of the free images' angles (sparse: an image is coupled only
+with the images it shares tie points with) is factored as a banded matrix
+(:class:`photogrammetry.adjustment.banded.BandedSPD`), and the covariance
+
+    C = sigma0^2 S^-1 + S^-1 T Sx T^T S^-1 = S^-1 K S^-1,   K = sigma0^2 S + T Sx T^T
+
+(``T = J^T W G_X`` the sensitivity to the EO positions, ``Sx`` their variances; no
+second term without position sigmas) is kept as an operator: its 3x3 block per image
+(the Takahashi entries of ``S^-1`` inside the band, plus the position term by banded
+solves), its product with vectors, and the sparse ``S`` and ``K`` for the assessment's
+``V^-1 = S (lambda K + S D S)^-1 S``.
+
+Relative and base-free blocks (bordered): the unknowns are the angles and two
+base-direction parameters per pair; the angles' normal matrix is the Schur complement
+``S = H_aa - H_ab H_bb^-1 H_ba`` of the bases, which is dense (the bases of pairs that
+share tie points are coupled through the joint weights, so ``H_bb^-1`` fills in).  The
+full normal matrix ``H`` (angles first, then bases) is sparse (a base touches two
+images), so it is ``H`` that is factored:
+``S^-1 = (H^-1)_aa``, the angles' covariance blocks are entries of ``H^-1`` on the
+pattern of its sparse ``L D L'`` factor (minimum-degree order; selected inversion, the
+Takahashi recurrence on a sparse pattern, :class:`photogrammetry.adjustment.banded.SparseSPD`) and
+``C v = sigma0^2 (H^-1 [v; 0])_a``.  ``n_angles`` < ``H.shape[0]`` marks this form
+(no position term: the bases are unknowns).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+
+from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, bordered_order
+
+__all__ = ["BandedCovariance", "banded_covariance"]
+
+
+@dataclass
+class BandedCovariance:
+    """Covariance of the free images' angles (image-major, rad^2), as an operator.
+
+    Attributes
+    ----------
+    S : scipy.sparse.csr_matrix (N, N)
+        Normal matrix of the free angles (a-priori weights); bordered (relative
+        methods): of the angles and then the base-direction parameters (``N > n``).
+    factor : photogrammetry.adjustment.banded.BandedSPD or SparseSPD
+        The factor whose inverse entries gave the covariance blocks (Takahashi): banded
+        Cholesky (known-base), sparse ``L D L'`` (bordered).
+    sigma0 : float
+    TX : scipy.sparse.csr_matrix (n, 3m) or None
+        ``T Sx^(1/2)``: the EO-position term (known-base with position sigmas).
+    free : ndarray of bool (m,)
+        The images of the unknowns (in order).
+    blocks : ndarray (k, 3, 3)
+        Covariance block of each free image.
+    n_angles : int
+        ``n``, the angle unknowns (the first ``n`` of ``S``).
+    solver : photogrammetry.adjustment.banded.SparseSPD or BandedSPD
+        Solves with ``S`` (bordered: the sparse LU, cheaper than the band; else
+        `factor`).
+    """
+    S: object
+    factor: object
+    sigma0: float
+    TX: object
+    free: np.ndarray
+    blocks: np.ndarray
+    n_angles: int = None
+    solver: object = None
+
+    def __post_init__(self):
+        if self.n_angles is None:
+            self.n_angles = self.S.shape[0]
+        if self.solver is None:
+            self.solver = self.factor
+
+    @property
+    def bordered(self):
+        """True when ``S`` holds base-direction unknowns after the angles."""
+        return self.n_angles < self.S.shape[0]
+
+    def solve_angles(self, v):
+        """``(S_full^-1 [v; 0])_a``: the inverse of the angles' (reduced) normal matrix
+        times `v` (n,) or (n, k)."""
+        v = np.asarray(v, dtype=float)
+        if not self.bordered:
+            return self.factor.solve(v)
+        pad = np.zeros((self.S.shape[0],) + v.shape[1:])
+        pad[:self.n_angles] = v
+        return self.solver.solve(pad)[:self.n_angles]
+
+    def apply(self, v):
+        """``C v`` for a vector (n,) or matrix (n, k)."""
+        x = self.solve_angles(v)
+        out = self.sigma0 ** 2 * x
+        if self.TX is not None:
+            out = out + self.factor.solve(self.TX @ (self.TX.T @ x))
+        return out
+
+    def K(self):
+        """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1`` (not
+        bordered only)."""
+        if self.bordered:
+            raise ValueError("a bordered block's reduced normal matrix is not sparse")
+        K = self.sigma0 ** 2 * self.S
+        if self.TX is not None:
+            K = K + self.TX @ self.TX.T
+        return sparse.csr_matrix(K)
+
+
+def _position_blocks(factor, TX, k, chunk=256):
+    """3x3 blocks of ``S^-1 TX TX^T S^-1`` per image, by banded solves of TX's columns."""
+    out = np.zeros((k, 3, 3))
+    TXc = sparse.csc_matrix(TX)
+    for c0 in range(0, TXc.shape[1], chunk):
+        Y = factor.solve(TXc[:, c0:c0 + chunk].toarray()).reshape(k, 3, -1)
+        out += np.einsum("iac,ibc->iab", Y, Y)
+    return out
+
+
+def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma=None,
+                      n_angles=None, factor=None):
+    """The covariance operator of a block from its normal matrix.
+
+    Parameters
+    ----------
+    H : scipy.sparse matrix (N, N)
+        Normal matrix of the free angles (with the prior's weights for datum ins), then
+        (relative methods) of the base-direction parameters.
+    sigma0 : float
+    free : ndarray of bool (m,)
+    WJ, N, img : the block's ``W J`` (C, n), ``dg/db`` (C, 3), images (C, 2) of every
+        condition (for the position term).
+    position_sigma : ndarray (m, 3), optional
+        Sigma of the EO positions, m (known-base only).
+    n_angles : int, optional
+        Angle unknowns (default all of ``H``: known-base).
+    factor : photogrammetry.adjustment.banded.SparseSPD, optional
+        The sparse factor of `H` if already computed (bordered blocks: the last
+        Gauss-Newton step's).
+
+    Returns
+    -------
+    BandedCovariance
+    """
+    S = sparse.csr_matrix(H)
+    n_angles = S.shape[0] if n_angles is None else int(n_angles)
+    k = n_angles // 3
+    if n_angles < S.shape[0]:           # bordered: selected inverse of the sparse factor
+        solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
+            S, what="block normal matrix")
+        if solver.has_selected_inverse():
+            blocks = sigma0 ** 2 * solver.diagonal_blocks(3, k)
+            return BandedCovariance(S, solver, float(sigma0), None, free, blocks,
+                                    n_angles, solver)
+        band = BandedSPD(S, perm=bordered_order(S, n_angles), what="block normal matrix")
+        return BandedCovariance(S, band, float(sigma0), None, free,
+                                sigma0 ** 2 * band.diagonal_blocks(3, k), n_angles, solver)
+    factor = BandedSPD(S, what="block normal matrix")
+    blocks = sigma0 ** 2 * factor.diagonal_blocks(3, k)
+    TX = None
+    if position_sigma is not None and np.any(position_sigma):
+        m = len(free)
+        C = len(img)
+        cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
+        G = sparse.csr_matrix((np.concatenate([-N, N], axis=1).ravel(),
+                               (np.repeat(np.arange(C), 6), cols.ravel())), shape=(C, 3 * m))
+        TX = sparse.csr_matrix(WJ.T @ G @ sparse.diags(np.ravel(position_sigma)))
+        blocks = blocks + _position_blocks(factor, TX, k)
+    return BandedCovariance(S, factor, float(sigma0), TX, free, blocks, n_angles, None)

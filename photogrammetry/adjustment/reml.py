@@ -1,0 +1,219 @@
+"""GLS with REML variance components for a block's covariance kept as an operator.
+
+The assessment's model (:mod:`photogrammetry.adjustment.assessment`) is ``y = A x + e`` with
+``V = lambda C + sum_a s_a G_a``, ``C = S^-1 K S^-1`` the block's covariance
+(:class:`photogrammetry.adjustment.block_covariance.BandedCovariance`) and ``G_a`` the diagonal
+indicator of angle ``a`` (times `scale`).  Without forming ``V``:
+
+    V^-1 = S (lambda K + S D S)^-1 S,     D = sum_a s_a G_a
+
+(``lambda K + S D S`` is sparse, banded in the normal matrix's order: one banded Cholesky
+per iterate).  The components are estimated by average-information REML (Gilmour,
+Thompson and Cullis 1995): the score ``u_a = (Py' G_a Py - tr(P G_a)) / 2`` with the
+traces of the diagonal components by Hutchinson's estimator (fixed Rademacher probes:
+deterministic), the trace of ``P C`` from ``tr(P V) = n - p``, and the
+average-information matrix ``AI_ab = Py' G_a P G_b Py / 2`` (exact, no trace).  The
+REML solution is that of the dense :func:`photogrammetry.adjustment.assessment.gls_variance_components`
+up to the Hutchinson error of the traces (``tests/test_assessment.py`` states it).
+"""
+import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import splu
+
+from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, rcm_order
+
+__all__ = ["BandedV", "gls_reml_banded", "PROBES"]
+
+#: Hutchinson probes of the traces (Rademacher, seed 0).
+PROBES = 64
+#: Smallest INS variance (relative to the largest adjustment variance) for the
+#: Woodbury form of ``V^-1``.
+WOODBURY_MIN = 1e-6
+
+
+class BandedV:
+    """``V = lambda C + diag(d)`` with ``C = S^-1 K S^-1``: products and solves.
+
+    Two exact forms: ``V^-1 = S (lambda K + S D S)^-1 S`` (any ``d >= 0``; bandwidth
+    twice the normal matrix's) and, without the position term (``K = sigma0^2 S``) and
+    when every ``d`` is at least :data:`WOODBURY_MIN` of the largest diagonal of ``C``,
+    ``V^-1 = D^-1 - D^-1 (S / (lambda sigma0^2) + D^-1)^-1 D^-1`` (Woodbury: the normal
+    matrix's bandwidth, about four times cheaper; the cancellation costs at most
+    ``1 / WOODBURY_MIN`` times the rounding error).
+
+    Bordered operator (relative methods: ``S^-1 = (H^-1)_aa`` with ``H`` the normal
+    matrix of the angles and the bases): Woodbury with the bordered
+    ``H / (lambda sigma0^2) + diag(D^-1, 0)`` (sparse LU), whose Schur complement of the bases is
+    ``S / (lambda sigma0^2) + D^-1``; else the quasi-definite augmented system
+    ``[[H / (lambda sigma0^2), E], [E', -D]] [z; x] = [0; -v]`` (``E`` selects the
+    angles; sparse LU) gives ``x = V^-1 v``; ``lambda = 0``: ``V = D``."""
+
+    def __init__(self, op, lam, d, perm=None):
+        self.op, self.lam, self.d = op, float(lam), np.asarray(d, float)
+        S = op.S
+        cmax = op.sigma0 ** 2 * np.max(np.einsum("kaa->ka", op.blocks)) if op.blocks.size else 0
+        self.woodbury = (op.TX is None and lam > 0 and len(self.d)
+                         and np.min(self.d) >= WOODBURY_MIN * max(lam * cmax, 1e-300))
+        self.n = n = len(self.d)
+        self.lu = None
+        if getattr(op, "bordered", False):
+            nb = S.shape[0] - n
+            if self.woodbury:
+                M = S / (lam * op.sigma0 ** 2) + sparse.diags(
+                    np.concatenate([1.0 / self.d, np.zeros(nb)]))
+                self.f = SparseSPD(M, what="assessment covariance")
+            elif lam > 0:
+                E = sparse.eye(S.shape[0], n)
+                aug = sparse.bmat([[S / (lam * op.sigma0 ** 2), E],
+                                   [E.T, -sparse.diags(self.d)]], format="csc")
+                self.lu = splu(aug)
+            return
+        if self.woodbury:
+            M = S / (lam * op.sigma0 ** 2) + sparse.diags(1.0 / self.d)
+        else:
+            M = lam * op.K() + S @ sparse.diags(self.d) @ S
+        self.f = BandedSPD(M, perm=perm, what="assessment covariance")
+
+    def _solve_woodbury_inner(self, w):
+        if not getattr(self.op, "bordered", False):
+            return self.f.solve(w)
+        pad = np.zeros((self.op.S.shape[0],) + w.shape[1:])
+        pad[:self.n] = w
+        return self.f.solve(pad)[:self.n]
+
+    def solve(self, v):
+        """``V^-1 v``."""
+        v = np.asarray(v, dtype=float)
+        Di = 1.0 / (self.d if v.ndim == 1 else self.d[:, None])
+        if self.woodbury:
+            return Di * v - Di * self._solve_woodbury_inner(Di * v)
+        if getattr(self.op, "bordered", False):
+            if self.lu is None:                      # lambda = 0: V = D
+                return Di * v
+            N = self.op.S.shape[0]
+            rhs = np.zeros((N + self.n,) + v.shape[1:])
+            rhs[N:] = -v
+            return self.lu.solve(rhs)[N:]
+        return self.op.S @ self.f.solve(self.op.S @ v)
+
+    def dot(self, v):
+        """``V v``."""
+        dv = self.d * v if v.ndim == 1 else self.d[:, None] * v
+        return self.lam * self.op.apply(v) + dv
+
+
+def _projector(Vs, A):
+    """``P v = V^-1 v - V^-1 A (A' V^-1 A)^-1 A' V^-1 v`` and ``(A' V^-1 A)^-1``."""
+    ViA = Vs.solve(A)
+    cov_x = np.linalg.inv(A.T @ ViA)
+
+    def P(v):
+        Viv = Vs.solve(v)
+        return Viv - ViA @ (cov_x @ (A.T @ Viv))
+    return P, cov_x
+
+
+def _diverged(y, A, op, theta):
+    """The result of a free-lambda REML that ran away (lambda to 0 or the components
+    to infinity: lambda is not separable from the INS noise): infinite sigma of lambda,
+    so that the caller holds it (the estimates are not used)."""
+    nan = np.full(A.shape[1], np.nan)
+    return (nan, np.full((A.shape[1],) * 2, np.nan), theta, np.array([np.inf, 0, 0, 0]),
+            np.full(len(y), np.nan), np.nan, theta, np.zeros(4, bool))
+
+
+def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=60,
+                    tol=1e-7, probes=PROBES, info=None):
+    """GLS + REML of ``y = A x + e``, ``V = theta_0 C + sum_a theta_{a+1} scale G_a``.
+
+    Parameters
+    ----------
+    y : ndarray (n,); A : ndarray (n, p)
+    op : photogrammetry.adjustment.block_covariance.BandedCovariance
+        ``C`` (its images in the order of `y`, three angles each).
+    groups : ndarray of int (n,)
+        Angle of each element (0, 1, 2).
+    scale : float
+    fixed : sequence of 4 (float or None), optional
+        Components held (None: estimated).
+    theta0 : array_like (4,), optional
+        Start (default ones).
+    info : dict, optional
+        Filled with ``lambda_rel_sigma``: the relative sigma of ``theta_0`` from the
+        average information of all four components at the solution (also when
+        ``theta_0`` is held: whether the data could tell it).
+
+    Returns
+    -------
+    The tuple of :func:`photogrammetry.adjustment.assessment.gls_variance_components`:
+    ``x, cov_x, theta, sigma_theta, residual, chi2, theta_signed, negative``.
+    """
+    n = len(y)
+    fixed = [None] * 4 if fixed is None else list(fixed)
+    est = np.array([f is None for f in fixed])
+    theta = np.array([1.0] * 4 if theta0 is None else theta0, dtype=float)
+    theta[~est] = [f for f in fixed if f is not None]
+    Gd = [scale * (groups == a) for a in range(3)]
+    floor = 1e-12 * scale
+    Z = np.random.default_rng(0).choice([-1.0, 1.0], (n, probes))
+    perm = None if getattr(op, "bordered", False) else rcm_order(op.S)
+
+    def stats(theta):
+        d = sum(t * g for t, g in zip(theta[1:], Gd)) + floor
+        Vs = BandedV(op, max(theta[0], 0.0), d, perm)
+        P, cov_x = _projector(Vs, A)
+        Py = P(y)
+        PZ = P(Z)
+        tr_d = np.array([np.mean(np.sum(Z * PZ * g[:, None], axis=0)) for g in Gd])
+        tr_c = (n - A.shape[1] - theta[1:] @ tr_d) / max(theta[0], 1e-300)
+        w = np.column_stack([op.apply(Py)] + [g * Py for g in Gd])
+        q = Py @ w
+        u = 0.5 * (q - np.concatenate([[tr_c], tr_d]))
+        AI = 0.5 * w.T @ P(w)
+        return Vs, cov_x, Py, u, AI
+
+    if theta0 is None:                  # moment start: the differences' own scatter
+        cdiag = np.einsum("kaa->ka", op.blocks).ravel()
+        for a in range(3):
+            if est[a + 1]:
+                ya, ca = y[groups == a] ** 2, cdiag[groups == a]
+                theta[a + 1] = max(np.mean(ya) - np.mean(ca), 0.1 * np.mean(ya)) / scale
+    live = est.copy()
+    last = None
+    for _ in range(max_iter):
+        last = stats(theta)
+        _, _, _, u, AI = last
+        step = np.linalg.solve(AI[np.ix_(live, live)], u[live])
+        # damped Newton in log(theta): no component changes by more than e^1.5 per step
+        t = theta[live]
+        new = theta.copy()
+        new[live] = t * np.exp(np.clip(step / np.maximum(t, 1e-300), -1.5, 1.5))
+        top = np.max(new[1:]) if np.any(new[1:] > 0) else 1.0
+        gone = live & (np.arange(4) > 0) & (new < 1e-9 * top)
+        new[gone] = 0.0                  # a variance at its bound: held at 0
+        done = np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new),
+                                                                1e-3 * np.max(new)))
+        live &= ~gone
+        if done and not gone.any():
+            break               # theta kept: its step is below tol, its terms are `last`
+        theta, last = new, None
+        if est[0] and not (1e-8 < theta[0] < 1e8 and np.all(theta[1:] < 1e8)):
+            return _diverged(y, A, op, theta)   # lambda not separable from the noise
+    Vs, cov_x, Py, u, AI = last if last is not None else stats(theta)
+    signed = theta.copy()
+    signed[est] = theta[est] + np.linalg.solve(AI[np.ix_(est, est)], u[est])
+    negative = np.zeros(4, bool)
+    negative[est] = signed[est] < 0
+    sig = np.zeros(4)
+    var_theta = np.diag(np.linalg.inv(AI[np.ix_(est, est)]))
+    sig[est] = np.where(var_theta >= 0, np.sqrt(np.abs(var_theta)), np.nan)
+    if info is not None:
+        try:
+            v0 = np.linalg.inv(AI)[0, 0]
+        except np.linalg.LinAlgError:
+            v0 = np.inf
+        info["lambda_rel_sigma"] = (np.sqrt(v0) / theta[0] if v0 >= 0 and theta[0] > 0
+                                    else np.inf)
+    x = cov_x @ (A.T @ Vs.solve(y))
+    r = y - A @ x
+    return x, cov_x, theta, sig, r, float(r @ Vs.solve(r)), signed, negative
