@@ -66,8 +66,13 @@ _FIELDS = {
 #: class: ARW ~0.002 deg/sqrt(h), bias ~0.003-0.005 deg/h, 25 ug accelerometers);
 #: ``tactical`` - tactical grade (Honeywell HG1700, KVH 1750 class: ARW ~0.1 deg/sqrt(h),
 #: bias ~1 deg/h, 1 mg); ``mems`` - industrial MEMS (ADIS16488, Xsens MTi class:
-#: ARW ~0.3 deg/sqrt(h), in-run stability ~5 deg/h, bias ~10 mg).  Biases are per-axis
-#: constants with alternating signs so that no axis is error-free.
+#: ARW ~0.3 deg/sqrt(h), in-run stability ~5 deg/h, bias ~10 mg); ``consumer`` - phone
+#: and automotive MEMS (Bosch BMI160/BMI270, TDK ICM-20602/42688, ST LSM6DS3 class:
+#: gyro noise 0.004-0.008 deg/s/sqrt(Hz) = 0.25-0.5 deg/sqrt(h), zero-rate offset up to
+#: +-1 deg/s untrimmed (0.17-0.6 deg/s seen after power-up), accelerometer noise
+#: 70-180 ug/sqrt(Hz) = 0.04-0.1 m/s/sqrt(h), offset up to +-30 mg (14 mg seen), 0.5-1 %
+#: sensitivity error, ~0.5 deg cross-axis).  Biases are per-axis constants with
+#: alternating signs so that no axis is error-free.
 PRESETS = {
     "navigation": {
         "arw_deg_sqrth": 0.002, "vrw_mps_sqrth": 0.002,
@@ -96,6 +101,17 @@ PRESETS = {
         "accel_scale_ppm": [1000.0, -1000.0, 1000.0],
         "gyro_misalignment_arcsec": [180.0, -180.0, 180.0],
         "accel_misalignment_arcsec": [180.0, -180.0, 180.0], "gyro_quantization_rad": 0.0,
+        "accel_quantization_mps": 0.0,
+    },
+    "consumer": {
+        "arw_deg_sqrth": 0.4, "vrw_mps_sqrth": 0.1,
+        "gyro_bias_dph": [400.0, -300.0, -612.0],
+        "accel_bias_mgal": [14000.0, -9000.0, 12000.0],
+        "gyro_bias_instability_dph": 20.0, "accel_bias_instability_mgal": 300.0,
+        "corr_time_h": 0.2, "gyro_scale_ppm": [5000.0, -5000.0, 5000.0],
+        "accel_scale_ppm": [5000.0, -5000.0, 5000.0],
+        "gyro_misalignment_arcsec": [1800.0, -1800.0, 1800.0],
+        "accel_misalignment_arcsec": [1800.0, -1800.0, 1800.0], "gyro_quantization_rad": 0.0,
         "accel_quantization_mps": 0.0,
     },
 }
