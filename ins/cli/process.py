@@ -273,6 +273,10 @@ def _summary(result, cfg, paths, t_proc, t_write):
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
+    for a, b, n, factor in getattr(result.fwd, "recoveries", []):
+        print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
+              f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "
+              f"taken", file=out)
     q = result.quality
     if q is not None and np.isfinite(q["residual_rms_m"]):
         print(f"solution vs GNSS fixes (antenna): residual RMS {q['residual_rms_m']:.3g} m, "
@@ -290,6 +294,8 @@ def _summary(result, cfg, paths, t_proc, t_write):
         print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
               f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
+        if result.start_how:
+            print(f"alignment: {result.start_how}", file=out)
     print(f"processed in {t_proc:.2f} s, wrote {len(paths)} files in {t_write:.2f} s", file=out)
     if result.errors_smoothed is not None:
         rows = []

@@ -103,6 +103,10 @@ class ForwardResult:
         Position innovation (predicted antenna minus fix, NED m) of each tested record.
     node_states : ndarray, shape (m, 10)
         Forward states at the nodes (after the update).
+    recoveries : list of (float, float, int, float)
+        Recoveries from a run of rejected position fixes: time of the first rejected fix
+        and of the fix that recovered (s), the fixes rejected in the run, the factor on
+        the navigation states' covariance.
     records : list of ins.estimation.measurements.UpdateRecord
         Every tested measurement (GNSS position and velocity, heading, zero velocity,
         non-holonomic), in processing order: innovations per axis, NIS, accepted.
@@ -118,6 +122,7 @@ class ForwardResult:
         self.nis = self.nis_record = self.innovation_m = None
         self.nis_threshold = np.inf
         self.records = []
+        self.recoveries = []
         self.layout = KFGINS
         self._whole = None
 
@@ -182,6 +187,12 @@ def filterpy_functions():
     return predict, update, chi2
 
 
+#: A run of rejected GNSS position fixes triggers a recovery (covariance inflation of the
+#: navigation states, :meth:`_Updater._recover`) once it holds this many fixes ...
+RECOVER_AFTER_FIXES = 3
+#: ... spanning at least this long, s: a few outliers are rejected, a stretch of fixes
+#: that all disagree with the filter in the same way means the filter has run away.
+RECOVER_AFTER_S = 2.0
 #: Zero-velocity detection also needs the filter's speed below this (m/s): a vehicle in
 #: smooth straight motion has steady specific force and small rates too.
 ZUPT_MAX_SPEED_MPS = 2.0
@@ -202,6 +213,8 @@ class _Updater:
         self.nis, self.nis_record, self.innovation = [], [], []
         self.records = []
         self.cov = getattr(gnss, "cov_ned_m2", None)
+        self.run = []                 # times of the current run of rejected position fixes
+        self.recoveries = []          # (first rejected s, recovered at s, rejected, factor)
 
     def _threshold(self, m):
         if m not in self.thresholds:
@@ -235,7 +248,14 @@ class _Updater:
         point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0],
                          None if f_meas_b is None else node_acceleration(state, f_meas_b))
         cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
-        P, x, nis, z = self.apply(GnssPosition(tg, g.lla[k], cov), point, P)
+        meas = GnssPosition(tg, g.lla[k], cov)
+        P, x, nis, z = self.apply(meas, point, P)
+        if x is None:
+            self.run.append(tg)
+            if self._run_away():
+                P, x, nis, z = self._recover(meas, point, P, nis)
+        else:
+            self.run = []
         self.nis.append(nis)
         self.nis_record.append(k)
         self.innovation.append(z)
@@ -247,6 +267,36 @@ class _Updater:
             if x is not None:
                 dx += x
         return P, dx
+
+    def _run_away(self):
+        """Whether the rejected fixes in a row say the filter, not the fixes, is wrong:
+        at least :data:`RECOVER_AFTER_FIXES` of them over :data:`RECOVER_AFTER_S`."""
+        return (self.s.recover and len(self.run) >= RECOVER_AFTER_FIXES
+                and self.run[-1] - self.run[0] >= RECOVER_AFTER_S)
+
+    def _recover(self, meas, point, P, nis):
+        """Inflate the navigation states' covariance until ``meas`` passes the test with
+        margin (``P' = D P D``, ``D`` = sqrt(factor) on position, velocity and attitude),
+        then update with it; the recovery is recorded.  Returns as :meth:`apply`."""
+        L = self.layout
+        nav = np.zeros(L.n, bool)
+        nav[L.pos] = nav[L.vel] = nav[L.att] = True
+        thr = self._threshold(3)
+        factor = max(2.0 * nis / thr, 2.0)
+        self.records.pop()                     # the rejected test is repeated below
+        self.n_rejected -= 1
+        for _ in range(40):
+            d = np.where(nav, np.sqrt(factor), 1.0)
+            Pi = P * np.outer(d, d)
+            z = meas.residual(meas.predict(point), meas.observed)
+            H = meas.jacobian(point)
+            S = H @ Pi @ H.T + meas.R
+            if float(z @ np.linalg.solve(S, z)) < 0.5 * thr:
+                break
+            factor *= 4.0
+        self.recoveries.append((self.run[0], meas.time, len(self.run), factor))
+        self.run = []
+        return self.apply(meas, point, Pi)
 
     def others(self, t_row, state, sensors, P, w_meas_b, at_rest, headings):
         """The heading, zero-velocity and non-holonomic updates of a node; (P, dx)."""
@@ -516,7 +566,7 @@ class _ForwardRun:
             return False
         dt = np.diff(t[lo - 1:r + 1])[:, None]
         f = np.linalg.norm(dv[lo:r + 1] / dt, axis=1)
-        w = np.abs(th[lo:r + 1] / dt)
+        w = np.abs(th[lo:r + 1] / dt - self.sensors[:3])     # less the gyro bias estimate
         return bool(np.std(f) < s.zupt_accel_std_mps2
                     and np.max(w) < np.deg2rad(s.zupt_gyro_dps))
 
@@ -534,6 +584,7 @@ class _ForwardRun:
         out.innovation_m = np.array(up.innovation).reshape(-1, 3)
         out.nis_threshold = up.threshold
         out.records = up.records
+        out.recoveries = list(up.recoveries)
         out.layout = self.layout
         return out
 

@@ -56,6 +56,10 @@ class FilterSettings:
         mounting_rpy_deg``, :mod:`ins.estimation.vehicle`); ``None``: the IMU's axes are the vehicle's.
     heading : sequence of ins.estimation.measurements.DualAntennaHeading, optional
         Dual-antenna headings, processed at the node of their time.
+    recover : bool
+        Recover from a run of rejected position fixes by inflating the navigation
+        states' covariance (:data:`ins.estimation.filter.RECOVER_AFTER_S`); False keeps
+        rejecting them.
     """
 
     noise: ImuNoise = field(default_factory=ImuNoise)
@@ -81,6 +85,7 @@ class FilterSettings:
     nhc_sigma_mps: float = 0.1
     nhc_C_vb: object = None
     heading: tuple = ()
+    recover: bool = True
 
     def prior_std(self):
         """Prior standard deviations of the optional groups of :attr:`layout`, SI."""

@@ -188,6 +188,7 @@ def plot_innovations(result, path):
     kinds = list(dict.fromkeys(r.name for r in recs))
     if not kinds:
         return None
+    recoveries = getattr(result.fwd, "recoveries", [])
     t0 = float(result.node_time[0])
     fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
                              squeeze=False)
@@ -203,14 +204,19 @@ def plot_innovations(result, path):
                 ax.plot(t[~ok], np.clip(z[~ok, i], -10, 10), "x", ms=4, color="k")
         ax.axhline(3, color="0.5", lw=0.8, ls="--")
         ax.axhline(-3, color="0.5", lw=0.8, ls="--")
+        for a, b, _, _ in recoveries:        # runs of rejected fixes, then the recovery
+            ax.axvspan(a - t0, b - t0, color="tab:red", alpha=0.15, lw=0)
+            ax.axvline(b - t0, color="tab:red", lw=0.8)
         ax.set_ylim(-6, 6)
         ax.set_ylabel(f"{kind}\ninnovation / sigma")
         ax.grid(alpha=0.3)
         legend_right(ax, fontsize=7)
     xlabel, origin = time_label(t0)
     axes[-1, 0].set_xlabel(xlabel)
+    red = (f"; red: {len(recoveries)} recoveries from runs of rejected fixes"
+           if recoveries else "")
     fig.suptitle("Standardized innovations (predicted - measured) / sqrt(S_ii); dashed: "
-                 f"+-3; crosses: rejected (clipped at +-10)\n{origin}", fontsize=10)
+                 f"+-3; crosses: rejected (clipped at +-10){red}\n{origin}", fontsize=10)
     fig.tight_layout()
     return save_png(fig, path)
 

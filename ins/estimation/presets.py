@@ -8,6 +8,12 @@ config's key names and units::
     tactical   a tactical-grade IMU (fibre-optic or good MEMS gyros, ~1 deg/h)
     mems       a consumer / phone MEMS IMU (~100 deg/h, ~5 mg; values that process the
                comma2k19 phone at 104 Hz: tools/comma2k19.py, docs/real-data.md)
+    consumer   phone / automotive MEMS (Bosch BMI160/BMI270, TDK ICM-20602/42688, ST
+               LSM6DS3 class): datasheet noise 0.004-0.008 deg/s/sqrt(Hz) (ARW up to
+               0.5 deg/sqrt(h)) and 70-180 ug/sqrt(Hz) (VRW up to 0.1 m/s/sqrt(h));
+               zero-rate offsets up to 1 deg/s and accelerometer offsets up to 30 mg
+               (the datasheets' untrimmed limits: a phone's gyro reads 0.1-0.6 deg/s at
+               rest), 1 % sensitivity, 0.5 deg cross-axis; zero-velocity updates at rest
     land       mems for a land vehicle: ``[measurements] nhc = true`` (lateral and
                vertical velocity 0 in the VEHICLE axes: give the IMU's mounting as
                ``[vehicle] mounting_rpy_deg`` unless its axes are the vehicle's;
@@ -32,6 +38,13 @@ PRESETS = {
                                "gyro_scale_std_ppm": 100.0, "accel_scale_std_ppm": 100.0,
                                "corr_time_h": 1.0}},
     "mems": {"imu_noise": dict(_MEMS_NOISE)},
+    "consumer": {"imu_noise": {"arw_deg_sqrth": 0.5, "vrw_mps_sqrth": 0.15,
+                               "gyro_bias_std_dph": 3600.0, "accel_bias_std_mgal": 30000.0,
+                               "gyro_scale_std_ppm": 10000.0, "accel_scale_std_ppm": 10000.0,
+                               "corr_time_h": 1.0},
+                 "states": {"gyro_misalignment_std_arcsec": 2000.0,
+                            "accel_misalignment_std_arcsec": 2000.0},
+                 "measurements": {"zupt": True}},
     "land": {"imu_noise": dict(_MEMS_NOISE),
              "measurements": {"nhc": True, "zupt": True}},
 }

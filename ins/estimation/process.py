@@ -69,6 +69,7 @@ class ProcessResult:
     errors_smoothed: object = None
     quality: dict = None
     start_check: dict = None
+    start_how: str = None
 
     def iter_forward(self):
         for _, time, states in self.fwd.trajectory.chunks():
@@ -124,6 +125,8 @@ class _Start:
     initial_time: float = None
     std: dict = field(default_factory=dict)
     position_source: str = None
+    gyro_bias_b: np.ndarray = None
+    how: str = None
 
 
 def _lever(cfg, mount=None):
@@ -157,7 +160,10 @@ def _start(cfg, blocks, gnss, lever=None):
     peeked at for the start time) are given back in ``blocks``."""
     lever = _lever(cfg) if lever is None else lever
     init = cfg.initial
-    if cfg.method == "given":
+    method = _method(cfg)
+    if method == "anywhere":
+        return _anywhere(cfg, gnss, lever, blocks)
+    if method == "given":
         need = ("vel_ned_mps", "rpy_deg")
         missing = [k for k in need if k not in init]
         have = [k for k in POSITION_KEYS if k in init]
@@ -192,7 +198,7 @@ def _start(cfg, blocks, gnss, lever=None):
         std = {"pos_std_ned_m": np.hypot(np.hypot(gnss.sigma_ned_m[k], 0.01), vel_std * dt)}
         return _Start(NavState(lla, v_n, q), t0, None, blocks, initial_time=t0, std=std,
                       position_source=f"the start position from {fix_name(gnss, k)}")
-    if cfg.method == "static":
+    if method == "static":
         if cfg.static_window_s is None:
             raise InputError("[alignment] static_window_s: needed with method 'static'")
         t_a, t_b = cfg.static_window_s
@@ -215,6 +221,47 @@ def _start(cfg, blocks, gnss, lever=None):
     if t_start is None and cfg.static_window_s is not None:
         t_start = cfg.static_window_s[0]
     return _in_air(cfg, gnss, t_start, lever, blocks)
+
+
+def _method(cfg):
+    """The alignment method of ``cfg``, ``"auto"`` resolved (module notes of
+    :mod:`ins.estimation.process_config`)."""
+    if cfg.method != "auto":
+        return cfg.method
+    if "rpy_deg" in cfg.initial and "vel_ned_mps" in cfg.initial:
+        return "given"
+    return "static" if cfg.static_window_s is not None else "anywhere"
+
+
+def _anywhere(cfg, gnss, lever, blocks):
+    """Start from the IMU and the GNSS alone (:func:`align_anywhere`): the IMU blocks up
+    to the end of the matching window are read ahead and given back."""
+    from ins.estimation.motion_alignment import MAX_WINDOW_S, align_anywhere
+    first, blocks = _peek(blocks)
+    t_start = cfg.start_s if cfg.start_s is not None else float(first.time[0])
+    head, rest = [], iter(blocks)
+    for b in rest:                                # enough IMU for any matching window
+        head.append(b)
+        if b.time[-1] >= t_start + MAX_WINDOW_S + 1.0 + _rest_length(gnss, t_start):
+            break
+    imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
+                         for k_ in ("time", "dtheta_b", "dvel_b")))
+    ms = align_anywhere(imu, gnss, t_start, cfg.noise)
+    al = ms.alignment
+    lla = _less_lever_arm(al.state.lla, al.state.q_nb, lever, al.time)
+    al = replace(al, state=NavState(lla, al.state.v_n, al.state.q_nb))
+    return _Start(al.state, al.time, al, itertools.chain(head, rest), initial_time=al.time,
+                  position_source="the start position from the GNSS (anywhere alignment)",
+                  gyro_bias_b=ms.gyro_bias_b, how=ms.how)
+
+
+def _rest_length(gnss, t_start):
+    """Length of the rest at ``t_start`` seen by the GNSS, s (0 when moving)."""
+    from ins.estimation.motion_alignment import REST_SPEED_MPS, gnss_velocities
+    v = gnss_velocities(gnss)
+    k0 = int(np.searchsorted(gnss.time, t_start - 1e-9))
+    moving = np.flatnonzero(np.hypot(v[k0:, 0], v[k0:, 1]) >= REST_SPEED_MPS)
+    return 0.0 if not len(moving) else float(gnss.time[k0 + moving[0]] - t_start)
 
 
 def _in_air(cfg, gnss, t_start, lever, blocks):
@@ -304,9 +351,12 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
         std["pos_std_ned_m"] = np.maximum(np.broadcast_to(
             np.asarray(std["pos_std_ned_m"], float), 3), d)
     start = t0 if t0 is not None else cfg.start_s
+    sensors0 = None if st.gyro_bias_b is None else np.concatenate([st.gyro_bias_b,
+                                                                    np.zeros(9)])
     settings = FilterSettings(noise=cfg.noise, lever=lever, use_velocity=cfg.use_velocity,
                               reject_probability=cfg.reject_probability,
                               node_interval_s=cfg.node_interval_s, **std,
+                              initial_sensors=sensors0, recover=cfg.recover,
                               heading=_headings(cfg, start), **filter_options(cfg))
     fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
                       progress=progress, workdir=workdir, initial_time=st.initial_time)
@@ -319,10 +369,11 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
               "nodes": len(fwd.node_time), "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
-              "mount_fallback": fwd.n_mount_fallback}
+              "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries)}
     result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
                            al, counts)
     result.start_check = start_check
+    result.start_how = st.how
     result.quality = assess_quality(result, gnss, lever, cfg)
     q = result.quality
     for msg in q["warnings"]:

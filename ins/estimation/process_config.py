@@ -18,8 +18,14 @@ with the unit in the name::
                  format = "kfgins"|"rtklib" (default: sniffed), time_shift_s = 0,
                  quality = "fix,float" (RTKLIB Q kept), quality_scale = "float=3,single=10"
     [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
-    [alignment]  method = "given"|"static"|"gnss-heading", static_window_s = [t0, t1]
-    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true
+    [alignment]  method = "auto"|"given"|"static"|"gnss-heading"|"anywhere",
+                 static_window_s = [t0, t1]; "auto" (the default) is "given" when
+                 [initial] has rpy_deg and vel_ned_mps, "static" with a static window,
+                 else "anywhere" (ins.estimation.motion_alignment: level and gyro
+                 biases from a rest at the start, heading by velocity matching)
+    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true, recover = true
+                 (a run of rejected position fixes ends in a recovery: the navigation
+                 covariance is inflated; ins.estimation.filter.RECOVER_AFTER_S)
     [states]     layout = "survey"|"kfgins"; gyro_misalignment, accel_misalignment,
                  lever_arm, time_offset (true/false: add or drop a group of the layout);
                  gyro_misalignment_std_arcsec = 100, accel_misalignment_std_arcsec = 100,
@@ -62,7 +68,7 @@ _SECTIONS = {
              "time_shift_s", "quality", "quality_scale"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
-    "filter": {"start_s", "end_s", "node_interval_s", "smooth"},
+    "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
     "states": {"layout", *OPTIONAL_GROUPS, "gyro_misalignment_std_arcsec",
                "accel_misalignment_std_arcsec", "lever_arm_std_m", "time_offset_std_ms"},
     "measurements": {"zupt", "zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps",
@@ -76,7 +82,7 @@ DEFAULT_LAYOUT = "survey"
 _PRIOR_KEYS = {"gyro_misalignment_std_arcsec": 3, "accel_misalignment_std_arcsec": 3,
                "lever_arm_std_m": 3, "time_offset_std_ms": 1}
 _MEAS_NUMBERS = ("zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps", "nhc_sigma_mps")
-METHODS = ("given", "static", "gnss-heading")
+METHODS = ("auto", "given", "static", "gnss-heading", "anywhere")
 POSITION_KEYS = ("lat_deg", "lon_deg", "h_m")
 
 
@@ -103,7 +109,7 @@ class ProcessConfig:
     lever_bp: np.ndarray = field(default_factory=lambda: np.zeros(3))
     lever_ap: np.ndarray = field(default_factory=lambda: np.zeros(3))
     initial: dict = field(default_factory=dict)
-    method: str = "given"
+    method: str = "auto"
     static_window_s: tuple = None
     start_s: float = None
     end_s: float = None
@@ -111,6 +117,7 @@ class ProcessConfig:
     use_velocity: bool = True
     reject_probability: float = 1e-5
     smooth: bool = True
+    recover: bool = True
     source: str = "config"
     initial_source: str = None
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
@@ -229,6 +236,7 @@ def _fill(cfg, data, where, path=None):
         cfg.node_interval_s = _number(filt["node_interval_s"], where("filter", "node_interval_s"),
                                       True)
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
+    cfg.recover = bool(filt.get("recover", cfg.recover))
     _states(cfg, data.get("states", {}), where)
     _measurements(cfg, data.get("measurements", {}), where)
     _vehicle_and_heading(cfg, data, where)

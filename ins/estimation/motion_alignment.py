@@ -1,0 +1,265 @@
+"""Start anywhere: the attitude of an IMU at the start of a log from the IMU and the GNSS
+alone, at rest, at walking pace or moving, with no hand-written attitude and no
+assumption on how the IMU is mounted.
+
+1. Rest.  The log starts at rest when the GNSS speed stays below
+   :data:`REST_SPEED_MPS` (and the gyro shows no turn).  Over the rest the mean specific
+   force gives roll and pitch (``static_attitude``; an accelerometer bias ``b`` tilts
+   them by ``b / g``, which the filter later separates), and the mean rate gives the
+   gyro biases (the Earth rate, at most 15 deg/h, stays in them: its share is below the
+   bias sigma of a MEMS gyro, and the filter's bias state takes it up).
+2. Heading by velocity matching.  With the gyro (less those biases) the body's rotation
+   since the reference epoch ``t_a`` is known, so the specific force can be integrated in
+   a frame ``L`` that is level at ``t_a`` and has an arbitrary azimuth: the velocity
+   change ``dv_L(t)`` (gravity removed).  The GNSS sees the same change in NED,
+   ``dv_n(t) = Rz(psi) dv_L(t)``: ``psi`` is the 2-D rotation between the two series,
+   in closed form ``atan2(sum x_L x y_n, sum x_L . y_n)`` (orthogonal Procrustes), after
+   an offset and a drift ``c0 + c1 t`` are regressed out of both (an error of the
+   starting velocity, and an accelerometer bias seen through the level error).  This
+   works for any mounting (a phone held sideways, a roof box) because it compares
+   accelerations, not the track with the IMU's forward axis.  It needs a change of
+   horizontal velocity (starting, braking, turning): the window grows from the first
+   motion until the change reaches :data:`EXCITATION_MPS` (plus
+   :data:`SETTLE_S`), at most :data:`MAX_WINDOW_S`.
+3. A start while moving levels with the mean specific force of the first second less
+   the GNSS acceleration (iterated with the heading: the acceleration is known in NED,
+   the level in the body).
+
+The sigmas state what the data support: the heading's from the residual of the fit
+against the excitation (times :data:`HEADING_SIGMA_FACTOR` for what the model leaves
+out, at least :data:`MIN_HEADING_STD_DEG`); the level's from the accelerometer bias
+prior.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ins.common.errors import InputError
+from ins.estimation.alignment import Alignment, static_attitude
+from ins.nav import earth
+from ins.nav.mechanization import NavState
+from ins.nav.rotation import euler_to_dcm, euler_to_quat, quat_to_dcm, rotvec_to_quat
+
+__all__ = ["MotionStart", "align_anywhere", "gnss_velocities", "REST_SPEED_MPS",
+           "EXCITATION_MPS", "MAX_WINDOW_S"]
+
+#: GNSS horizontal speed below which the carrier counts as at rest, m/s (RTK velocity
+#: noise is a few cm/s; a walker's slowest steps are 0.5 m/s).
+REST_SPEED_MPS = 0.2
+#: Change of horizontal velocity that ends the matching window, m/s.
+EXCITATION_MPS = 1.0
+#: Time kept after the excitation is reached, s.
+SETTLE_S = 3.0
+#: Longest matching window after the first motion, s.
+MAX_WINDOW_S = 60.0
+#: Factor on the fitted heading sigma for what the model leaves out (gyro drift over the
+#: window, the lever arm's velocity in turns, the level error).
+HEADING_SIGMA_FACTOR = 3.0
+#: Smallest stated heading sigma, deg.
+MIN_HEADING_STD_DEG = 1.0
+#: The rest ends this long before the first fix at :data:`REST_SPEED_MPS`, s (a start
+#: at 1 m/s^2 reaches 0.2 m/s in well under a second; the rest must not hold it).
+REST_MARGIN_S = 1.5
+#: Shortest rest that gives gyro biases, s.
+MIN_REST_S = 2.0
+
+
+@dataclass(frozen=True)
+class MotionStart:
+    """Result of :func:`align_anywhere`: the alignment at the log's start, the gyro
+    biases found at rest (rad/s, b; None when the start moves) and what was done."""
+    alignment: Alignment
+    gyro_bias_b: np.ndarray
+    rest_s: float
+    window_s: tuple
+    how: str
+
+
+def gnss_velocities(gnss):
+    """Horizontal and vertical GNSS velocities NED (m/s) at the records: the file's own,
+    else central differences of the positions."""
+    if gnss.has_velocity:
+        return np.asarray(gnss.v_n, float)
+    n = len(gnss)
+    if n < 2:
+        raise InputError("a start without a given attitude needs at least two GNSS fixes",
+                         path=gnss.path)
+    d = np.array([earth.ned_offset(gnss.lla[k], gnss.lla[k + 1]) for k in range(n - 1)])
+    v = d / np.diff(gnss.time)[:, None]
+    out = np.empty((n, 3))
+    out[0], out[-1] = v[0], v[-1]
+    out[1:-1] = 0.5 * (v[:-1] + v[1:])
+    return out
+
+
+def _rest_end(t_g, speed, t0):
+    """End of the rest at the start (s), or None when the first fix already moves."""
+    k0 = int(np.searchsorted(t_g, t0 - 1e-9))
+    if k0 >= len(t_g) or speed[k0] >= REST_SPEED_MPS:
+        return None
+    moving = np.flatnonzero(speed[k0:] >= REST_SPEED_MPS)
+    if not len(moving):
+        return float(t_g[-1])
+    t_end = float(t_g[k0 + moving[0]]) - REST_MARGIN_S     # the start of the motion is
+    return t_end if t_end > t0 else None                   # slower than the threshold
+
+
+def _window_end(t_g, v_h, t_a):
+    """End of the matching window from ``t_a`` (s): excitation reached + SETTLE_S."""
+    k_a = int(np.searchsorted(t_g, t_a - 1e-9))
+    change = np.linalg.norm(v_h[k_a:] - v_h[k_a], axis=1)
+    hit = np.flatnonzero(change >= EXCITATION_MPS)
+    t_hit = t_g[k_a + hit[0]] if len(hit) else t_a + MAX_WINDOW_S
+    return float(min(t_hit + SETTLE_S, t_a + MAX_WINDOW_S, t_g[-1]))
+
+
+def _integrate(imu, i0, i1, bias_b, C_Lb0):
+    """Velocity change in the frame L (level at imu.time[i0], its azimuth arbitrary) at
+    the epochs imu.time[i0:i1+1] (first 0), gravity removed (m/s, (m, 3))."""
+    th = imu.dtheta_b[i0 + 1:i1 + 1] - np.outer(imu.dt[i0 + 1:i1 + 1], bias_b)
+    dv = imu.dvel_b[i0 + 1:i1 + 1]
+    q = rotvec_to_quat(th)
+    C = quat_to_dcm(q)
+    out = np.zeros((i1 - i0 + 1, 3))
+    C_Lb = C_Lb0.copy()
+    acc = np.zeros(3)
+    for k in range(len(dv)):
+        C_mid = C_Lb @ (np.eye(3) + 0.5 * (C[k] - np.eye(3)))   # half the step's rotation
+        acc = acc + C_mid @ dv[k]
+        C_Lb = C_Lb @ C[k]
+        out[k + 1] = acc
+    return out
+
+
+def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g):
+    """Azimuth of L in n (rad) and its sigma from the velocity changes over [t_a, t_e]."""
+    sel = (t_g >= t_a) & (t_g <= t_e)
+    tg = t_g[sel]
+    if len(tg) < 4:
+        return None, None
+    x = np.column_stack([np.interp(tg, t_imu, dv_L[:, i]) for i in range(3)])
+    x[:, 2] += g * (tg - t_imu[0])                           # gravity: L is level
+    y = v_n[sel] - v_n[sel][0]
+    A = np.column_stack([np.ones(len(tg)), tg - tg[0]])
+    P = np.eye(len(tg)) - A @ np.linalg.pinv(A)              # offset and drift out
+    xh, yh = P @ x[:, :2], P @ y[:, :2]
+    cross = float(np.sum(xh[:, 0] * yh[:, 1] - xh[:, 1] * yh[:, 0]))
+    dot = float(np.sum(xh * yh))
+    psi = np.arctan2(cross, dot)
+    excite = float(np.sum(xh ** 2))
+    if excite < (0.5 * EXCITATION_MPS) ** 2:
+        return None, None
+    c, s = np.cos(psi), np.sin(psi)
+    r = yh - xh @ np.array([[c, s], [-s, c]])
+    dof = max(2 * len(tg) - 5, 1)
+    sigma_v = np.sqrt(np.sum(r ** 2) / dof)
+    return psi, sigma_v / np.sqrt(excite)
+
+
+def align_anywhere(imu, gnss, t_start=None, noise=None):
+    """Initial attitude, velocity and position at the first IMU epoch >= ``t_start``
+    from the IMU and the GNSS alone (module notes).
+
+    Parameters
+    ----------
+    imu : ins.nav.imu.ImuLog
+        The log from the start to at least the end of the matching window.
+    gnss : ins.io.gnss_log.GnssLog
+    t_start : float, optional
+        s (default: the IMU's first epoch).
+    noise : ins.estimation.error_model.ImuNoise, optional
+        For the level sigma (accelerometer bias prior); 30 mg without it.
+
+    Returns
+    -------
+    MotionStart
+        The alignment holds the antenna's position (the caller removes the lever arm).
+
+    Raises
+    ------
+    InputError
+        No GNSS fix near the start; the log never moves enough to find the heading.
+    """
+    from ins.estimation.error_model import MGAL
+    t0 = float(imu.time[0]) if t_start is None else float(t_start)
+    i0 = int(np.searchsorted(imu.time, t0 - 1e-9))
+    t0 = float(imu.time[i0])
+    t_g = np.asarray(gnss.time, float)
+    k0 = int(np.searchsorted(t_g, t0 - 1e-9))
+    if k0 >= len(t_g) or t_g[k0] - t0 > 5.0:
+        raise InputError(f"no GNSS fix within 5 s after the start {t0:.3f} s: the start "
+                         f"position and attitude come from the fixes", path=gnss.path)
+    v_n = gnss_velocities(gnss)
+    speed = np.hypot(v_n[:, 0], v_n[:, 1])
+    lat = float(gnss.lla[k0, 0])
+    g = float(earth.normal_gravity(lat, gnss.lla[k0, 2]))
+    t_rest = _rest_end(t_g, speed, t0)
+    rest_s = 0.0 if t_rest is None else t_rest - t0
+    bias_b = None
+    if rest_s >= MIN_REST_S:
+        i1 = int(np.searchsorted(imu.time, t_rest, side="right")) - 1
+        span = imu.time[i1] - imu.time[i0]
+        f_b = imu.dvel_b[i0 + 1:i1 + 1].sum(axis=0) / span
+        bias_b = imu.dtheta_b[i0 + 1:i1 + 1].sum(axis=0) / span
+        roll, pitch, _ = static_attitude(f_b, bias_b)
+        t_a = max(t0, t_rest - 1.0)
+        how = f"at rest for {rest_s:.1f} s: level and gyro biases from the rest"
+    else:
+        i1 = int(np.searchsorted(imu.time, t0 + 1.0, side="right")) - 1
+        span = imu.time[i1] - imu.time[i0]
+        f_b = imu.dvel_b[i0 + 1:i1 + 1].sum(axis=0) / span
+        roll, pitch, _ = static_attitude(f_b, np.zeros(3))
+        t_a = t0
+        how = "moving at the start: level from the first second less the GNSS acceleration"
+    t_e = _window_end(t_g, v_n[:, :2], t_a)
+    ia = int(np.searchsorted(imu.time, t_a - 1e-9))
+    ie = int(np.searchsorted(imu.time, t_e, side="right")) - 1
+    if ie - ia < 10 or imu.time[ie] < t_e - 1.0:
+        raise InputError(f"the IMU log ends before the heading could be found ({t_e:.1f} s "
+                         f"needed)")
+    b = np.zeros(3) if bias_b is None else bias_b
+    # relative attitude t0 -> t_a (rest: no rotation) then the matching
+    psi, s_psi = None, None
+    for _ in range(3):
+        C_Lb0 = euler_to_dcm([roll, pitch, 0.0])
+        dv_L = _integrate(imu, ia, ie, b, C_Lb0)
+        psi, s_psi = _match(imu.time[ia:ie + 1], dv_L, t_g, v_n, t_a, t_e, g)
+        if psi is None:
+            break
+        if bias_b is not None:                    # the rest's level needs no iteration
+            break
+        # level while moving: mean specific force of the first second vs a_n - g_n
+        sel = (t_g >= t0) & (t_g <= t0 + 1.5)
+        if sel.sum() >= 2:
+            a_n = np.polyfit(t_g[sel] - t0, v_n[sel], 1)[0]
+        else:
+            a_n = np.zeros(3)
+        f_n = a_n - np.array([0.0, 0.0, g])
+        C_nb = euler_to_dcm([roll, pitch, psi])
+        tilt = np.cross(C_nb @ f_b, f_n) / np.dot(f_n, f_n)   # small rotation f_b -> f_n
+        C_nb = (np.eye(3) + np.array([[0.0, -tilt[2], tilt[1]], [tilt[2], 0.0, -tilt[0]],
+                                      [-tilt[1], tilt[0], 0.0]])) @ C_nb
+        roll = float(np.arctan2(C_nb[2, 1], C_nb[2, 2]))
+        pitch = float(-np.arcsin(np.clip(C_nb[2, 0], -1.0, 1.0)))
+    if psi is None:
+        raise InputError(f"the heading cannot be found from the start {t0:.1f} s to "
+                         f"{t_e:.1f} s: the horizontal velocity never changes by "
+                         f"{EXCITATION_MPS:g} m/s (no start, stop or turn); give "
+                         f"[initial] rpy_deg or start the log before the vehicle moves")
+    head_std = max(np.rad2deg(s_psi) * HEADING_SIGMA_FACTOR, MIN_HEADING_STD_DEG)
+    b_a = (30.0 * 980.665 if noise is None else float(np.max(noise.accel_bias_std_mgal))) * MGAL
+    level_std = np.rad2deg(b_a / g) + (0.0 if bias_b is not None else 1.0)
+    q = euler_to_quat([roll, pitch, psi])
+    if bias_b is not None:
+        v0, lla0 = np.zeros(3), gnss.lla[k0].copy()
+    else:
+        v0 = np.array([np.interp(t0, t_g, v_n[:, i]) for i in range(3)])
+        lla0 = earth.offset_lla(gnss.lla[k0], -v0 * (t_g[k0] - t0))[0]
+    state = NavState(lla0, v0, q)
+    vel_std = 0.01 if bias_b is not None else 0.2
+    al = Alignment(state, t0, np.array([level_std, level_std, head_std]),
+                   np.maximum(np.asarray(gnss.sigma_ned_m[k0], float) * 2, 0.05),
+                   np.full(3, vel_std), "anywhere")
+    how += (f"; heading by velocity matching over {t_a:.1f} .. {t_e:.1f} s: "
+            f"{np.rad2deg(psi) % 360:.2f} +- {head_std:.2f} deg")
+    return MotionStart(al, bias_b, rest_s, (t_a, t_e), how)
