@@ -169,8 +169,12 @@ def test_cli_refuses_a_moving_log_and_cuts_or_allows(tmp_path, capsys):
     assert np.allclose([float(r[5]) for r in rows], PRESETS["tactical"]["arw_deg_sqrth"],
                        rtol=0.2)
     assert png.stat().st_size > 1000
-    # --allow-motion: computed, with one warning line
-    assert main(["allan", str(path), "--allow-motion"]) == 0
+    # --allow-motion: computed, with one warning line; the turn and the bump are not
+    # noise of the model's kinds: exit 3 unless --accept-poor
+    assert main(["allan", str(path), "--allow-motion"]) == 3
+    out, err = capsys.readouterr()
+    assert "does not describe" in err
+    assert main(["allan", str(path), "--allow-motion", "--accept-poor"]) == 0
     out, err = capsys.readouterr()
     warns = [x for x in err.splitlines() if x.strip()]
     assert len(warns) == 1 and warns[0].startswith("warning: ") and "not a static" in warns[0]
@@ -201,6 +205,6 @@ def test_simulated_flight_is_refused(tmp_path, capsys):
     assert main(["allan", imu]) == 2
     err = capsys.readouterr().err
     assert "is not a static log" in err and "moves in" in err and "gravity's direction" in err
-    assert main(["allan", imu, "--allow-motion"]) == 0
+    assert main(["allan", imu, "--allow-motion", "--accept-poor"]) == 0
     err = capsys.readouterr().err
     assert err.startswith("warning: ") and "--allow-motion" in err

@@ -160,3 +160,19 @@ def test_cli_on_mems_log(tmp_path, capsys):
         n_a, lo, hi = (float(v.strip("[],")) for v in rows["a" + i][5:8])
         assert lo <= 0.06 <= hi and n_a == pytest.approx(0.06, rel=0.03)
     assert png.stat().st_size > 1000
+
+
+def test_cli_exit_3_when_the_model_does_not_fit(tmp_path, capsys):
+    """A vibration the model lacks (a 2 Hz sinusoid of 0.05 deg/s on the gyro x axis):
+    the table and the plot, then exit 3; --accept-poor exits 0."""
+    log = mems_static(600.0, seed=7)
+    dth = log.dtheta_b.copy()
+    dth[:, 0] += np.deg2rad(0.05) * np.sin(2 * np.pi * 2.0 * log.time) * DT
+    path = tmp_path / "imu.txt"
+    write_kfgins_text(path, ImuLog(log.time, dth, log.dvel_b))
+    png = tmp_path / "allan.png"
+    assert main(["allan", str(path), "--plot", str(png)]) == 3
+    out, err = capsys.readouterr()
+    assert "does not describe" in err and "gyro x" in err and "gyro y" not in err
+    assert out.count("\n") == 10 and png.exists()
+    assert main(["allan", str(path), "--accept-poor"]) == 0

@@ -6,7 +6,12 @@ import warnings
 
 import numpy as np
 
-from ins.common.errors import InputError, InputWarning
+from ins.common.errors import InputError, InputWarning, QualityError
+
+#: Largest reduced chi-square of a trusted fit: with the estimator's own covariance in
+#: the weights a curve that the model explains gives about 1 (0.5 .. 2 on simulated
+#: logs); above 10 the curve departs from the model by about 3 times its noise.
+CHI2_POOR = 10.0
 
 EPILOG = """\
 frames and units:
@@ -20,7 +25,8 @@ frames and units:
   B (deg/h, mGal = 1e-5 m/s^2; the flat floor is 0.664 B), rate random walk K
   (deg/h/sqrt(h), mGal/sqrt(h)) and rate ramp R (deg/h^2, mGal/h).  chi2 is the
   reduced chi-square of the fit: well above 1, the curve has what the model lacks
-  (a filter's ripple, a sinusoid), and the intervals are widened by its root.
+  (a filter's ripple, a sinusoid), and the intervals are widened by its root; above
+  10 on any axis the command exits 3 after the table and plot (--accept-poor: 0).
 
 the log must be static (motion would be reported as noise); it is refused when
   - its mean specific force is not normal gravity (9.780..9.832 m/s^2) within 0.3 m/s^2,
@@ -57,6 +63,9 @@ def add_parser(sub):
     p.add_argument("--allow-motion", action="store_true",
                    help="compute even when the log moves (a warning instead of an error)")
     p.add_argument("--plot", metavar="PNG", help="write the log-log plot of the deviations")
+    p.add_argument("--accept-poor", action="store_true",
+                   help=f"exit 0 even when the model does not describe the curve (reduced "
+                        f"chi-square above {CHI2_POOR:g} on an axis; default: exit 3)")
     p.set_defaults(func=_cmd_allan)
 
 
@@ -118,6 +127,14 @@ def _cmd_allan(args):
                    f"{os.path.basename(args.imu_file)}: {len(log) * dt:.0f} s static, "
                    f"{1 / dt:.0f} Hz", fit_gyro=fit_g, fit_accel=fit_a)
         print(f"wrote {args.plot}")
+    poor = [f"{sensor} {'xyz'[i]} {fit.chi2[i]:.3g}" for sensor, fit in
+            (("gyro", fit_g), ("accel", fit_a)) for i in range(3) if fit.chi2[i] > CHI2_POOR]
+    if poor and not args.accept_poor:
+        raise QualityError(f"{args.imu_file}: the IEEE 952 model does not describe the "
+                           f"Allan deviation (reduced chi-square {', '.join(poor)}, above "
+                           f"{CHI2_POOR:g}): the log holds what the model lacks (vibration, "
+                           f"a filter's ripple, motion) or is too short; its coefficients "
+                           f"are not to be trusted (--accept-poor: exit 0)")
     return 0
 
 
