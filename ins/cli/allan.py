@@ -1,31 +1,43 @@
-"""``ins allan IMU_FILE``: Allan deviation of a static IMU log, noise terms per axis (a
-moving log is refused: :func:`ins.estimation.allan.static_check`)."""
+"""``ins allan IMU_FILE``: Allan deviation of a static IMU log, IEEE 952 noise terms per
+axis with intervals (a moving log is refused: :func:`ins.estimation.allan.static_check`)."""
 import argparse
 import os
 import warnings
 
 import numpy as np
 
-from ins.common.errors import InputError, InputWarning
+from ins.common.errors import InputError, InputWarning, QualityError
+
+#: Largest reduced chi-square of a trusted fit: with the estimator's own covariance in
+#: the weights a curve that the model explains gives about 1 (0.5 .. 2 on simulated
+#: logs); above 10 the curve departs from the model by about 3 times its noise.
+CHI2_POOR = 10.0
 
 EPILOG = """\
 frames and units:
   The IMU file holds increments (dtheta rad, dvel m/s) over (t[k-1], t[k]] in the body
   frame forward-right-down (KF-GINS text/binary or CSV, as for `ins mechanize`).  The
-  Allan deviation is that of the rates (overlapping estimator).  The table gives per
-  axis the angle random walk (deg/sqrt(h)) and gyro bias instability (deg/h), the
-  velocity random walk (m/s/sqrt(h)) and accelerometer bias instability (mGal =
-  1e-5 m/s^2); random walk = sigma(1 s) of the slope -1/2, bias instability = flat
-  minimum / 0.664.
+  Allan deviation is that of the rates (overlapping estimator).  The IEEE 952 model
+    sigma^2(tau) = 3 Q^2/tau^2 + N^2/tau + (2 ln2/pi) B^2 + K^2 tau/3 + R^2 tau^2/2
+  is fitted to the whole curve (non-negative least squares at octave taus, weighted by
+  the covariance of the estimates) and printed per axis with its 95 % interval:
+  quantization Q, random walk N (ARW deg/sqrt(h), VRW m/s/sqrt(h)), bias instability
+  B (deg/h, mGal = 1e-5 m/s^2; the flat floor is 0.664 B), rate random walk K
+  (deg/h/sqrt(h), mGal/sqrt(h)) and rate ramp R (deg/h^2, mGal/h).  chi2 is the
+  reduced chi-square of the fit: well above 1, the curve has what the model lacks
+  (a filter's ripple, a sinusoid), and the intervals are widened by its root; above
+  10 on any axis the command exits 3 after the table and plot (--accept-poor: 0).
 
 the log must be static (motion would be reported as noise); it is refused when
   - its mean specific force is not normal gravity (9.780..9.832 m/s^2) within 0.3 m/s^2,
-  - its mean angular rate exceeds 0.1 deg/s (Earth rate 15 deg/h plus a gyro bias), or
-  - in 1 s windows the mean rate or specific force departs from the log's median by
-    more than 7 sigma of a window mean (white noise estimated from the log's
-    sample-to-sample differences) and more than 0.01 deg/s or 0.05 m/s^2;
-  the message gives the time spans that move.  --start/--end (s, the log's time) cut
-  the static part; --allow-motion computes anyway, with a warning.
+  - gravity's direction in the body (mean specific force over 60 s windows) turns by
+    more than 0.3 deg over the log: a rotation about a horizontal axis, or
+  - in 1 s windows the mean rate or specific force departs from its running median
+    (5 min) by more than 7 sigma of a window mean and more than 0.01 deg/s or
+    0.05 m/s^2: a turn about the vertical, a bump;
+  a constant rate is not motion (a MEMS gyro bias of several deg/s is accepted); the
+  message gives the time spans that move.  --start/--end (s, the log's time) cut the
+  static part; --allow-motion computes anyway, with a warning.
 
 example:
   ins allan static_imu.txt --plot allan.png
@@ -34,10 +46,11 @@ example:
 
 
 def add_parser(sub):
-    p = sub.add_parser("allan", help="Allan deviation and noise densities of an IMU log",
+    p = sub.add_parser("allan", help="Allan deviation and IEEE 952 noise terms of an IMU log",
                        description="Overlapping Allan deviation of the gyro and accelerometer "
-                                   "axes of a static IMU log, with the random walks and bias "
-                                   "instabilities read from it.",
+                                   "axes of a static IMU log, with the IEEE 952 noise model "
+                                   "fitted to it (quantization, random walk, bias "
+                                   "instability, rate random walk, rate ramp).",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("imu_file", metavar="IMU_FILE")
     p.add_argument("--format", choices=["kfgins", "kfgins-bin", "csv"], default=None,
@@ -50,6 +63,9 @@ def add_parser(sub):
     p.add_argument("--allow-motion", action="store_true",
                    help="compute even when the log moves (a warning instead of an error)")
     p.add_argument("--plot", metavar="PNG", help="write the log-log plot of the deviations")
+    p.add_argument("--accept-poor", action="store_true",
+                   help=f"exit 0 even when the model does not describe the curve (reduced "
+                        f"chi-square above {CHI2_POOR:g} on an axis; default: exit 3)")
     p.set_defaults(func=_cmd_allan)
 
 
@@ -61,7 +77,7 @@ def _span_text(spans, limit=3):
 
 
 def _cmd_allan(args):
-    from ins.estimation.allan import allan_deviation, noise_densities, static_check
+    from ins.estimation.allan import TERMS, allan_deviation, fit_noise_model, static_check
     from ins.io import imu_files
 
     if args.plot:
@@ -92,32 +108,73 @@ def _cmd_allan(args):
     tau, ag = allan_deviation(log.dtheta_b, dt)
     _, aa = allan_deviation(log.dvel_b, dt)
     try:
-        arw, gbi = noise_densities(tau, ag)
-        vrw, abi = noise_densities(tau, aa)
+        fit_g = fit_noise_model(log.dtheta_b, dt)
+        fit_a = fit_noise_model(log.dvel_b, dt)
     except ValueError as exc:
         raise InputError(f"{args.imu_file}: {exc}") from None
-    print(f"{args.imu_file}: {len(log)} epochs, dt {dt:.6g} s, {len(log) * dt:.1f} s")
-    print(f"{'axis':<6}{'ARW deg/sqrt(h)':>17}{'gyro BI deg/h':>15}"
-          f"{'VRW m/s/sqrt(h)':>17}{'accel BI mGal':>15}")
-    for i, name in enumerate("xyz"):
-        print(f"{name:<6}{np.degrees(arw[i]) * 60:>17.5g}{np.degrees(gbi[i]) * 3600:>15.5g}"
-              f"{vrw[i] * 60:>17.5g}{abi[i] / 1e-5:>15.5g}")
+    print(f"{args.imu_file}: {len(log)} epochs, dt {dt:.6g} s, {len(log) * dt:.1f} s; "
+          f"IEEE 952 model, value [95 % interval]")
+    for sensor, fit, units in (("gyro", fit_g, GYRO_UNITS), ("accel", fit_a, ACCEL_UNITS)):
+        print(f"{sensor:<8}" + "".join(f"{t + ' ' + u[0]:<28}" for t, u in zip(TERMS, units))
+              + "chi2")
+        for i, name in enumerate("xyz"):
+            cells = [f"{_g(fit.value[j, i] / u[1])} [{_g(fit.lo[j, i] / u[1])}, "
+                     f"{_g(fit.hi[j, i] / u[1])}]" for j, u in enumerate(units)]
+            print(f"{sensor[0] + ' ' + name:<8}" + "".join(f"{c:<28}" for c in cells)
+                  + f"{fit.chi2[i]:.3g}")
     if args.plot:
         plot_allan(args.plot, tau, ag, aa,
                    f"{os.path.basename(args.imu_file)}: {len(log) * dt:.0f} s static, "
-                   f"{1 / dt:.0f} Hz")
+                   f"{1 / dt:.0f} Hz", fit_gyro=fit_g, fit_accel=fit_a)
         print(f"wrote {args.plot}")
+    poor = [f"{sensor} {'xyz'[i]} {fit.chi2[i]:.3g}" for sensor, fit in
+            (("gyro", fit_g), ("accel", fit_a)) for i in range(3) if fit.chi2[i] > CHI2_POOR]
+    if poor and not args.accept_poor:
+        raise QualityError(f"{args.imu_file}: the IEEE 952 model does not describe the "
+                           f"Allan deviation (reduced chi-square {', '.join(poor)}, above "
+                           f"{CHI2_POOR:g}): the log holds what the model lacks (vibration, "
+                           f"a filter's ripple, motion) or is too short; its coefficients "
+                           f"are not to be trusted (--accept-poor: exit 0)")
     return 0
 
 
-def plot_allan(path, tau_s, adev_gyro_rad_s, adev_accel_mps2, what=""):
-    """Log-log plot of the Allan deviations (gyro deg/h, accel mGal) against tau (s)."""
+_DEG = np.pi / 180.0
+#: Display units of the gyro terms Q, N, B, K, R: (text, SI per unit).
+GYRO_UNITS = (("arcsec", _DEG / 3600), ("deg/sqrt(h)", _DEG / 60), ("deg/h", _DEG / 3600),
+              ("deg/h/sqrt(h)", _DEG / 3600 / 60), ("deg/h^2", _DEG / 3600 ** 2))
+#: ... and of the accelerometer terms.
+ACCEL_UNITS = (("mm/s", 1e-3), ("m/s/sqrt(h)", 1 / 60), ("mGal", 1e-5),
+               ("mGal/sqrt(h)", 1e-5 / 60), ("mGal/h", 1e-5 / 3600))
+
+
+def _g(v):
+    return f"{v:.3g}"
+
+
+def plot_allan(path, tau_s, adev_gyro_rad_s, adev_accel_mps2, what="", fit_gyro=None,
+               fit_accel=None):
+    """Log-log plot of the Allan deviations (gyro deg/h, accel mGal) against tau (s),
+    with the fitted IEEE 952 models (:class:`ins.estimation.allan.NoiseFit`) dashed."""
     from ins.common.plotstyle import legend_right, pyplot, save_png
     plt = pyplot()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 9))
+    per_h = np.degrees(1.0) * 3600
     for i, name in enumerate("xyz"):
-        a1.loglog(tau_s, np.degrees(adev_gyro_rad_s[:, i]) * 3600, label=f"gyro {name}")
+        a1.loglog(tau_s, adev_gyro_rad_s[:, i] * per_h, label=f"gyro {name}")
         a2.loglog(tau_s, adev_accel_mps2[:, i] / 1e-5, label=f"accel {name}")
+    for ax, fit, k, units, sensor in ((a1, fit_gyro, per_h, GYRO_UNITS, "gyro"),
+                                      (a2, fit_accel, 1e5, ACCEL_UNITS, "accel")):
+        if fit is None:
+            continue
+        model = fit.adev(tau_s) * k
+        for i, name in enumerate("xyz"):
+            n_u, b_u = units[1], units[2]
+            ax.loglog(tau_s, model[:, i], "--", color=f"C{i}", lw=1.0,
+                      label=f"model {name}: N {_g(fit.value[1, i] / n_u[1])} "
+                            f"[{_g(fit.lo[1, i] / n_u[1])}, {_g(fit.hi[1, i] / n_u[1])}] "
+                            f"{n_u[0]}, B {_g(fit.value[2, i] / b_u[1])} "
+                            f"[{_g(fit.lo[2, i] / b_u[1])}, {_g(fit.hi[2, i] / b_u[1])}] "
+                            f"{b_u[0]}")
     a1.set(xlabel="averaging time tau, s", ylabel="Allan deviation, deg/h",
            title="gyroscopes")
     a2.set(xlabel="averaging time tau, s", ylabel="Allan deviation, mGal",
@@ -128,6 +185,6 @@ def plot_allan(path, tau_s, adev_gyro_rad_s, adev_accel_mps2, what=""):
         a.yaxis.set_major_formatter(lambda v, _: f"{v:g}")
         legend_right(a)
     fig.suptitle("Allan deviation" + (f" of {what}" if what else "")
-                 + " (slope -1/2: random walk, flat floor: bias instability)")
+                 + " and the fitted IEEE 952 model (dashed; 95 % intervals)")
     fig.tight_layout()
     return save_png(fig, path, dpi=100)

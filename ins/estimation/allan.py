@@ -1,172 +1,73 @@
-"""Overlapping Allan deviation of IMU data and the noise terms read from it.
+"""Overlapping Allan deviation of IMU data and the IEEE 952 noise model fitted to it.
 
 For a rate signal ``y`` sampled every ``dt`` (or increments ``y dt``), with the running
 integral ``theta_k = sum_{j<=k} y_j dt`` and ``tau = m dt``::
 
     sigma^2(tau) = sum_k (theta_{k+2m} - 2 theta_{k+m} + theta_k)^2 / (2 tau^2 (N - 2m))
 
-(IEEE Std 952, overlapping estimator; all k at once from the cumulative sum).  White
-rate noise of density ``N`` (angle/velocity random walk, rad/sqrt(s) or m/s/sqrt(s))
-gives ``sigma(tau) = N / sqrt(tau)``: ``N`` is read on the slope -1/2 at tau = 1 s.
-Flicker (bias instability ``B``) gives the flat minimum ``0.664 B``.
+(IEEE Std 952, overlapping estimator; all k at once from the cumulative sum of the
+data less their mean, which the estimator does not see and which would cost digits).
 
-The Allan deviation means something only for a log at rest: :func:`static_check`
-finds the parts of a log that move (see its thresholds) so that the command can refuse
-a moving log instead of reporting the motion as noise.
+The noise model (IEEE Std 952-1997, annex C), rate units ``u`` (rad/s or m/s^2)::
+
+    sigma^2(tau) = 3 Q^2 / tau^2 + N^2 / tau + (2 ln 2 / pi) B^2 + K^2 tau / 3
+                   + R^2 tau^2 / 2
+
+with ``Q`` the quantization (u s: rad, m/s), ``N`` the angle/velocity random walk
+(u sqrt(s)), ``B`` the bias instability (u; the flat floor is ``0.664 B``), ``K`` the
+rate random walk (u / sqrt(s)) and ``R`` the rate ramp (u / s).  It is linear in the
+squares of the coefficients: :func:`fit_noise_model` fits them by non-negative least
+squares on the whole curve, at octave-spaced taus, weighted by the covariance of the
+estimates: standard deviation ``sigma^2 sqrt(2 / edf)`` with the equivalent degrees of
+freedom ``edf`` of the overlapping estimator for the model's mix of noises at that tau
+(NIST SP 1065, table 5), and the correlation between octaves of each noise
+(:data:`RHO_OCTAVES`); iterated with the fitted model in the weights.  Intervals
+(95 %) come from the fit's covariance, all five terms free, scaled by the reduced
+chi-square when the curve departs from the model by more than its noise.
+
+The Allan deviation means something only for a log at rest:
+:func:`ins.estimation.static_check.static_check` (re-exported here).
 """
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import nnls
 
-__all__ = ["allan_deviation", "noise_densities", "static_check", "StaticCheck",
-           "GRAVITY_RANGE", "GRAVITY_MARGIN", "MAX_MEAN_RATE", "WINDOW_S", "N_SIGMA",
-           "MIN_RATE_DEPARTURE", "MIN_FORCE_DEPARTURE"]
+from ins.estimation.static_check import (
+    GRAVITY_MARGIN,
+    GRAVITY_RANGE,
+    MAX_TILT,
+    MEDIAN_S,
+    MIN_FORCE_DEPARTURE,
+    MIN_RATE_DEPARTURE,
+    N_SIGMA,
+    TILT_WINDOW_S,
+    WINDOW_S,
+    StaticCheck,
+    static_check,
+)
 
-#: Normal gravity on the WGS84 ellipsoid from the equator to the poles, m/s^2
-#: (conventions.md; at 6 km height it is 0.019 m/s^2 less).
-GRAVITY_RANGE = (9.780, 9.832)
-#: Tolerance on the log's mean specific force against :data:`GRAVITY_RANGE`, m/s^2
-#: (0.3 m/s^2 ~ 31 mg: accelerometer biases and scale factors of MEMS grade included).
-GRAVITY_MARGIN = 0.3
-#: Largest magnitude of the log's mean angular rate, rad/s (0.1 deg/s = 360 deg/h: the
-#: Earth rate, 15.04 deg/h, plus gyro biases of MEMS grade; a log that turns steadily
-#: is not at rest).
-MAX_MEAN_RATE = np.deg2rad(0.1)
-#: Length of the windows whose mean rate and specific force are compared, s.
-WINDOW_S = 1.0
-#: A window moves when its mean departs from the log's median by more than N_SIGMA
-#: times the white noise of a window mean (estimated from the sample-to-sample
-#: differences of the log itself) ...
-N_SIGMA = 7.0
-#: ... and by more than these floors (bias instability, temperature drift), rad/s and
-#: m/s^2: 0.01 deg/s = 36 deg/h and 0.05 m/s^2 ~ 5 mg.
-MIN_RATE_DEPARTURE = np.deg2rad(0.01)
-MIN_FORCE_DEPARTURE = 0.05
+__all__ = ["allan_deviation", "noise_densities", "fit_noise_model", "NoiseFit", "TERMS",
+           "octave_taus", "static_check", "StaticCheck", "GRAVITY_RANGE", "GRAVITY_MARGIN",
+           "WINDOW_S", "MEDIAN_S", "N_SIGMA", "MIN_RATE_DEPARTURE", "MIN_FORCE_DEPARTURE",
+           "TILT_WINDOW_S", "MAX_TILT"]
 
-
-@dataclass(frozen=True)
-class StaticCheck:
-    """Result of :func:`static_check` (SI units).
-
-    Attributes
-    ----------
-    static : bool
-        True when no test flags motion.
-    reasons : list of str
-        One sentence per failed test (deg/s, m/s^2 in the text).
-    spans : list of (float, float)
-        Time spans (s, window bounds) whose windows move, in time order.
-    moving_s : float
-        Total length of those spans, s.
-    mean_force : float
-        Magnitude of the mean specific force over the log, m/s^2.
-    mean_rate : float
-        Magnitude of the mean angular rate over the log, rad/s.
-    rate_threshold, force_threshold : float
-        Departure thresholds used for the windows, rad/s and m/s^2.
-    """
-
-    static: bool
-    reasons: list
-    spans: list
-    moving_s: float
-    mean_force: float
-    mean_rate: float
-    rate_threshold: float
-    force_threshold: float
-
-
-def _window_noise(inc, n_win, dt):
-    """White-noise sigma of a window mean of the rate, from the increments' first
-    differences (robust: median absolute deviation), the largest axis."""
-    d = np.diff(inc, axis=0)
-    if len(d) < 2:
-        return 0.0
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    sigma_rate = 1.4826 * mad / np.sqrt(2.0) / dt         # per sample, rate units
-    return float(np.max(sigma_rate) / np.sqrt(n_win))
-
-
-def static_check(time, dtheta_b, dvel_b, window_s=WINDOW_S):
-    """Whether an IMU log is at rest, and where it moves.
-
-    Tests (thresholds in the module constants):
-
-    1. the magnitude of the mean specific force over the log lies within
-       :data:`GRAVITY_MARGIN` of normal gravity (:data:`GRAVITY_RANGE`);
-    2. the magnitude of the mean angular rate is below :data:`MAX_MEAN_RATE` (the
-       Earth rate plus gyro biases);
-    3. in windows of ``window_s``, the mean rate and the mean specific force (vectors)
-       stay within ``max(N_SIGMA * sigma_window, floor)`` of their medians over the
-       log, ``sigma_window`` the white noise of a window mean estimated from the log's
-       sample-to-sample differences, the floors :data:`MIN_RATE_DEPARTURE` and
-       :data:`MIN_FORCE_DEPARTURE`.  Windows that fail are the moving spans.
-
-    Parameters
-    ----------
-    time : ndarray, shape (n,)
-        s, increasing (increments stamped at the end of their interval).
-    dtheta_b, dvel_b : ndarray, shape (n, 3)
-        Increments, rad and m/s.
-    window_s : float
-        Window length, s (at least 10 samples are used per window).
-
-    Returns
-    -------
-    StaticCheck
-    """
-    time = np.asarray(time, dtype=float)
-    dth = np.asarray(dtheta_b, dtype=float)
-    dv = np.asarray(dvel_b, dtype=float)
-    n = len(time)
-    dt = float(np.median(np.diff(time))) if n > 1 else float("nan")
-    span = time[-1] - time[0] + dt
-    mean_w = dth.sum(axis=0) / span
-    mean_f = dv.sum(axis=0) / span
-    reasons = []
-    g_lo, g_hi = GRAVITY_RANGE
-    f_mag, w_mag = float(np.linalg.norm(mean_f)), float(np.linalg.norm(mean_w))
-    if not g_lo - GRAVITY_MARGIN <= f_mag <= g_hi + GRAVITY_MARGIN:
-        reasons.append(f"the mean specific force is {f_mag:.3f} m/s^2, not normal gravity "
-                       f"({g_lo}..{g_hi} m/s^2 +- {GRAVITY_MARGIN})")
-    if w_mag > MAX_MEAN_RATE:
-        reasons.append(f"the mean angular rate is {np.rad2deg(w_mag):.4g} deg/s, more than "
-                       f"the Earth rate and a gyro bias ({np.rad2deg(MAX_MEAN_RATE):g} deg/s)")
-    n_win = max(10, int(round(window_s / dt)))
-    k = n // n_win
-    spans, moving = [], 0.0
-    tol_w = tol_f = float("nan")
-    if k >= 2:
-        w_win = dth[:k * n_win].reshape(k, n_win, 3).sum(axis=1) / (n_win * dt)
-        f_win = dv[:k * n_win].reshape(k, n_win, 3).sum(axis=1) / (n_win * dt)
-        tol_w = max(N_SIGMA * _window_noise(dth, n_win, dt), MIN_RATE_DEPARTURE)
-        tol_f = max(N_SIGMA * _window_noise(dv, n_win, dt), MIN_FORCE_DEPARTURE)
-        dep_w = np.linalg.norm(w_win - np.median(w_win, axis=0), axis=1)
-        dep_f = np.linalg.norm(f_win - np.median(f_win, axis=0), axis=1)
-        bad = (dep_w > tol_w) | (dep_f > tol_f)
-        starts = time[0] - dt + np.arange(k) * n_win * dt
-        for i in np.flatnonzero(bad):
-            t0, t1 = float(starts[i]), float(starts[i] + n_win * dt)
-            if spans and t0 - spans[-1][1] <= 1e-9 + n_win * dt:    # one window apart
-                spans[-1] = (spans[-1][0], t1)
-            else:
-                spans.append((t0, t1))
-        moving = float(bad.sum() * n_win * dt)
-        if bad.any():
-            reasons.append(
-                f"it moves in {moving:.1f} s of {span:.1f} s: window means ({n_win * dt:g} "
-                f"s) depart from the log's median by up to {np.rad2deg(dep_w.max()):.3g} "
-                f"deg/s (threshold {np.rad2deg(tol_w):.2g}) and {dep_f.max():.3g} m/s^2 "
-                f"(threshold {tol_f:.2g})")
-    return StaticCheck(static=not reasons, reasons=reasons, spans=spans, moving_s=moving,
-                       mean_force=f_mag, mean_rate=w_mag, rate_threshold=tol_w,
-                       force_threshold=tol_f)
+#: The model's terms, in the order of :attr:`NoiseFit.value` rows.
+TERMS = ("Q", "N", "B", "K", "R")
+#: Two-sided normal quantile of the intervals (95 %).
+Z95 = 1.959963984540054
 
 
 def _default_taus(n, dt, per_decade=10):
     m_max = max(1, (n - 1) // 4)
     m = np.unique(np.round(np.logspace(0, np.log10(m_max), int(per_decade * np.log10(m_max)) + 1)))
     return m.astype(np.int64) * dt
+
+
+def octave_taus(n, dt):
+    """Averaging times ``2^j dt`` up to a quarter of ``n`` samples, s."""
+    m_max = max(1, (n - 1) // 4)
+    return (2 ** np.arange(int(np.log2(m_max)) + 1)) * dt
 
 
 def allan_deviation(data, dt, taus=None, increments=True):
@@ -199,6 +100,7 @@ def allan_deviation(data, dt, taus=None, increments=True):
     if n < 3:
         raise ValueError(f"need at least 3 samples, got {n}")
     inc = y if increments else y * dt
+    inc = inc - inc.mean(axis=0)          # a constant: invisible to the estimator
     theta = np.concatenate([np.zeros((1, y.shape[1])), np.cumsum(inc, axis=0)])
     if taus is None:
         taus = _default_taus(n, dt)
@@ -207,46 +109,210 @@ def allan_deviation(data, dt, taus=None, increments=True):
     adev = np.empty((len(m), y.shape[1]))
     for i, mi in enumerate(m):
         d = theta[2 * mi:] - 2 * theta[mi:-mi] + theta[:-2 * mi]
-        adev[i] = np.sqrt(np.mean(d * d, axis=0) / 2.0) / (mi * dt)
+        adev[i] = np.sqrt(np.einsum("ij,ij->j", d, d) / len(d) / 2.0) / (mi * dt)
     tau = m * dt
     return tau, (adev[:, 0] if one else adev)
 
 
-def noise_densities(tau, adev):
-    """White-noise density and bias instability read from an Allan deviation curve.
+def _basis(tau):
+    """Columns of the model in the squared coefficients (Q^2, N^2, B^2, K^2, R^2)."""
+    tau = np.asarray(tau, dtype=float)
+    return np.column_stack([3.0 / tau ** 2, 1.0 / tau, np.full_like(tau, 2 * np.log(2) / np.pi),
+                            tau / 3.0, tau ** 2 / 2.0])
+
+
+def _edf_terms(m, n_phase):
+    """Equivalent degrees of freedom of the overlapping Allan variance at ``m`` for white
+    PM, white FM, flicker FM, random-walk FM (NIST SP 1065 table 5), the ramp as RW FM;
+    columns in the order of :data:`TERMS`.  ``n_phase`` = samples + 1."""
+    m = np.asarray(m, dtype=float)
+    N = float(n_phase)
+    wpm = (N + 1) * (N - 2 * m) / (2 * (N - m))
+    wfm = (3 * (N - 1) / (2 * m) - 2 * (N - 2) / N) * 4 * m ** 2 / (4 * m ** 2 + 5)
+    ffm = np.where(m < 2, 2 * (N - 2) ** 2 / (2.3 * N - 4.9), 5 * N ** 2 / (4 * m * (N + 3 * m)))
+    rwfm = (N - 2) / m * ((N - 1) ** 2 - 3 * m * (N - 1) + 4 * m ** 2) / (N - 3) ** 2
+    return np.maximum(np.column_stack([wpm, wfm, ffm, rwfm, rwfm]), 1.0)
+
+
+@dataclass(frozen=True)
+class NoiseFit:
+    """IEEE 952 noise model fitted to an Allan variance (rate units ``u``: rad/s for a
+    gyro, m/s^2 for an accelerometer; per axis ``k``).
+
+    Attributes
+    ----------
+    tau : ndarray, shape (m,)
+        Averaging times of the fit, s.
+    avar : ndarray, shape (m, k)
+        Allan variance there, u^2.
+    edf : ndarray, shape (m, k)
+        Equivalent degrees of freedom of each point under the fitted model.
+    value, lo, hi : ndarray, shape (5, k)
+        Coefficients Q (u s), N (u sqrt(s)), B (u), K (u/sqrt(s)), R (u/s) in the order of
+        :data:`TERMS`, and their 95 % interval (``lo`` 0 when the interval reaches 0).
+    chi2 : ndarray, shape (k,)
+        Reduced chi-square of the fit (about 1 when the model explains the curve; the
+        intervals are widened by its square root when above 1).
+    sd_sq : ndarray, shape (5, k)
+        Standard deviation of the squared coefficients (u^2 s^2, ...), from the fit's
+        covariance with all terms free: the intervals at other levels
+        (:meth:`interval`).
+    """
+
+    tau: np.ndarray
+    avar: np.ndarray
+    edf: np.ndarray
+    value: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    chi2: np.ndarray
+    sd_sq: np.ndarray
+
+    def interval(self, z=Z95):
+        """Interval of each coefficient at ``z`` standard deviations of its square:
+        ``(sqrt(max(c^2 - z sd, 0)), sqrt(c^2 + z sd))``, shapes (5, k)."""
+        c2 = self.value ** 2
+        return np.sqrt(np.maximum(c2 - z * self.sd_sq, 0.0)), np.sqrt(c2 + z * self.sd_sq)
+
+    def __getattr__(self, name):
+        if name in TERMS:
+            return self.value[TERMS.index(name)]
+        raise AttributeError(name)
+
+    def adev(self, tau):
+        """Model Allan deviation at ``tau`` (s), shape (len(tau), k), u."""
+        return np.sqrt(_basis(tau) @ self.value ** 2)
+
+
+#: Correlation of the overlapping Allan variance estimates at taus 2^lag apart
+#: (lag = 0..8 octaves) for each term of :data:`TERMS` (white PM, white FM, flicker
+#: FM, random-walk FM, the ramp as random walk), measured over 1500 simulated logs of
+#: 2^15 samples each (``bench/bench_allan.py --correlation`` prints them): neighbouring
+#: octaves share much of their data, so the points of a curve are not independent.
+RHO_OCTAVES = np.array([
+    [1.0, 0.39, 0.51, 0.50, 0.49, 0.51, 0.49, 0.50, 0.50],
+    [1.0, 0.52, 0.16, 0.04, 0.02, 0.02, 0.0, 0.0, 0.0],
+    [1.0, 0.69, 0.31, 0.12, 0.04, 0.02, 0.0, 0.0, 0.0],
+    [1.0, 0.89, 0.68, 0.49, 0.36, 0.25, 0.17, 0.10, 0.05],
+    [1.0, 0.89, 0.68, 0.49, 0.36, 0.25, 0.17, 0.10, 0.05],
+])
+
+
+def _correlation(m, frac):
+    """Correlation matrix of the Allan variance estimates at ``m`` (samples) under the
+    mix ``frac`` (points x terms) of the model's terms, made positive definite."""
+    lag = np.abs(np.log2(m[:, None] / m[None, :]))
+    R = np.zeros((len(m), len(m)))
+    root = np.sqrt(np.maximum(frac, 0.0))
+    for t in range(frac.shape[1]):
+        rho = np.interp(lag, np.arange(RHO_OCTAVES.shape[1]), RHO_OCTAVES[t])
+        R += np.outer(root[:, t], root[:, t]) * rho
+    w, V = np.linalg.eigh(0.5 * (R + R.T))
+    R = (V * np.maximum(w, 1e-3)) @ V.T
+    d = np.sqrt(np.diag(R))
+    return R / np.outer(d, d)
+
+
+def _fit_one(A, y, m, n_phase, iterations=4):
+    """Generalized non-negative least squares of ``A c = y`` (c the squared
+    coefficients) with the covariance of the estimates ``y`` under the fitted model;
+    returns c, its covariance (all terms free), the reduced chi-square and the edf."""
+    edf_t = _edf_terms(m, n_phase)
+    model = y.copy()
+    frac = np.zeros_like(A)
+    frac[:, 1] = 1.0                      # first pass: white noise everywhere
+    for _ in range(iterations):
+        edf = 1.0 / np.sum(frac / edf_t, axis=1)
+        sd = np.maximum(model, 1e-300) * np.sqrt(2.0 / edf)
+        L = np.linalg.cholesky(_correlation(m, frac) * np.outer(sd, sd))
+        Aw = np.linalg.solve(L, A)
+        yw = np.linalg.solve(L, y)
+        scale = np.linalg.norm(Aw, axis=0)
+        c = nnls(Aw / scale, yw)[0] / scale
+        parts = A * c
+        model = parts.sum(axis=1)
+        frac = parts / np.maximum(model, 1e-300)[:, None]
+    r = Aw @ c - yw
+    dof = max(1, len(y) - int(np.count_nonzero(c)))
+    chi2 = float(r @ r / dof)
+    Aws = Aw / scale
+    cov = np.linalg.pinv(Aws.T @ Aws) / np.outer(scale, scale) * max(1.0, chi2)
+    return c, cov, chi2, edf
+
+
+def fit_noise_model(data, dt, increments=True, taus=None):
+    """Fit the IEEE 952 model to the Allan variance of ``data`` (module docstring).
+
+    Parameters
+    ----------
+    data : array_like, shape (n,) or (n, k)
+        Increments (rad, m/s) if ``increments``, else rates, equally spaced by ``dt``.
+    dt : float
+        Sampling interval, s.
+    increments : bool
+        As in :func:`allan_deviation`.
+    taus : array_like, optional
+        Averaging times of the fit, s (default: octaves from dt to a quarter of the
+        record, whose estimates are nearly independent).
+
+    Returns
+    -------
+    NoiseFit
+        Per axis (k = 1 for a 1-d input).
+    """
+    y = np.asarray(data, dtype=float)
+    n = len(y)
+    tau, adev = allan_deviation(y.reshape(n, -1), dt,
+                                octave_taus(n, dt) if taus is None else taus, increments)
+    return _fit_curve(tau, adev, dt, n)
+
+
+def _fit_curve(tau, adev, dt, n):
+    if len(tau) < 3:
+        raise ValueError(f"{len(tau)} averaging times are too few for the noise model "
+                         f"(a log of {n} samples)")
+    if not np.all(np.isfinite(adev)) or np.any(adev <= 0):
+        raise ValueError("the Allan deviation is zero or not finite somewhere: the log "
+                         "holds no noise (an exact synthetic log?)")
+    A = _basis(tau)
+    m = np.round(tau / dt)
+    k = adev.shape[1]
+    val, sd_sq = np.zeros((5, k)), np.zeros((5, k))
+    chi2, edf = np.zeros(k), np.zeros((len(tau), k))
+    for j in range(k):
+        c, cov, chi2[j], edf[:, j] = _fit_one(A, adev[:, j] ** 2, m, n + 1)
+        sd_sq[:, j] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        val[:, j] = np.sqrt(c)
+    lo, hi = np.sqrt(np.maximum(val ** 2 - Z95 * sd_sq, 0.0)), np.sqrt(val ** 2 + Z95 * sd_sq)
+    return NoiseFit(tau=tau, avar=adev ** 2, edf=edf, value=val, lo=lo, hi=hi, chi2=chi2,
+                    sd_sq=sd_sq)
+
+
+def noise_densities(tau, adev, n_samples=None):
+    """Random walk and bias instability of the IEEE 952 model fitted to a curve.
 
     Parameters
     ----------
     tau : ndarray, shape (m,)
+        s; the smallest is taken as the sampling interval.
     adev : ndarray, shape (m,) or (m, k)
+    n_samples : int, optional
+        Length of the log (default: four times the largest tau, as in the default
+        curve of :func:`allan_deviation`); it sets the weights of the points.
 
     Returns
     -------
     random_walk : ndarray, shape () or (k,)
-        ``sigma(1 s)`` of the slope -1/2 line fitted (in log-log) on the first run of
-        points whose local slope is within -0.5 +- 0.15, units of
-        adev * sqrt(s) (rad/sqrt(s), m/s/sqrt(s)).
+        ``N`` of the model, units of adev * sqrt(s) (rad/sqrt(s), m/s/sqrt(s)).
     bias_instability : ndarray
-        ``min(adev) / 0.664``, units of adev.
+        ``B`` of the model (flat floor / 0.664), units of adev.
     """
     tau = np.asarray(tau, dtype=float)
     a = np.asarray(adev, dtype=float)
     one = a.ndim == 1
     a = a.reshape(len(a), -1)
-    rw = np.empty(a.shape[1])
-    if not np.all(np.isfinite(a)) or np.any(a <= 0):
-        raise ValueError("the Allan deviation is zero or not finite somewhere: the log "
-                         "holds no noise (an exact synthetic log?)")
-    for j in range(a.shape[1]):
-        la, lt = np.log(a[:, j]), np.log(tau)
-        slope = np.gradient(la, lt)
-        ok = np.abs(slope + 0.5) < 0.15
-        if not ok.any():
-            raise ValueError("no part of the Allan deviation has the slope -1/2 of white noise")
-        start = int(np.argmax(ok))
-        run = ok[start:]
-        end = start + (int(np.argmin(run)) if not run.all() else len(run))
-        use = np.arange(start, end)
-        rw[j] = np.exp(np.mean(la[use] + 0.5 * lt[use]))
-    bi = a.min(axis=0) / 0.664
+    dt = float(tau.min())
+    n = int(n_samples) if n_samples is not None else int(round(4 * tau.max() / dt)) + 1
+    fit = _fit_curve(tau, a, dt, n)
+    rw, bi = fit.value[1], fit.value[2]
     return (rw[0], bi[0]) if one else (rw, bi)
