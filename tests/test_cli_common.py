@@ -53,6 +53,7 @@ BASE = {
     ("ins", "mechanize"): ["imu.txt", "--init-lla", "1,2,3", "--init-vel", "0,0,0",
                            "--init-att", "0,0,0", "-o", "o.nav"],
     ("ins", "allan"): ["imu.txt"],
+    ("ins", "align"): ["imu.txt", "--lla", "1,2,3"],
     ("ins", "simulate"): ["plan.toml", "-o", "out"],
     ("ins", "process"): ["flight", "-o", "out"],
     ("ins", "compare"): ["a.nav", "b.nav"],

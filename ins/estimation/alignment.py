@@ -121,9 +121,16 @@ MAX_STATIC_ROTATION_DEG = 0.05
 def _check_rotation(imu, i0, i1, span, w_b, lat, noise, arw_meas, where):
     """Refuse (InputError) or flag (InputWarning) a window in which the body rotates
     (module notes).  Returns the rate misfit ``| |w_b| - W_ie |`` (rad/s)."""
-    import warnings
+    misfit = check_rate(span, w_b, noise, arw_meas, where)
+    check_steady(imu, i0, i1, span, w_b, noise, arw_meas, where)
+    return misfit
 
-    from ins.common.errors import InputWarning
+
+def check_rate(span, w_b, noise, arw_meas, where):
+    """Refuse (InputError) a window whose mean rotation rate ``w_b`` (rad/s, b) is
+    farther from the Earth rate than the gyro errors allow (module notes; ``noise`` an
+    ``ImuNoise`` or None, ``arw_meas`` rad/sqrt(s), ``span`` s).  Returns the misfit
+    ``| |w_b| - W_ie |`` (rad/s)."""
     from ins.estimation.error_model import DEG_SQRTH, DPH
     w_ie = earth.OMEGA_IE
     rate = float(np.linalg.norm(w_b))
@@ -143,6 +150,17 @@ def _check_rotation(imu, i0, i1, span, w_b, lat, noise, arw_meas, where):
                          f"{np.rad2deg(w_ie) * 3600:.2f} deg/h (at most "
                          f"{np.rad2deg(allow) * 3600:.2f} deg/h apart for {grade}): "
                          f"the vehicle turns, or the gyro errors are larger than stated")
+    return misfit
+
+
+def check_steady(imu, i0, i1, span, w_b, noise, arw_meas, where):
+    """Flag (InputWarning) a window whose integrated rotation departs from the constant
+    rate ``w_b`` by more than ``5 ARW sqrt(T)`` and :data:`MAX_STATIC_ROTATION_DEG`
+    (rocking, a turn and its return; rows ``i0 .. i1-1`` of ``imu``)."""
+    import warnings
+
+    from ins.common.errors import InputWarning
+    from ins.estimation.error_model import DEG_SQRTH
     angle = np.cumsum(imu.dtheta_b[i0:i1], axis=0) - np.outer(
         imu.time[i0:i1] - imu.time[i0 - 1], w_b)
     dev = float(np.max(np.linalg.norm(angle, axis=1)))
@@ -154,8 +172,7 @@ def _check_rotation(imu, i0, i1, span, w_b, lat, noise, arw_meas, where):
                       f"away from a constant rate during the static alignment (more than "
                       f"{np.rad2deg(bound):.3f} deg): the vehicle moved (rocked or turned "
                       f"and came back); the levelling and the heading are degraded",
-                      InputWarning, stacklevel=3)
-    return misfit
+                      InputWarning, stacklevel=4)
 
 
 def align_static(imu, t_start, t_end, lla, noise=None):
