@@ -55,16 +55,7 @@ from ins.estimation.error_model import (
     noise_matrix,
 )
 from ins.estimation.filter_stores import NodeStore, TrajectoryStore
-from ins.estimation.measurements import (
-    GnssPosition,
-    GnssVelocity,
-    NavPoint,
-    NonHolonomic,
-    UpdateRecord,
-    ZeroVelocity,
-    kalman_update,
-    node_acceleration,
-)
+from ins.estimation.updates import Updater
 from ins.nav import earth
 
 
@@ -180,138 +171,9 @@ def schedule_nodes(time, gnss_time, node_interval_s):
     return np.array(rows)
 
 
-def filterpy_functions():
-    """filterpy's ``predict`` and ``update`` and scipy's ``chi2`` (imported on first use)."""
-    from filterpy.kalman import predict, update
-    from scipy.stats import chi2
-    return predict, update, chi2
-
-
-#: A run of rejected GNSS position fixes triggers a recovery (covariance inflation of the
-#: navigation states, :meth:`_Updater._recover`) once it holds this many fixes ...
-RECOVER_AFTER_FIXES = 3
-#: ... spanning at least this long, s: a few outliers are rejected, a stretch of fixes
-#: that all disagree with the filter in the same way means the filter has run away.
-RECOVER_AFTER_S = 2.0
 #: Zero-velocity detection also needs the filter's speed below this (m/s): a vehicle in
 #: smooth straight motion has steady specific force and small rates too.
 ZUPT_MAX_SPEED_MPS = 2.0
-
-
-class _Updater:
-    """The measurement updates at one node (:mod:`ins.estimation.measurements`), with feedback into
-    the state; keeps a record of every tested measurement."""
-
-    def __init__(self, settings, gnss):
-        self.s = settings
-        self.layout = settings.layout
-        self.gnss = gnss
-        self.kf_predict, _, self.chi2 = filterpy_functions()
-        self.thresholds = {}
-        self.threshold = self._threshold(3)
-        self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
-        self.nis, self.nis_record, self.innovation = [], [], []
-        self.records = []
-        self.cov = getattr(gnss, "cov_ned_m2", None)
-        self.run = []                 # times of the current run of rejected position fixes
-        self.recoveries = []          # (first rejected s, recovered at s, rejected, factor)
-
-    def _threshold(self, m):
-        if m not in self.thresholds:
-            self.thresholds[m] = float(self.chi2.ppf(1.0 - self.s.reject_probability, m))
-        return self.thresholds[m]
-
-    def apply(self, meas, point, P):
-        """Test and apply one measurement at ``point`` (updated in place); returns
-        ``(P, dx or None, nis, z)``."""
-        z = meas.residual(meas.predict(point), meas.observed)
-        H = meas.jacobian(point)
-        x, P, nis, sigma = kalman_update(P, H, meas.R, z, self._threshold(len(z)), meas)
-        self.records.append(UpdateRecord(meas.name, meas.axes, meas.unit, meas.time, z,
-                                         sigma, nis, x is not None))
-        if x is None:
-            self.n_rejected += 1
-            return P, None, nis, z
-        _filter_kernels.correct_state(point.state, x)
-        point.sensors += x[self.layout.sensors]
-        self.n_updates += 1
-        return P, x, nis, z
-
-    def update(self, k, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
-        """Process GNSS record ``k`` at the node of time ``t_row``; returns (P, dx)."""
-        g = self.gnss
-        dx = np.zeros(self.layout.n)
-        tg = g.time[k]
-        l_b, dl_b, valid = self.s.lever.at(tg)
-        if not valid[0]:
-            self.n_fallback += 1
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0],
-                         None if f_meas_b is None else node_acceleration(state, f_meas_b))
-        cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
-        meas = GnssPosition(tg, g.lla[k], cov)
-        P, x, nis, z = self.apply(meas, point, P)
-        if x is None:
-            self.run.append(tg)
-            if self._run_away():
-                P, x, nis, z = self._recover(meas, point, P, nis)
-        else:
-            self.run = []
-        self.nis.append(nis)
-        self.nis_record.append(k)
-        self.innovation.append(z)
-        if x is not None:
-            dx += x
-        if self.s.use_velocity and g.has_velocity:
-            meas = GnssVelocity(tg, g.v_n[k], np.diag(g.sigma_vel_ned_mps[k] ** 2))
-            P, x, _, _ = self.apply(meas, point, P)
-            if x is not None:
-                dx += x
-        return P, dx
-
-    def _run_away(self):
-        """Whether the rejected fixes in a row say the filter, not the fixes, is wrong:
-        at least :data:`RECOVER_AFTER_FIXES` of them over :data:`RECOVER_AFTER_S`."""
-        return (self.s.recover and len(self.run) >= RECOVER_AFTER_FIXES
-                and self.run[-1] - self.run[0] >= RECOVER_AFTER_S)
-
-    def _recover(self, meas, point, P, nis):
-        """Inflate the navigation states' covariance until ``meas`` passes the test with
-        margin (``P' = D P D``, ``D`` = sqrt(factor) on position, velocity and attitude),
-        then update with it; the recovery is recorded.  Returns as :meth:`apply`."""
-        L = self.layout
-        nav = np.zeros(L.n, bool)
-        nav[L.pos] = nav[L.vel] = nav[L.att] = True
-        thr = self._threshold(3)
-        factor = max(2.0 * nis / thr, 2.0)
-        self.records.pop()                     # the rejected test is repeated below
-        self.n_rejected -= 1
-        for _ in range(40):
-            d = np.where(nav, np.sqrt(factor), 1.0)
-            Pi = P * np.outer(d, d)
-            z = meas.residual(meas.predict(point), meas.observed)
-            H = meas.jacobian(point)
-            S = H @ Pi @ H.T + meas.R
-            if float(z @ np.linalg.solve(S, z)) < 0.5 * thr:
-                break
-            factor *= 4.0
-        self.recoveries.append((self.run[0], meas.time, len(self.run), factor))
-        self.run = []
-        return self.apply(meas, point, Pi)
-
-    def others(self, t_row, state, sensors, P, w_meas_b, at_rest, headings):
-        """The heading, zero-velocity and non-holonomic updates of a node; (P, dx)."""
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b)
-        dx = np.zeros(self.layout.n)
-        meas = list(headings)
-        if at_rest:
-            meas.append(ZeroVelocity(t_row, self.s.zupt_sigma_mps))
-        if self.s.nhc:
-            meas.append(NonHolonomic(t_row, self.s.nhc_sigma_mps, self.s.nhc_C_vb))
-        for m in meas:
-            P, x, _, _ = self.apply(m, point, P)
-            if x is not None:
-                dx += x
-        return P, dx
 
 
 def _pieces(imu, start, end):
@@ -427,7 +289,7 @@ class _ForwardRun:
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
         self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
             [], [], [], [], []
-        self.updater = _Updater(settings, gnss)
+        self.updater = Updater(settings, gnss)
         self.g_time = gnss.time
         self.acc = np.zeros((16, 3))
         self.state = self.state_a = self.t_a = None

@@ -58,7 +58,7 @@ class FilterSettings:
         Dual-antenna headings, processed at the node of their time.
     recover : bool
         Recover from a run of rejected position fixes by inflating the navigation
-        states' covariance (:data:`ins.estimation.filter.RECOVER_AFTER_S`); False keeps
+        states' covariance (:data:`ins.estimation.updates.RECOVER_AFTER_S`); False keeps
         rejecting them.
     """
 

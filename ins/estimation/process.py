@@ -18,7 +18,7 @@ from ins.common.errors import InputError, QualityError, QualityWarning
 from ins.estimation import _filter_kernels
 from ins.estimation.alignment import align_gnss_heading, align_static, check_static_heading
 from ins.estimation.error_model import NAV, STATE
-from ins.estimation.filter import filterpy_functions, run_forward
+from ins.estimation.filter import run_forward
 from ins.estimation.filter_settings import FilterSettings
 from ins.estimation.lever_arm import LeverArm
 from ins.estimation.process_config import POSITION_KEYS, filter_options
@@ -31,6 +31,7 @@ from ins.estimation.process_trust import (
     fix_name,
 )
 from ins.estimation.smoother import iter_smoothed, rts_errors
+from ins.estimation.updates import filterpy_functions
 from ins.io.gnss import read_gnss
 from ins.io.imu_blocks import iter_imu, prefetch
 from ins.io.imu_files import shifted_blocks

@@ -25,7 +25,7 @@ with the unit in the name::
                  biases from a rest at the start, heading by velocity matching)
     [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true, recover = true
                  (a run of rejected position fixes ends in a recovery: the navigation
-                 covariance is inflated; ins.estimation.filter.RECOVER_AFTER_S)
+                 covariance is inflated; ins.estimation.updates.RECOVER_AFTER_S)
     [states]     layout = "survey"|"kfgins"; gyro_misalignment, accel_misalignment,
                  lever_arm, time_offset (true/false: add or drop a group of the layout);
                  gyro_misalignment_std_arcsec = 100, accel_misalignment_std_arcsec = 100,
