@@ -202,6 +202,7 @@ class _Updater:
         self.nis, self.nis_record, self.innovation = [], [], []
         self.records = []
         self.cov = getattr(gnss, "cov_ned_m2", None)
+        self.ev_time, self.ev_record, self.ev_kind = gnss.update_events(settings.use_velocity)
 
     def _threshold(self, m):
         if m not in self.thresholds:
@@ -224,24 +225,28 @@ class _Updater:
         self.n_updates += 1
         return P, x, nis, z
 
-    def update(self, k, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
-        """Process GNSS record ``k`` at the node of time ``t_row``; returns (P, dx)."""
+    def update(self, e, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
+        """Process GNSS update event ``e`` (:meth:`ins.io.gnss_log.GnssLog.update_events`:
+        a record's position and velocity, or one of them at its own epoch) at the node
+        of time ``t_row``; returns (P, dx)."""
         g = self.gnss
+        k, kind = self.ev_record[e], self.ev_kind[e]
         dx = np.zeros(self.layout.n)
-        tg = g.time[k]
+        a_n = None if f_meas_b is None else node_acceleration(state, f_meas_b)
+        tg = g.time[k] if kind & 1 else g.velocity_time[k]
         l_b, dl_b, valid = self.s.lever.at(tg)
         if not valid[0]:
             self.n_fallback += 1
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0],
-                         None if f_meas_b is None else node_acceleration(state, f_meas_b))
-        cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
-        P, x, nis, z = self.apply(GnssPosition(tg, g.lla[k], cov), point, P)
-        self.nis.append(nis)
-        self.nis_record.append(k)
-        self.innovation.append(z)
-        if x is not None:
-            dx += x
-        if self.s.use_velocity and g.has_velocity:
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0], a_n)
+        if kind & 1:
+            cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
+            P, x, nis, z = self.apply(GnssPosition(tg, g.lla[k], cov), point, P)
+            self.nis.append(nis)
+            self.nis_record.append(k)
+            self.innovation.append(z)
+            if x is not None:
+                dx += x
+        if kind & 2 and self.s.use_velocity and g.has_velocity:
             meas = GnssVelocity(tg, g.v_n[k], np.diag(g.sigma_vel_ned_mps[k] ** 2))
             P, x, _, _ = self.apply(meas, point, P)
             if x is not None:
@@ -378,7 +383,8 @@ class _ForwardRun:
         self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
             [], [], [], [], []
         self.updater = _Updater(settings, gnss)
-        self.g_time = gnss.time
+        self.g_time = self.updater.ev_time         # the GNSS update events' epochs
+        self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
         self.acc = np.zeros((16, 3))
         self.state = self.state_a = self.t_a = None
         self.gj = self.row_base = self.n_rows = 0
@@ -394,7 +400,7 @@ class _ForwardRun:
             state[NAV.lla] += earth.lla_rate(state[0], state[2], state[NAV.vel]) * (
                 t[k0] - initial_time)
         P0 = self.P
-        self.updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
+        self.updater.n_outside = int(np.count_nonzero((g_time < t[k0] - 1e-9) & self.g_pos))
         self.gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
         while self.gj < len(g_time) and _row_known(g_time[self.gj], t, k0):
             self.P, _ = self.updater.update(self.gj, t[k0], state, self.sensors, self.P,
@@ -527,7 +533,7 @@ class _ForwardRun:
         out.node_states = np.array(self.node_states)
         out.n_updates = up.n_updates
         out.n_rejected = up.n_rejected
-        out.n_outside = up.n_outside + (len(self.g_time) - self.gj)
+        out.n_outside = up.n_outside + int(np.count_nonzero(self.g_pos[self.gj:]))
         out.n_mount_fallback = up.n_fallback
         out.nis = np.array(up.nis)
         out.nis_record = np.array(up.nis_record, dtype=np.int64)
