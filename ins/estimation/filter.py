@@ -19,7 +19,11 @@ node ``j``: the predicted antenna position is the state at ``t_j`` advanced by
 IMU-GNSS time offset when the layout has one; ``a`` the node's acceleration from its
 last specific force, :func:`ins.estimation.measurements.node_acceleration`), the predicted
 velocity by ``v + a dt``, with the lever arm at ``t_g`` (plus the estimated
-correction); the error state over those few ms is taken as unchanged.  Dual-antenna
+correction); the error state over those few ms is taken as unchanged.  Velocities
+with their own epochs (``[gnss] velocity_time_shift_s``: ``GnssLog.vel_time``) are
+separate update events at the node of their own epoch
+(:meth:`ins.io.gnss_log.GnssLog.update_events`); the time-offset state is one for
+both, on top of the two shifts.  Dual-antenna
 headings, zero-velocity and non-holonomic updates
 (:class:`ins.estimation.filter_settings.FilterSettings`) follow the GNSS records of a node.
 
