@@ -108,3 +108,51 @@ class CarTruth:
         C_nb = C_nv @ self.C_vb
         return Sample(time, self.lla(time), np.atleast_2d(v_n),
                       Rotation.from_matrix(C_nb).as_quat(), C_nv)
+
+
+#: The walk: (centre s after the start, duration s, heading change deg) of its turns, and
+#: (start s, duration s) of its stops (speed down to 0 over STOP_RAMP_S before each,
+#: back up over STOP_RAMP_S after).
+WALK_TURNS = ((20.0, 3.0, 90.0), (45.0, 4.0, -90.0), (62.0, 2.5, 120.0), (85.0, 3.0, -60.0),
+              (118.0, 5.0, 180.0), (140.0, 3.0, -90.0), (160.0, 2.0, 45.0))
+WALK_STOPS = ((32.0, 4.0), (100.0, 6.0), (150.0, 3.0))
+WALK_SPEED_MPS, WALK_SPEED_AMP_MPS, WALK_SPEED_PERIOD_S = 1.5, 0.2, 13.0
+STOP_RAMP_S = 1.5
+
+
+def _ramp(x, d):
+    """Raised-cosine step from 0 (x <= 0) to 1 (x >= d) and its derivative."""
+    y = np.clip(x / d, 0.0, 1.0)
+    inside = (x > 0) & (x < d)
+    return 0.5 * (1 - np.cos(np.pi * y)), np.where(inside, 0.5 * np.pi / d * np.sin(np.pi * y),
+                                                   0.0)
+
+
+class WalkTruth(CarTruth):
+    """A walk on level ground: about 1.5 m/s (+-0.2 m/s over 13 s), turns of 45 to 180
+    deg in 2 to 5 s, and stops of 3 to 6 s (WALK_TURNS, WALK_STOPS), the IMU held at
+    ``mounting_rpy_deg`` in the walker's forward-right-down axes."""
+
+    def __init__(self, mounting_rpy_deg=(0.0, 0.0, 0.0), duration_s=180.0):
+        super().__init__(mounting_rpy_deg, duration_s)
+
+    def _profiles(self, t):
+        s = np.asarray(t, dtype=float) - self.t_start
+        w = 2 * np.pi / WALK_SPEED_PERIOD_S
+        u0 = WALK_SPEED_MPS + WALK_SPEED_AMP_MPS * np.sin(w * s)
+        du0 = WALK_SPEED_AMP_MPS * w * np.cos(w * s)
+        gate, dgate = np.ones_like(s), np.zeros_like(s)
+        for a, d in WALK_STOPS:            # gate = 1 - down(s) + up(s), 0 while stopped
+            down, ddown = _ramp(s - (a - STOP_RAMP_S), STOP_RAMP_S)
+            up, dup = _ramp(s - (a + d), STOP_RAMP_S)
+            gate, dgate = gate - down + up, dgate - ddown + dup
+        u, du = u0 * gate, du0 * gate + u0 * dgate
+        psi, dpsi = np.full_like(s, PSI0), np.zeros_like(s)
+        for c, d, a in WALK_TURNS:
+            x = np.clip(s - c + d / 2, 0.0, d)
+            a = np.deg2rad(a)
+            psi = psi + a * (x / d - np.sin(2 * np.pi * x / d) / (2 * np.pi))
+            inside = (s > c - d / 2) & (s < c + d / 2)
+            dpsi = dpsi + np.where(inside, a / d * (1 - np.cos(2 * np.pi * x / d)), 0.0)
+        zero = np.zeros_like(s)
+        return u, du, psi, dpsi, zero, zero

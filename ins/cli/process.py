@@ -27,6 +27,12 @@ inputs:
                     the offset of its clock against the common time base (GPS seconds of
                     week), e.g. a GNSS stamped at reception 0.2 s late: -0.2; the offset
                     that 'ins time-offset' prints goes into --gnss-time-shift-s as it is
+  --gnss-velocity-time-shift-s  added to the stamps of the GNSS velocities instead (s),
+                    when they are stamped differently from the positions (a u-blox: its
+                    Doppler velocities ~0.1 s apart); default: --gnss-time-shift-s.  'ins
+                    time-offset' prints both (from the positions / from the velocities).
+                    The filter's time_offset state, when enabled, is one state for both,
+                    on top of these shifts
   --mount           mount log 'time roll pitch yaw [deg]' (C_ap = Rz(yaw) Ry(pitch) Rx(roll))
   --config F.toml   initial state and sigma, IMU noise (deg/sqrt(h), m/s/sqrt(h), deg/h,
                     mGal, ppm, h), lever arm (m, body FRD), alignment; see
@@ -113,6 +119,9 @@ def add_parser(sub):
     p.add_argument("--gnss-time-shift-s", type=float, metavar="S",
                    help="added to the GNSS stamps at read time, s (overrides [gnss] "
                         "time_shift_s)")
+    p.add_argument("--gnss-velocity-time-shift-s", type=float, metavar="S",
+                   help="added to the stamps of the GNSS velocities instead, s (overrides "
+                        "[gnss] velocity_time_shift_s; default: the GNSS time shift)")
     p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
                    help="trajectory output format(s): nav (solution.nav, default), sbet "
                         "(sbet_solution.out + smrmsg_solution.out), or both")
@@ -184,7 +193,7 @@ def _input_options(cfg, args):
     if args.gnss_quality_scale:
         cfg.gnss_quality_scale = parse_quality_scale(args.gnss_quality_scale,
                                                      "--gnss-quality-scale")
-    for name in ("imu_time_shift_s", "gnss_time_shift_s"):
+    for name in ("imu_time_shift_s", "gnss_time_shift_s", "gnss_velocity_time_shift_s"):
         value = getattr(args, name)
         if value is not None:
             if not np.isfinite(value):

@@ -3,6 +3,8 @@ data (:mod:`ins.estimation.time_offset`), with its sigma; ``-o`` writes the GNSS
 the IMU's time scale."""
 import argparse
 
+import numpy as np
+
 from ins.common.errors import InputError
 
 EPILOG = """\
@@ -15,15 +17,20 @@ method:
   Slowly varying terms (accelerometer bias, tilt drift) are fitted as piecewise-linear
   functions on the same knots.  The residual sum of squares over trial offsets (step
   --step s within +-max) has its minimum refined by a parabola (sub-sample); sigma from
-  its curvature, inflated by the residuals' correlation.  Fixes slower than
-  --min-speed (m/s) are not used.  The information is in the accelerations and turns:
-  a straight constant-speed log is refused.
+  its curvature, inflated by the residuals' correlation.  A constant accelerometer
+  bias (body frame: it turns with the IMU) is fitted at the offset found without it
+  and the offset searched again (at walking pace a 10 mg bias is as large as the
+  signal).  Fixes slower than --min-speed (m/s, default 0.5: a walk at 1-2 m/s with
+  turns and stops works) are not used.  The information is in the accelerations and
+  turns: a straight constant-speed log is refused.
 
 sign:
   offset = IMU clock - GNSS clock (s): a fix stamped t was taken at IMU time
-  t + offset.  Paste it as it is into the process config's [gnss] time_shift_s
-  (or --gnss-time-shift-s; [imu] time_shift_s would take -offset).  The same sign as
-  the filter's time_offset state in states.txt ([states] time_offset = true).
+  t + offset.  Paste it as it is into the process config: the position's offset into
+  [gnss] time_shift_s (--gnss-time-shift-s), the velocity's into [gnss]
+  velocity_time_shift_s (--gnss-velocity-time-shift-s) when the two differ by more
+  than their sigmas ([imu] time_shift_s would take -offset).  The same sign as the
+  filter's time_offset state in states.txt ([states] time_offset = true).
   -o writes the GNSS log with the offset added to every stamp.
 
 --source:
@@ -73,8 +80,8 @@ def add_parser(sub):
                    help="window of the velocity changes, s (default 0.5)")
     p.add_argument("--knots", type=float, default=10.0, metavar="S",
                    help="knot spacing of the slowly varying terms, s (default 10)")
-    p.add_argument("--min-speed", type=float, default=3.0, metavar="MPS",
-                   help="fixes slower than this are not used, m/s (default 3)")
+    p.add_argument("--min-speed", type=float, default=0.5, metavar="MPS",
+                   help="fixes slower than this are not used, m/s (default 0.5)")
     p.add_argument("-o", "--output", metavar="GNSS_OUT",
                    help="write the GNSS log shifted onto the IMU's time scale (KF-GINS "
                         "text; an RTKLIB covariance is not carried over)")
@@ -105,10 +112,32 @@ def _cmd_time_offset(args):
         print(f"{src:<8}  offset {r.offset_s:+.4f} s  sigma {r.sigma_s:.4f} s  "
               f"({r.n_fixes} epochs, {r.n_eff:.0f} independent; signal {r.signal_rms_mps:.3f} "
               f"m/s RMS, residual {r.residual_rms_mps:.3f} m/s)")
-    print("offset = IMU clock - GNSS clock: a fix stamped t was taken at IMU time t + offset "
-          "(the value of [gnss] time_shift_s)")
+        if r.accel_bias_b_mps2 is not None:
+            print(f"{'':<8}  with an accelerometer bias fitted (IMU axes): "
+                  + " ".join(f"{v:+.3f}" for v in r.accel_bias_b_mps2) + " m/s^2")
+    print("offset = IMU clock - GNSS clock: a fix stamped t was taken at IMU time t + offset")
+    for line in _advice(results):
+        print(line)
     if args.output:
         chosen = results.get("velocity", results.get("position"))
         write_gnss(args.output, shift_gnss(gnss, chosen.offset_s))
         print(f"wrote {args.output}: stamps plus {chosen.offset_s:+.4f} s ({chosen.source})")
     return 0
+
+
+def _advice(results):
+    """The options of ``ins process`` to pass, from the estimates by source."""
+    pos, vel = results.get("position"), results.get("velocity")
+    if pos is not None and vel is not None:
+        diff = vel.offset_s - pos.offset_s
+        sig = float(np.hypot(pos.sigma_s, vel.sigma_s))
+        if abs(diff) > 2.0 * sig:
+            return [f"ins process --gnss-time-shift-s {pos.offset_s:.3f} "
+                    f"--gnss-velocity-time-shift-s {vel.offset_s:.3f}   (the velocities "
+                    f"{diff:+.3f} s from the positions, {abs(diff) / sig:.1f} sigma)"]
+        return [f"ins process --gnss-time-shift-s {pos.offset_s:.3f}   (positions and "
+                f"velocities agree within {abs(diff) / sig:.1f} sigma: one shift for both; "
+                f"or --gnss-velocity-time-shift-s {vel.offset_s:.3f})"]
+    r = pos if pos is not None else vel
+    name = "--gnss-time-shift-s" if r.source == "position" else "--gnss-velocity-time-shift-s"
+    return [f"ins process {name} {r.offset_s:.3f}"]

@@ -19,7 +19,11 @@ node ``j``: the predicted antenna position is the state at ``t_j`` advanced by
 IMU-GNSS time offset when the layout has one; ``a`` the node's acceleration from its
 last specific force, :func:`ins.estimation.measurements.node_acceleration`), the predicted
 velocity by ``v + a dt``, with the lever arm at ``t_g`` (plus the estimated
-correction); the error state over those few ms is taken as unchanged.  Dual-antenna
+correction); the error state over those few ms is taken as unchanged.  Velocities
+with their own epochs (``[gnss] velocity_time_shift_s``: ``GnssLog.vel_time``) are
+separate update events at the node of their own epoch
+(:meth:`ins.io.gnss_log.GnssLog.update_events`); the time-offset state is one for
+both, on top of the two shifts.  Dual-antenna
 headings, zero-velocity and non-holonomic updates
 (:class:`ins.estimation.filter_settings.FilterSettings`) follow the GNSS records of a node.
 
@@ -290,7 +294,8 @@ class _ForwardRun:
         self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
             [], [], [], [], []
         self.updater = Updater(settings, gnss)
-        self.g_time = gnss.time
+        self.g_time = self.updater.ev_time         # the GNSS update events' epochs
+        self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
         self.acc = np.zeros((16, 3))
         self.state = self.state_a = self.t_a = None
         self.gj = self.row_base = self.n_rows = 0
@@ -306,7 +311,7 @@ class _ForwardRun:
             state[NAV.lla] += earth.lla_rate(state[0], state[2], state[NAV.vel]) * (
                 t[k0] - initial_time)
         P0 = self.P
-        self.updater.n_outside = int(np.count_nonzero(g_time < t[k0] - 1e-9))
+        self.updater.n_outside = int(np.count_nonzero((g_time < t[k0] - 1e-9) & self.g_pos))
         self.gj = int(np.searchsorted(g_time, t[k0] - 1e-9, side="left"))
         while self.gj < len(g_time) and _row_known(g_time[self.gj], t, k0):
             self.P, _ = self.updater.update(self.gj, t[k0], state, self.sensors, self.P,
@@ -439,7 +444,7 @@ class _ForwardRun:
         out.node_states = np.array(self.node_states)
         out.n_updates = up.n_updates
         out.n_rejected = up.n_rejected
-        out.n_outside = up.n_outside + (len(self.g_time) - self.gj)
+        out.n_outside = up.n_outside + int(np.count_nonzero(self.g_pos[self.gj:]))
         out.n_mount_fallback = up.n_fallback
         out.nis = np.array(up.nis)
         out.nis_record = np.array(up.nis_record, dtype=np.int64)

@@ -329,7 +329,8 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
                                      cfg.imu_time_shift_s))
     filterpy_functions()           # the imports overlap the reader thread's parsing
     gnss = read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
-                     quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale)
+                     quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale,
+                     velocity_time_shift_s=cfg.gnss_velocity_time_shift_s)
     mount = read_mount(cfg.mount) if cfg.mount else None
     lever = _lever(cfg, mount)
     st = _start(cfg, blocks, gnss, lever)

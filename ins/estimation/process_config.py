@@ -16,7 +16,10 @@ with the unit in the name::
                  ins.estimation.error_model; a flight folder's manifest gives them)
     [gnss]       lever_arm_b_m, use_velocity = true, reject_probability = 1e-5,
                  format = "kfgins"|"rtklib" (default: sniffed), time_shift_s = 0,
-                 quality = "fix,float" (RTKLIB Q kept), quality_scale = "float=3,single=10"
+                 velocity_time_shift_s (default: time_shift_s; added to the epochs of
+                 the velocities instead, when they are stamped differently from the
+                 positions), quality = "fix,float" (RTKLIB Q kept),
+                 quality_scale = "float=3,single=10"
     [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
     [alignment]  method = "auto"|"given"|"static"|"gnss-heading"|"anywhere",
                  static_window_s = [t0, t1]; "auto" (the default) is "given" when
@@ -65,7 +68,7 @@ _SECTIONS = {
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
     "imu_noise": set(_NOISE_KEYS),
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
-             "time_shift_s", "quality", "quality_scale"},
+             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
@@ -103,6 +106,7 @@ class ProcessConfig:
     imu_time_shift_s: float = 0.0
     gnss_format: str = None
     gnss_time_shift_s: float = 0.0
+    gnss_velocity_time_shift_s: float = None
     gnss_quality: object = None
     gnss_quality_scale: object = None
     noise: ImuNoise = field(default_factory=ImuNoise)
@@ -319,8 +323,8 @@ def filter_options(cfg):
 
 
 def _gnss_input(cfg, gnss, where):
-    """``[gnss]`` format, time_shift_s, quality, quality_scale (checked here, applied by
-    :func:`ins.io.gnss.read_gnss`)."""
+    """``[gnss]`` format, time_shift_s, velocity_time_shift_s, quality, quality_scale
+    (checked here, applied by :func:`ins.io.gnss.read_gnss`)."""
     from ins.io.gnss import FORMATS
     from ins.io.gnss_quality import parse_quality, parse_quality_scale
     if "format" in gnss:
@@ -330,6 +334,9 @@ def _gnss_input(cfg, gnss, where):
         cfg.gnss_format = gnss["format"]
     if "time_shift_s" in gnss:
         cfg.gnss_time_shift_s = _number(gnss["time_shift_s"], where("gnss", "time_shift_s"))
+    if "velocity_time_shift_s" in gnss:
+        cfg.gnss_velocity_time_shift_s = _number(gnss["velocity_time_shift_s"],
+                                                 where("gnss", "velocity_time_shift_s"))
     if "quality" in gnss:
         cfg.gnss_quality = parse_quality(gnss["quality"], where("gnss", "quality"))
     if "quality_scale" in gnss:

@@ -50,6 +50,7 @@ class Updater:
         self.nis, self.nis_record, self.innovation = [], [], []
         self.records = []
         self.cov = getattr(gnss, "cov_ned_m2", None)
+        self.ev_time, self.ev_record, self.ev_kind = gnss.update_events(settings.use_velocity)
         self.run = []                 # times of the current run of rejected position fixes
         self.recoveries = []          # (first rejected s, recovered at s, rejected, factor)
 
@@ -74,31 +75,35 @@ class Updater:
         self.n_updates += 1
         return P, x, nis, z
 
-    def update(self, k, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
-        """Process GNSS record ``k`` at the node of time ``t_row``; returns (P, dx)."""
+    def update(self, e, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
+        """Process GNSS update event ``e`` (:meth:`ins.io.gnss_log.GnssLog.update_events`:
+        a record's position and velocity, or one of them at its own epoch) at the node
+        of time ``t_row``; returns (P, dx)."""
         g = self.gnss
+        k, kind = self.ev_record[e], self.ev_kind[e]
         dx = np.zeros(self.layout.n)
-        tg = g.time[k]
+        a_n = None if f_meas_b is None else node_acceleration(state, f_meas_b)
+        tg = g.time[k] if kind & 1 else g.velocity_time[k]
         l_b, dl_b, valid = self.s.lever.at(tg)
         if not valid[0]:
             self.n_fallback += 1
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0],
-                         None if f_meas_b is None else node_acceleration(state, f_meas_b))
-        cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
-        meas = GnssPosition(tg, g.lla[k], cov)
-        P, x, nis, z = self.apply(meas, point, P)
-        if x is None:
-            self.run.append(tg)
-            if self._run_away():
-                P, x, nis, z = self._recover(meas, point, P, nis)
-        else:
-            self.run = []
-        self.nis.append(nis)
-        self.nis_record.append(k)
-        self.innovation.append(z)
-        if x is not None:
-            dx += x
-        if self.s.use_velocity and g.has_velocity:
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0], a_n)
+        if kind & 1:
+            cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
+            meas = GnssPosition(tg, g.lla[k], cov)
+            P, x, nis, z = self.apply(meas, point, P)
+            if x is None:
+                self.run.append(tg)
+                if self._run_away():
+                    P, x, nis, z = self._recover(meas, point, P, nis)
+            else:
+                self.run = []
+            self.nis.append(nis)
+            self.nis_record.append(k)
+            self.innovation.append(z)
+            if x is not None:
+                dx += x
+        if kind & 2 and self.s.use_velocity and g.has_velocity:
             meas = GnssVelocity(tg, g.v_n[k], np.diag(g.sigma_vel_ned_mps[k] ** 2))
             P, x, _, _ = self.apply(meas, point, P)
             if x is not None:

@@ -42,7 +42,8 @@ def sniff_format(path):
     return "rtklib" if looks_like_pos(path) else "kfgins"
 
 
-def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=None):
+def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=None,
+              velocity_time_shift_s=None):
     """Read a GNSS log of the antenna: KF-GINS text or an RTKLIB ``.pos`` solution.
 
     Parameters
@@ -60,6 +61,10 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
     quality_scale : dict, optional
         RTKLIB only: a factor on the standard deviations per quality (``{"float": 3,
         "single": 10}``; the covariance is scaled by its square).
+    velocity_time_shift_s : float, optional
+        Added to the epochs of the velocities instead (s), when they are stamped
+        differently from the positions (:meth:`GnssLog.shifted`: the log then has its
+        own ``vel_time``); ``None`` (default): ``time_shift_s`` for both.
 
     Returns
     -------
@@ -84,7 +89,7 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
         log = read_kfgins_gnss(path)
     else:
         raise ValueError(f"format must be one of {', '.join(FORMATS)} or None, got {format!r}")
-    return log.shifted(time_shift_s)
+    return log.shifted(time_shift_s, velocity_time_shift_s)
 
 
 def read_kfgins_gnss(path):
@@ -125,7 +130,11 @@ def read_kfgins_gnss(path):
 
 def write_gnss(path, log):
     """Write ``log`` in the KF-GINS text layout (13 columns when it has velocities),
-    atomically.  Returns the number of records."""
+    atomically.  Returns the number of records.  A log whose velocities have their own
+    epochs (``vel_time``) is refused (ValueError): one epoch a line."""
+    if log.has_velocity and log.vel_time is not None:
+        raise ValueError("the GNSS log's velocities have their own epochs (vel_time): the "
+                         "KF-GINS layout holds one epoch a line; not written")
     cols = [log.time, np.rad2deg(log.lla[:, 0]), np.rad2deg(log.lla[:, 1]), log.lla[:, 2],
             log.sigma_ned_m]
     decimals = [6, 12, 12, 5, 5, 5, 5]

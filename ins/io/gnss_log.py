@@ -32,6 +32,10 @@ class GnssLog:
     quality : ndarray, shape (n,) of int or None
         Solution quality flag of the source (RTKLIB Q: 1 fix, 2 float, 3 SBAS, 4 DGPS,
         5 single, 6 PPP), ``None`` when the source has none.
+    vel_time : ndarray, shape (n,) or None
+        Epochs of the velocities, s, when they differ from those of the positions (a
+        receiver whose Doppler velocities are stamped differently from its positions:
+        :meth:`shifted` with a separate velocity shift); ``None``: ``time``.
     """
 
     time: np.ndarray
@@ -43,6 +47,7 @@ class GnssLog:
     path: str = None
     cov_ned_m2: np.ndarray = None
     quality: np.ndarray = None
+    vel_time: np.ndarray = None
 
     def __len__(self):
         return len(self.time)
@@ -51,18 +56,50 @@ class GnssLog:
     def has_velocity(self):
         return self.v_n is not None
 
+    @property
+    def velocity_time(self):
+        """Epochs of the velocities, s (``vel_time``, else the positions' ``time``)."""
+        return self.time if self.vel_time is None else self.vel_time
+
     def select(self, keep):
         """The records where the boolean mask or index array ``keep`` selects."""
         def take(a):
             return None if a is None else a[keep]
         return GnssLog(self.time[keep], self.lla[keep], self.sigma_ned_m[keep], take(self.v_n),
                        take(self.sigma_vel_ned_mps), take(self.line), self.path,
-                       take(self.cov_ned_m2), take(self.quality))
+                       take(self.cov_ned_m2), take(self.quality), take(self.vel_time))
 
-    def shifted(self, time_shift_s):
+    def shifted(self, time_shift_s, velocity_time_shift_s=None):
         """The same log with ``time_shift_s`` (s) added to every epoch (a clock offset
-        between the GNSS time base and the IMU's; 0 gives the log itself)."""
-        if not time_shift_s:
+        between the GNSS time base and the IMU's; 0 gives the log itself).
+
+        ``velocity_time_shift_s`` (s), when given and different, is added to the
+        velocities' epochs instead: they then get their own epochs (``vel_time``), the
+        position's plus the difference of the two shifts.  ``None`` (default): the
+        velocities keep the positions' epochs (one shift for both).
+        """
+        shift = float(time_shift_s or 0.0)
+        v_shift = shift if velocity_time_shift_s is None else float(velocity_time_shift_s)
+        if shift == 0.0 and v_shift == 0.0:
             return self
         from dataclasses import replace
-        return replace(self, time=self.time + float(time_shift_s))
+        vel_time = None
+        if self.has_velocity and (self.vel_time is not None or v_shift != shift):
+            vel_time = self.velocity_time + v_shift
+        return replace(self, time=self.time + shift, vel_time=vel_time)
+
+    def update_events(self, use_velocity=True):
+        """The filter's GNSS updates in time order: ``(time, record, kind)`` arrays with
+        ``kind`` 3 for a record's position and velocity at one epoch, 1 a position
+        alone, 2 a velocity alone (at ``vel_time``; a position before a velocity of
+        the same time).  Without ``vel_time`` (or without velocities used) one event a
+        record, at ``time``."""
+        n = len(self.time)
+        record = np.arange(n)
+        if self.vel_time is None or not (use_velocity and self.has_velocity):
+            kind = np.full(n, 3 if use_velocity and self.has_velocity else 1, dtype=np.int64)
+            return np.asarray(self.time, dtype=float), record, kind
+        time = np.concatenate([self.time, self.vel_time])
+        order = np.argsort(time, kind="stable")
+        kind = np.concatenate([np.ones(n, np.int64), np.full(n, 2, np.int64)])
+        return time[order], np.concatenate([record, record])[order], kind[order]

@@ -126,7 +126,8 @@ def gnss_times(t_start, t_end, rate_hz, outages=()):
 
 
 def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
-                  sigma_vel_mps=None, time_offset_s=0.0, lever_error_b_m=None):
+                  sigma_vel_mps=None, time_offset_s=0.0, lever_error_b_m=None,
+                  velocity_time_offset_s=None):
     """Noisy antenna fixes at the given epochs.
 
     Parameters
@@ -147,6 +148,11 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
         IMU-GNSS time offset to inject, s: the record stamped ``t`` holds the antenna at
         the truth's (IMU) time ``t + time_offset_s`` (the sign of the filter's
         ``time_offset`` state).
+    velocity_time_offset_s : float, optional
+        The offset of the velocities instead, s, when the receiver stamps them
+        differently from its positions (a record stamped ``t`` holds the antenna's
+        velocity at IMU time ``t + velocity_time_offset_s``); ``None``:
+        ``time_offset_s``.
     lever_error_b_m : array_like, shape (3,), optional
         Lever-arm error to inject, m, b frame: the antenna is at ``l_bp +
         lever_error_b_m + C_pa l_ap`` while the manifest states ``l_bp`` (the filter's
@@ -170,5 +176,9 @@ def simulate_gnss(truth, time, l_bp, l_ap, sigma_ned_m, rng, velocity=False,
     if not velocity:
         return GnssLog(time, lla, std)
     sigma_v = np.broadcast_to(np.asarray(sigma_vel_mps, dtype=float), (3,))
+    if velocity_time_offset_s is not None and velocity_time_offset_s != time_offset_s:
+        sample = truth.evaluate(np.clip(time + float(velocity_time_offset_s), truth.t_start,
+                                        truth.t_end))
+        v_n = antenna_state(sample, l_bp, l_ap)[1]
     v_n = v_n + rng.standard_normal((len(time), 3)) * sigma_v
     return GnssLog(time, lla, std, v_n, np.tile(np.maximum(sigma_v, STD_FLOOR), (len(time), 1)))
