@@ -283,7 +283,7 @@ def test_filter_settings_refuse_zero_sigma():
 
 def test_process_config_dataclass_defaults():
     cfg = ProcessConfig(imu="a", gnss="b")
-    assert cfg.method == "given" and cfg.node_interval_s == 1.0
+    assert cfg.method == "auto" and cfg.node_interval_s == 1.0
 
 
 def test_missing_mount_data_counted_with_a_warning(flight, tmp_path):

@@ -19,7 +19,7 @@ nhc = false
 
 
 def test_names_and_values():
-    assert names() == ["land", "mems", "tactical"]
+    assert names() == ["consumer", "land", "mems", "tactical"]
     mems = preset("mems")["imu_noise"]
     # the documented MEMS values (docs/real-data.md): deg/sqrt(h), m/s/sqrt(h), deg/h, mGal
     assert (mems["arw_deg_sqrth"], mems["vrw_mps_sqrth"], mems["gyro_bias_std_dph"],
@@ -28,9 +28,15 @@ def test_names_and_values():
     assert land["imu_noise"] == mems
     assert land["measurements"] == {"nhc": True, "zupt": True}
     assert preset("tactical")["imu_noise"]["gyro_bias_std_dph"] < mems["gyro_bias_std_dph"]
+    # consumer parts (BMI/ICM/LSM datasheets): offsets up to 1 deg/s and 30 mg
+    consumer = preset("consumer")
+    assert consumer["imu_noise"]["gyro_bias_std_dph"] == 3600.0
+    assert consumer["imu_noise"]["accel_bias_std_mgal"] == 30000.0
+    assert consumer["measurements"] == {"zupt": True}
     preset("land")["imu_noise"]["arw_deg_sqrth"] = 99.0      # a copy: the table unchanged
     assert PRESETS["land"]["imu_noise"]["arw_deg_sqrth"] == 0.3
-    with pytest.raises(InputError, match="unknown preset; known presets: land, mems, tactical"):
+    with pytest.raises(InputError, match="unknown preset; known presets: consumer, land, mems, "
+                                         "tactical"):
         preset("car")
 
 

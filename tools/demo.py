@@ -281,10 +281,11 @@ def misalignment_rows(flight, proc, row):
 
 def plot_angles(out, eo, d_ins, d_ref, names):
     """Exposure angle errors against the truth (arcsec) per image, strips marked."""
-    from ins.common.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
+    from ins.common.plotstyle import (exposure_axis, legend_right, mark_strips, pyplot,
+                                      save_png, strip_starts)
     plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
-    x = np.arange(len(eo.image_id))
+    x, xlabel, origin = exposure_axis(eo.time)
     starts = strip_starts(list(eo.image_id), heading_rad=eo.angles[:, 2])
     for k, ax in enumerate(axes):
         ins_as, ref_as = d_ins[:, k] / ARCSEC, d_ref[:, k] / ARCSEC
@@ -296,9 +297,10 @@ def plot_angles(out, eo, d_ins, d_ref, names):
         ax.set_ylabel(f"{names[k]} error, arcsec")
         ax.grid(alpha=0.3)
         legend_right(ax)
-    mark_strips(axes, starts, len(x))
-    axes[-1].set_xlabel("image number (flight order); dashed lines: strip boundaries")
-    fig.suptitle("Exposure angles minus the truth, before and after the refinement")
+    mark_strips(axes, starts, len(x), x=x)
+    axes[-1].set_xlabel(f"{xlabel}; dashed lines: strip boundaries")
+    fig.suptitle("Exposure angles minus the truth, before and after the refinement"
+                 + (f"\n{origin}" if origin else ""), fontsize=11)
     fig.tight_layout()
     save_png(fig, str(out / "angles.png"))
 

@@ -19,7 +19,8 @@ import io
 import numpy as np
 
 __all__ = ["ARCSEC", "TRANSIENT_S", "pyplot", "save_png", "length_unit", "robust_limits",
-           "legend_right", "plain_log_ticks", "time_label", "strip_starts", "mark_strips"]
+           "legend_right", "plain_log_ticks", "time_label", "exposure_axis", "strip_starts",
+           "mark_strips"]
 
 ARCSEC = np.pi / 180.0 / 3600.0
 TRANSIENT_S = 60.0
@@ -139,6 +140,17 @@ def time_label(t0_s):
     """``(x-label, title suffix)`` of the time axis convention: time since the first
     epoch, s, with that epoch given once as GPS seconds of week."""
     return "time since start, s", f"start = GPS second of week {t0_s:.3f}"
+
+
+def exposure_axis(time_s):
+    """x values, x-label and title suffix of a plot over exposures: the time axis
+    convention (:func:`time_label`: time since the first exposure, s) when every
+    exposure has a finite time, else the image number in file order."""
+    t = np.asarray(time_s, dtype=float)
+    if len(t) and np.all(np.isfinite(t)):
+        xlabel, origin = time_label(float(t.min()))
+        return t - t.min(), "exposure " + xlabel, origin
+    return np.arange(len(t), dtype=float), "image number (file order)", ""
 
 
 def strip_starts(image_ids=None, time_s=None, heading_rad=None):

@@ -60,6 +60,13 @@ MIN_HEADING_STD_DEG = 1.0
 #: The rest ends this long before the first fix at :data:`REST_SPEED_MPS`, s (a start
 #: at 1 m/s^2 reaches 0.2 m/s in well under a second; the rest must not hold it).
 REST_MARGIN_S = 1.5
+#: A start while moving levels over this long, s (the GNSS acceleration over the same
+#: span is removed).
+LEVEL_WINDOW_S = 3.0
+#: The matching window grows by GROW_S (s) until the stated heading sigma is at most
+#: GOOD_HEADING_STD_DEG (deg) or the window is MAX_WINDOW_S long.
+GROW_S = 5.0
+GOOD_HEADING_STD_DEG = 3.0
 #: Shortest rest that gives gyro biases, s.
 MIN_REST_S = 2.0
 
@@ -131,8 +138,10 @@ def _integrate(imu, i0, i1, bias_b, C_Lb0):
     return out
 
 
-def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g):
-    """Azimuth of L in n (rad) and its sigma from the velocity changes over [t_a, t_e]."""
+def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g, order=1):
+    """Azimuth of L in n (rad) and its sigma from the velocity changes over [t_a, t_e];
+    a polynomial of ``order`` in time regressed out of both (1: offset and drift; 2 also
+    the tilt drift of an uncalibrated gyro bias, ``g b t^2 / 2``)."""
     sel = (t_g >= t_a) & (t_g <= t_e)
     tg = t_g[sel]
     if len(tg) < 4:
@@ -140,7 +149,7 @@ def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g):
     x = np.column_stack([np.interp(tg, t_imu, dv_L[:, i]) for i in range(3)])
     x[:, 2] += g * (tg - t_imu[0])                           # gravity: L is level
     y = v_n[sel] - v_n[sel][0]
-    A = np.column_stack([np.ones(len(tg)), tg - tg[0]])
+    A = np.vander(tg - tg[0], order + 1)
     P = np.eye(len(tg)) - A @ np.linalg.pinv(A)              # offset and drift out
     xh, yh = P @ x[:, :2], P @ y[:, :2]
     cross = float(np.sum(xh[:, 0] * yh[:, 1] - xh[:, 1] * yh[:, 0]))
@@ -151,7 +160,7 @@ def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g):
         return None, None
     c, s = np.cos(psi), np.sin(psi)
     r = yh - xh @ np.array([[c, s], [-s, c]])
-    dof = max(2 * len(tg) - 5, 1)
+    dof = max(2 * (len(tg) - order - 1) - 1, 1)
     sigma_v = np.sqrt(np.sum(r ** 2) / dof)
     return psi, sigma_v / np.sqrt(excite)
 
@@ -205,12 +214,13 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
         t_a = max(t0, t_rest - 1.0)
         how = f"at rest for {rest_s:.1f} s: level and gyro biases from the rest"
     else:
-        i1 = int(np.searchsorted(imu.time, t0 + 1.0, side="right")) - 1
+        i1 = int(np.searchsorted(imu.time, t0 + LEVEL_WINDOW_S, side="right")) - 1
         span = imu.time[i1] - imu.time[i0]
         f_b = imu.dvel_b[i0 + 1:i1 + 1].sum(axis=0) / span
         roll, pitch, _ = static_attitude(f_b, np.zeros(3))
         t_a = t0
-        how = "moving at the start: level from the first second less the GNSS acceleration"
+        how = (f"moving at the start: level from the first {LEVEL_WINDOW_S:g} s less the GNSS "
+               "acceleration")
     t_e = _window_end(t_g, v_n[:, :2], t_a)
     ia = int(np.searchsorted(imu.time, t_a - 1e-9))
     ie = int(np.searchsorted(imu.time, t_e, side="right")) - 1
@@ -220,16 +230,24 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
     b = np.zeros(3) if bias_b is None else bias_b
     # relative attitude t0 -> t_a (rest: no rotation) then the matching
     psi, s_psi = None, None
+    order = 1 if bias_b is not None else 2
     for _ in range(3):
         C_Lb0 = euler_to_dcm([roll, pitch, 0.0])
-        dv_L = _integrate(imu, ia, ie, b, C_Lb0)
-        psi, s_psi = _match(imu.time[ia:ie + 1], dv_L, t_g, v_n, t_a, t_e, g)
+        while True:                       # grow the window until the heading is found
+            ie = int(np.searchsorted(imu.time, t_e, side="right")) - 1
+            dv_L = _integrate(imu, ia, ie, b, C_Lb0)
+            psi, s_psi = _match(imu.time[ia:ie + 1], dv_L, t_g, v_n, t_a, t_e, g, order)
+            good = psi is not None and np.rad2deg(s_psi) * HEADING_SIGMA_FACTOR \
+                <= GOOD_HEADING_STD_DEG
+            if good or t_e >= min(t_a + MAX_WINDOW_S, imu.time[-1], t_g[-1]) - 1e-9:
+                break
+            t_e = min(t_e + GROW_S, t_a + MAX_WINDOW_S, imu.time[-1], t_g[-1])
         if psi is None:
             break
         if bias_b is not None:                    # the rest's level needs no iteration
             break
         # level while moving: mean specific force of the first second vs a_n - g_n
-        sel = (t_g >= t0) & (t_g <= t0 + 1.5)
+        sel = (t_g >= t0 - 0.5) & (t_g <= t0 + LEVEL_WINDOW_S + 0.5)
         if sel.sum() >= 2:
             a_n = np.polyfit(t_g[sel] - t0, v_n[sel], 1)[0]
         else:

@@ -20,7 +20,9 @@ accepted measurement at all, or a written solution (smoothed, or forward with
 for :data:`DEPART_SPAN_S` (30 s) or more, or from the last fixes of its span for
 :data:`DEPART_END_S` (10 s) or more, is a :class:`~ins.common.errors.QualityError` naming
 the likely cause (start state, IMU noise settings, lever arm, time base), unless
-``accept_poor`` (then a warning).  A negative variance beyond rounding, or a covariance
+``accept_poor`` (then a warning).  A recovery of the forward filter from a run of
+rejected fixes is a warning, :data:`RECOVERY_ERROR_COUNT` of them a QualityError.  A
+negative variance beyond rounding, or a covariance
 the smoother cannot factor, is a ``QualityError`` naming the time and the state.
 """
 import numpy as np
@@ -49,6 +51,11 @@ DEPART_SPAN_S = 30.0
 #: the 30 s; the comma2k19 segment with a tactical IMU's noise settings left its last
 #: 12 s 10-135 m from the fixes).
 DEPART_END_S = 10.0
+#: Recoveries of the forward filter from a run of rejected position fixes
+#: (:mod:`ins.estimation.updates`): one is a warning (a poor start, an unmodelled moment),
+#: this many a QualityError (the filter's model does not hold: its sigmas are not to be
+#: trusted).
+RECOVERY_ERROR_COUNT = 2
 #: Naming the cause: an estimated sensor error beyond this many stated sigmas, or a mean
 #: NIS of the accepted fixes beyond this many times its expectation (3), points at the
 #: IMU noise settings (healthy test and benchmark runs: at most 2.8 sigma, NIS 2.8-3.0).
@@ -232,6 +239,18 @@ def assess_quality(result, gnss, lever, cfg=None):
     elif frac > REJECT_WARN_FRACTION:
         q["warnings"].append(f"{counts}: more than {100 * REJECT_WARN_FRACTION:g} %; "
                              f"{_causes(result, q, cfg)}")
+    rec = getattr(fwd, "recoveries", [])
+    if rec:
+        spans = ", ".join(f"{a:.2f}-{b:.2f} s" for a, b, _, _ in rec[:4]) + \
+            (" ..." if len(rec) > 4 else "")
+        text = (f"{len(rec)} recover{'y' if len(rec) == 1 else 'ies'} from runs of rejected "
+                f"position fixes ({spans}): the filter's covariance was too small for its "
+                f"error there")
+        if len(rec) >= RECOVERY_ERROR_COUNT:
+            problems.append(text + f" ({RECOVERY_ERROR_COUNT} or more: its model does not "
+                                   f"hold and its sigmas cannot be trusted)")
+        else:
+            q["warnings"].append(text + "; " + _causes(result, q, cfg))
     span = None if departure is None else departure["to_s"] - departure["from_s"]
     if departure is not None and (span >= DEPART_SPAN_S
                                   or (departure["at_end"] and span >= DEPART_END_S)):

@@ -17,7 +17,8 @@ from ins.estimation.measurements import (
     node_acceleration,
 )
 
-__all__ = ["Updater", "filterpy_functions", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S"]
+__all__ = ["Updater", "filterpy_functions", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S",
+           "RECOVER_MAX_FACTOR"]
 
 
 def filterpy_functions():
@@ -33,6 +34,11 @@ RECOVER_AFTER_FIXES = 3
 #: ... spanning at least this long, s: a few outliers are rejected, a stretch of fixes
 #: that all disagree with the filter in the same way means the filter has run away.
 RECOVER_AFTER_S = 2.0
+#: ... unless the fix needs the covariance inflated more than this (the filter's sigmas
+#: short of its error by more than 100 x): fixes that far off have jumped (a wrong fix,
+#: multipath, another time base), the filter has not; they stay rejected and the trust
+#: checks judge the run.
+RECOVER_MAX_FACTOR = 1e4
 
 
 class Updater:
@@ -125,9 +131,13 @@ class Updater:
         nav[L.pos] = nav[L.vel] = nav[L.att] = True
         thr = self._threshold(3)
         factor = max(2.0 * nis / thr, 2.0)
-        self.records.pop()                     # the rejected test is repeated below
+        self._last = self.records.pop()        # the rejected test is repeated below
         self.n_rejected -= 1
         for _ in range(40):
+            if factor > RECOVER_MAX_FACTOR:     # the fixes jumped, not the filter
+                self.records.append(self._last)
+                self.n_rejected += 1
+                return P, None, nis, self._last.innovation
             d = np.where(nav, np.sqrt(factor), 1.0)
             Pi = P * np.outer(d, d)
             z = meas.residual(meas.predict(point), meas.observed)

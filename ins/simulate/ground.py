@@ -235,7 +235,8 @@ def write_journey(name, folder, seed=0, velocity_latency_s=0.125):
     """Write scenario ``name`` of :data:`SCENARIOS` into ``folder`` as a user has it:
     ``imu.txt`` (KF-GINS text), ``gnss.txt`` (positions and velocities, KF-GINS text),
     ``truth.nav`` and ``config.toml`` with only the facts of the hardware (files, the
-    antenna's lever arm, and for the car the IMU's mounting in the vehicle).
+    antenna's lever arm, the receiver's velocity latency as ``[gnss]
+    velocity_time_shift_s``, and for the car the IMU's mounting in the vehicle).
 
     Returns ``(truth, journey, config_path)``.
     """
@@ -260,7 +261,8 @@ def write_journey(name, folder, seed=0, velocity_latency_s=0.125):
     s = truth.evaluate(t)
     write_nav(folder / "truth.nav", Trajectory(t, s.lla, s.v_n, s.q_nb))
     facts = ('[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\n'
-             f"[gnss]\nlever_arm_b_m = {list(lever_b)}\n")
+             f"[gnss]\nlever_arm_b_m = {list(lever_b)}\n"
+             f"velocity_time_shift_s = {-float(velocity_latency_s)!r}\n")
     if name == "consumer-car":
         facts += f"[vehicle]\nmounting_rpy_deg = {list(journey.mounting_rpy_deg)}\n"
     (folder / "config.toml").write_text(facts)

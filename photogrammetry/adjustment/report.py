@@ -43,11 +43,12 @@ def _plot_residuals(result, path):
 
 
 def _plot_corrections(result, path):
-    from ins.common.plotstyle import legend_right, mark_strips, pyplot, save_png, strip_starts
+    from ins.common.plotstyle import (exposure_axis, legend_right, mark_strips, pyplot,
+                                      save_png, strip_starts)
     plt = pyplot()
     a = result.assessment
     fig, ax = plt.subplots(figsize=(9, 4.2))
-    idx = np.arange(len(a.diff))
+    idx, xlabel, origin = exposure_axis(result.eo.time)
     for k, name in enumerate(a.names):
         ax.plot(idx[a.used], a.diff[a.used, k] * _AS, ".-", label=f"{name}")
         ax.axhline(a.mean[k] * _AS, color=f"C{k}", lw=0.8, ls=":",
@@ -55,10 +56,11 @@ def _plot_corrections(result, path):
     ax.axhline(0, color="k", lw=0.5)
     kappa = result.eo.angles[:, 2] if result.eo.angles.ndim == 2 else None
     starts = strip_starts(list(result.eo.image_id), heading_rad=kappa)
-    mark_strips(ax, starts, len(idx))
-    ax.set_xlabel("image number (file order); dashed lines: strip boundaries")
+    mark_strips(ax, starts, len(idx), x=idx)
+    ax.set_xlabel(f"{xlabel}; dashed lines: strip boundaries")
     ax.set_ylabel("INS - adjusted, arcsec")
-    ax.set_title("Angle corrections along the strips (INS minus adjusted)", pad=18)
+    ax.set_title("Angle corrections along the strips (INS minus adjusted)"
+                 + (f"\n{origin}" if origin else ""), pad=18, fontsize=10)
     ax.grid(alpha=0.3)
     legend_right(ax)
     save_png(fig, path)
