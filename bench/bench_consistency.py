@@ -48,6 +48,7 @@ Measured (30 seeds, 2026-11-24, about 1 min with the flights cached):
 
 Usage: python bench/bench_consistency.py [--seeds 30] [--layout survey|kfgins]
                                           [--plan data/flights/demo.toml] [--gauss-markov]
+                                          [--default-priors]
 """
 import argparse
 import sys
@@ -93,9 +94,12 @@ def drawn_plan(plan, seed):
     return text.replace(marker, marker + "\n".join(lines) + "\n", 1)
 
 
-def filter_statistics(cfg, plan):
+def filter_statistics(cfg, plan, default_priors=False):
     """The filter's sensor statistics for the drawn errors: the preset's magnitudes as
-    the standard deviations (not the drawn values the manifest gives)."""
+    the standard deviations (not the drawn values the manifest gives).  With
+    ``default_priors`` the non-orthogonality priors are left to the filter's default
+    rule (``ins.estimation.filter_settings.default_misalignment_std_arcsec``: from the
+    scale-factor sigmas) instead of the drawn magnitudes."""
     from dataclasses import replace
 
     from ins.simulate.sensor_errors import PRESETS
@@ -108,8 +112,9 @@ def filter_statistics(cfg, plan):
                                                      mag("accel_bias_instability_mgal")),
                         gyro_scale_std_ppm=mag("gyro_scale_ppm"),
                         accel_scale_std_ppm=mag("accel_scale_ppm"))
-    cfg.priors = {"gyro_misalignment_std_arcsec": mag("gyro_misalignment_arcsec"),
-                  "accel_misalignment_std_arcsec": mag("accel_misalignment_arcsec")}
+    cfg.priors = ({} if default_priors else
+                  {"gyro_misalignment_std_arcsec": mag("gyro_misalignment_arcsec"),
+                   "accel_misalignment_std_arcsec": mag("accel_misalignment_arcsec")})
     return cfg
 
 
@@ -138,10 +143,10 @@ def nees(err, P):
     return np.einsum("mi,mi->m", err, np.linalg.solve(P, err[:, :, None])[:, :, 0])
 
 
-def run_seed(folder, layout, plan, gauss_markov=False):
+def run_seed(folder, layout, plan, gauss_markov=False, default_priors=False):
     """Per-node normalized errors and NIS of one flight (``gauss_markov``: every sensor
     state a Gauss-Markov process of its total sigma, the model before the constant
-    sensor states)."""
+    sensor states; ``default_priors``: see :func:`filter_statistics`)."""
     from ins.estimation.error_model import LAYOUTS, StateLayout
     from ins.estimation.process import process
     from ins.estimation.process_config import config_from_manifest
@@ -150,7 +155,7 @@ def run_seed(folder, layout, plan, gauss_markov=False):
     from ins.nav.accuracy import compare
     from ins.nav.rotation import quat_to_euler
     from ins.nav.trajectory import Trajectory
-    cfg = filter_statistics(config_from_manifest(str(folder)), plan)
+    cfg = filter_statistics(config_from_manifest(str(folder)), plan, default_priors)
     if gauss_markov:
         from dataclasses import replace
         cfg.noise = replace(cfg.noise, gyro_bias_instability_dph=None,
@@ -251,11 +256,14 @@ def main():
     ap.add_argument("--gauss-markov", action="store_true",
                     help="sensor states as Gauss-Markov processes of their total sigma "
                          "(the model before the constant sensor states)")
+    ap.add_argument("--default-priors", action="store_true",
+                    help="non-orthogonality priors by the filter's default rule (from the "
+                         "scale-factor sigmas) instead of the drawn magnitudes")
     args = ap.parse_args()
     runs, t0 = [], time.perf_counter()
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         runs.append(run_seed(flight(args.plan, seed), args.layout, args.plan,
-                             args.gauss_markov))
+                             args.gauss_markov, args.default_priors))
         print(f"seed {seed}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     print_rms(runs)
     if args.save:
@@ -264,7 +272,8 @@ def main():
     print()
     print(f"\n{args.seeds} seeds of {Path(args.plan).name}, layout "
           f"{args.layout or 'default'}"
-          f"{', Gauss-Markov sensor states' if args.gauss_markov else ''}; classes: settling (first {SETTLE_S:g} s), straight "
+          f"{', Gauss-Markov sensor states' if args.gauss_markov else ''}"
+          f"{', default non-orthogonality priors' if args.default_priors else ''}; classes: settling (first {SETTLE_S:g} s), straight "
           f"lines and turns (|yaw rate| > {TURN_RATE_DPS:g} deg/s) after it\n")
     print("| quantity | class | dof | mean NEES/NIS | epochs with the seed mean inside "
           "the 95 % band | band | epochs |")
