@@ -42,6 +42,18 @@ Measured (30 seeds, 2026-11-24, about 1 min with the flights cached):
   the band), forward tilt 1.8-2.3 and heading 1.7 in turns; smoothed RMS 47/46/75 arcsec
   against stated sigmas 31/28/61: the 21 states are overconfident once the IMU has
   non-orthogonality.
+- ``--default-priors`` (the non-orthogonality priors by the filter's default rule,
+  1 arcsec per ppm of scale-factor sigma: 150/300 arcsec against the drawn 50/100;
+  12 seeds, 2026-11-27): conservative, never overconfident: forward tilt NEES N/E
+  0.41/0.85 on straight lines, 0.41/0.47 in turns; smoothed 0.35/0.73 and 0.37/0.38;
+  smoothed RMS tilt N/E/heading 43.7/28.3/77.5 arcsec against stated sigmas
+  76.0/43.8/83.0 (with the drawn magnitudes, the same 12 seeds: 39.2/26.1/70.5 against
+  39.8/28.9/61.4, every tilt class inside its band).  With the navigation grade
+  (``[imu] grade = "navigation"`` in a copy of the plan; 5/5 arcsec gyro, 50 ppm/10
+  arcsec accelerometer): the default rule gives tilt NEES 0.76-0.92 (all in band),
+  smoothed tilt RMS 2.5/1.4 arcsec (drawn priors 2.4/1.4); a third of the rule
+  (1 arcsec per 3 ppm, the tactical ratio) would be overconfident there (tilt NEES
+  4-8).
 - With the presets' fixed values instead of draws, the survey tilt NEES is 1.5-1.9 on
   the first straight segment (the bias and the non-orthogonality add up with the same
   sign in every seed): the reason for the draws.
