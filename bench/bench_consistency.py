@@ -42,12 +42,25 @@ Measured (30 seeds, 2026-11-24, about 1 min with the flights cached):
   the band), forward tilt 1.8-2.3 and heading 1.7 in turns; smoothed RMS 47/46/75 arcsec
   against stated sigmas 31/28/61: the 21 states are overconfident once the IMU has
   non-orthogonality.
+- ``--default-priors`` (the non-orthogonality priors by the filter's default rule,
+  1 arcsec per ppm of scale-factor sigma: 150/300 arcsec against the drawn 50/100;
+  12 seeds, 2026-11-27): conservative, never overconfident: forward tilt NEES N/E
+  0.41/0.85 on straight lines, 0.41/0.47 in turns; smoothed 0.35/0.73 and 0.37/0.38;
+  smoothed RMS tilt N/E/heading 43.7/28.3/77.5 arcsec against stated sigmas
+  76.0/43.8/83.0 (with the drawn magnitudes, the same 12 seeds: 39.2/26.1/70.5 against
+  39.8/28.9/61.4, every tilt class inside its band).  With the navigation grade
+  (``[imu] grade = "navigation"`` in a copy of the plan; 5/5 arcsec gyro, 50 ppm/10
+  arcsec accelerometer): the default rule gives tilt NEES 0.76-0.92 (all in band),
+  smoothed tilt RMS 2.5/1.4 arcsec (drawn priors 2.4/1.4); a third of the rule
+  (1 arcsec per 3 ppm, the tactical ratio) would be overconfident there (tilt NEES
+  4-8).
 - With the presets' fixed values instead of draws, the survey tilt NEES is 1.5-1.9 on
   the first straight segment (the bias and the non-orthogonality add up with the same
   sign in every seed): the reason for the draws.
 
 Usage: python bench/bench_consistency.py [--seeds 30] [--layout survey|kfgins]
                                           [--plan data/flights/demo.toml] [--gauss-markov]
+                                          [--default-priors]
 """
 import argparse
 import sys
@@ -93,9 +106,12 @@ def drawn_plan(plan, seed):
     return text.replace(marker, marker + "\n".join(lines) + "\n", 1)
 
 
-def filter_statistics(cfg, plan):
+def filter_statistics(cfg, plan, default_priors=False):
     """The filter's sensor statistics for the drawn errors: the preset's magnitudes as
-    the standard deviations (not the drawn values the manifest gives)."""
+    the standard deviations (not the drawn values the manifest gives).  With
+    ``default_priors`` the non-orthogonality priors are left to the filter's default
+    rule (``ins.estimation.filter_settings.default_misalignment_std_arcsec``: from the
+    scale-factor sigmas) instead of the drawn magnitudes."""
     from dataclasses import replace
 
     from ins.simulate.sensor_errors import PRESETS
@@ -108,8 +124,9 @@ def filter_statistics(cfg, plan):
                                                      mag("accel_bias_instability_mgal")),
                         gyro_scale_std_ppm=mag("gyro_scale_ppm"),
                         accel_scale_std_ppm=mag("accel_scale_ppm"))
-    cfg.priors = {"gyro_misalignment_std_arcsec": mag("gyro_misalignment_arcsec"),
-                  "accel_misalignment_std_arcsec": mag("accel_misalignment_arcsec")}
+    cfg.priors = ({} if default_priors else
+                  {"gyro_misalignment_std_arcsec": mag("gyro_misalignment_arcsec"),
+                   "accel_misalignment_std_arcsec": mag("accel_misalignment_arcsec")})
     return cfg
 
 
@@ -138,10 +155,10 @@ def nees(err, P):
     return np.einsum("mi,mi->m", err, np.linalg.solve(P, err[:, :, None])[:, :, 0])
 
 
-def run_seed(folder, layout, plan, gauss_markov=False):
+def run_seed(folder, layout, plan, gauss_markov=False, default_priors=False):
     """Per-node normalized errors and NIS of one flight (``gauss_markov``: every sensor
     state a Gauss-Markov process of its total sigma, the model before the constant
-    sensor states)."""
+    sensor states; ``default_priors``: see :func:`filter_statistics`)."""
     from ins.estimation.error_model import LAYOUTS, StateLayout
     from ins.estimation.process import process
     from ins.estimation.process_config import config_from_manifest
@@ -150,7 +167,7 @@ def run_seed(folder, layout, plan, gauss_markov=False):
     from ins.nav.accuracy import compare
     from ins.nav.rotation import quat_to_euler
     from ins.nav.trajectory import Trajectory
-    cfg = filter_statistics(config_from_manifest(str(folder)), plan)
+    cfg = filter_statistics(config_from_manifest(str(folder)), plan, default_priors)
     if gauss_markov:
         from dataclasses import replace
         cfg.noise = replace(cfg.noise, gyro_bias_instability_dph=None,
@@ -251,11 +268,14 @@ def main():
     ap.add_argument("--gauss-markov", action="store_true",
                     help="sensor states as Gauss-Markov processes of their total sigma "
                          "(the model before the constant sensor states)")
+    ap.add_argument("--default-priors", action="store_true",
+                    help="non-orthogonality priors by the filter's default rule (from the "
+                         "scale-factor sigmas) instead of the drawn magnitudes")
     args = ap.parse_args()
     runs, t0 = [], time.perf_counter()
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         runs.append(run_seed(flight(args.plan, seed), args.layout, args.plan,
-                             args.gauss_markov))
+                             args.gauss_markov, args.default_priors))
         print(f"seed {seed}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     print_rms(runs)
     if args.save:
@@ -264,7 +284,8 @@ def main():
     print()
     print(f"\n{args.seeds} seeds of {Path(args.plan).name}, layout "
           f"{args.layout or 'default'}"
-          f"{', Gauss-Markov sensor states' if args.gauss_markov else ''}; classes: settling (first {SETTLE_S:g} s), straight "
+          f"{', Gauss-Markov sensor states' if args.gauss_markov else ''}"
+          f"{', default non-orthogonality priors' if args.default_priors else ''}; classes: settling (first {SETTLE_S:g} s), straight "
           f"lines and turns (|yaw rate| > {TURN_RATE_DPS:g} deg/s) after it\n")
     print("| quantity | class | dof | mean NEES/NIS | epochs with the seed mean inside "
           "the 95 % band | band | epochs |")

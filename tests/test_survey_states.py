@@ -198,3 +198,27 @@ def test_nonholonomic_constraint_on_the_ground():
     vb = np.einsum("nji,nj->ni", C, e.v_n)[late]
     vb_free = np.einsum("nji,nj->ni", C, e_free.v_n)[late]
     assert np.max(np.abs(vb[:, 1:])) < 0.3 * np.max(np.abs(vb_free[:, 1:]))
+
+
+def test_default_misalignment_priors_follow_the_grade():
+    """Not given, the non-orthogonality priors are the scale-factor sigmas (1 arcsec per
+    ppm, per sensor and axis, at least 1 arcsec); given ones win; the presets' grades."""
+    from ins.estimation.error_model import LAYOUTS, ImuNoise
+    from ins.estimation.filter_settings import FilterSettings
+    from ins.estimation.presets import apply_preset
+    from ins.estimation.process_config import ProcessConfig, filter_options
+    survey = StateLayout(LAYOUTS["survey"])
+    noise = ImuNoise(gyro_scale_std_ppm=[150.0, 0.2, 5.0], accel_scale_std_ppm=300.0)
+    s = FilterSettings(noise=noise, layout=survey)
+    np.testing.assert_allclose(s.prior_std() / ARCSEC, [150, 1, 5, 300, 300, 300])
+    s = FilterSettings(noise=noise, layout=survey, accel_misalignment_std_arcsec=20.0)
+    np.testing.assert_allclose(s.prior_std() / ARCSEC, [150, 1, 5, 20, 20, 20])
+    # the KF-GINS-like config (1 ppm): 1 arcsec, the 21 states' figures on the benchmark
+    s = FilterSettings(noise=ImuNoise(), layout=survey)
+    np.testing.assert_allclose(s.prior_std() / ARCSEC, np.ones(6))
+    expected = {"tactical": 100.0, "mems": 1000.0, "land": 1000.0, "consumer": 2000.0}
+    for name, arcsec in expected.items():
+        cfg = apply_preset(ProcessConfig(imu="i", gnss="g"), name)
+        s = FilterSettings(noise=cfg.noise, **filter_options(cfg))
+        assert s.layout == survey
+        np.testing.assert_allclose(s.prior_std() / ARCSEC, np.full(6, arcsec), err_msg=name)

@@ -11,6 +11,43 @@ from ins.estimation.lever_arm import LeverArm
 DEG = np.pi / 180.0
 ARCSEC = DEG / 3600.0
 
+#: Default non-orthogonality prior per scale-factor prior: arcsec per ppm (see
+#: :func:`default_misalignment_std_arcsec`).
+MISALIGNMENT_ARCSEC_PER_PPM = 1.0
+#: Smallest default non-orthogonality prior, arcsec (as a flight manifest's).
+MIN_MISALIGNMENT_STD_ARCSEC = 1.0
+
+
+def default_misalignment_std_arcsec(noise):
+    """Prior sigmas of the gyro and accelerometer non-orthogonality when the config does
+    not give them: tied to the IMU's grade through its scale-factor sigma.
+
+    Rule: ``misalignment sigma (arcsec) = scale-factor sigma (ppm)`` per sensor and axis
+    (:data:`MISALIGNMENT_ARCSEC_PER_PPM`), at least :data:`MIN_MISALIGNMENT_STD_ARCSEC`.
+    Scale factor and non-orthogonality are the diagonal and the off-diagonal of the
+    same calibration matrix and come with the same calibration; 1 arcsec (4.85e-6) per
+    ppm puts the prior at or above the simulator's grades (off-diagonal 0.9 to 4.8 times
+    the diagonal: navigation 5 ppm / 5 arcsec gyro, 50 ppm / 10 arcsec accelerometer;
+    tactical 150 ppm / 50 arcsec, 300 ppm / 100 arcsec; mems 1000 ppm / 180 arcsec),
+    so the filter is not overconfident on them.  The ``tactical`` preset (100 ppm)
+    gets 100 arcsec, ``mems`` and ``land`` (1000 ppm) 1000 arcsec; a KF-GINS-like
+    config (1 ppm, a calibrated IMU) 1 arcsec, where the survey layout then matches the
+    21 states (``bench/bench_process.py --layout survey``; a flat 100 arcsec cost 80 %
+    in forward tilt there: weakly observable pitch against ``m_y`` on yaw-only motion).
+
+    Parameters
+    ----------
+    noise : ins.estimation.error_model.ImuNoise
+
+    Returns
+    -------
+    gyro, accel : ndarray, shape (3,)
+        Prior sigmas, arcsec (x, y, z).
+    """
+    return tuple(np.maximum(np.asarray(ppm, float) * MISALIGNMENT_ARCSEC_PER_PPM,
+                            MIN_MISALIGNMENT_STD_ARCSEC)
+                 for ppm in (noise.gyro_scale_std_ppm, noise.accel_scale_std_ppm))
+
 
 @dataclass
 class FilterSettings:
@@ -36,8 +73,10 @@ class FilterSettings:
         Longest interval between two covariance steps, s.
     layout : ins.estimation.error_model.StateLayout
         The error states (default: the 21 KF-GINS states).
-    gyro_misalignment_std_arcsec, accel_misalignment_std_arcsec : float or (3,)
-        Prior sigma of the non-orthogonality states, arcsec.
+    gyro_misalignment_std_arcsec, accel_misalignment_std_arcsec : float or (3,), optional
+        Prior sigma of the non-orthogonality states, arcsec; ``None`` (default): from
+        the scale-factor sigma of ``noise`` (:func:`default_misalignment_std_arcsec`,
+        1 arcsec per ppm, at least 1 arcsec).
     lever_arm_std_m : float or (3,)
         Prior sigma of the lever-arm correction, m (b frame).
     time_offset_std_ms : float
@@ -72,8 +111,8 @@ class FilterSettings:
     reject_probability: float = 1e-5
     node_interval_s: float = 1.0
     layout: StateLayout = KFGINS
-    gyro_misalignment_std_arcsec: object = 100.0
-    accel_misalignment_std_arcsec: object = 100.0
+    gyro_misalignment_std_arcsec: object = None
+    accel_misalignment_std_arcsec: object = None
     lever_arm_std_m: object = 0.05
     time_offset_std_ms: float = 5.0
     zupt: bool = False
@@ -89,12 +128,21 @@ class FilterSettings:
 
     def prior_std(self):
         """Prior standard deviations of the optional groups of :attr:`layout`, SI."""
-        edge = {"gyro_misalignment": (self.gyro_misalignment_std_arcsec, ARCSEC, 3),
-                "accel_misalignment": (self.accel_misalignment_std_arcsec, ARCSEC, 3),
+        gyro, accel = self.misalignment_std_arcsec()
+        edge = {"gyro_misalignment": (gyro, ARCSEC, 3),
+                "accel_misalignment": (accel, ARCSEC, 3),
                 "lever_arm": (self.lever_arm_std_m, 1.0, 3),
                 "time_offset": (self.time_offset_std_ms, 1e-3, 1)}
         return np.concatenate([[]] + [np.broadcast_to(np.asarray(edge[g][0], float), edge[g][2])
                                       * edge[g][1] for g in self.layout.groups])
+
+    def misalignment_std_arcsec(self):
+        """The gyro and accelerometer non-orthogonality priors in use, arcsec (3,) each:
+        the given ones, else :func:`default_misalignment_std_arcsec`."""
+        derived = default_misalignment_std_arcsec(self.noise)
+        return tuple(np.broadcast_to(np.asarray(d if v is None else v, float), 3)
+                     for v, d in zip((self.gyro_misalignment_std_arcsec,
+                                      self.accel_misalignment_std_arcsec), derived))
 
     def initial_covariance(self):
         std = np.concatenate([np.broadcast_to(np.asarray(self.pos_std_ned_m, float), 3),

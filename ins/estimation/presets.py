@@ -21,7 +21,10 @@ config's key names and units::
                ``zupt = true`` (zero-velocity updates where the IMU is found at rest)
 
 The values are 1-sigma statistics in KF-GINS's units (deg/sqrt(h), m/s/sqrt(h), deg/h,
-mGal, ppm, h).
+mGal, ppm, h).  The non-orthogonality priors of the survey layout follow the grade
+through the scale-factor sigmas (1 arcsec per ppm,
+:func:`ins.estimation.filter_settings.default_misalignment_std_arcsec`): 100 arcsec for
+``tactical``, 1000 for ``mems`` and ``land``; ``consumer`` gives its own 2000 arcsec.
 """
 from dataclasses import replace
 

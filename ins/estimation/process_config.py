@@ -31,7 +31,9 @@ with the unit in the name::
                  covariance is inflated; ins.estimation.updates.RECOVER_AFTER_S)
     [states]     layout = "survey"|"kfgins"; gyro_misalignment, accel_misalignment,
                  lever_arm, time_offset (true/false: add or drop a group of the layout);
-                 gyro_misalignment_std_arcsec = 100, accel_misalignment_std_arcsec = 100,
+                 gyro_misalignment_std_arcsec, accel_misalignment_std_arcsec (default:
+                 the scale-factor sigma, 1 arcsec per ppm, at least 1 arcsec:
+                 ins.estimation.filter_settings.default_misalignment_std_arcsec),
                  lever_arm_std_m = 0.05, time_offset_std_ms = 5 (priors)
     [measurements] zupt = false, zupt_sigma_mps = 0.005, zupt_accel_std_mps2 = 0.05,
                  zupt_gyro_dps = 0.5, zupt_windows_s = [[t0, t1], ...],
