@@ -32,6 +32,9 @@ class GnssLog:
     quality : ndarray, shape (n,) of int or None
         Solution quality flag of the source (RTKLIB Q: 1 fix, 2 float, 3 SBAS, 4 DGPS,
         5 single, 6 PPP), ``None`` when the source has none.
+    screen : ins.io.pos_screen.CovarianceScreen or None
+        What the reader's covariance screen repaired and dropped (RTKLIB ``.pos``),
+        ``None`` when not screened.
     """
 
     time: np.ndarray
@@ -43,6 +46,7 @@ class GnssLog:
     path: str = None
     cov_ned_m2: np.ndarray = None
     quality: np.ndarray = None
+    screen: object = None
 
     def __len__(self):
         return len(self.time)
@@ -57,7 +61,7 @@ class GnssLog:
             return None if a is None else a[keep]
         return GnssLog(self.time[keep], self.lla[keep], self.sigma_ned_m[keep], take(self.v_n),
                        take(self.sigma_vel_ned_mps), take(self.line), self.path,
-                       take(self.cov_ned_m2), take(self.quality))
+                       take(self.cov_ned_m2), take(self.quality), self.screen)
 
     def shifted(self, time_shift_s):
         """The same log with ``time_shift_s`` (s) added to every epoch (a clock offset
