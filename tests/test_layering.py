@@ -27,7 +27,7 @@ MAX_LINES = 600
 
 _INS_BELOW_CLI = {"ins.common", "ins.nav", "ins.io", "ins.estimation", "ins.lidar"}
 #: The import graph between subpackages (importer -> imported), edges inside one
-#: subpackage left out.  The layers, lowest first: common < nav < io < estimation, lidar
+#: subpackage left out.  The layers, lowest first: common < nav < io < gnss < estimation, lidar
 #: < simulate, cli; photogrammetry's imagery < orientation < adjustment, sfm; lunar;
 #: simulate; cli.  A new edge is a design decision: add it here, or move the code.
 GRAPH = {
@@ -35,11 +35,15 @@ GRAPH = {
     "ins.common": set(),                     # errors, files, text tables, TOML, plot style
     "ins.nav": {"ins.common"},               # Earth, rotations, IMU, mechanization
     "ins.io": {"ins.common", "ins.nav"},     # file formats
+    # raw GNSS through RTKLIB's engine: a processing step, not a file format, that reads
+    # its solution back with ins.io's .pos reader; below estimation, whose pipeline may
+    # run it before the filter (and tight coupling take its satellite data)
+    "ins.gnss": {"ins.common", "ins.nav", "ins.io"},
     "ins.estimation": {"ins.common", "ins.nav", "ins.io"},     # filter, smoother, pipeline
     "ins.lidar": {"ins.common", "ins.nav", "ins.io"},
     # the simulator's GNSS antenna uses the lever-arm model, its scanner the georeferencing
     "ins.simulate": _INS_BELOW_CLI,
-    "ins.cli": {"ins"} | _INS_BELOW_CLI,     # ins.__version__
+    "ins.cli": {"ins", "ins.gnss"} | _INS_BELOW_CLI,     # ins.__version__
     "photogrammetry": set(),
     "photogrammetry.imagery": {"ins.common"},
     "photogrammetry.orientation": {"ins.common", "ins.nav", "photogrammetry.imagery"},

@@ -256,13 +256,22 @@ def test_comma_separated(tmp_path):
 
 
 def test_floor_and_psd(tmp_path):
+    """sdn printed 0.0000 beside sdne 0.0001: indefinite as printed, a covariance within
+    the rounding (sdn up to 0.00005): floored, not reported."""
     row = ROWS_LLH[0].replace("0.0030   0.0020   0.0080  -0.0010   0.0020  -0.0030",
-                              "0.0000   0.0020   0.0080   0.0020   0.0020  -0.0030")
+                              "0.0000   0.0020   0.0080   0.0001   0.0000  -0.0000")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         log = read_pos(write(tmp_path, HEAD_LLH + row + "\n"))
     assert log.sigma_ned_m[0, 0] >= 1e-4
     assert np.all(np.linalg.eigvalsh(log.cov_ned_m2[0]) > 0)
+    # sdne 0.0020 beside sdn 0: no rounding prints that (ins.io.pos_screen); alone in
+    # its file, without a valid peer, the record is dropped and nothing is left
+    row = ROWS_LLH[0].replace("0.0030   0.0020   0.0080  -0.0010   0.0020  -0.0030",
+                              "0.0000   0.0020   0.0080   0.0020   0.0020  -0.0030")
+    with pytest.raises(InputError, match="no record left"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        read_pos(write(tmp_path, HEAD_LLH + row + "\n"))
 
 
 def test_write_pos_round_trip(tmp_path):

@@ -223,6 +223,7 @@ COMMAND_MODULES = [
     "ins.cli.allan",
     "ins.cli.bag",
     "ins.cli.georeference",
+    "ins.cli.gnss",
     "ins.cli.process",
     "ins.cli.strip_check",
     "ins.cli.time_offset",

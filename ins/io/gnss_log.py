@@ -36,6 +36,9 @@ class GnssLog:
         Epochs of the velocities, s, when they differ from those of the positions (a
         receiver whose Doppler velocities are stamped differently from its positions:
         :meth:`shifted` with a separate velocity shift); ``None``: ``time``.
+    screen : ins.io.pos_screen.CovarianceScreen or None
+        What the reader's covariance screen repaired and dropped (RTKLIB ``.pos``),
+        ``None`` when not screened.
     """
 
     time: np.ndarray
@@ -48,6 +51,7 @@ class GnssLog:
     cov_ned_m2: np.ndarray = None
     quality: np.ndarray = None
     vel_time: np.ndarray = None
+    screen: object = None
 
     def __len__(self):
         return len(self.time)
@@ -67,7 +71,8 @@ class GnssLog:
             return None if a is None else a[keep]
         return GnssLog(self.time[keep], self.lla[keep], self.sigma_ned_m[keep], take(self.v_n),
                        take(self.sigma_vel_ned_mps), take(self.line), self.path,
-                       take(self.cov_ned_m2), take(self.quality), take(self.vel_time))
+                       take(self.cov_ned_m2), take(self.quality), take(self.vel_time),
+                       self.screen)
 
     def shifted(self, time_shift_s, velocity_time_shift_s=None):
         """The same log with ``time_shift_s`` (s) added to every epoch (a clock offset

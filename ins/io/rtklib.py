@@ -29,15 +29,19 @@ other          ``age(s)``, ``ratio``; velocity ``vn ve vu`` (m/s, ENU) with ``sd
 Conversions (into the conventions of :mod:`ins.io.gnss`):
 
 - time: GPS time, as seconds of the GPS week of the first epoch (continuous across a
-  week's end: 604800 s is added rather than wrapping); UTC is turned into GPS time with
+  week's end: 604800 s is added rather than wrapping); a file whose epochs all run
+  backwards (RTKLIB's backward solution) is read in time order; UTC is turned into GPS time with
   the leap seconds of its date (:data:`LEAP_SECONDS`, GPS - UTC = 18 s since 2017), JST
   is UTC + 9 h.  RTKLIB's headers do not state the leap seconds: the table does.
 - position: WGS84 latitude, longitude (rad) and height (m).  A header stating geodetic
   (geoid) heights draws an :class:`~ins.common.errors.InputWarning` (the toolkit's heights are
   ellipsoidal); the Tokyo datum is refused.
-- covariance: the full 3x3 covariance rotated into NED (``cov_ned_m2``; ECEF through
-  ``C_ne``, ENU by swapping N and E and negating D); ``sigma_ned_m`` is the square root
-  of its diagonal.  Values printed as 0.0000 (below RTKLIB's 0.1 mm resolution) are
+- covariance: first screened (:mod:`ins.io.pos_screen`: a matrix that no rounding of a
+  covariance prints is repaired or the record dropped, a sigma out of all proportion to
+  those of its quality drops the record; counted in ``GnssLog.screen`` and reported by
+  an :class:`~ins.common.errors.InputWarning` naming the file and lines), then the full
+  3x3 covariance rotated into NED (``cov_ned_m2``; ECEF through ``C_ne``, ENU by swapping
+  N and E and negating D); ``sigma_ned_m`` is the square root of its diagonal.  Values printed as 0.0000 (below RTKLIB's 0.1 mm resolution) are
   raised to :data:`SIGMA_FLOOR_M`, and a covariance made indefinite by the rounding of
   the printed roots has its eigenvalues raised to ``SIGMA_FLOOR_M**2``.
 - velocity: into NED (``v_n``), its sigmas from the velocity covariance's diagonal.
@@ -60,6 +64,7 @@ from ins.common import textfiles, textparse
 from ins.common.errors import InputError, InputWarning
 from ins.io.gnss_log import GnssLog
 from ins.io.gnss_quality import QUALITY_NAME
+from ins.io.pos_screen import screen
 
 __all__ = ["read_pos", "write_pos", "looks_like_pos", "LEAP_SECONDS", "SIGMA_FLOOR_M",
            "utc_to_gps_seconds"]
@@ -376,7 +381,7 @@ def _parse(path):
     return layout, res.values, res.row_line, date_format, ntime, index
 
 
-def read_pos(path, ref_lla_deg=None):
+def read_pos(path, ref_lla_deg=None, screen_covariance=True):
     """Read an RTKLIB ``.pos`` solution (module notes) into a :class:`~ins.io.gnss_log.GnssLog`.
 
     Parameters
@@ -385,12 +390,15 @@ def read_pos(path, ref_lla_deg=None):
     ref_lla_deg : array_like, shape (3,), optional
         Base position (lat, lon deg, ellipsoidal h m) for an ENU-baseline solution whose
         header has no ``% ref pos :`` line.
+    screen_covariance : bool
+        Screen the position covariances (module notes; :mod:`ins.io.pos_screen`).
 
     Returns
     -------
     GnssLog
-        With ``cov_ned_m2`` (full covariance) and ``quality`` (Q), and the velocity when
-        the file has velocity columns.
+        With ``cov_ned_m2`` (full covariance), ``quality`` (Q) and ``screen`` (what the
+        covariance screen repaired and dropped), and the velocity when the file has
+        velocity columns.
 
     Raises
     ------
@@ -411,6 +419,8 @@ def read_pos(path, ref_lla_deg=None):
     whole, frac = _gps_time(tf, date_format, layout.time_system)
     week0 = int(np.floor_divide(whole[0] + np.floor(frac[0]).astype(np.int64), _WEEK_S))
     time = (whole - week0 * _WEEK_S).astype(np.float64) + frac
+    if time.size > 1 and np.all(np.diff(time) < 0):    # a backward solution: newest first
+        time, vals, row_line = time[::-1], vals[::-1], np.asarray(row_line)[::-1]
     back = np.flatnonzero(np.diff(time) <= 0)
     if back.size:
         k = back[0] + 1
@@ -428,6 +438,11 @@ def read_pos(path, ref_lla_deg=None):
                          f"5 (single) or 6 (ppp)", path=path_s, line=int(row_line[k]))
     lla, C_n_layout = _position(layout, vals, index, path_s, row_line, ref_lla_deg)
     cov = _covariance(vals, index, _SIGMA[layout.position], path_s, row_line)
+    keep = report = None
+    if screen_covariance:
+        cov, keep, report = screen(cov, q, row_line)
+        if report:
+            warnings.warn(report.message(path_s), InputWarning, stacklevel=2)
     cov_ned = _floor_psd(_rotate(C_n_layout, cov))
     sigma = np.sqrt(np.einsum("nii->ni", cov_ned))
     v_n = sigma_v = None
@@ -441,8 +456,14 @@ def read_pos(path, ref_lla_deg=None):
             v_n = np.column_stack([v[:, 0], v[:, 1], -v[:, 2]])
         cov_v = _floor_psd(_rotate(C_n_layout, cov_v))
         sigma_v = np.sqrt(np.einsum("nii->ni", cov_v))
-    return GnssLog(time, lla, sigma, v_n, sigma_v, np.asarray(row_line, np.int64), path_s,
-                   cov_ned, q.astype(np.int64))
+    log = GnssLog(time, lla, sigma, v_n, sigma_v, np.asarray(row_line, np.int64), path_s,
+                  cov_ned, q.astype(np.int64), report)
+    if keep is not None and not keep.all():
+        log = log.select(keep)
+        if len(log) == 0:
+            raise InputError("no record left after the covariance screen (every record's "
+                             "sigma columns invalid)", path=path_s)
+    return log
 
 
 def _position(layout, vals, index, path, row_line, ref_lla_deg):

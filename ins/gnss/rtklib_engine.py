@@ -1,0 +1,226 @@
+"""A GNSS solution from raw observations with RTKLIB's engine (demo5, through the
+``pyrtklib5`` binding: optional extra ``pip install 'insphoto[gnss]'``).
+
+:func:`solve` runs RTKLIB's ``postpos`` (the engine of ``rnx2rtkp``/``rtkpost``) on a
+rover's RINEX 2/3 observations, an optional base station's, the broadcast navigation
+file(s) and optional precise products (SP3 orbits and clocks, RINEX CLK), with the
+settings of :class:`~ins.gnss.rtklib_options.RtklibOptions`, and reads the solution back
+with :func:`ins.io.rtklib.read_pos` (whose covariance screen catches RTKLIB's invalid
+sigmas).  Nothing of RTKLIB's algorithms is written again here.
+
+About the binding (pyrtklib5 0.2.8, RTKLIB demo5 2.5.0 "EX"; its README calls the port
+not fully tested):
+
+- ``postpos`` returns 0 even when an input file is missing or unreadable, and then
+  writes nothing: the inputs are checked here first (each observation file is read with
+  RTKLIB's ``readrnx``, which also gives the number of epochs), and an empty solution is
+  an error;
+- it writes ``<out>_events.pos`` beside the solution: the run goes into a temporary
+  folder beside the output, the solution is moved into place (``os.replace``, atomic)
+  and the folder with the side file is removed;
+- RTKLIB's option defaults live in C globals, and ``postpos`` is not re-entrant: runs
+  are serialized by a lock.
+"""
+import os
+import shutil
+import tempfile
+import threading
+import time as wallclock
+from dataclasses import dataclass
+
+import numpy as np
+
+from ins.common.errors import InputError
+from ins.gnss.rtklib_options import CARRIER_MODES, RtklibOptions, fill_prcopt
+
+__all__ = ["solve", "GnssSolution", "binding", "count_epochs", "GNSS_EXTRA",
+           "MIN_SOLVED_FRACTION", "MIN_FIXED_FRACTION", "poor_reason"]
+
+GNSS_EXTRA = "pip install 'insphoto[gnss]'"
+#: A solution with fewer solved epochs than this fraction of the rover's is poor.
+MIN_SOLVED_FRACTION = 0.5
+#: A carrier-phase solution (kinematic, static) with fewer fixed epochs than this
+#: fraction of the solved ones is poor: its float positions are decimetres to metres.
+MIN_FIXED_FRACTION = 0.1
+
+_LOCK = threading.Lock()
+
+
+def binding():
+    """The imported ``pyrtklib5`` module, or an :class:`InputError` naming the extra."""
+    try:
+        import pyrtklib5
+    except ImportError:
+        raise InputError(f"raw GNSS processing needs RTKLIB's engine (the pyrtklib5 "
+                         f"binding, CPython 3.10-3.13): {GNSS_EXTRA}") from None
+    return pyrtklib5
+
+
+@dataclass(frozen=True)
+class GnssSolution:
+    """The result of :func:`solve`.
+
+    Attributes
+    ----------
+    log : ins.io.gnss_log.GnssLog
+        The solution as read back from the ``.pos`` file (screened covariances).
+    path : str
+        The ``.pos`` file written.
+    rover_epochs : int
+        Epochs in the rover's observation file(s).
+    options : RtklibOptions
+    run_time_s : float
+        Wall time of RTKLIB's ``postpos``, s.
+    """
+
+    log: object
+    path: str
+    rover_epochs: int
+    options: RtklibOptions
+    run_time_s: float
+
+    def counts(self):
+        """``{Q: number of epochs}`` of the solution (RTKLIB's quality flags)."""
+        q = self.log.quality
+        return {int(k): int(np.sum(q == k)) for k in np.unique(q)}
+
+
+def _check_file(path, what):
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"{what}: no such file", path=path)
+    return path
+
+
+def count_epochs(path, rtk=None):
+    """Number of observation epochs in a RINEX observation file (RTKLIB's ``readrnx``
+    and ``sortobs``).
+
+    Raises
+    ------
+    InputError
+        The file is missing or RTKLIB reads no observation from it.
+    """
+    rtk = binding() if rtk is None else rtk
+    path = _check_file(path, "RINEX observations")
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    try:
+        ok = rtk.readrnx(path, 1, "", obs, nav, sta)
+        n = rtk.sortobs(obs) if ok and obs.n > 0 else 0
+    finally:
+        rtk.freeobs(obs)
+        rtk.freenav(nav, 0xFF)
+    if n <= 0:
+        raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
+                         "2.x/3.x observations)", path=path)
+    return int(n)
+
+
+def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
+    """Run RTKLIB's post-processing and read the solution back.
+
+    Parameters
+    ----------
+    rover : str or os.PathLike
+        Rover RINEX observation file.
+    nav : str or os.PathLike or sequence of them
+        Broadcast navigation file(s) (RINEX nav: GPS ``.n``, GLONASS ``.g``, mixed ``.p``
+        / RINEX 3 ``_MN.rnx``).
+    out_path : str or os.PathLike
+        The ``.pos`` file to write (RTKLIB's llh layout, GPS week and seconds).
+    base : str or os.PathLike, optional
+        Base station RINEX observations (required by every mode but ``single``).
+    sp3, clk : sequence of paths
+        Precise orbits (SP3) and clocks (RINEX CLK); given any, RTKLIB uses the precise
+        ephemeris.
+    options : RtklibOptions, optional
+
+    Returns
+    -------
+    GnssSolution
+
+    Raises
+    ------
+    InputError
+        The extra missing, a missing or unreadable input, a mode that needs a base
+        without one, RTKLIB writing no solution epoch.
+    """
+    rtk = binding()
+    opts = RtklibOptions() if options is None else options
+    navs = [nav] if isinstance(nav, (str, os.PathLike)) else list(nav)
+    if not navs:
+        raise InputError("RTKLIB needs a broadcast navigation file (RINEX nav; --nav)")
+    navs = [_check_file(p, "RINEX navigation") for p in navs]
+    precise = [_check_file(p, "precise orbit (SP3)") for p in sp3]
+    precise += [_check_file(p, "precise clock (RINEX CLK)") for p in clk]
+    if opts.uses_base and base is None:
+        raise InputError(f"RTKLIB mode {opts.mode!r} needs the base station's observations "
+                         f"(--base, or [files] base); mode 'single' needs none")
+    rover_epochs = count_epochs(rover, rtk)
+    files = [os.fspath(rover)]
+    if opts.uses_base:
+        count_epochs(base, rtk)
+        files.append(os.fspath(base))
+    files += navs + precise
+    out_path = os.fspath(out_path)
+    folder = os.path.dirname(os.path.abspath(out_path))
+    if os.path.isdir(out_path):
+        raise InputError("is a directory, not an output file", path=out_path)
+    if not os.path.isdir(folder):
+        raise InputError("the output's folder does not exist", path=out_path)
+    tmp = tempfile.mkdtemp(prefix=".rtklib-", dir=folder)
+    try:
+        tmp_pos = os.path.join(tmp, "solution.pos")
+        with _LOCK:
+            po, so, fo = fill_prcopt(opts, rtk, precise=bool(precise))
+            t0 = wallclock.perf_counter()
+            status = rtk.postpos(rtk.gtime_t(), rtk.gtime_t(), 0.0, 0.0, po, so, fo, files,
+                                 len(files), tmp_pos, "", "")
+            run_time = wallclock.perf_counter() - t0
+        if status != 0 or not os.path.isfile(tmp_pos) or not _has_epoch(tmp_pos):
+            raise InputError(f"RTKLIB wrote no solution epoch (postpos status {status}): "
+                             f"no common epochs or satellites between the observations "
+                             f"and the navigation data? inputs: {', '.join(files)}",
+                             path=os.fspath(rover))
+        os.replace(tmp_pos, out_path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    from ins.io.rtklib import read_pos
+    log = read_pos(out_path)
+    return GnssSolution(log, out_path, rover_epochs, opts, run_time)
+
+
+def _has_epoch(path):
+    with open(path, "rb") as f:
+        return any(line.strip() and not line.startswith(b"%") for line in f)
+
+
+def poor_reason(solution):
+    """Why the solution is not to be trusted (one line), or ``None``: fewer than
+    :data:`MIN_SOLVED_FRACTION` of the rover's epochs solved, or (kinematic, static)
+    fewer than :data:`MIN_FIXED_FRACTION` of them fixed."""
+    n = len(solution.log)
+    solved = n / max(solution.rover_epochs, 1)
+    if solved < MIN_SOLVED_FRACTION:
+        return (f"only {n} of {solution.rover_epochs} rover epochs solved "
+                f"({100 * solved:.0f} % < {100 * MIN_SOLVED_FRACTION:.0f} %)")
+    if solution.options.mode in CARRIER_MODES:
+        fixed = solution.counts().get(1, 0)
+        if fixed < MIN_FIXED_FRACTION * n:
+            return (f"only {fixed} of {n} epochs fixed ({100 * fixed / n:.0f} % < "
+                    f"{100 * MIN_FIXED_FRACTION:.0f} %): float positions are decimetres to "
+                    f"metres off")
+    return None
+
+
+def spread_enu_m(log, quality=None):
+    """Standard deviation (m) of the east, north, up positions about their mean, of the
+    epochs with ``quality`` (all when None; NaN when fewer than 2): the scatter of a
+    static receiver."""
+    keep = np.ones(len(log), bool) if quality is None else log.quality == quality
+    if keep.sum() < 2:
+        return np.full(3, np.nan)
+    from ins.nav.earth import ned_offset
+    lla = log.lla[keep]
+    ned = ned_offset(np.mean(lla, axis=0), lla)
+    return np.std(np.column_stack([ned[:, 1], ned[:, 0], -ned[:, 2]]), axis=0, ddof=1)
