@@ -457,7 +457,7 @@ def read_pos(path, ref_lla_deg=None, screen_covariance=True):
         cov_v = _floor_psd(_rotate(C_n_layout, cov_v))
         sigma_v = np.sqrt(np.einsum("nii->ni", cov_v))
     log = GnssLog(time, lla, sigma, v_n, sigma_v, np.asarray(row_line, np.int64), path_s,
-                  cov_ned, q.astype(np.int64), report)
+                  cov_ned, q.astype(np.int64), screen=report)
     if keep is not None and not keep.all():
         log = log.select(keep)
         if len(log) == 0:
