@@ -198,7 +198,7 @@ def test_cli_refuses_non_empty_folder_then_force(tmp_path, capsys):
 @pytest.mark.parametrize("extra, message", [
     (["--seed", "-1"], "integer >= 0"),
     (["--seed", "x"], "integer >= 0"),
-    (["--grade", "consumer"], "invalid choice"),
+    (["--grade", "toy"], "invalid choice"),
 ])
 def test_cli_bad_arguments(tmp_path, capsys, extra, message):
     code, err = _run(capsys, PLAN, "-o", tmp_path / "f", *extra)

@@ -67,7 +67,7 @@ def test_explicit_spacing_and_interval(demo_dict):
     ("flight", "run_in_m", 5.0, "[flight] run_in_m"),            # < 3 servo lags
     ("flight", "colour", "red", "[flight] colour: unknown key"),
     ("turbulence", "roll_freq_hz", [0.1], "[turbulence] roll_freq_hz"),
-    ("imu", "grade", "consumer", "[imu] grade"),
+    ("imu", "grade", "toy", "[imu] grade"),
     ("camera", "axes", [[1, 0, 0], [0, 1, 0], [0, 0, 2]], "[camera] axes"),
     ("gnss", "outages", [[10.0, -1.0]], "[gnss] outages"),
     ("flight", "ground_speed_mps", "fast", "[flight] ground_speed_mps"),

@@ -18,7 +18,7 @@ from ins.estimation.measurements import (
 )
 
 __all__ = ["Updater", "filterpy_functions", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S",
-           "RECOVER_MAX_FACTOR"]
+           "RECOVER_ENTRY_FACTOR", "RECOVER_MAX_FACTOR"]
 
 
 def filterpy_functions():
@@ -34,6 +34,10 @@ RECOVER_AFTER_FIXES = 3
 #: ... spanning at least this long, s: a few outliers are rejected, a stretch of fixes
 #: that all disagree with the filter in the same way means the filter has run away.
 RECOVER_AFTER_S = 2.0
+#: ... and the run's first rejected fix had a NIS of at most this many times the test's
+#: bound (a filter that runs away leaves the test gradually; fixes that jump to another
+#: place, a wrong fix or multipath, leave it at once, far outside) ...
+RECOVER_ENTRY_FACTOR = 10.0
 #: ... unless the fix needs the covariance inflated more than this (the filter's sigmas
 #: short of its error by more than 100 x): fixes that far off have jumped (a wrong fix,
 #: multipath, another time base), the filter has not; they stay rejected and the trust
@@ -58,6 +62,7 @@ class Updater:
         self.cov = getattr(gnss, "cov_ned_m2", None)
         self.ev_time, self.ev_record, self.ev_kind = gnss.update_events(settings.use_velocity)
         self.run = []                 # times of the current run of rejected position fixes
+        self.run_entry_nis = np.inf   # NIS of the run's first fix
         self.recoveries = []          # (first rejected s, recovered at s, rejected, factor)
 
     def _threshold(self, m):
@@ -99,6 +104,8 @@ class Updater:
             meas = GnssPosition(tg, g.lla[k], cov)
             P, x, nis, z = self.apply(meas, point, P)
             if x is None:
+                if not self.run:
+                    self.run_entry_nis = nis
                 self.run.append(tg)
                 if self._run_away():
                     P, x, nis, z = self._recover(meas, point, P, nis)
@@ -118,9 +125,11 @@ class Updater:
 
     def _run_away(self):
         """Whether the rejected fixes in a row say the filter, not the fixes, is wrong:
-        at least :data:`RECOVER_AFTER_FIXES` of them over :data:`RECOVER_AFTER_S`."""
+        at least :data:`RECOVER_AFTER_FIXES` of them over :data:`RECOVER_AFTER_S`, the
+        first of them only just outside the test (:data:`RECOVER_ENTRY_FACTOR`)."""
         return (self.s.recover and len(self.run) >= RECOVER_AFTER_FIXES
-                and self.run[-1] - self.run[0] >= RECOVER_AFTER_S)
+                and self.run[-1] - self.run[0] >= RECOVER_AFTER_S
+                and self.run_entry_nis <= RECOVER_ENTRY_FACTOR * self._threshold(3))
 
     def _recover(self, meas, point, P, nis):
         """Inflate the navigation states' covariance until ``meas`` passes the test with
