@@ -242,8 +242,8 @@ def check_finite(state, rows, time, causes):
         return
     bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
     time_s = float(time[int(bad[0]) if bad.size else len(time) - 1])
-    exc = InputError(f"the solution became non-finite at the IMU record t = {time_s:.6f} s "
-                     f"({causes})")
+    exc = InputError(f"the solution became non-finite at t = {time_s:.6f} s (IMU record; "
+                     f"{causes})")
     exc.time_s = time_s
     raise exc
 
