@@ -514,3 +514,173 @@ def test_real_process_exit_code_and_no_traceback(tmp_path, module, argv):
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert "garbage.bin" in proc.stderr and "binary" in proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------------------
+# option errors: one line naming the option and what it expects, no usage (issue: bad
+# inputs, item 3); the usage only with --help
+
+OPTION_CASES = [  # (argv after the command's valid arguments, option, words)
+    ("mechanize", ["--start", "nan"], "--start", ("finite number", "'nan'")),
+    ("mechanize", ["--start", "abc"], "--start", ("finite number", "'abc'")),
+    ("mechanize", ["--week", "-1"], "--week", ("integer >= 0",)),
+    ("mechanize", ["--every", "0"], "--every", ("positive integer",)),
+    ("mechanize", ["--format", "xx"], "--format", ("invalid choice 'xx'", "kfgins-bin")),
+    ("mechanize", ["--frobnicate"], "--frobnicate", ("unknown option",)),
+    ("mechanize", ["--end"], "--end", ("expected a value",)),
+    ("mechanize", ["--init-vel", "1e9,0,0"], "--init-vel", ("10000 m/s",)),
+    ("mechanize", ["--init-lla", "30,114,1e9"], "--init-lla", ("height", "m")),
+    ("vehicle-mounting", ["--roll", "nan"], "--roll", ("[-180, 180] (deg)", "'nan'")),
+    ("vehicle-mounting", ["--roll", "1e6"], "--roll", ("[-180, 180] (deg)",)),
+    ("vehicle-mounting", ["--min-speed", "-1"], "--min-speed", ("> 0 (m/s)",)),
+    ("vehicle-mounting", ["--block", "0"], "--block", ("> 0 (s)",)),
+    ("time-offset", ["--step", "inf"], "--step", ("> 0 (s)",)),
+    ("time-offset", ["--window", "-1"], "--window", ("> 0 (s)",)),
+    ("process", ["--week", "-5"], "--week", ("integer >= 0",)),
+    ("process", ["--gnss-time-shift-s", "1e308"], "--gnss-time-shift-s", ("604800", "(s)")),
+    ("process", ["--gnss-format", "foo"], "--gnss-format", ("kfgins, rtklib",)),
+    ("strip-check", ["--radius-m", "0"], "--radius-m", ("> 0 (m)",)),
+    ("allan", ["--end", "abc"], "--end", ("finite number",)),
+]
+
+
+def _valid_argv(command, good, tmp):
+    f = good / "flight"
+    return {
+        "mechanize": ["mechanize", f / "imu.txt", *INIT, "-q", "-o", tmp / "out" / "m.nav"],
+        "vehicle-mounting": ["vehicle-mounting", f / "truth.nav"],
+        "time-offset": ["time-offset", "--imu", f / "imu.txt", "--gnss", f / "gnss.txt"],
+        "process": ["process", f, "--no-plots", "-q", "-o", tmp / "out" / "res"],
+        "strip-check": ["strip-check", tmp / "none.las", "--trajectory", f / "truth.nav",
+                        "--scanner", ROOT / "data" / "scanner" / "example_scanner.toml"],
+        "allan": ["allan", f / "imu.txt"],
+    }[command]
+
+
+@pytest.mark.parametrize("command, extra, option, words", OPTION_CASES,
+                         ids=[f"{c[0]}-{' '.join(c[1])}" for c in OPTION_CASES])
+def test_option_error_is_one_line(good, tmp_path, capsys, command, extra, option, words):
+    (tmp_path / "out").mkdir()
+    argv = _valid_argv(command, good, tmp_path)
+    if extra[0] in argv:                        # replace the valid value
+        k = argv.index(extra[0])
+        argv = argv[:k] + extra + argv[k + 2:]
+    else:
+        argv = argv + extra
+    code, out, err = _run("ins", argv, capsys)
+    assert code == 2 and "Traceback" not in err
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"ins {command}: error: {option}: "), lines[0]
+    assert "usage:" not in err
+    for w in words:
+        assert w in lines[0], lines[0]
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_usage_only_with_help(capsys):
+    code, out, err = _run("ins", ["vehicle-mounting", "--help"], capsys)
+    assert code == 0 and out.startswith("usage: ins vehicle-mounting")
+    code, out, err = _run("photogrammetry", ["eo", "--frobnicate", "-o", "x.csv"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "usage" not in err
+    assert "photogrammetry eo: error: --frobnicate: unknown option" in err
+
+
+# ---------------------------------------------------------------------------------------
+# absurd values (finite but impossible): named with the file and line before any
+# arithmetic (issue: bad inputs, items 1 and 2)
+
+def _edit(src, dst, line, col, value):
+    lines = src.read_text().splitlines()
+    fields = lines[line - 1].split()
+    fields[col] = value
+    lines[line - 1] = " ".join(fields)
+    dst.write_text("\n".join(lines) + "\n")
+    return dst
+
+
+ABSURD = [  # (command, slot, file, line, column, value, words)
+    ("mechanize", "imu", "imu.txt", 30, 4, "1e308", ("specific force", "1000 m/s^2")),
+    ("mechanize", "imu", "imu.txt", 31, 1, "3.0", ("angular rate", "100 rad/s")),
+    ("process-files", "imu", "imu.txt", 9000, 4, "1e308", ("specific force",)),
+    ("process-files", "imu", "imu.txt", 9000, 5, "20", ("specific force", "2000 m/s^2")),
+    ("process-files", "gnss", "gnss.txt", 20, 3, "1e308", ("h_m", "1e+06 m")),
+    ("process-files", "gnss", "gnss.txt", 21, 4, "1e308", ("std_n_m", "m")),
+    ("process-files", "gnss", "gnss.txt", 22, 8, "-1e308", ("ve_mps", "m/s")),
+    ("compare", "result", "truth.nav", 50, 10, "1e308", ("yaw", "deg")),
+    ("compare", "result", "truth.nav", 51, 4, "-1e308", ("h", "m")),
+]
+
+
+@pytest.mark.parametrize("command, slot, name, line, col, value, words", ABSURD,
+                         ids=[f"{a[0]}-{a[2]}-{a[3]}-{a[5]}" for a in ABSURD])
+def test_absurd_value_names_file_and_line(good, tmp_path, capsys, command, slot, name, line,
+                                          col, value, words):
+    (tmp_path / "out").mkdir()
+    bad = _edit(good / "flight" / name, tmp_path / f"bad_{name}", line, col, value)
+    prog, argv = COMMANDS[command](good, tmp_path, slot, bad, [])
+    code, _, err = _run(prog, argv, capsys)
+    case = Case(command, slot, bad.name, line, words)
+    _check_error_line(case, code, err, bad)
+    assert "np.float64" not in err
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+@pytest.mark.parametrize("where, key", [
+    ("config", "platform_centre_to_antenna_a_m"), ("config", "imu_to_platform_centre_b_m"),
+    ("plan", "platform_centre_to_antenna_a_m"), ("plan", "imu_to_platform_centre_b_m"),
+    ("scanner", "lever_arm_m")])
+def test_lever_arm_beyond_100_m_is_refused(good, tmp_path, capsys, where, key):
+    """A lever arm or offset of 1e6 m (mm typed as m, a wrong exponent) is refused with the
+    file, the key and the bound; it was taken silently before."""
+    import re
+    src = {"config": good / "config.toml",
+           "plan": ROOT / "tests" / "data" / "flights" / "short.toml",
+           "scanner": ROOT / "data" / "scanner" / "example_scanner.toml"}[where]
+    text, n = re.subn(rf"^{key} = \[[^,\]]*", f"{key} = [1e6", src.read_text(), flags=re.M)
+    assert n == 1
+    bad = tmp_path / f"bad_{where}.toml"
+    bad.write_text(text)
+    (tmp_path / "out").mkdir()
+    f = good / "flight"
+    if where == "config":
+        prog, argv = COMMANDS["process-files"](good, tmp_path, "config", bad, [])
+    elif where == "plan":
+        prog, argv = COMMANDS["simulate"](good, tmp_path, "plan", bad, [])
+    else:
+        prog, argv = "ins", ["georeference", tmp_path / "r.csv", "--trajectory",
+                             f / "truth.nav", "--scanner", bad, "-o", tmp_path / "out" / "p.las"]
+    code, _, err = _run(prog, argv, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert bad.name in err and key in err and "100" in err, err
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_non_finite_solution_names_the_imu_line(tmp_path):
+    """Item 2: a state that becomes non-finite inside the mechanization (here from an
+    increment the reader would refuse, given to the library directly) is reported with
+    the epoch as a plain float; with the file known, its line."""
+    from ins.common.errors import InputError
+    from ins.io.imu_blocks import with_location
+    from ins.io.imu_files import write_kfgins_text
+    from ins.nav.imu import ImuLog
+    from ins.nav.mechanization import NavState, mechanize
+    n = 200
+    time = 1000.0 + 0.01 * np.arange(n)
+    dvel = np.tile([0.0, 0.0, -0.098], (n, 1))
+    dvel[137, 0] = 1e300
+    log = ImuLog(time, np.zeros((n, 3)), dvel)
+    initial = NavState.from_degrees(30.0, 114.0, 100.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    with pytest.raises(InputError) as info:
+        mechanize(log, initial)
+    exc = info.value
+    assert exc.time_s == time[137]
+    assert "t = 1001.370000 s" in str(exc) and "np." not in str(exc)
+    path = tmp_path / "imu.txt"
+    with open(path, "w") as f:
+        f.write("# a comment line\n")
+    text = path.read_text()
+    write_kfgins_text(path, ImuLog(time, np.zeros((n, 3)), np.tile([0, 0, -0.098], (n, 1))))
+    path.write_text(text + path.read_text())
+    located = with_location(exc, path)
+    assert str(located).startswith(f"{path}:139: the solution became non-finite")

@@ -330,3 +330,177 @@ def test_tiepoints_round_trip(scratch, obs):
     assert list(tp.point_id) == [o[1] for o in obs]
     assert tp.xy_mm.tolist() == [[o[2], o[3]] for o in obs]
     assert tp.line.tolist() == list(range(3, 3 + len(obs)))
+
+
+# ---------------------------------------------------------------------------------------
+# 3. random corruptions of a VALID file (issue: bad inputs, item 5): truncation, a
+#    NaN/inf/huge value, two columns swapped, bytes that are not UTF-8 -> InputError
+#    naming the file on one line (no numpy repr), or a result that is all finite;
+#    CRLF line ends and trailing spaces -> the clean file's result exactly.
+
+def _valid_files(folder):
+    """One small valid file per reader (written by the package's own writers)."""
+    from ins.io.rtklib import write_pos
+    from ins.io.sbet import write_sbet, write_smrmsg
+    n = 60
+    time = 200000.0 + 0.01 * np.arange(n)
+    k = np.arange(n)[:, None]
+    imu = ImuLog(time, 1e-5 * np.sin(k + np.arange(3)), np.array([1e-4, -2e-4, -0.098])
+                 + 1e-4 * np.cos(k + np.arange(3)))
+    files = {}
+    for ext, write in (("txt", write_kfgins_text), ("csv", write_csv),
+                       ("bin", write_kfgins_binary)):
+        files[f"imu.{ext}"] = os.path.join(folder, f"valid_imu.{ext}")
+        write(files[f"imu.{ext}"], imu)
+    m = 12
+    tg = 200000.0 + np.arange(m)
+    lla = np.column_stack([np.deg2rad(30.5 + 1e-5 * np.arange(m)),
+                           np.deg2rad(114.3 + 2e-5 * np.arange(m)), 300.0 + np.arange(m)])
+    v = np.tile([1.0, 2.0, -0.1], (m, 1))
+    std = np.tile([0.02, 0.02, 0.04], (m, 1))
+    files["gnss.txt"] = os.path.join(folder, "valid_gnss.txt")
+    write_gnss(files["gnss.txt"], GnssLog(tg, lla, std, v, std / 2))
+    files["gnss.pos"] = os.path.join(folder, "valid_gnss.pos")
+    write_pos(files["gnss.pos"], GnssLog(tg, lla, std), week=2300)
+    traj = Trajectory(tg, lla, v, euler_to_quat(np.tile([1.0, -2.0, 80.0], (m, 1)),
+                                                degrees=True))
+    files["traj.nav"] = os.path.join(folder, "valid_traj.nav")
+    write_nav(files["traj.nav"], traj, week=2300)
+    files["traj.sbet"] = os.path.join(folder, "valid_traj.sbet")
+    write_sbet(files["traj.sbet"], traj)
+    files["smrmsg.out"] = os.path.join(folder, "valid_smrmsg.out")
+    write_smrmsg(files["smrmsg.out"], tg, std, std / 10, np.full((m, 3), 1e-4))
+    files["mount.txt"] = _write(folder, "valid_mount.txt", "# time_s roll pitch yaw\n" + "".join(
+        f"{t:.6f} {0.1 * j:.6f} {-0.2:.6f} {5.0 + j:.6f}\n" for j, t in enumerate(tg)))
+    files["returns.csv"] = _write(folder, "valid_returns.csv", "time_s,range_m,scan_angle_deg\n"
+                                  + "".join(f"{t:.3f},{300 + j},{j - 6}\n"
+                                            for j, t in enumerate(tg)))
+    return files
+
+
+def _read_returns(path):
+    from ins.lidar.lidar_files import iter_returns
+    return list(iter_returns(path, "polygon"))
+
+
+def _read_pos(path):
+    from ins.io.rtklib import read_pos
+    return read_pos(path)
+
+
+def _read_sbet(path):
+    from ins.io.sbet import read_sbet
+    return read_sbet(path)
+
+
+def _read_smrmsg(path):
+    from ins.io.sbet import read_smrmsg
+    return read_smrmsg(path)
+
+
+CORRUPTED_READERS = {
+    "imu.txt": read_kfgins_text, "imu.csv": read_csv, "imu.bin": read_kfgins_binary,
+    "gnss.txt": read_gnss, "gnss.pos": _read_pos, "mount.txt": read_mount,
+    "traj.nav": read_nav, "traj.sbet": _read_sbet, "smrmsg.out": _read_smrmsg,
+    "returns.csv": _read_returns,
+}
+BINARY = {"imu.bin": 7, "traj.sbet": 17, "smrmsg.out": 10}      # doubles a record
+
+
+@pytest.fixture(scope="module")
+def valid(scratch):
+    folder = os.path.join(scratch, "valid")
+    os.makedirs(folder, exist_ok=True)
+    return _valid_files(folder)
+
+
+def _arrays(result):
+    """The float arrays of a reader's result (dataclass, NamedTuple or list of them)."""
+    if isinstance(result, list):
+        return [a for r in result for a in _arrays(r)]
+    items = result._asdict().values() if hasattr(result, "_asdict") else vars(result).values()
+    return [np.asarray(a) for a in items
+            if isinstance(a, np.ndarray) and np.issubdtype(a.dtype, np.floating)]
+
+
+def _outcome(name, path):
+    """The reader's result, or None after checking its InputError."""
+    try:
+        return CORRUPTED_READERS[name](path)
+    except InputError as exc:
+        msg = str(exc)
+        assert os.path.basename(path) in msg and "\n" not in msg, msg
+        assert "np.float64" not in msg and "array(" not in msg, msg
+        return None
+
+
+BAD_VALUES = ["nan", "inf", "-inf", "1e308", "-1e308", "1e30", "-9e15", "1e-320"]
+
+
+@st.composite
+def corruptions(draw, data, binary_width):
+    kind = draw(st.sampled_from(["truncate", "value", "swap", "bytes"]))
+    if kind == "truncate":
+        return kind, data[:draw(st.integers(1, len(data) - 1))]
+    if kind == "bytes":
+        pos = draw(st.integers(0, len(data)))
+        junk = draw(st.sampled_from([b"\xff", b"\xc3(", b"\x80\x80", b"\xfe\xff", b"\x00"]))
+        return kind, data[:pos] + junk + data[pos:]
+    if binary_width:
+        rows = np.frombuffer(data, "<f8").reshape(-1, binary_width).copy()
+        i, j = draw(st.integers(0, len(rows) - 1)), draw(st.integers(0, binary_width - 1))
+        if kind == "value":
+            rows[i, j] = float(draw(st.sampled_from(BAD_VALUES)))
+        else:
+            j2 = draw(st.integers(0, binary_width - 1))
+            rows[:, [j, j2]] = rows[:, [j2, j]]
+        return kind, rows.tobytes()
+    lines = data.split(b"\n")
+    body = [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith((b"#", b"%"))
+            and not ln[:1].isalpha()]
+    sep = b"," if b"," in lines[body[0]] else None
+    split = (lambda ln: ln.split(b",")) if sep else (lambda ln: ln.split())
+    join = (b"," if sep else b" ").join
+    width = len(split(lines[body[0]]))
+    if kind == "value":
+        i = draw(st.sampled_from(body))
+        f = split(lines[i])
+        f[draw(st.integers(0, len(f) - 1))] = draw(st.sampled_from(BAD_VALUES)).encode()
+        lines[i] = join(f)
+    else:
+        a, b = draw(st.integers(0, width - 1)), draw(st.integers(0, width - 1))
+        for i in body:
+            f = split(lines[i])
+            if len(f) == width:
+                f[a], f[b] = f[b], f[a]
+                lines[i] = join(f)
+    return kind, b"\n".join(lines)
+
+
+@pytest.mark.parametrize("name", sorted(CORRUPTED_READERS))
+@SETTINGS
+@given(data=st.data())
+def test_corrupted_valid_file(scratch, valid, name, data):
+    with open(valid[name], "rb") as f:
+        clean = f.read()
+    kind, corrupt = data.draw(corruptions(clean, BINARY.get(name)), label="corruption")
+    path = _write(scratch, "corrupt_" + name, corrupt)
+    result = _outcome(name, path)
+    if result is not None:
+        for a in _arrays(result):
+            assert np.all(np.isfinite(a)), f"{kind}: a non-finite value in the result"
+
+
+@pytest.mark.parametrize("name", sorted(n for n in CORRUPTED_READERS if n not in BINARY))
+@pytest.mark.parametrize("variant", ["crlf", "trailing spaces", "both"])
+def test_line_end_variants_read_as_the_clean_file(scratch, valid, name, variant):
+    with open(valid[name], "rb") as f:
+        clean = f.read()
+    text = clean
+    if variant in ("trailing spaces", "both"):
+        text = text.replace(b"\n", b"  \t \n")
+    if variant in ("crlf", "both"):
+        text = text.replace(b"\n", b"\r\n")
+    want = _arrays(CORRUPTED_READERS[name](valid[name]))
+    got = _arrays(CORRUPTED_READERS[name](_write(scratch, "variant_" + name, text)))
+    assert len(got) == len(want) and all(np.array_equal(a, b) for a, b in zip(got, want))

@@ -281,8 +281,14 @@ def misalignment_rows(flight, proc, row):
 
 def plot_angles(out, eo, d_ins, d_ref, names):
     """Exposure angle errors against the truth (arcsec) per image, strips marked."""
-    from ins.common.plotstyle import (exposure_axis, legend_right, mark_strips, pyplot,
-                                      save_png, strip_starts)
+    from ins.common.plotstyle import (
+        exposure_axis,
+        legend_right,
+        mark_strips,
+        pyplot,
+        save_png,
+        strip_starts,
+    )
     plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
     x, xlabel, origin = exposure_axis(eo.time)

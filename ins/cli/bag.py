@@ -85,8 +85,8 @@ def run(args):
     if args.no_imu and args.no_gnss:
         raise InputError("--no-imu and --no-gnss: nothing to import")
     if args.gnss_sigma_m is not None and min(args.gnss_sigma_m) <= 0:
-        raise InputError(f"--gnss-sigma-m: expected three values > 0 (m), got "
-                         f"{args.gnss_sigma_m}")
+        raise InputError("--gnss-sigma-m: expected three values > 0 (m), got "
+                         + ",".join(f"{float(v):g}" for v in args.gnss_sigma_m))
     data = read_bag(args.bag, args.imu_topic, args.gnss_topic, axes=args.axes,
                     time_base=args.time_base, default_sigma_ned_m=args.gnss_sigma_m,
                     read_imu=not args.no_imu, read_gnss=not args.no_gnss)

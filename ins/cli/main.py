@@ -32,7 +32,15 @@ import time as wallclock
 import warnings
 
 from ins import __version__
-from ins.cli.util import EXIT_BAD_INPUT, Parser, Progress, positive_int, triplet
+from ins.cli.util import (
+    EXIT_BAD_INPUT,
+    Parser,
+    Progress,
+    check_initial,
+    nonnegative_int,
+    positive_int,
+    triplet,
+)
 from ins.common import interrupts
 from ins.common.errors import InputError, InputWarning, QualityError
 
@@ -97,7 +105,7 @@ def _add_mechanize(sub):
     p.add_argument("--end", type=float, metavar="T", help="end time, s (default: last epoch)")
     p.add_argument("--every", type=positive_int, default=1, metavar="N",
                    help="write every N-th epoch (default 1)")
-    p.add_argument("--week", type=int, default=0, help="GPS week written in column 1 (default 0)")
+    p.add_argument("--week", type=nonnegative_int, default=0, help="GPS week written in column 1 (default 0)")
     p.add_argument("--strict", action="store_true",
                    help="refuse logs with gaps longer than 1.5 nominal intervals "
                         "(default: integrate across them with a warning)")
@@ -115,8 +123,7 @@ def _cmd_mechanize(args):
     from ins.nav.mechanization import NavState, iter_mechanize_blocks
 
     t_start = wallclock.perf_counter()
-    if abs(args.init_lla[0]) > 90:
-        raise InputError(f"--init-lla: latitude {args.init_lla[0]} deg is outside +-90 deg")
+    check_initial(args.init_lla, "--init-lla", args.init_vel, "--init-vel")
     if os.path.abspath(args.output) == os.path.abspath(args.imu_file):
         raise InputError(f"--output {args.output} would overwrite the input file")
     size = os.path.getsize(args.imu_file) if os.path.isfile(args.imu_file) else 0
@@ -157,6 +164,9 @@ def _cmd_mechanize(args):
         try:
             n = write_nav(args.output, pieces(), week=args.week)
         except InputError as exc:
+            if getattr(exc, "time_s", None) is not None:
+                from ins.io.imu_blocks import with_location
+                raise with_location(exc, args.imu_file, args.format) from None
             if exc.path is None:
                 raise InputError(exc.reason, path=args.imu_file, line=exc.line) from None
             raise

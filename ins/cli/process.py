@@ -7,7 +7,9 @@ import time as wallclock
 
 import numpy as np
 
+from ins.cli.util import nonnegative_int, number
 from ins.common.errors import InputError, QualityError
+from ins.common.limits import MAX_TIME_SHIFT_S
 
 EPILOG = """\
 inputs:
@@ -113,10 +115,10 @@ def add_parser(sub):
                    help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
     p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
                    help="RTKLIB: sigma factor per quality, e.g. float=3,single=10")
-    p.add_argument("--imu-time-shift-s", type=float, metavar="S",
+    p.add_argument("--imu-time-shift-s", type=number(-MAX_TIME_SHIFT_S, MAX_TIME_SHIFT_S, unit="s"), metavar="S",
                    help="added to the IMU stamps at read time, s (overrides [imu] "
                         "time_shift_s)")
-    p.add_argument("--gnss-time-shift-s", type=float, metavar="S",
+    p.add_argument("--gnss-time-shift-s", type=number(-MAX_TIME_SHIFT_S, MAX_TIME_SHIFT_S, unit="s"), metavar="S",
                    help="added to the GNSS stamps at read time, s (overrides [gnss] "
                         "time_shift_s)")
     p.add_argument("--gnss-velocity-time-shift-s", type=float, metavar="S",
@@ -136,7 +138,7 @@ def add_parser(sub):
     p.add_argument("--forward", action="store_true",
                    help="also write forward.nav (the forward filter's trajectory)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
-    p.add_argument("--week", type=int, default=0, help="GPS week in the .nav (default 0)")
+    p.add_argument("--week", type=nonnegative_int, default=0, help="GPS week in the .nav (default 0)")
     p.add_argument("--accept-poor", action="store_true",
                    help="write the outputs even when the solution is not to be trusted "
                         "(exit 0 with the warning; default: exit 3, nothing written)")

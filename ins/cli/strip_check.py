@@ -2,6 +2,7 @@
 scanner boresight estimated from them (:mod:`ins.lidar.strip_check`)."""
 import argparse
 
+from ins.cli.util import number, positive_int
 from ins.common.errors import InputError, QualityError
 
 EPILOG = """\
@@ -45,9 +46,8 @@ def add_parser(sub):
                    help="its sigmas (solution_std.txt or SMRMSG): add to the boresight's")
     p.add_argument("--scanner", required=True, metavar="SCANNER.toml",
                    help="the scanner file used")
-    p.add_argument("--radius-m", type=float, default=3.0, metavar="R",
+    p.add_argument("--radius-m", type=number(0, lo_open=True, unit="m"), default=3.0, metavar="R",
                    help="neighbours of the other strip within R m (horizontal), default 3")
-    from ins.cli.util import positive_int
     p.add_argument("--neighbours", type=positive_int, default=8, metavar="K",
                    help="points per local plane, default 8 (at least 3)")
     p.add_argument("--scanner-out", metavar="S.toml",

@@ -5,6 +5,7 @@ import argparse
 
 import numpy as np
 
+from ins.cli.util import number
 from ins.common.errors import InputError
 
 EPILOG = """\
@@ -72,15 +73,15 @@ def add_parser(sub):
                    help="the IMU columns hold rad/s and m/s^2 instead of increments")
     p.add_argument("--axes", choices=["FRD", "FLU", "RFU", "FUR"], default="FRD")
     p.add_argument("--source", choices=["both", "velocity", "position"], default="both")
-    p.add_argument("--max", type=float, default=1.0, metavar="S",
+    p.add_argument("--max", type=number(0, lo_open=True, unit="s"), default=1.0, metavar="S",
                    help="largest offset searched, s (default 1)")
-    p.add_argument("--step", type=float, default=0.005, metavar="S",
+    p.add_argument("--step", type=number(0, lo_open=True, unit="s"), default=0.005, metavar="S",
                    help="step of the trial offsets, s (default 0.005)")
-    p.add_argument("--window", type=float, default=0.5, metavar="S",
+    p.add_argument("--window", type=number(0, lo_open=True, unit="s"), default=0.5, metavar="S",
                    help="window of the velocity changes, s (default 0.5)")
-    p.add_argument("--knots", type=float, default=10.0, metavar="S",
+    p.add_argument("--knots", type=number(0, lo_open=True, unit="s"), default=10.0, metavar="S",
                    help="knot spacing of the slowly varying terms, s (default 10)")
-    p.add_argument("--min-speed", type=float, default=0.5, metavar="MPS",
+    p.add_argument("--min-speed", type=number(0, unit="m/s"), default=0.5, metavar="MPS",
                    help="fixes slower than this are not used, m/s (default 0.5)")
     p.add_argument("-o", "--output", metavar="GNSS_OUT",
                    help="write the GNSS log shifted onto the IMU's time scale (KF-GINS "

@@ -3,6 +3,8 @@ from a solution processed without the non-holonomic constraint (:mod:`ins.estima
 printed as the ``[vehicle]`` table of the processing config."""
 import argparse
 
+from ins.cli.util import number
+
 EPILOG = """\
 method:
   At the epochs faster than --min-speed (m/s) and turning slower than --max-turn
@@ -43,13 +45,13 @@ def add_parser(sub):
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("solution", metavar="SOLUTION",
                    help="trajectory (.nav or SBET) processed without the constraint")
-    p.add_argument("--min-speed", type=float, default=MIN_SPEED_MPS, metavar="MPS",
+    p.add_argument("--min-speed", type=number(0, lo_open=True, unit="m/s"), default=MIN_SPEED_MPS, metavar="MPS",
                    help=f"slowest epoch used, m/s (default {MIN_SPEED_MPS:g})")
-    p.add_argument("--max-turn", type=float, default=MAX_TURN_DPS, metavar="DPS",
+    p.add_argument("--max-turn", type=number(0, lo_open=True, unit="deg/s"), default=MAX_TURN_DPS, metavar="DPS",
                    help=f"fastest heading rate used, deg/s (default {MAX_TURN_DPS:g})")
-    p.add_argument("--block", type=float, default=BLOCK_S, metavar="S",
+    p.add_argument("--block", type=number(0, lo_open=True, unit="s"), default=BLOCK_S, metavar="S",
                    help=f"block length of the sigma, s (default {BLOCK_S:g})")
-    p.add_argument("--roll", type=float, default=0.0, metavar="DEG",
+    p.add_argument("--roll", type=number(-180, 180, unit="deg"), default=0.0, metavar="DEG",
                    help="the IMU's roll in the vehicle when known, deg (default 0)")
     p.set_defaults(func=_cmd_vehicle_mounting)
 

@@ -26,3 +26,27 @@ def check_rows(rows, row_line, path, time_col=0, name_duplicates=True):
                 else "time not increasing")
         raise InputError(f"{what}: t = {float(t[k])!r} s after {float(t[k - 1])!r} s",
                          path=path, line=int(row_line[k]))
+
+
+def check_ranges(rows, row_line, path, ranges):
+    """Every value of the columns within its plausible range, else an
+    :class:`InputError` naming the file, the line of the first offending row, the column
+    and the range with its unit.
+
+    ``ranges``: ``(column, lo, hi, name, unit)`` tuples (``lo``/``hi`` inclusive; use
+    the bounds of :mod:`ins.common.limits`).  ``row_line`` None: a binary file, whose
+    1-based record is named instead of a line.
+    """
+    path = os.fspath(path)
+    first = None
+    for col, lo, hi, name, unit in ranges:
+        v = rows[:, col]
+        bad = np.flatnonzero(~((v >= lo) & (v <= hi)))
+        if bad.size and (first is None or bad[0] < first[0]):
+            first = (int(bad[0]), float(v[bad[0]]), lo, hi, name, unit)
+    if first is not None:
+        k, value, lo, hi, name, unit = first
+        where = {"record": k + 1} if row_line is None else {"line": int(row_line[k])}
+        span = (f"above {hi:g} {unit}" if lo == -np.inf else f"below {lo:g} {unit}"
+                if hi == np.inf else f"outside {lo:g} .. {hi:g} {unit}")
+        raise InputError(f"{name} = {value:g} {unit} is {span}", path=path, **where)

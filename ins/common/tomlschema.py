@@ -271,9 +271,10 @@ class Table:
             raise self.error(key, f"must be <= {hi}, got {v!r}", unit)
         return int(v) if integer else float(v)
 
-    def numbers(self, key, default=(), unit="", length=None, lo=None, scalar=True):
+    def numbers(self, key, default=(), unit="", length=None, lo=None, scalar=True, bound=None):
         """A list of finite numbers as a tuple of floats (a single number is a list of
-        one when ``scalar``); ``length`` fixes the count."""
+        one when ``scalar``); ``length`` fixes the count, ``lo`` the smallest value and
+        ``bound`` the largest magnitude (e.g. 100 m of a lever arm)."""
         v, given = self._get(key, default, unit)
         if not given:
             return v if v is None else tuple(v)
@@ -286,6 +287,10 @@ class Table:
             raise self.error(key, f"expected {length} numbers, got {len(v)}", unit)
         if lo is not None and any(x < lo for x in v):
             raise self.error(key, f"values must be >= {lo}, got {v!r}", unit)
+        if bound is not None and any(abs(x) > bound for x in v):
+            big = next(float(x) for x in v if abs(x) > bound)
+            raise self.error(key, f"{big:g} is beyond +-{bound:g} (a typo or another unit?), "
+                             f"got {v!r}", unit)
         return tuple(float(x) for x in v)
 
     def matrix(self, key, default=REQUIRED, shape=(3, 3), unit=""):

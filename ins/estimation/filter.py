@@ -61,6 +61,7 @@ from ins.estimation.error_model import (
 from ins.estimation.filter_stores import NodeStore, TrajectoryStore
 from ins.estimation.updates import Updater
 from ins.nav import earth
+from ins.nav.mechanization import check_finite
 
 
 class ForwardResult:
@@ -185,10 +186,8 @@ def _pieces(imu, start, end):
     preceded by up to two earlier rows (the two-sample corrections' previous samples)."""
     from ins.nav.imu import ImuLog
     blocks = iter([imu] if isinstance(imu, ImuLog) else imu)
-    lo = -np.inf if start is None else start - 1e-9
-    hi = np.inf if end is None else end + 1e-9
-    before = None
-    nxt = next(blocks, None)
+    lo, hi = (-np.inf if start is None else start - 1e-9), (np.inf if end is None else end + 1e-9)
+    before, nxt = None, next(blocks, None)
     while nxt is not None:
         cur, nxt = nxt, next(blocks, None)
         t = cur.time
@@ -211,9 +210,8 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     Parameters
     ----------
     imu : ins.nav.imu.ImuLog or iterable of ImuLog
-        Raw increments (body FRD), whole or as consecutive pieces
-        (:func:`ins.io.imu_blocks.iter_imu`); the filter removes its own bias and scale
-        estimates.  Memory: one piece at a time.
+        Raw increments (body FRD), whole or as consecutive pieces (:func:`ins.io.imu_blocks
+        .iter_imu`); minus the filter's bias and scale estimates.  Memory: one piece.
     gnss : ins.io.gnss_log.GnssLog
         Antenna positions (velocities).
     initial : ins.nav.mechanization.NavState
@@ -232,6 +230,7 @@ def run_forward(imu, gnss, initial, settings, *, start=None, end=None, progress=
     Returns
     -------
     ForwardResult
+        A non-finite state raises InputError with the epoch as ``time_s``.
     """
     run = _ForwardRun(gnss, settings, workdir)
     for t, th, dv, k0, before, last in _pieces(imu, start, end):
@@ -353,9 +352,8 @@ class _ForwardRun:
                 _filter_kernels.propagate_rows(t, th, dv, cur + 1, hi, self.state,
                                                self.sensors, out[cur + 1 - p:hi - p],
                                                self.acc[:10])
-            if not np.all(np.isfinite(self.state)):
-                raise InputError(f"the solution became non-finite before t = {t[hi - 1]!r} s "
-                                 f"(implausible increments, initial state or GNSS)")
+            check_finite(self.state, out[cur + 1 - p:hi - p], t[cur + 1:hi],
+                         "implausible increments, initial state or GNSS")
             cur = hi - 1
             if r < 0:
                 break

@@ -33,7 +33,7 @@ from ins.estimation.process_trust import (
 from ins.estimation.smoother import iter_smoothed, rts_errors
 from ins.estimation.updates import filterpy_functions
 from ins.io.gnss import read_gnss
-from ins.io.imu_blocks import iter_imu, prefetch
+from ins.io.imu_blocks import iter_imu, prefetch, with_location
 from ins.io.imu_files import shifted_blocks
 from ins.io.mount import read_mount
 from ins.nav import earth
@@ -360,8 +360,13 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
                               heading=_headings(cfg, start), **filter_options(cfg))
-    fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
-                      progress=progress, workdir=workdir, initial_time=st.initial_time)
+    try:
+        fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
+                          progress=progress, workdir=workdir, initial_time=st.initial_time)
+    except InputError as exc:
+        if getattr(exc, "time_s", None) is None:
+            raise
+        raise with_location(exc, cfg.imu, cfg.imu_format, cfg.imu_time_shift_s) from None
     f_std = np.array(fwd.nodes.post_std)
     if cfg.smooth:
         xs, s_std = rts_errors(fwd, full=False)

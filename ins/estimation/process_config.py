@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ins.common import limits
 from ins.common.errors import InputError
 from ins.common.tomlschema import check_keys
 from ins.estimation.error_model import LAYOUTS, OPTIONAL_GROUPS, ImuNoise, StateLayout
@@ -131,24 +132,41 @@ class ProcessConfig:
     measurements: dict = field(default_factory=dict)
 
 
-def _vector(value, where, n=3):
+def _vector(value, where, n=3, bound=None, unit=""):
+    """``n`` finite numbers (a scalar is repeated), each within ``+-bound`` (``unit``)."""
     try:
         v = np.array(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{where}: expected {n} numbers, got {value!r}") from None
     if v.ndim == 0:
         v = np.full(n, float(v))
     if v.shape != (n,) or not np.all(np.isfinite(v)):
         raise InputError(f"{where}: expected {n} finite numbers, got {value!r}")
+    if bound is not None:
+        msg = limits.check_vector(v, bound, where, unit)
+        if msg is not None:
+            raise InputError(msg)
     return v
 
 
-def _number(value, where, positive=False):
+def _number(value, where, positive=False, lo=None, hi=None, unit=""):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise InputError(f"{where}: expected a number, got {value!r}")
     if positive and value <= 0:
         raise InputError(f"{where}: expected a number > 0, got {value!r}")
+    if limits.out_of_bounds(value, lo, hi):
+        raise InputError(f"{where}: {float(value):g} {unit} is outside {lo:g} .. {hi:g} {unit}")
     return float(value)
+
+
+#: Bounds of the [initial] keys: (lo, hi, unit) of each component (None: unbounded).
+_INITIAL_BOUNDS = {
+    "lat_deg": (-90.0, 90.0, "deg"), "lon_deg": (-180.0, 360.0, "deg"),
+    "h_m": (limits.MIN_HEIGHT_M, limits.MAX_HEIGHT_M, "m"),
+    "vel_ned_mps": (limits.MAX_SPEED_MPS, "m/s"), "rpy_deg": (360.0, "deg"),
+    "pos_std_ned_m": (limits.MAX_SIGMA_M, "m"), "vel_std_ned_mps": (limits.MAX_SPEED_MPS, "m/s"),
+    "att_std_deg": (180.0, "deg"),
+}
 
 
 def _read_toml(path, expected="a processing config (TOML)"):
@@ -199,12 +217,15 @@ def _fill(cfg, data, where, path=None):
     cfg.imu_rates = bool(imu.get("rates", cfg.imu_rates))
     cfg.imu_axes = imu.get("axes", cfg.imu_axes)
     if "time_shift_s" in imu:
-        cfg.imu_time_shift_s = _number(imu["time_shift_s"], where("imu", "time_shift_s"))
+        cfg.imu_time_shift_s = _number(imu["time_shift_s"], where("imu", "time_shift_s"),
+                                       lo=-limits.MAX_TIME_SHIFT_S, hi=limits.MAX_TIME_SHIFT_S,
+                                       unit="s")
     if "imu_noise" in data:
         cfg.noise = _noise(data["imu_noise"], where("imu_noise"))
     gnss = data.get("gnss", {})
     if "lever_arm_b_m" in gnss:
-        cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"))
+        cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"),
+                               bound=limits.MAX_LEVER_ARM_M, unit="m")
         cfg.lever_ap = np.zeros(3)
     cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
     _gnss_input(cfg, gnss, where)
@@ -217,14 +238,24 @@ def _fill(cfg, data, where, path=None):
     for key, attr in (("imu_to_platform_centre_b_m", "lever_bp"),
                       ("platform_centre_to_antenna_a_m", "lever_ap")):
         if key in mount:
-            setattr(cfg, attr, _vector(mount[key], where("mount", key)))
+            setattr(cfg, attr, _vector(mount[key], where("mount", key),
+                                       bound=limits.MAX_LEVER_ARM_M, unit="m"))
     init = data.get("initial", {})
     if any(k in init for k in POSITION_KEYS + ("time_s",)):
         cfg.initial_source = None if path is None else os.fspath(path)
     for key, value in init.items():
         n = 3 if key not in ("lat_deg", "lon_deg", "h_m", "time_s") else None
-        cfg.initial[key] = (_vector(value, where("initial", key)) if n
-                            else _number(value, where("initial", key)))
+        b = _INITIAL_BOUNDS.get(key)
+        if n:
+            cfg.initial[key] = _vector(value, where("initial", key),
+                                       *((3, *b) if b else ()))
+            if key.endswith(("_std_ned_m", "_std_ned_mps", "_std_deg")) and np.any(
+                    cfg.initial[key] < 0):
+                raise InputError(f"{where('initial', key)}: expected values >= 0, got "
+                                 f"{value!r}")
+        else:
+            cfg.initial[key] = _number(value, where("initial", key),
+                                       *((False, *b) if b else ()))
     align = data.get("alignment", {})
     if "method" in align:
         if align["method"] not in METHODS:
@@ -259,7 +290,8 @@ def _vehicle_and_heading(cfg, data, where):
                                                     where("vehicle", "mounting_rpy_deg"))
     head = data.get("heading", {})
     if "baseline_b_m" in head:
-        b = _vector(head["baseline_b_m"], where("heading", "baseline_b_m"))
+        b = _vector(head["baseline_b_m"], where("heading", "baseline_b_m"),
+                    bound=limits.MAX_LEVER_ARM_M, unit="m")
         if np.linalg.norm(b) < 1e-3:
             raise InputError(f"{where('heading', 'baseline_b_m')}: expected the primary-to-"
                              f"secondary antenna vector (m, b frame: forward, right, down), "
@@ -335,10 +367,13 @@ def _gnss_input(cfg, gnss, where):
                              f"got {gnss['format']!r}")
         cfg.gnss_format = gnss["format"]
     if "time_shift_s" in gnss:
-        cfg.gnss_time_shift_s = _number(gnss["time_shift_s"], where("gnss", "time_shift_s"))
+        cfg.gnss_time_shift_s = _number(gnss["time_shift_s"], where("gnss", "time_shift_s"),
+                                        lo=-limits.MAX_TIME_SHIFT_S,
+                                        hi=limits.MAX_TIME_SHIFT_S, unit="s")
     if "velocity_time_shift_s" in gnss:
-        cfg.gnss_velocity_time_shift_s = _number(gnss["velocity_time_shift_s"],
-                                                 where("gnss", "velocity_time_shift_s"))
+        cfg.gnss_velocity_time_shift_s = _number(
+            gnss["velocity_time_shift_s"], where("gnss", "velocity_time_shift_s"),
+            lo=-limits.MAX_TIME_SHIFT_S, hi=limits.MAX_TIME_SHIFT_S, unit="s")
     if "quality" in gnss:
         cfg.gnss_quality = parse_quality(gnss["quality"], where("gnss", "quality"))
     if "quality_scale" in gnss:
@@ -370,9 +405,11 @@ def config_from_manifest(flight_dir, overrides=None):
                         truth=rel("truth"), source="manifest")
     arm = man.get("lever_arm", {})
     cfg.lever_bp = _vector(arm.get("imu_to_platform_centre_b_m", [0, 0, 0]),
-                           where("lever_arm", "imu_to_platform_centre_b_m"))
+                           where("lever_arm", "imu_to_platform_centre_b_m"), bound=limits.MAX_LEVER_ARM_M,
+                           unit="m")
     cfg.lever_ap = _vector(arm.get("platform_centre_to_antenna_a_m", [0, 0, 0]),
-                           where("lever_arm", "platform_centre_to_antenna_a_m"))
+                           where("lever_arm", "platform_centre_to_antenna_a_m"), bound=limits.MAX_LEVER_ARM_M,
+                           unit="m")
     cfg.noise = _manifest_noise(man.get("imu", {}), where("imu"))
     cfg.priors = _manifest_priors(man.get("imu", {}), where("imu"))
     stationary = man.get("stationary", {})

@@ -19,10 +19,11 @@ import os
 
 import numpy as np
 
-from ins.common import textfiles, textformat, textrows
+from ins.common import limits, textfiles, textformat, textrows
 from ins.common.errors import InputError
 from ins.common.fileio import atomic_open
 from ins.io.gnss_log import GnssLog
+from ins.nav.imu import MAX_TIME_S
 
 _HINT = ("KF-GINS GNSS: time lat lon h std_n std_e std_d, optionally vn ve vd std_vn std_ve "
          "std_vd")
@@ -114,6 +115,15 @@ def read_kfgins_gnss(path):
         k = lat_bad[0]
         raise InputError(f"latitude {float(rows[k, 1])!r} deg outside +-90 deg", path=path_s,
                          line=int(row_line[k]))
+    L = limits
+    textrows.check_ranges(rows, row_line, path_s, [
+        (0, -MAX_TIME_S, MAX_TIME_S, "time_s", "s"), (2, -180.0, 360.0, "lon_deg", "deg"),
+        (3, L.MIN_HEIGHT_M, L.MAX_HEIGHT_M, "h_m", "m")]
+        + [(c, -np.inf, L.MAX_SIGMA_M, f"std_{a}_m", "m") for c, a in zip((4, 5, 6), "ned")]
+        + ([(c, -L.MAX_SPEED_MPS, L.MAX_SPEED_MPS, f"v{a}_mps", "m/s")
+            for c, a in zip((7, 8, 9), "ned")]
+           + [(c, -np.inf, L.MAX_SPEED_MPS, f"std_v{a}_mps", "m/s")
+              for c, a in zip((10, 11, 12), "ned")] if ncols == 13 else []))
     std_cols = [4, 5, 6] + ([10, 11, 12] if ncols == 13 else [])
     names = ["std_n_m", "std_e_m", "std_d_m", "std_vn_mps", "std_ve_mps", "std_vd_mps"]
     nonpos = rows[:, std_cols] <= 0

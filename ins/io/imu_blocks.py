@@ -105,6 +105,42 @@ def _finish_records(path, table, names, rates, axes, first_record):
         raise
 
 
+def locate_epoch(path, time_s, format=None, time_shift_s=0.0):
+    """Where the record stamped ``time_s`` (s, after ``time_shift_s``) is in the IMU log:
+    ``{"line": n}`` (text), ``{"record": n}`` (binary), both 1-based, or ``{}`` when no
+    record has that stamp (to 1 microsecond) or the format keeps no line numbers (CSV).
+
+    Used to name the input line of a solution that became non-finite (the exception's
+    ``time_s``): the file is scanned again, only on that failure.
+    """
+    format = _format_of(path, format)
+    try:
+        if format == "kfgins":
+            for values, row_line in textfiles.iter_table(path, 7, 1 << 30):
+                hit = np.flatnonzero(np.abs(values[:, 0] + time_shift_s - time_s) <= 1e-6)
+                if hit.size:
+                    return {"line": int(row_line[hit[0]])}
+        elif format == "kfgins-bin":
+            first = 0
+            for table, _ in _binary_tables(os.fspath(path), BLOCK_ROWS):
+                hit = np.flatnonzero(np.abs(table[:, 0] + time_shift_s - time_s) <= 1e-6)
+                if hit.size:
+                    return {"record": first + int(hit[0]) + 1}
+                first += len(table)
+    except (InputError, OSError):
+        pass
+    return {}
+
+
+def with_location(exc, path, format=None, time_shift_s=0.0):
+    """``exc`` (an :class:`InputError` of a non-finite solution, with ``time_s``) again,
+    naming the IMU file and the line or record of that epoch."""
+    where = locate_epoch(path, exc.time_s, format, time_shift_s)
+    new = InputError(exc.reason, path=os.fspath(path), **where)
+    new.time_s = exc.time_s
+    return new
+
+
 def prefetch(blocks, depth=2):
     """Iterate ``blocks`` in a background thread, ``depth`` items ahead.
 

@@ -44,8 +44,11 @@ from ins.common.fileio import atomic_open
 from ins.nav.imu import (
     DPH,
     G0,
+    MAX_ANGULAR_RATE,
     MAX_MEDIAN_ANGULAR_RATE,
     MAX_MEDIAN_SPECIFIC_FORCE,
+    MAX_SPECIFIC_FORCE,
+    MAX_TIME_S,
     MIN_MEDIAN_SPECIFIC_FORCE_RATES,
     C_frd_axes,
     ImuLog,
@@ -106,6 +109,11 @@ def _finish(path, table, cols, names, scale, row_line, rates, axes, hint):
         raise InputError("only one epoch: at least two are needed to know the sampling "
                          "interval", path=path, **_where(row_line, 0))
     time = block[:, 0]
+    far = np.flatnonzero(np.abs(time) > MAX_TIME_S)
+    if far.size:
+        k = int(far[0])
+        raise InputError(f"time {float(time[k]):.17g} s is beyond +-{MAX_TIME_S:g} s (seconds "
+                         f"expected; a time in ms or ns?)", path=path, **_where(row_line, k))
     d = np.diff(time)
     if not np.all(d > 0):
         k = int(np.flatnonzero(~(d > 0))[0]) + 1
@@ -152,11 +160,37 @@ def _finish(path, table, cols, names, scale, row_line, rates, axes, hint):
                 f"implausible angle increments: median |dtheta|/dt is {w_med:.4g} rad/s, "
                 f"above {MAX_MEDIAN_ANGULAR_RATE:g} rad/s that no IMU log reaches; "
                 f"the columns look like rates (rad/s), not increments: {hint}", path=path)
+    _check_samples(path, dtheta, dvel, dt, row_line, names, rates)
     C = C_frd_axes(axes)
     if axes != "FRD":
         dtheta = dtheta @ C.T
         dvel = dvel @ C.T
     return ImuLog.adopt(time, dtheta, dvel)
+
+
+def _check_samples(path, dtheta, dvel, dt, row_line, names, rates):
+    """Refuse the first sample whose angular rate or specific force is physically absurd
+    (above :data:`~ins.nav.imu.MAX_ANGULAR_RATE` rad/s or
+    :data:`~ins.nav.imu.MAX_SPECIFIC_FORCE` m/s^2), naming its line (or record).
+
+    An increment is divided by the longer of its interval and the median interval: a
+    time stamp that jitters early does not shorten the interval the sensor integrated.
+    """
+    dt_eff = np.maximum(dt, np.median(dt))
+    for inc, limit, what, unit in ((dtheta, MAX_ANGULAR_RATE, "angular rate", "rad/s"),
+                                   (dvel, MAX_SPECIFIC_FORCE, "specific force", "m/s^2")):
+        with np.errstate(over="ignore", invalid="ignore"):
+            size = _norms(inc) / dt_eff
+        bad = np.flatnonzero(~(size <= limit))
+        if bad.size:
+            k = int(bad[0])
+            cols = names[1:4] if what == "angular rate" else names[4:7]
+            given = (f"{', '.join(cols)} = {', '.join(f'{float(x):.6g}' for x in inc[k] / (dt[k] if rates else 1.0))}"
+                     + ("" if rates else f" in {float(dt[k]):.6g} s"))
+            big = f"{float(size[k]):.4g}" if np.isfinite(size[k]) else "beyond 1e308"
+            raise InputError(f"implausible {what} {big} {unit} ({given}), "
+                             f"above {limit:g} {unit} that no IMU measures",
+                             path=path, **_where(row_line, k))
 
 
 def _check_axes(axes):

@@ -14,9 +14,10 @@ import os
 
 import numpy as np
 
-from ins.common import textfiles, textformat, textrows
+from ins.common import limits, textfiles, textformat, textrows
 from ins.common.errors import InputError
 from ins.common.fileio import atomic_open
+from ins.nav.imu import MAX_TIME_S
 from ins.nav.trajectory import Trajectory
 
 #: Decimals of the 11 ``.nav`` columns.
@@ -55,6 +56,13 @@ def read_nav(path):
         raise InputError(f"latitude {float(rows[k, 2])!r} deg outside +-90 deg (expected "
                          f"week t lat lon ..., deg)", path=str(path),
                          line=int(row_line[k]))
+    L = limits
+    textrows.check_ranges(rows, row_line, path, [
+        (1, -MAX_TIME_S, MAX_TIME_S, "t", "s"), (3, -180.0, 360.0, "lon", "deg"),
+        (4, L.MIN_HEIGHT_M, L.MAX_HEIGHT_M, "h", "m")]
+        + [(c, -L.MAX_SPEED_MPS, L.MAX_SPEED_MPS, f"v{a}", "m/s")
+           for c, a in zip((5, 6, 7), "NED")]
+        + [(c, -720.0, 720.0, a, "deg") for c, a in zip((8, 9, 10), ("roll", "pitch", "yaw"))])
     return Trajectory.from_nav_rows(rows)
 
 

@@ -239,6 +239,14 @@ def _read_imu(reader, conns, topic, axes, time_base, path, week):
     if bad.size:
         raise InputError(f"--imu-topic {topic}: message {int(bad[0])} (at t = "
                          f"{float(t[bad[0]]):.6f} s) holds a non-finite rate", path=path)
+    from ins.nav.imu import MAX_ANGULAR_RATE, MAX_SPECIFIC_FORCE
+    big = np.flatnonzero((np.linalg.norm(vals[:, :3], axis=1) > MAX_ANGULAR_RATE)
+                         | (np.linalg.norm(vals[:, 3:], axis=1) > MAX_SPECIFIC_FORCE))
+    if big.size:
+        raise InputError(f"--imu-topic {topic}: message {int(big[0])} (at t = "
+                         f"{float(t[big[0]]):.6f} s): an angular rate above "
+                         f"{MAX_ANGULAR_RATE:g} rad/s or a specific force above "
+                         f"{MAX_SPECIFIC_FORCE:g} m/s^2 that no IMU measures", path=path)
     keep, rep = _order(t, topic, len(rows))
     t, vals = t[keep], vals[keep]
     if len(t) < 2:
@@ -289,10 +297,12 @@ def _read_gnss(reader, conns, topic, default_sigma_ned_m, time_base, path, week)
     keep, rep = _order(t, topic, nmsg)
     rep.dropped = dropped
     lla = np.array(lla, dtype=np.float64)[keep]
-    bad = np.flatnonzero(np.abs(lla[:, 0]) > 90)
-    if bad.size:
-        raise InputError(f"--gnss-topic {topic}: latitude {float(lla[bad[0], 0])!r} deg outside "
-                         f"+-90 deg", path=path)
+    from ins.common.limits import check_position
+    for k in range(len(lla)):
+        msg = check_position(*lla[k], f"--gnss-topic {topic}: fix at t = "
+                                      f"{float(t[keep][k]):.6f} s")
+        if msg is not None:
+            raise InputError(msg, path=path)
     cov = np.array(covs)[keep]
     diag = np.einsum("nii->ni", cov)
     bad = np.flatnonzero(~np.all(diag > 0, axis=1))

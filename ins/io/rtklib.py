@@ -60,7 +60,7 @@ import warnings
 
 import numpy as np
 
-from ins.common import textfiles, textparse
+from ins.common import limits, textfiles, textparse, textrows
 from ins.common.errors import InputError, InputWarning
 from ins.io.gnss_log import GnssLog
 from ins.io.gnss_quality import QUALITY_NAME
@@ -310,7 +310,12 @@ def _covariance(values, index, layout_names, path, row_line):
     for name, (i, j) in layout_names:
         if name not in index:
             raise InputError(f"RTKLIB column header has no {name} column", path=path)
-        c = _signed_var(values[:, index[name]])
+        raw = values[:, index[name]]
+        big = np.flatnonzero(np.abs(raw) > limits.MAX_SIGMA_M)
+        if big.size:
+            raise InputError(f"{name} = {float(raw[big[0]]):g}: beyond +-{limits.MAX_SIGMA_M:g} "
+                             f"(m or m/s)", path=path, line=int(row_line[big[0]]))
+        c = _signed_var(raw)
         cov[:, i, j] = c
         cov[:, j, i] = c
     diag = np.einsum("nii->ni", cov)
@@ -456,6 +461,7 @@ def read_pos(path, ref_lla_deg=None, screen_covariance=True):
             v_n = np.column_stack([v[:, 0], v[:, 1], -v[:, 2]])
         cov_v = _floor_psd(_rotate(C_n_layout, cov_v))
         sigma_v = np.sqrt(np.einsum("nii->ni", cov_v))
+    _check_plausible(lla, sigma, v_n, sigma_v, path_s, row_line)
     log = GnssLog(time, lla, sigma, v_n, sigma_v, np.asarray(row_line, np.int64), path_s,
                   cov_ned, q.astype(np.int64), screen=report)
     if keep is not None and not keep.all():
@@ -464,6 +470,24 @@ def read_pos(path, ref_lla_deg=None, screen_covariance=True):
             raise InputError("no record left after the covariance screen (every record's "
                              "sigma columns invalid)", path=path_s)
     return log
+
+
+def _check_plausible(lla, sigma, v_n, sigma_v, path, row_line):
+    """Heights, sigmas and velocities (whatever the layout) within :mod:`ins.common.limits`,
+    else an InputError naming the line."""
+    L = limits
+    cols = [np.rad2deg(lla[:, 1]), lla[:, 2], *sigma.T]
+    ranges = [(0, -180.0, 360.0, "longitude", "deg"), (1, L.MIN_HEIGHT_M, L.MAX_HEIGHT_M,
+                                                        "height", "m")]
+    ranges += [(2 + j, 0.0, L.MAX_SIGMA_M, f"sd{a} (NED)", "m") for j, a in enumerate("ned")]
+    if v_n is not None:
+        cols += [*v_n.T, *sigma_v.T]
+        ranges += [(5 + j, -L.MAX_SPEED_MPS, L.MAX_SPEED_MPS, f"v{a}", "m/s")
+                   for j, a in enumerate("ned")]
+        ranges += [(8 + j, 0.0, L.MAX_SPEED_MPS, f"sdv{a} (NED)", "m/s")
+                   for j, a in enumerate("ned")]
+    with np.errstate(invalid="ignore"):
+        textrows.check_ranges(np.column_stack(cols), row_line, path, ranges)
 
 
 def _position(layout, vals, index, path, row_line, ref_lla_deg):

@@ -51,8 +51,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ins.common import limits, textrows
 from ins.common.errors import InputError
 from ins.common.fileio import atomic_open
+from ins.nav.imu import MAX_ANGULAR_RATE, MAX_SPECIFIC_FORCE, MAX_TIME_S
 
 __all__ = ["SBET_FIELDS", "SMRMSG_FIELDS", "SBET_RECORD_BYTES", "SMRMSG_RECORD_BYTES",
            "write_sbet", "read_sbet", "sbet_rows", "write_smrmsg", "read_smrmsg", "Smrmsg",
@@ -162,6 +164,14 @@ def read_sbet(path):
         k = int(bad[0])
         raise InputError(f"latitude {float(lat[k])!r}, longitude {float(lon[k])!r} rad out of "
                          f"range (an SBET holds radians)", path=path_s, record=k + 1)
+    L, F = limits, SBET_FIELDS
+    textrows.check_ranges(rows, None, path_s, [
+        (0, -MAX_TIME_S, MAX_TIME_S, "time", "s"),
+        (3, L.MIN_HEIGHT_M, L.MAX_HEIGHT_M, "altitude", "m")]
+        + [(j, -L.MAX_SPEED_MPS, L.MAX_SPEED_MPS, F[j], "m/s") for j in (4, 5, 6)]
+        + [(j, -4 * np.pi, 4 * np.pi, F[j], "rad") for j in (7, 8, 9, 10)]
+        + [(j, -MAX_SPECIFIC_FORCE, MAX_SPECIFIC_FORCE, F[j], "m/s^2") for j in (11, 12, 13)]
+        + [(j, -MAX_ANGULAR_RATE, MAX_ANGULAR_RATE, F[j], "rad/s") for j in (14, 15, 16)])
     a = rows[:, 10]
     vx, vy, vz = rows[:, 4], rows[:, 5], rows[:, 6]
     ca, sa = np.cos(a), np.sin(a)
@@ -221,6 +231,11 @@ def read_smrmsg(path):
         k, j = neg[0]
         raise InputError(f"{SMRMSG_FIELDS[j + 1]} = {float(rows[k, j + 1])!r}: an RMS must be "
                          f">= 0", path=path_s, record=int(k) + 1)
+    textrows.check_ranges(rows, None, path_s, [
+        (0, -MAX_TIME_S, MAX_TIME_S, "time", "s")]
+        + [(j, 0.0, limits.MAX_SIGMA_M, SMRMSG_FIELDS[j], "m") for j in (1, 2, 3)]
+        + [(j, 0.0, limits.MAX_SPEED_MPS, SMRMSG_FIELDS[j], "m/s") for j in (4, 5, 6)]
+        + [(j, 0.0, 180.0 * 60.0, SMRMSG_FIELDS[j], "arcmin") for j in (7, 8, 9)])
     return Smrmsg(rows[:, 0].copy(), rows[:, 1:4].copy(), rows[:, 4:7].copy(),
                   rows[:, 7:10] * _ARCMIN)
 

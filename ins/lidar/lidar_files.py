@@ -130,6 +130,10 @@ def count_returns(path):
     return n
 
 
+#: Largest range of a return, m (airborne and terrestrial scanners reach some km).
+MAX_RANGE_M = 1.0e5
+
+
 def _ints(a, name, path, lines, lo, hi):
     bad = np.flatnonzero((a != np.round(a)) | (a < lo) | (a > hi))
     if bad.size:
@@ -200,11 +204,17 @@ def _csv_block(path, names, model, v, lines):
     n = len(v)
     blk = ReturnsBlock(time=col["time_s"].copy())
     if model == "points":
+        far = np.flatnonzero(np.any(np.abs(v[:, 1:4]) > MAX_RANGE_M, axis=1))
+        if far.size:
+            raise InputError(f"point {', '.join(f'{x:g}' for x in v[far[0], 1:4])} m is "
+                             f"farther than {MAX_RANGE_M:g} m from the scanner",
+                             path=os.fspath(path), line=int(lines[far[0]]))
         blk.xyz_s_m = v[:, 1:4].copy()
     else:
-        bad = np.flatnonzero(col["range_m"] <= 0)
+        bad = np.flatnonzero((col["range_m"] <= 0) | (col["range_m"] > MAX_RANGE_M))
         if bad.size:
-            raise InputError(f"range_m {float(col['range_m'][bad[0]])!r} must be > 0 (m)",
+            raise InputError(f"range_m {float(col['range_m'][bad[0]]):g} must be in "
+                             f"(0, {MAX_RANGE_M:g}] m",
                              path=os.fspath(path), line=int(lines[bad[0]]))
         big = np.flatnonzero(np.abs(col["scan_angle_deg"]) >= 90)
         if big.size:

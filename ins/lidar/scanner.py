@@ -37,6 +37,7 @@ import numpy as np
 from ins.common import textfiles
 from ins.common.errors import InputError
 from ins.common.fileio import atomic_open
+from ins.common.limits import MAX_LEVER_ARM_M
 from ins.common.tomlschema import REQUIRED, Table, check_keys
 from ins.nav.rotation import rot_x, rot_y, rot_z
 
@@ -201,25 +202,26 @@ def read_scanner(path):
     sc = Table(doc["scanner"], "scanner", path, SCANNER_KEYS["scanner"], SCANNER_KEYS)
     model = sc.choice("model", REQUIRED, SCAN_MODELS)
     tilt = sc.number("forward_tilt_deg", 0.0, "deg in (-90, 90)", lo=-89.999, hi=89.999)
-    rsig = sc.number("range_sigma_m", 0.0, "m >= 0", lo=0.0)
-    asig = sc.number("scan_angle_sigma_deg", 0.0, "deg >= 0", lo=0.0)
+    rsig = sc.number("range_sigma_m", 0.0, "m in [0, 100]", lo=0.0, hi=100.0)
+    asig = sc.number("scan_angle_sigma_deg", 0.0, "deg in [0, 90]", lo=0.0, hi=90.0)
     sc.finish()
     mnt = Table(doc.get("mounting"), "mounting", path, SCANNER_KEYS["mounting"], SCANNER_KEYS)
     on = mnt.choice("on", "imu", SCANNER_PLACES)
     l_bp = mnt.numbers("imu_to_platform_centre_b_m", (0.0, 0.0, 0.0), "m, body FRD",
-                       length=3, scalar=False)
+                       length=3, scalar=False, bound=MAX_LEVER_ARM_M)
     if on == "imu" and mnt.has("imu_to_platform_centre_b_m"):
         raise mnt.error("imu_to_platform_centre_b_m", 'only with on = "aircraft" (a '
                         "scanner on the IMU needs no platform arm)")
     axes = mnt.matrix("axes", tuple(map(tuple, np.eye(3))), (3, 3),
                       "rows of C_bs, a rotation matrix")
-    lever = mnt.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m, body FRD", length=3, scalar=False)
+    lever = mnt.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m, body FRD", length=3, scalar=False,
+                        bound=MAX_LEVER_ARM_M)
     bore = mnt.numbers("boresight_deg", (0.0, 0.0, 0.0), "deg (rx, ry, rz)", length=3,
-                       scalar=False)
+                       scalar=False, bound=180.0)
     lsig = mnt.numbers("lever_arm_sigma_m", (0.0, 0.0, 0.0), "m >= 0, body FRD", length=3,
-                       lo=0.0, scalar=False)
+                       lo=0.0, scalar=False, bound=MAX_LEVER_ARM_M)
     bsig = mnt.numbers("boresight_sigma_deg", (0.0, 0.0, 0.0), "deg >= 0 (rx, ry, rz)",
-                       length=3, lo=0.0, scalar=False)
+                       length=3, lo=0.0, scalar=False, bound=180.0)
     mnt.finish()
     try:
         return Scanner(model=model, forward_tilt_rad=math.radians(tilt), range_sigma_m=rsig,

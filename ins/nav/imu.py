@@ -34,6 +34,7 @@ import numpy as np
 __all__ = [
     "ImuLog", "DPH", "MGAL", "PPM", "G0", "AXES", "C_frd_axes",
     "MAX_MEDIAN_SPECIFIC_FORCE", "MAX_MEDIAN_ANGULAR_RATE", "MIN_MEDIAN_SPECIFIC_FORCE_RATES",
+    "MAX_ANGULAR_RATE", "MAX_SPECIFIC_FORCE", "MAX_TIME_S",
     "compensate", "rates_to_increments",
 ]
 
@@ -54,6 +55,15 @@ MAX_MEDIAN_SPECIFIC_FORCE = 100.0
 #: Median |dtheta|/dt above which increments are refused, rad/s (about 1150 deg/s,
 #: the full range of common gyros; no log turns that fast most of the time).
 MAX_MEDIAN_ANGULAR_RATE = 20.0
+#: Largest angular rate of any one sample, rad/s (5700 deg/s: beyond the range of any
+#: gyro); a sample above it is refused by the readers with its line.
+MAX_ANGULAR_RATE = 100.0
+#: Largest specific force of any one sample, m/s^2 (102 g: beyond the range of any
+#: navigation accelerometer); a sample above it is refused by the readers with its line.
+MAX_SPECIFIC_FORCE = 1000.0
+#: Largest magnitude of a time stamp, s (3000 years: a Unix time in ms or ns read as s
+#: is refused).
+MAX_TIME_S = 1.0e11
 #: With ``rates=True``, a median specific force below this (m/s^2) draws an
 #: :class:`~ins.common.errors.InputWarning` (increments read as rates; or free fall).
 MIN_MEDIAN_SPECIFIC_FORCE_RATES = 0.5

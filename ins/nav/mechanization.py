@@ -225,14 +225,27 @@ def _integrate(time, dth, dv, state, out, counter, every):
     while k < n:
         k1 = min(k + len(out), n)
         _kernels.mechanize_rows(time, dth, dv, k, k1, state, out)
-        if not np.all(np.isfinite(state)):
-            bad = int(np.flatnonzero(~np.all(np.isfinite(out[:k1 - k]), axis=1))[0])
-            raise InputError(f"the solution became non-finite at t = {float(time[k + bad])!r} s "
-                             f"(over a pole, or implausible increments or initial state)")
+        check_finite(state, out[:k1 - k], time[k:k1], "over a pole, or implausible "
+                     "increments or initial state")
         sel = (np.arange(k, k1) + counter) % every == 0
         if np.any(sel):
             yield _trajectory(time[k:k1][sel], out[:k1 - k][sel].copy())
         k = k1
+
+
+def check_finite(state, rows, time, causes):
+    """Raise :class:`InputError` when ``state`` (after the rows ``rows`` at the IMU epochs
+    ``time``, s) is not finite, naming the epoch of the first non-finite row as a plain
+    float and keeping it as the attribute ``time_s``, so that a caller who knows the file
+    can name its line (:func:`ins.io.imu_blocks.locate_epoch`)."""
+    if np.all(np.isfinite(state)):
+        return
+    bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
+    time_s = float(time[int(bad[0]) if bad.size else len(time) - 1])
+    exc = InputError(f"the solution became non-finite at t = {time_s:.6f} s (IMU record; "
+                     f"{causes})")
+    exc.time_s = time_s
+    raise exc
 
 
 def mechanize(imu, initial, **kwargs):

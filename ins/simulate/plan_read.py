@@ -47,6 +47,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ins.common.errors import InputError
+from ins.common.limits import MAX_LEVER_ARM_M, MAX_SIGMA_M
 from ins.common.textfiles import read_toml
 from ins.common.tomlschema import REQUIRED, Table, check_keys
 from ins.simulate.plan_checks import check_feasible
@@ -180,8 +181,10 @@ def _mount(sec):
                                  lo_open=True) * D2R,
         servo_lag=sec.number("servo_lag_s", 0.1, "s in [0, 5]", 0.0, 5.0),
         log_rate_hz=sec.number("log_rate_hz", 50.0, "Hz > 0", 0.0, 10000.0, lo_open=True),
-        l_bp=sec.numbers("imu_to_platform_centre_b_m", (0.0, 0.0, 0.0), "m", length=3),
-        l_ap=sec.numbers("platform_centre_to_antenna_a_m", (0.0, 0.0, -1.5), "m", length=3))
+        l_bp=sec.numbers("imu_to_platform_centre_b_m", (0.0, 0.0, 0.0), "m", length=3,
+                         bound=MAX_LEVER_ARM_M),
+        l_ap=sec.numbers("platform_centre_to_antenna_a_m", (0.0, 0.0, -1.5), "m", length=3,
+                         bound=MAX_LEVER_ARM_M))
 
 
 def _imu(sec):
@@ -214,7 +217,7 @@ def _gnss(sec):
         raise sec.error("outages", f"expected [[start_s, duration_s], ...] with start >= 0 "
                         f"and duration > 0, got {raw!r}", "s")
     outages = tuple((float(a), float(b)) for a, b in raw)
-    sigma = sec.numbers("sigma_ned_m", (0.02, 0.02, 0.04), "m", lo=0.0)
+    sigma = sec.numbers("sigma_ned_m", (0.02, 0.02, 0.04), "m", lo=0.0, bound=MAX_SIGMA_M)
     if len(sigma) == 1:
         sigma = sigma * 3
     if len(sigma) != 3:
@@ -244,7 +247,8 @@ def _camera(sec):
         radial_k=sec.numbers("radial_k", (0.0, 0.0, 0.0), "mm^-2, mm^-4, mm^-6", length=3),
         tangential_p=sec.numbers("tangential_p", (0.0, 0.0), "mm^-1", length=2),
         axes=tuple(tuple(float(x) for x in row) for row in a),
-        lever_arm_m=sec.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m", length=3),
+        lever_arm_m=sec.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m", length=3,
+                                bound=MAX_LEVER_ARM_M),
         boresight_deg=sec.numbers("boresight_deg", (0.0, 0.0, 0.0), "deg", length=3))
 
 

@@ -43,8 +43,14 @@ def _plot_residuals(result, path):
 
 
 def _plot_corrections(result, path):
-    from ins.common.plotstyle import (exposure_axis, legend_right, mark_strips, pyplot,
-                                      save_png, strip_starts)
+    from ins.common.plotstyle import (
+        exposure_axis,
+        legend_right,
+        mark_strips,
+        pyplot,
+        save_png,
+        strip_starts,
+    )
     plt = pyplot()
     a = result.assessment
     fig, ax = plt.subplots(figsize=(9, 4.2))
