@@ -1,12 +1,13 @@
 # make demo  - set up .venv and run the whole chain on the embedded flight plan
 # make test  - set up .venv (with the test extras) and run the test suite
 # make bench - speed/accuracy benchmarks with the peers (pyins) side by side
+# make docs  - API reference and guides (Sphinx) into docs/_build/html, warnings as errors
 PYTHON ?= python3
 VENV   ?= .venv
 PY      = $(VENV)/bin/python
 PIP     = $(PY) -m pip --disable-pip-version-check -q
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench docs clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +24,10 @@ $(VENV)/.bench-deps: pyproject.toml | $(VENV)/bin/python
 	$(PIP) install -e '.[bench]'
 	touch $(VENV)/.run-deps $@
 
+$(VENV)/.docs-deps: pyproject.toml | $(VENV)/bin/python
+	$(PIP) install -e '.[docs]'
+	touch $(VENV)/.run-deps $@
+
 # The whole chain on the embedded flight plan (data/flights/demo.toml):
 # simulate -> process (filter + smoother, varying lever arm) -> EO -> refine,
 # every stage against the simulator's truth; report in demo-output/report.md
@@ -35,6 +40,9 @@ test: $(VENV)/.test-deps
 bench: $(VENV)/.bench-deps
 	for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
+docs: $(VENV)/.docs-deps
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf $(VENV) .cache demo-output .pytest_cache
+	rm -rf $(VENV) .cache demo-output .pytest_cache docs/_build docs/api/generated
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

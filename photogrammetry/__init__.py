@@ -27,6 +27,7 @@ _LAZY = {
     "adjust_pairs": "adjustment.coplanarity", "adjust_block": "adjustment.block",
     "assess": "adjustment.assessment", "write_report": "adjustment.report",
     "heading_from_images": "lunar", "heading_from_centres": "lunar",
+    "simulate_flight": "simulate.folder",
 }
 
 

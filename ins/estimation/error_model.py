@@ -2,18 +2,18 @@
 
 State layout (21 states, SI units inside)
 -----------------------------------------
-======  ==========  =====================================================  ========
-index   name        meaning                                                unit
-======  ==========  =====================================================  ========
-0-2     ``POS``     position error N, E, D, estimate minus truth            m
-3-5     ``VEL``     velocity error N, E, D, estimate minus truth            m/s
-6-8     ``ATT``     attitude error phi (phi-angle, n frame):                rad
+======  ==========  =======================================================  ========
+index   name        meaning                                                  unit
+======  ==========  =======================================================  ========
+0-2     ``POS``     position error N, E, D, estimate minus truth             m
+3-5     ``VEL``     velocity error N, E, D, estimate minus truth             m/s
+6-8     ``ATT``     attitude error phi (phi-angle, n frame):                 rad
                     ``C_nb_est = (I - [phi x]) C_nb_true``
-9-11    ``BG``      gyro bias error, truth minus estimate                   rad/s
-12-14   ``BA``      accelerometer bias error, truth minus estimate          m/s^2
-15-17   ``SG``      gyro scale-factor error, truth minus estimate           1
-18-20   ``SA``      accelerometer scale-factor error, truth minus estimate  1
-======  ==========  =====================================================  ========
+9-11    ``BG``      gyro bias error, truth minus estimate                    rad/s
+12-14   ``BA``      accelerometer bias error, truth minus estimate           m/s^2
+15-17   ``SG``      gyro scale-factor error, truth minus estimate            1
+18-20   ``SA``      accelerometer scale-factor error, truth minus estimate   1
+======  ==========  =======================================================  ========
 
 Optional groups (``[states]`` of the processing config, :class:`StateLayout`) follow the
 21 in this order: gyro non-orthogonality (3, rad), accelerometer non-orthogonality (3,

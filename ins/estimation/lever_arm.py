@@ -3,17 +3,17 @@
 Geometry (``conventions.md`` item 4; the lever-arm paper, whose formula images are lost):
 the IMU sits on the stabilized platform (``C_bp = I``), the antenna on the aircraft.
 With ``l_bp`` the IMU-to-platform-centre arm in ``b`` and ``l_ap`` the
-platform-centre-to-antenna arm in ``a`` (m), and ``C_ap(t)`` from the mount angles,
+platform-centre-to-antenna arm in ``a`` (m), and ``C_ap(t)`` from the mount angles, ::
 
     l_b(t) = l_bp + C_bp C_pa(t) l_ap,        C_pa = C_ap^T.
 
-Antenna position and velocity (n frame, NED):
+Antenna position and velocity (n frame, NED)::
 
     r_ant = r_imu + C_nb l_b                           (lat/lon/h through D^-1)
     v_ant = v_imu + C_nb (w_ib_b x l_b) - w_in_n x (C_nb l_b) + C_nb dl_b/dt
 
 Jacobians with respect to the error state of :mod:`ins.estimation.error_model`
-(``C_nb_est = (I - [phi x]) C_nb``, sensor errors truth minus estimate):
+(``C_nb_est = (I - [phi x]) C_nb``, sensor errors truth minus estimate)::
 
     d r_ant = dr + [(C_nb l_b) x] phi
     d v_ant = dv + [(C_nb (w_ib_b x l_b + dl_b/dt)) x] phi

@@ -4,21 +4,21 @@ SBET (``sbet_*.out``; PDAL ``readers.sbet``/``writers.sbet``, LAStools, orthorit
 records of 17 little-endian float64 (136 bytes), in this order (PDAL's
 ``SbetCommon.hpp``, Applanix POSPac):
 
-====  ========================  ==================================================
- #    field                     unit and meaning
-====  ========================  ==================================================
- 0    time                      s, GPS seconds of week
- 1    latitude                  rad, WGS84
- 2    longitude                 rad
- 3    altitude                  m, ellipsoidal height
- 4-6  x, y, z velocity          m/s, in the wander-azimuth frame
- 7    roll                      rad
- 8    pitch                     rad
- 9    platform heading          rad, true heading + wander angle (see Frames)
- 10   wander angle              rad
- 11   x, y, z body acceleration m/s^2 (fields 11-13)
- 14   x, y, z body angular rate rad/s (fields 14-16)
-====  ========================  ==================================================
+====  ==========================  ==================================================
+ #    field                       unit and meaning
+====  ==========================  ==================================================
+ 0    time                        s, GPS seconds of week
+ 1    latitude                    rad, WGS84
+ 2    longitude                   rad
+ 3    altitude                    m, ellipsoidal height
+ 4-6  x, y, z velocity            m/s, in the wander-azimuth frame
+ 7    roll                        rad
+ 8    pitch                       rad
+ 9    platform heading            rad, true heading + wander angle (see Frames)
+ 10   wander angle                rad
+ 11   x, y, z body acceleration   m/s^2 (fields 11-13)
+ 14   x, y, z body angular rate   rad/s (fields 14-16)
+====  ==========================  ==================================================
 
 Frames.  The wander-azimuth frame is Applanix's local-level frame turned about the
 vertical by the wander angle ``alpha``; true heading = platform heading - alpha (as

@@ -47,12 +47,12 @@ PPM = 1e-6
 #: Standard gravity, m/s^2 (the unit ``g`` of CSV accelerometer columns).
 G0 = 9.80665
 
-#: Median |dvel|/dt above which increments are refused as implausible, m/s^2 (10.2 g).
+#: Median ``|dvel|/dt`` above which increments are refused as implausible, m/s^2 (10.2 g).
 #: The median over a log of any vehicle is about 1 g (9.8 m/s^2); a file of specific
 #: forces read as increments gives ``9.8 / dt`` (1960 m/s^2 at 200 Hz).  Detection
 #: works for logs faster than about 10 Hz.
 MAX_MEDIAN_SPECIFIC_FORCE = 100.0
-#: Median |dtheta|/dt above which increments are refused, rad/s (about 1150 deg/s,
+#: Median ``|dtheta|/dt`` above which increments are refused, rad/s (about 1150 deg/s,
 #: the full range of common gyros; no log turns that fast most of the time).
 MAX_MEDIAN_ANGULAR_RATE = 20.0
 #: Largest angular rate of any one sample, rad/s (5700 deg/s: beyond the range of any

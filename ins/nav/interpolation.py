@@ -10,9 +10,9 @@ rate rotation between the two bracketing epochs.
 
 Interpolation error at 200 Hz (dt = 5 ms), measured on a closed-form banked turn with
 roll turbulence of 0.34 rad/s^2 (``tests/test_interpolation.py``, ``bench/bench_eo.py``):
-position below 1e-8 m (the Hermite term dt^4/384 |d4r/dt4| is below the rounding of
+position below 1e-8 m (the Hermite term ``dt^4/384 |d4r/dt4|`` is below the rounding of
 lat/lon in rad), velocity below 1e-6 m/s; attitude ``"cubic"`` 1e-5 arcsec (4e-5 at
-1.4 rad/s^2; 2.6e-3 at 50 Hz), ``"slerp"`` ~ dt^2/8 |dw/dt| = 0.22 arcsec (0.9 at
+1.4 rad/s^2; 2.6e-3 at 50 Hz), ``"slerp"`` ~ ``dt^2/8 |dw/dt|`` = 0.22 arcsec (0.9 at
 1.4 rad/s^2).  A 200 Hz trajectory is thus reproduced far below 1 um and 0.1 arcsec.
 """
 import numpy as np

@@ -11,7 +11,7 @@ __all__ = ["as_stack"]
 
 
 def as_stack(x, name, tail, finite=False):
-    """Return ``(a, single)``: `x` as a float (n, *tail) array and whether it was one item.
+    """Return ``(a, single)``: `x` as a float ``(n, *tail)`` array and whether it was one item.
 
     The shape check of every function here that takes one item or a stack (shared with
     ``photogrammetry.orientation.rotation``); ``name`` is the argument's name in the message.

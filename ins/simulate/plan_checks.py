@@ -68,6 +68,6 @@ def crab_angle(ground_speed, wind, track):
 
 
 def max_crab_angle(ground_speed, wind, n=3600):
-    """Largest |crab angle| (rad) over all tracks at a constant ground speed."""
+    """Largest ``|crab angle|`` (rad) over all tracks at a constant ground speed."""
     track = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     return float(np.max(np.abs(crab_angle(ground_speed, wind, track))))

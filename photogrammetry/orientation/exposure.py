@@ -476,7 +476,7 @@ def read_eo_patb(path, system="phi-omega-kappa"):
     """Read a PATB-style file; angles in `system` (the file has no times: NaN).
 
     Raises InputError naming the line for a truncated record or a matrix that is not a
-    rotation (|R R^T - I| > 1e-9 or det < 0).
+    rotation (``|R R^T - I| > 1e-9`` or det < 0).
     """
     path = str(path)
     check_system(system)
