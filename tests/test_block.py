@@ -425,3 +425,36 @@ def test_quality_judges_known_base_changes_without_the_boresight():
     B["prior"][4, 2] += np.deg2rad(3.0)
     res = _run(B, "known-base", "none")
     assert res.quality.poor and np.flatnonzero(res.quality.image_flags).tolist() == [4]
+
+
+def _few_point_pair(seed):
+    """A known-base pair of 8 common points, 2 of them gross mismatches (20-100 px), the
+    prior of image 2 0.2 deg off in every angle (the issue's case)."""
+    p = sc.make_pairs(1, 8, seed=seed)
+    u1, u2 = p["u1"][0, :, :2].copy(), p["u2"][0, :, :2].copy()
+    rng = np.random.default_rng(seed)
+    u2[:2] += rng.choice([-1, 1], (2, 2)) * rng.uniform(0.2, 1.0, (2, 2))
+    prior = np.vstack([p["ang1"], p["ang2"] + np.deg2rad(0.2) * rng.choice([-1.0, 1.0], 3)])
+    return p, prior, [(u1, u2)]
+
+
+@pytest.mark.parametrize("seed,datum", [(9, "first"), (9, "ins"), (0, "first")])
+def test_pair_whose_conditions_vanish_in_the_screening_is_flagged(seed, datum):
+    """Seed 9: the screening leaves the pair out (no condition left: used to end in
+    'need at least one array to concatenate'); seed 0: 3 conditions for 3 angles (no
+    redundancy: used to be an InputError).  Both: no exception, every image at its prior
+    with the prior sigma, not adjusted, the quality poor with the reason first."""
+    p, prior, pts = _few_point_pair(seed)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        res = adjust_block(prior, [[0, 1]], pts, p["f_mm"], p["system"], "known-base", datum,
+                           positions=np.vstack([p["C1"], p["C2"]]), sigma_mm=p["sigma_mm"])
+    if seed == 0 and datum == "first":
+        assert "no redundancy" in res.quality.reasons[0]
+    else:
+        assert "no pair of images is left" in res.quality.reasons[0]
+    assert res.quality.poor and res.quality.reasons[0].startswith("block not adjusted")
+    assert any("block not adjusted" in str(x.message) for x in w)
+    np.testing.assert_array_equal(res.angles, prior)
+    assert not res.adjusted.any() and np.isnan(res.sigma0) and not res.converged
+    np.testing.assert_allclose(res.sigma, 0.005)

@@ -36,8 +36,8 @@ from scipy.stats import chi2
 
 from ins.nav.rotation import wrap_to_pi
 
-__all__ = ["Quality", "sigma0_limit", "change_limit", "block_quality", "CHANGE_FACTOR",
-           "SIGMA0_FLOOR"]
+__all__ = ["Quality", "sigma0_limit", "change_limit", "block_quality", "unadjusted_quality",
+           "CHANGE_FACTOR", "SIGMA0_FLOOR"]
 
 #: sigma0 is implausible above max(SIGMA0_FLOOR, sqrt(chi2_0.999(r) / r)).
 SIGMA0_FLOOR = 2.0
@@ -178,3 +178,29 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
         reasons.append(f"image {names[i]}: angle change {change[i, a] * _AS:.0f} arcsec > "
                        f"{lim[i, a] * _AS:.0f}")
     return Quality(bool(reasons), reasons, bad_s0 | bad_change | strayed, image_flags, blim)
+
+
+def unadjusted_quality(pairs, status, kept, rejected, m, names, why, status_text):
+    """The flags of a block whose conditions vanished in the screening (nothing
+    adjusted, every image at its prior): poor, `why` first, then each pair left out with
+    the points it kept.
+
+    Parameters
+    ----------
+    pairs : ndarray (P, 2); status : ndarray of int (P,)
+    kept, rejected : ndarray of bool (P, n)
+        The screening's kept and rejected points.
+    m : int
+        Images.
+    names : sequence of str or None
+    why : str
+    status_text : dict status -> text
+    """
+    names = list(range(m)) if names is None else list(names)
+    reasons = [f"block not adjusted: {why}; every image left at its prior angles"]
+    for k in np.flatnonzero(np.asarray(status) != 0):
+        reasons.append(f"pair {names[pairs[k, 0]]}-{names[pairs[k, 1]]}: "
+                       f"{status_text.get(int(status[k]), 'left out')} "
+                       f"({int(kept[k].sum())} points kept, {int(rejected[k].sum())} "
+                       "rejected)")
+    return Quality(True, reasons, np.ones(len(pairs), bool), np.ones(m, bool), np.nan)

@@ -247,8 +247,10 @@ def run(args):
                 write_report(rep, res)
             if not args.quiet:
                 s = res.settings
+                s0 = blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']
                 print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
-                      f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
+                      + (f"{s0:.3f} px" if np.isfinite(s0) else "not estimable")
+                      + ", redundancy "
                       f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
                       + (f"; {s['n_tiles']} tiles" if tiled else "")
                       + (f"; report {rep}" if rep else ""))
