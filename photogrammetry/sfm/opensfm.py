@@ -296,6 +296,9 @@ def read_tracks(path, project):
             raise InputError("expected tab-separated image, track_id, feature_id, x, y, "
                              "...", path=path, line=n)
         iid = os.path.splitext(parts[0])[0]
+        if not parts[1].strip().isdigit():
+            raise InputError(f"track_id {parts[1][:30]!r} is not a whole number (OpenSfM "
+                             "numbers its tracks)", path=path, line=n)
         try:
             x, y = float(parts[3]), float(parts[4])
         except ValueError:
@@ -313,7 +316,7 @@ def read_tracks(path, project):
         S = max(w, h)
         uv = np.array([x * S - 0.5 + w / 2.0, y * S - 0.5 + h / 2.0])
         ids.append(iid)
-        pids.append(parts[1])
+        pids.append(parts[1].strip())
         xy.append(cam.pixel_to_photo(uv))
     if not ids:
         raise InputError("no observation of a shot of the reconstruction", path=path)
