@@ -458,3 +458,22 @@ def test_pair_whose_conditions_vanish_in_the_screening_is_flagged(seed, datum):
     np.testing.assert_array_equal(res.angles, prior)
     assert not res.adjusted.any() and np.isnan(res.sigma0) and not res.converged
     np.testing.assert_allclose(res.sigma, 0.005)
+
+
+@pytest.mark.parametrize("seed", [12, 16, 18, 19])
+def test_few_point_pair_off_beyond_its_sigma_is_flagged(seed):
+    """The same kind of pair, screened into redundancy 1-3 with one mismatch kept or good
+    points rejected: 2000-6000 arcsec off the truth, 10-26 of its own sigmas, sigma0
+    below the chi-square limit and the change below 5 sqrt(2) prior sigmas -- every
+    test passed (exit 0).  Flagged now by the redundancy rule."""
+    p, prior, pts = _few_point_pair(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = adjust_block(prior, [[0, 1]], pts, p["f_mm"], p["system"], "known-base",
+                           "first", positions=np.vstack([p["C1"], p["C2"]]),
+                           sigma_mm=p["sigma_mm"])
+    err = np.abs(res.angles[1] - p["ang2"][0])
+    assert np.max(err / res.sigma[1]) > 5                  # beyond what its sigma states
+    assert res.redundancy < 5 and res.rejected.sum() > 0
+    assert res.quality.poor
+    assert any("too few conditions left" in r for r in res.quality.reasons)

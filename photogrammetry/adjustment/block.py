@@ -570,7 +570,8 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                             screen["redundancy"], change, screen["sigma"], sigma0,
                             int(redundancy), angles,
                             prior, prior_sigma, sigma, adjusted, image_ids, system,
-                            common_rotation=datum == "none", strayed=strayed)
+                            common_rotation=datum == "none", strayed=strayed,
+                            n_rejected=int((screen["rejected"] | snooped).sum()))
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
                        adjusted, status, screen["rejected"] | snooped, res, mask, quality,
                        cov_op)

@@ -11,6 +11,11 @@ The rule (stated in ``photogrammetry refine --help`` and docs/interfaces.md):
   their distribution.  Pairs of redundancy below 5 (a few points) are not judged on
   their own (their screening from the prior may end in a far local minimum): the block
   judges their points.
+- **redundancy**: a block whose redundancy is below 5 after the outlier tests rejected
+  tie points (a pair of 8 points with 2 mismatches: redundancy 1-3) is flagged: the
+  tests kept the subset that fits, and the few conditions left can neither tell it from
+  a wrong one nor give a sigma0 worth the name (0.2-0.4 seen, so the sigmas, scaled by
+  it, shrink; errors of 7-26 of those sigmas passed every test).
 - **angle change**: an image's refined angle differs from its prior (INS) angle by more
   than ``5 sqrt(2 s_prior^2 + s_adj^2)`` (any of the three angles; ``s_prior`` the prior
   sigma of the angle, ``s_adj`` its adjusted sigma: the change holds the image's own INS
@@ -100,7 +105,7 @@ def _changes(angles, prior, system, common_rotation):
 
 def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, sigma0,
                   redundancy, angles, prior, prior_sigma, adj_sigma, adjusted, names=None,
-                  system=None, common_rotation=False, strayed=None):
+                  system=None, common_rotation=False, strayed=None, n_rejected=0):
     """Flag the pairs and images of a block whose sigma0 or angle change is implausible.
 
     Parameters
@@ -129,6 +134,11 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     strayed : ndarray of bool (P,), optional
         Pairs left out because their screening went beyond any plausible change
         (flagged).
+    n_rejected : int
+        Tie points rejected by the screening and the block's snooping: with any, a
+        block redundancy below :data:`WEAK_REDUNDANCY` is flagged (the tests chose the
+        subset that fits; too few conditions are left to tell it from a wrong one, and
+        its sigma0 -- and the sigmas scaled by it -- are biased low).
 
     Returns
     -------
@@ -165,6 +175,10 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     blim = float(sigma0_limit(redundancy))
     if np.isfinite(sigma0) and sigma0 > blim:
         reasons.append(f"block sigma0 {sigma0:.2f} > {blim:.2f} (redundancy {redundancy})")
+    if n_rejected and redundancy < WEAK_REDUNDANCY:
+        reasons.append(f"block redundancy {redundancy} after rejecting {n_rejected} tie "
+                       f"points (< {WEAK_REDUNDANCY}): too few conditions left to tell the "
+                       "outliers from a wrong solution")
     change = np.zeros(np.shape(angles))
     if adjusted.any():
         change[adjusted] = _changes(angles[adjusted], prior[adjusted], system,
