@@ -59,7 +59,9 @@ trust (exit 3 unless --accept-poor):
     the adjusted sigma; with known-base and --datum none after removing the common
     camera-frame rotation, the boresight);
   - a pair whose screening (redundancy >= 5) moved an image beyond 5 deg and 5 of its
-    sigmas from its prior (left out).
+    sigmas from its prior (left out);
+  - a block left with redundancy < 5 after its outlier tests rejected tie points, or
+    with no condition at all (every pair left out: the images keep their priors).
   Any flag: exit 3 and nothing written; with --accept-poor the outputs are written,
   the flags stated in the CSV comments and the report.
 
