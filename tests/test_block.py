@@ -425,3 +425,55 @@ def test_quality_judges_known_base_changes_without_the_boresight():
     B["prior"][4, 2] += np.deg2rad(3.0)
     res = _run(B, "known-base", "none")
     assert res.quality.poor and np.flatnonzero(res.quality.image_flags).tolist() == [4]
+
+
+def _few_point_pair(seed):
+    """A known-base pair of 8 common points, 2 of them gross mismatches (20-100 px), the
+    prior of image 2 0.2 deg off in every angle (the issue's case)."""
+    p = sc.make_pairs(1, 8, seed=seed)
+    u1, u2 = p["u1"][0, :, :2].copy(), p["u2"][0, :, :2].copy()
+    rng = np.random.default_rng(seed)
+    u2[:2] += rng.choice([-1, 1], (2, 2)) * rng.uniform(0.2, 1.0, (2, 2))
+    prior = np.vstack([p["ang1"], p["ang2"] + np.deg2rad(0.2) * rng.choice([-1.0, 1.0], 3)])
+    return p, prior, [(u1, u2)]
+
+
+@pytest.mark.parametrize("seed,datum", [(9, "first"), (9, "ins"), (0, "first")])
+def test_pair_whose_conditions_vanish_in_the_screening_is_flagged(seed, datum):
+    """Seed 9: the screening leaves the pair out (no condition left: used to end in
+    'need at least one array to concatenate'); seed 0: 3 conditions for 3 angles (no
+    redundancy: used to be an InputError).  Both: no exception, every image at its prior
+    with the prior sigma, not adjusted, the quality poor with the reason first."""
+    p, prior, pts = _few_point_pair(seed)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        res = adjust_block(prior, [[0, 1]], pts, p["f_mm"], p["system"], "known-base", datum,
+                           positions=np.vstack([p["C1"], p["C2"]]), sigma_mm=p["sigma_mm"])
+    if seed == 0 and datum == "first":
+        assert "no redundancy" in res.quality.reasons[0]
+    else:
+        assert "no pair of images is left" in res.quality.reasons[0]
+    assert res.quality.poor and res.quality.reasons[0].startswith("block not adjusted")
+    assert any("block not adjusted" in str(x.message) for x in w)
+    np.testing.assert_array_equal(res.angles, prior)
+    assert not res.adjusted.any() and np.isnan(res.sigma0) and not res.converged
+    np.testing.assert_allclose(res.sigma, 0.005)
+
+
+@pytest.mark.parametrize("seed", [12, 16, 18, 19])
+def test_few_point_pair_off_beyond_its_sigma_is_flagged(seed):
+    """The same kind of pair, screened into redundancy 1-3 with one mismatch kept or good
+    points rejected: 2000-6000 arcsec off the truth, 10-26 of its own sigmas, sigma0
+    below the chi-square limit and the change below 5 sqrt(2) prior sigmas -- every
+    test passed (exit 0).  Flagged now by the redundancy rule."""
+    p, prior, pts = _few_point_pair(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = adjust_block(prior, [[0, 1]], pts, p["f_mm"], p["system"], "known-base",
+                           "first", positions=np.vstack([p["C1"], p["C2"]]),
+                           sigma_mm=p["sigma_mm"])
+    err = np.abs(res.angles[1] - p["ang2"][0])
+    assert np.max(err / res.sigma[1]) > 5                  # beyond what its sigma states
+    assert res.redundancy < 5 and res.rejected.sum() > 0
+    assert res.quality.poor
+    assert any("too few conditions left" in r for r in res.quality.reasons)

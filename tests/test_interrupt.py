@@ -165,3 +165,54 @@ def test_ctrl_c_at_random_moments(name, flight, tmp_path):
     print(f"\n{name}: {RUNS} runs of {duration:.2f} s: {dict(outcomes)}")
     assert not problems, "\n".join(problems)
     assert outcomes["130, nothing written"] + outcomes["130, output complete"] >= RUNS // 2
+
+
+@pytest.fixture(scope="module")
+def tiled_block(tmp_path_factory):
+    import scenario as sc
+    d = tmp_path_factory.mktemp("tiled")
+    return sc.write_block_files(sc.make_block(n_strips=3, n_per_strip=8, seed=21), str(d))
+
+
+def test_ctrl_c_in_a_dask_run_of_refine(tiled_block, tmp_path):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) during
+    ``refine --tile-images 8 --workers 2``, from the Dask start-up on: exit 130 and one
+    line (the workers shut down quietly: no worker KeyboardInterrupt traceback, no
+    distributed log line, no resource-tracker warning), nothing written, and nothing left
+    in the temporary directory (no dask-scratch-space); or exit 0 with the output."""
+    eo, tp, cam = tiled_block
+    argv = [sys.executable, "-m", "photogrammetry.cli.main", "refine", eo, tp, "--camera",
+            cam, "--datum", "ins", "--tile-images", "8", "--workers", "2", "-q", "-o",
+            "out.csv"]
+    rng = random.Random(f"{SEED}-dask")
+    outcomes, problems = Counter(), []
+    for k in range(RUNS):
+        work, tmp = tmp_path / f"run{k}", tmp_path / f"tmp{k}"
+        work.mkdir()
+        tmp.mkdir()
+        proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True, start_new_session=True,
+                                env=dict(os.environ, TMPDIR=str(tmp)))
+        delay = rng.uniform(START_UP_S + 0.5, 12.0)
+        time.sleep(delay)
+        try:
+            os.killpg(proc.pid, signal.SIGINT)
+        except ProcessLookupError:
+            pass
+        _, err = proc.communicate(timeout=600)
+        lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
+        where = f"run {k} (SIGINT at {delay:.2f} s): rc {proc.returncode}, stderr {err!r}"
+        left = _listing(tmp)
+        if left:
+            problems.append(f"{where}: left in TMPDIR: {left}")
+        elif proc.returncode == 130 and len(lines) == 1 and \
+                lines[0].endswith("interrupted; no output written") and \
+                _listing(work) == []:
+            outcomes["130"] += 1
+        elif proc.returncode == 0 and not lines and (work / "out.csv").exists():
+            outcomes["0"] += 1
+        else:
+            problems.append(where)
+    print(f"\nrefine --tile-images --workers 2: {RUNS} runs: {dict(outcomes)}")
+    assert not problems, "\n".join(problems)
+    assert outcomes["130"] >= RUNS // 2

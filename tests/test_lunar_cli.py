@@ -66,8 +66,14 @@ def test_images(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("edit,message", [
-    ("station", "latitude"), ("order", "out of order"), ("few", "at least 2")])
+    ("station", "latitude"), ("order", "out of order"), ("few", "at least 2"),
+    (["--temperature", "-300"], "below absolute zero"),
+    (["--temperature", "nan"], "--temperature: expected deg C"),
+    (["--pressure", "5000"], "--pressure: expected hPa"),
+    (["--dut1", "4"], "--dut1"), (["--station", "30,120,1e9"], "height")])
 def test_errors(tmp_path, capsys, edit, message):
+    """Bad input: exit 2 and one line naming the option (the sky options: ranges with
+    their unit; a temperature below 0 K used to print a heading)."""
     sky, C_hc = _session(tmp_path, 4)
     uv = CAM.direction_to_image(sky.moon_h @ C_hc)
     rows = [f"m{k:03d},{u},{v}\n" for k, (u, v) in enumerate(uv)]
@@ -83,9 +89,10 @@ def test_errors(tmp_path, capsys, edit, message):
     (tmp_path / "c.csv").write_text("image_id,u_px,v_px\n" + "".join(rows))
     code = main(["lunar-heading", "--centres", str(tmp_path / "c.csv"), "--times",
                  str(tmp_path / "times.csv"), "--station", station, "--camera",
-                 str(tmp_path / "cam.toml"), "-q"])
+                 str(tmp_path / "cam.toml"), "-q"] + (edit if isinstance(edit, list) else []))
     assert code == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
 
 
 def test_thin_crescent_refused(tmp_path, capsys):

@@ -226,3 +226,38 @@ def test_poor_result_exits_3_unless_accept_poor(files, tmp_path, capsys):
     capsys.readouterr()
     assert main(args[:-2]) == 0
     assert "QUALITY" not in out.read_text() and "Trust: no flag" in rep.read_text()
+
+
+@pytest.mark.parametrize("seed", [9, 0])
+def test_pair_whose_conditions_vanish_exits_3_unless_accept_poor(tmp_path, capsys, seed):
+    """A known-base pair of 8 common points with 2 gross mismatches, the prior 0.2 deg
+    off (as two real aerial pairs of 22 and 46 SIFT matches): the screening leaves no
+    condition (seed 9; used to end in a ValueError traceback) or no redundancy (seed 0;
+    used to be exit 2).  Exit 3 naming why, nothing written; --accept-poor writes the
+    prior angles with the flag; never a traceback."""
+    from photogrammetry.orientation.camera import FrameCamera, write_camera
+    from photogrammetry.orientation.exposure import ExposureOrientation, write_eo_csv
+    p = sc.make_pairs(1, 8, seed=seed)
+    u1, u2 = p["u1"][0, :, :2].copy(), p["u2"][0, :, :2].copy()
+    rng = np.random.default_rng(seed)
+    u2[:2] += rng.choice([-1, 1], (2, 2)) * rng.uniform(0.2, 1.0, (2, 2))
+    prior = np.vstack([p["ang1"], p["ang2"] + np.deg2rad(0.2) * rng.choice([-1.0, 1.0], 3)])
+    write_camera(tmp_path / "c.toml", FrameCamera(p["f_mm"], 0.01, 8000, 6000,
+                                                  (3999.5, 2999.5)))
+    write_eo_csv(tmp_path / "eo.csv", ExposureOrientation(
+        ["a", "b"], [0.0, 1.0], np.vstack([p["C1"], p["C2"]]), prior, p["system"], "enu"))
+    rows = ["# sigma_px = 0.5", "image_id,point_id,x_mm,y_mm"]
+    for iid, u in (("a", u1), ("b", u2)):
+        rows += [f"{iid},{k},{x:.7f},{y:.7f}" for k, (x, y) in enumerate(u)]
+    (tmp_path / "tp.csv").write_text("\n".join(rows) + "\n")
+    out, rep = tmp_path / "r.csv", tmp_path / "r.md"
+    args = ["refine", str(tmp_path / "eo.csv"), str(tmp_path / "tp.csv"), "--camera",
+            str(tmp_path / "c.toml"), "--method", "known-base", "-o", str(out), "--report",
+            str(rep)]
+    assert main(args) == 3
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "block not adjusted" in err and not out.exists()
+    assert main(args + ["--accept-poor"]) == 0
+    assert "# QUALITY POOR (written with --accept-poor): block not adjusted" in out.read_text()
+    np.testing.assert_allclose(read_eo_csv(str(out)).angles, prior, atol=1e-9)
+    assert "Trust: POOR" in rep.read_text()

@@ -246,14 +246,17 @@ def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processe
             note(k + 1, total, k)
         return _reemit(out)
     import dask
-    from dask.distributed import Client, LocalCluster, as_completed
-    cluster = None
-    if scheduler is None:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                               dashboard_address=None)
-        client = Client(cluster)
-    else:
-        client = Client(scheduler)
+    from dask.distributed import Client, as_completed
+    cluster = scratch = None
+    try:
+        if scheduler is None:
+            cluster, scratch = _local_cluster(workers, processes)
+            client = Client(cluster)
+        else:
+            client = Client(scheduler)
+    except BaseException:
+        _close_cluster(None, cluster, scratch)
+        raise
     try:
         window = 2 * max(1, sum(client.nthreads().values()))
         pending = enumerate(tasks)
@@ -280,9 +283,74 @@ def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processe
                 submit_next()
         return _reemit(results)
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        _close_cluster(client, cluster, scratch)
+
+
+def _local_cluster(workers, processes):
+    """A quiet local Dask cluster and its scratch: ``(cluster, scratch)``.
+
+    Ctrl-C belongs to the main process: the worker processes are spawned through a
+    two-line shell wrapper that ignores SIGINT before it runs Python (an ignored signal
+    stays ignored across exec, and Python then installs no KeyboardInterrupt handler),
+    so a Ctrl-C to the terminal's process group leaves them alone (it used to print a
+    worker's KeyboardInterrupt traceback from the middle of its imports) and the main
+    process closes them.  distributed's log lines are not printed (its warnings and
+    errors of workers cut off by the close); every
+    ``dask-scratch-space`` (workers and scheduler) is made in a temporary folder
+    removed on close (:func:`_close_cluster`)."""
+    import logging
+    import multiprocessing.spawn
+    import os
+    import shlex
+    import sys
+    import tempfile
+
+    import dask
+    from dask.distributed import LocalCluster
+    for name in ("distributed", "distributed.nanny", "distributed.scheduler"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+    # the semaphores of workers killed on close are the resource tracker's to clean up
+    # (it says so at exit, in a process of its own that takes these warning options)
+    quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+    if quiet not in sys.warnoptions:
+        sys.warnoptions.append(quiet)
+    folder = tempfile.mkdtemp(prefix="insphoto-dask-")
+    exe = os.fsdecode(multiprocessing.spawn.get_executable())
+    scratch = (folder, dask.config.set({"temporary-directory": folder}), exe)
+    try:
+        if os.name == "posix" and processes:
+            wrapper = os.path.join(folder, "python-ignoring-sigint")
+            with open(wrapper, "w") as fh:
+                fh.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(exe)} \"$@\"\n")
+            os.chmod(wrapper, 0o755)
+            multiprocessing.spawn.set_executable(wrapper)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address=None, local_directory=folder,
+                               silence_logs=logging.CRITICAL)
+    except BaseException:
+        _close_cluster(None, None, scratch)
+        raise
+    return cluster, scratch
+
+
+def _close_cluster(client, cluster, scratch):
+    """Close the client and the local cluster (Ctrl-C held back meanwhile), then undo
+    the scratch ``(folder, dask config setting, spawn executable)`` of
+    :func:`_local_cluster`."""
+    from ins.common import interrupts
+    with interrupts.deferred():
+        for c in (client, cluster):
+            if c is not None:
+                try:
+                    c.close()
+                except Exception:           # a cluster half started or already gone
+                    pass
+        if scratch is not None:
+            import multiprocessing.spawn
+            import shutil
+            multiprocessing.spawn.set_executable(scratch[2])
+            scratch[1].__exit__(None, None, None)
+            shutil.rmtree(scratch[0], ignore_errors=True)
 
 
 def _progress_call(progress):

@@ -45,6 +45,7 @@ from photogrammetry.adjustment.block_conditions import (
     _check_variance,
     _condition_terms,
     _conditions,
+    _free_images,
     _jacobian,
     _joint_weights,
     _reduced_normals,
@@ -57,7 +58,7 @@ from photogrammetry.adjustment.coplanarity import (
     STATUS_ZERO_BASE,
     adjust_pairs,
 )
-from photogrammetry.adjustment.quality import block_quality
+from photogrammetry.adjustment.quality import block_quality, unadjusted_quality
 from photogrammetry.orientation.rotation import check_system
 
 __all__ = ["BlockResult", "adjust_block", "pad_pairs", "DATUMS"]
@@ -231,21 +232,6 @@ def _screen_pairs(xy_i, xy_j, mask, prior, pairs, base, f_mm, system, mode, sigm
                       else InputWarning,
                       stacklevel=3)
     return screen, status, good, screen["mask"] & good[:, None]
-
-
-def _free_images(pairs, good, m, datum):
-    """Images that take part (`adjusted`: in a good pair) and whose angles are unknowns
-    (`free`: adjusted, less the datum image of ``"first"``); warns of the images left out."""
-    adjusted = np.zeros(m, bool)
-    adjusted[pairs[good].ravel()] = True
-    for i in np.flatnonzero(~adjusted):
-        warnings.warn(f"image {i} has no usable pair: left at its prior angles",
-                      InputWarning, stacklevel=3)
-    free = adjusted.copy()
-    if datum == "first":
-        first = int(np.flatnonzero(adjusted)[0]) if adjusted.any() else 0
-        free[first] = False
-    return adjusted, free
 
 
 @dataclass
@@ -508,6 +494,11 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     prior_sigma = np.broadcast_to(np.asarray(prior_sigma, float), (m, 3))
     prior_w = np.where(datum == "ins", 1.0 / prior_sigma[free].ravel() ** 2, 0.0)
 
+    if not free.any():
+        why = ("no pair of images is left after the pair-wise screening" if not good.any()
+               else "no image is left to adjust beside the datum image")
+        return _unadjusted(prior, prior_sigma, pairs, status, screen, mask, image_ids, why)
+
     # unknowns: 3 angles per free image, then 2 base-direction parameters per good pair
     col = -np.ones(m, dtype=int)
     col[free] = np.arange(free.sum())
@@ -545,8 +536,11 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     n_prior = n_ang if datum == "ins" else 0
     redundancy = lin.rank + n_prior - n_ang - n_base
     if redundancy <= 0:
-        raise InputError(f"block has no redundancy ({lin.rank} independent conditions for "
-                         f"{n_ang} angles and {n_base} base-direction parameters)")
+        return _unadjusted(prior, prior_sigma, pairs, status, screen, mask, image_ids,
+                           f"the block has no redundancy after the screening ({lin.rank} "
+                           f"independent conditions for {n_ang} angles and {n_base} "
+                           "base-direction parameters): nothing checks the result",
+                           rejected=screen["rejected"] | snooped)
     sigma0 = float(np.sqrt(lin.vtpv / redundancy))
     cov_op = None
     if banded:
@@ -576,10 +570,26 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                             screen["redundancy"], change, screen["sigma"], sigma0,
                             int(redundancy), angles,
                             prior, prior_sigma, sigma, adjusted, image_ids, system,
-                            common_rotation=datum == "none", strayed=strayed)
+                            common_rotation=datum == "none", strayed=strayed,
+                            n_rejected=int((screen["rejected"] | snooped).sum()))
     return BlockResult(angles, cov, sigma, sigma0, int(redundancy), iterations, converged,
                        adjusted, status, screen["rejected"] | snooped, res, mask, quality,
                        cov_op)
+
+
+def _unadjusted(prior, prior_sigma, pairs, status, screen, mask, image_ids, why,
+                rejected=None):
+    """A block whose conditions vanished in the screening (no good pair, or no
+    redundancy): every image at its prior, not adjusted, flagged poor (QualityWarning)."""
+    status = np.where(status == STATUS_STRAYED, K.STATUS_NOT_CONVERGED, status)
+    quality = unadjusted_quality(pairs, status, screen["mask"], screen["rejected"],
+                                 len(prior), image_ids, why, STATUS_TEXT)
+    warnings.warn(quality.reasons[0], QualityWarning, stacklevel=3)
+    sigma = np.array(prior_sigma, float)
+    return BlockResult(prior.copy(), np.diag(sigma.ravel() ** 2), sigma, np.nan, 0, 0,
+                       False, np.zeros(len(prior), bool), status,
+                       screen["rejected"] if rejected is None else rejected,
+                       np.zeros(mask.shape), mask, quality, None)
 
 
 def _use_banded(algebra, mode, n_ang):

@@ -4,13 +4,14 @@ One condition per tie point and pair, ``det[b, R_i u_i, R_j u_j] = 0``; the cond
 one tie point seen in k >= 3 images share its photo coordinates and are weighted
 together by the pseudo-inverse of their joint covariance (the block's docstring says why).
 """
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import splu
 
-from ins.common.errors import InputError
+from ins.common.errors import InputError, InputWarning
 from photogrammetry.adjustment import _coplanarity_kernels as K
 
 __all__ = ["pad_pairs"]
@@ -189,3 +190,18 @@ def _reduced_normals(H, grad, n_ang):
     X = lu.solve(np.ascontiguousarray(H_ab.T))
     y = lu.solve(grad[n_ang:])
     return H_aa - H_ab @ X, -(grad[:n_ang] - H_ab @ y), (X, y)
+
+
+def _free_images(pairs, good, m, datum):
+    """Images that take part (`adjusted`: in a good pair) and whose angles are unknowns
+    (`free`: adjusted, less the datum image of ``"first"``); warns of the images left out."""
+    adjusted = np.zeros(m, bool)
+    adjusted[pairs[good].ravel()] = True
+    for i in np.flatnonzero(~adjusted):
+        warnings.warn(f"image {i} has no usable pair: left at its prior angles",
+                      InputWarning, stacklevel=3)
+    free = adjusted.copy()
+    if datum == "first":
+        first = int(np.flatnonzero(adjusted)[0]) if adjusted.any() else 0
+        free[first] = False
+    return adjusted, free

@@ -11,6 +11,11 @@ The rule (stated in ``photogrammetry refine --help`` and docs/interfaces.md):
   their distribution.  Pairs of redundancy below 5 (a few points) are not judged on
   their own (their screening from the prior may end in a far local minimum): the block
   judges their points.
+- **redundancy**: a block whose redundancy is below 5 after the outlier tests rejected
+  tie points (a pair of 8 points with 2 mismatches: redundancy 1-3) is flagged: the
+  tests kept the subset that fits, and the few conditions left can neither tell it from
+  a wrong one nor give a sigma0 worth the name (0.2-0.4 seen, so the sigmas, scaled by
+  it, shrink; errors of 7-26 of those sigmas passed every test).
 - **angle change**: an image's refined angle differs from its prior (INS) angle by more
   than ``5 sqrt(2 s_prior^2 + s_adj^2)`` (any of the three angles; ``s_prior`` the prior
   sigma of the angle, ``s_adj`` its adjusted sigma: the change holds the image's own INS
@@ -36,8 +41,8 @@ from scipy.stats import chi2
 
 from ins.nav.rotation import wrap_to_pi
 
-__all__ = ["Quality", "sigma0_limit", "change_limit", "block_quality", "CHANGE_FACTOR",
-           "SIGMA0_FLOOR"]
+__all__ = ["Quality", "sigma0_limit", "change_limit", "block_quality", "unadjusted_quality",
+           "CHANGE_FACTOR", "SIGMA0_FLOOR"]
 
 #: sigma0 is implausible above max(SIGMA0_FLOOR, sqrt(chi2_0.999(r) / r)).
 SIGMA0_FLOOR = 2.0
@@ -100,7 +105,7 @@ def _changes(angles, prior, system, common_rotation):
 
 def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, sigma0,
                   redundancy, angles, prior, prior_sigma, adj_sigma, adjusted, names=None,
-                  system=None, common_rotation=False, strayed=None):
+                  system=None, common_rotation=False, strayed=None, n_rejected=0):
     """Flag the pairs and images of a block whose sigma0 or angle change is implausible.
 
     Parameters
@@ -129,6 +134,11 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     strayed : ndarray of bool (P,), optional
         Pairs left out because their screening went beyond any plausible change
         (flagged).
+    n_rejected : int
+        Tie points rejected by the screening and the block's snooping: with any, a
+        block redundancy below :data:`WEAK_REDUNDANCY` is flagged (the tests chose the
+        subset that fits; too few conditions are left to tell it from a wrong one, and
+        its sigma0 -- and the sigmas scaled by it -- are biased low).
 
     Returns
     -------
@@ -165,6 +175,10 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
     blim = float(sigma0_limit(redundancy))
     if np.isfinite(sigma0) and sigma0 > blim:
         reasons.append(f"block sigma0 {sigma0:.2f} > {blim:.2f} (redundancy {redundancy})")
+    if n_rejected and redundancy < WEAK_REDUNDANCY:
+        reasons.append(f"block redundancy {redundancy} after rejecting {n_rejected} tie "
+                       f"points (< {WEAK_REDUNDANCY}): too few conditions left to tell the "
+                       "outliers from a wrong solution")
     change = np.zeros(np.shape(angles))
     if adjusted.any():
         change[adjusted] = _changes(angles[adjusted], prior[adjusted], system,
@@ -178,3 +192,29 @@ def block_quality(pairs, pair_sigma0, pair_redundancy, pair_change, pair_sigma, 
         reasons.append(f"image {names[i]}: angle change {change[i, a] * _AS:.0f} arcsec > "
                        f"{lim[i, a] * _AS:.0f}")
     return Quality(bool(reasons), reasons, bad_s0 | bad_change | strayed, image_flags, blim)
+
+
+def unadjusted_quality(pairs, status, kept, rejected, m, names, why, status_text):
+    """The flags of a block whose conditions vanished in the screening (nothing
+    adjusted, every image at its prior): poor, `why` first, then each pair left out with
+    the points it kept.
+
+    Parameters
+    ----------
+    pairs : ndarray (P, 2); status : ndarray of int (P,)
+    kept, rejected : ndarray of bool (P, n)
+        The screening's kept and rejected points.
+    m : int
+        Images.
+    names : sequence of str or None
+    why : str
+    status_text : dict status -> text
+    """
+    names = list(range(m)) if names is None else list(names)
+    reasons = [f"block not adjusted: {why}; every image left at its prior angles"]
+    for k in np.flatnonzero(np.asarray(status) != 0):
+        reasons.append(f"pair {names[pairs[k, 0]]}-{names[pairs[k, 1]]}: "
+                       f"{status_text.get(int(status[k]), 'left out')} "
+                       f"({int(kept[k].sum())} points kept, {int(rejected[k].sum())} "
+                       "rejected)")
+    return Quality(True, reasons, np.ones(len(pairs), bool), np.ones(m, bool), np.nan)

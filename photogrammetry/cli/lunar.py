@@ -84,6 +84,35 @@ def add_sky_options(p):
     p.add_argument("--dut1", type=float, metavar="S", help="UT1 - UTC, s (overrides the IERS table)")
 
 
+#: Plausible air at a station: deg C (the coldest and hottest air measured are -89 and
+#: +57 deg C; absolute zero is -273.15 deg C) and hPa (sea level is 1013 hPa).
+TEMPERATURE_RANGE_C = (-100.0, 70.0)
+PRESSURE_MAX_HPA = 1100.0
+DUT1_MAX_S = 0.9
+
+
+def check_sky_options(args):
+    """InputError naming the option for a station, pressure, temperature or DUT1 that is
+    not finite or not plausible (shared by lunar-heading and lunar-simulate)."""
+    lat_deg, lon_deg, h = (float(x) for x in args.station)
+    if abs(lat_deg) > 90:
+        raise InputError(f"--station: latitude {lat_deg:g} deg is outside +-90 deg")
+    if not -1e4 <= h <= 1e5:
+        raise InputError(f"--station: height {h:g} m is not plausible (-10000 .. 100000 m)")
+    if args.pressure is not None and not 0 <= args.pressure <= PRESSURE_MAX_HPA:
+        raise InputError(f"--pressure: expected hPa in 0 .. {PRESSURE_MAX_HPA:g} (0 = no "
+                         f"refraction), got {args.pressure:g}")
+    lo, hi = TEMPERATURE_RANGE_C
+    t = args.temperature
+    if not lo <= t <= hi:
+        why = " (below absolute zero, -273.15 deg C)" if t < -273.15 else ""
+        raise InputError(f"--temperature: expected deg C in {lo:g} .. {hi:g}, got {t:g}"
+                         + why)
+    if args.dut1 is not None and not abs(args.dut1) <= DUT1_MAX_S:
+        raise InputError(f"--dut1: expected UT1 - UTC in s, |DUT1| <= {DUT1_MAX_S:g} s, got "
+                         f"{args.dut1:g}")
+
+
 def add_parser(sub):
     p = sub.add_parser(
         "lunar-heading", help="heading of a fisheye camera from Moon images and their times",
@@ -154,10 +183,7 @@ def run(args):
 
     t0 = wallclock.perf_counter()
     lat_deg, lon_deg, h = args.station
-    if abs(lat_deg) > 90:
-        raise InputError(f"--station: latitude {lat_deg} deg is outside +-90 deg")
-    if args.pressure is not None and args.pressure < 0:
-        raise InputError(f"--pressure: expected hPa >= 0, got {args.pressure}")
+    check_sky_options(args)
     if args.plot:
         check_output_file(args.plot)      # an unwritable plot: now, not after the work
     camera = read_camera(args.camera)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ins.cli.util import Progress, positive_int, triplet
 from ins.common.errors import InputError
-from photogrammetry.cli.lunar import add_sky_options
+from photogrammetry.cli.lunar import add_sky_options, check_sky_options
 
 EPILOG = """\
 frames and units:
@@ -300,10 +300,7 @@ def run(args):
     t0 = wallclock.perf_counter()
     check_output_folder(args.output, args.force)      # now, not after the rendering
     lat_deg, lon_deg, h = (float(x) for x in args.station)
-    if abs(lat_deg) > 90:
-        raise InputError(f"--station: latitude {lat_deg} deg is outside +-90 deg")
-    if args.pressure is not None and not args.pressure >= 0:
-        raise InputError(f"--pressure: expected hPa >= 0, got {args.pressure}")
+    check_sky_options(args)
     if not 0 <= args.tilt <= 85:
         raise InputError(f"--tilt: expected deg from the zenith, 0 .. 85, got {args.tilt}")
     if not np.isfinite(args.heading):

@@ -59,7 +59,9 @@ trust (exit 3 unless --accept-poor):
     the adjusted sigma; with known-base and --datum none after removing the common
     camera-frame rotation, the boresight);
   - a pair whose screening (redundancy >= 5) moved an image beyond 5 deg and 5 of its
-    sigmas from its prior (left out).
+    sigmas from its prior (left out);
+  - a block left with redundancy < 5 after its outlier tests rejected tie points, or
+    with no condition at all (every pair left out: the images keep their priors).
   Any flag: exit 3 and nothing written; with --accept-poor the outputs are written,
   the flags stated in the CSV comments and the report.
 
@@ -141,11 +143,15 @@ def _task(args, eo_path, tp_path, cam_path):
     eo = read_eo_csv(eo_path)
     tp = read_tiepoints(tp_path, camera)
     tp.check_images(eo.image_id, eo_path)
-    if args.sigma_px is not None and not args.sigma_px > 0:
-        raise InputError(f"--sigma-px must be > 0 px, got {args.sigma_px}")
+    if args.sigma_px is not None and not 0 < args.sigma_px <= 1e3:
+        raise InputError(f"--sigma-px must be > 0 px and <= 1000 px, got {args.sigma_px:g}")
     sigma_mm = None if args.sigma_px is None else args.sigma_px * camera.pixel_size_mm
-    if args.position_sigma_m is not None and not args.position_sigma_m >= 0:
-        raise InputError(f"--position-sigma-m must be >= 0 m, got {args.position_sigma_m}")
+    if args.position_sigma_m is not None and not 0 <= args.position_sigma_m <= 1e4:
+        raise InputError(f"--position-sigma-m must be >= 0 m and <= 10000 m, got "
+                         f"{args.position_sigma_m:g}")
+    if args.prior_sigma_deg is not None and not 0 < args.prior_sigma_deg <= 30:
+        raise InputError(f"--prior-sigma-deg must be an angle sigma > 0 deg and <= 30 deg, "
+                         f"got {args.prior_sigma_deg:g}")
     prior = None if args.prior_sigma_deg is None else np.deg2rad(args.prior_sigma_deg)
     return {"eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
             "method": args.method, "datum": args.datum, "sigma_mm": sigma_mm,
@@ -243,8 +249,10 @@ def run(args):
                 write_report(rep, res)
             if not args.quiet:
                 s = res.settings
+                s0 = blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']
                 print(f"{out}: {s['n_images']} images, {s['n_pairs']} pairs, sigma0 "
-                      f"{blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']:.3f} px, redundancy "
+                      + (f"{s0:.3f} px" if np.isfinite(s0) else "not estimable")
+                      + ", redundancy "
                       f"{blk.redundancy}, {int(blk.rejected.sum())} points rejected"
                       + (f"; {s['n_tiles']} tiles" if tiled else "")
                       + (f"; report {rep}" if rep else ""))

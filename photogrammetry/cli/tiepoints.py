@@ -134,6 +134,9 @@ def run(args):
     if args.min_overlap > 1:
         raise InputError(f"--min-overlap is a fraction of the frame (0..1], got "
                          f"{args.min_overlap}")
+    if args.ground_height_m is not None and not -1e4 <= args.ground_height_m <= 1e5:
+        raise InputError(f"--ground-height-m must be a mapping-frame height in -10000 .. "
+                         f"100000 m, got {args.ground_height_m:g}")
     camera, _ = read_camera(args.camera)
     eo = read_eo_csv(args.eo)
     if args.dem:

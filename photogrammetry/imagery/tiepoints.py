@@ -18,6 +18,11 @@ from ins.common.fileio import atomic_open
 
 __all__ = ["TiePoints", "read_tiepoints", "write_tiepoints"]
 
+#: The largest photo coordinate read without a camera, mm (an aerial film is 230 mm).
+MAX_PHOTO_MM = 1000.0
+#: The largest pixel coordinate read, px.
+MAX_PIXEL = 1e6
+
 _HEADERS = {("image_id", "point_id", "x_mm", "y_mm"): "mm",
             ("image_id", "point_id", "u_px", "v_px"): "px"}
 
@@ -163,6 +168,14 @@ def read_tiepoints(path, camera=None):
                          path=path, line=k + 1)
     if unit == "px" and camera is None:
         raise InputError("tie points in pixels need the camera file (--camera)", path=path)
+    if unit == "px":
+        bound, what = MAX_PIXEL, f"{MAX_PIXEL:g} px"
+    elif camera is not None:
+        # a photo coordinate is inside the frame: its radius at most the sensor diagonal
+        bound = float(np.hypot(camera.width_px, camera.height_px) * camera.pixel_size_mm)
+        what = f"{bound:.4g} mm, the diagonal of the camera's frame"
+    else:
+        bound, what = MAX_PHOTO_MM, f"{MAX_PHOTO_MM:g} mm"
     ids, pids, rows, lines, seen = [], [], [], [], set()
     for j in range(k + 1, len(text)):
         if not text[j].strip() or text[j].startswith("#"):
@@ -177,7 +190,13 @@ def read_tiepoints(path, camera=None):
             raise InputError(f"coordinates must be numbers ({unit}), got {parts[2]!r}, "
                              f"{parts[3]!r}", path=path, line=j + 1) from None
         if not (np.isfinite(x) and np.isfinite(y)):
-            raise InputError("non-finite coordinate", path=path, line=j + 1)
+            raise InputError(f"non-finite coordinate ({unit}): {parts[2]!r}, {parts[3]!r}",
+                             path=path, line=j + 1)
+        if not (abs(x) <= bound and abs(y) <= bound):
+            raise InputError(f"coordinate {x:g}, {y:g} {unit} is beyond {what} (not a "
+                             "point of the image)", path=path, line=j + 1)
+        if not parts[0] or not parts[1]:
+            raise InputError("empty image_id or point_id", path=path, line=j + 1)
         key = (parts[0], parts[1])
         if key in seen:
             raise InputError(f"point {parts[1]!r} observed twice in image {parts[0]!r}",

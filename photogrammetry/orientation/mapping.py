@@ -50,8 +50,10 @@ class EnuFrame:
     def __init__(self, origin_lat, origin_lon, origin_h=0.0):
         self.origin = (float(origin_lat), float(origin_lon), float(origin_h))
         if not np.all(np.isfinite(self.origin)) or abs(self.origin[0]) > np.pi / 2:
-            raise InputError(f"mapping-frame origin {np.rad2deg(self.origin[:2])} deg, "
-                             f"{self.origin[2]} m is not a valid geodetic position")
+            lat, lon = (float(np.rad2deg(v)) for v in self.origin[:2])
+            raise InputError(f"mapping-frame origin lat {lat:g} deg, lon {lon:g} deg, h "
+                             f"{self.origin[2]:g} m is not a valid geodetic position "
+                             "(|lat| <= 90 deg, finite)")
 
     @classmethod
     def from_degrees(cls, lat_deg, lon_deg, h_m=0.0):

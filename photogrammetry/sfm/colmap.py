@@ -62,9 +62,30 @@ def _need_pycolmap():
     return pycolmap
 
 
+#: Plausible magnitudes: an image side (px), a focal length / principal point (px), a
+#: distortion coefficient, a world coordinate (m).
+MAX_SIDE_PX = 200_000
+MAX_FOCAL_PX = 1e7
+MAX_COEFF = 1e3
+MAX_WORLD_M = 1e7
+
+
 def camera_from_colmap(model, width, height, params, pixel_size_mm=0.01, where="camera"):
-    """Our :class:`FrameCamera` of a COLMAP camera (module docstring)."""
-    p = [float(v) for v in params]
+    """Our :class:`FrameCamera` of a COLMAP camera (module docstring).
+
+    Raises InputError naming `where` for a size or parameter that is not finite or not
+    plausible (a focal length <= 0, a principal point far outside the image)."""
+    try:
+        p = [float(v) for v in params]
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: parameters must be numbers") from None
+    if not all(0 < v <= MAX_SIDE_PX and v == int(v) for v in (float(width), float(height))):
+        raise InputError(f"{where}: width, height = {width}, {height} px are not image "
+                         f"sizes (1 to {MAX_SIDE_PX} px)")
+    bad = [i for i, v in enumerate(p) if not (abs(v) <= MAX_FOCAL_PX)]
+    if bad:
+        raise InputError(f"{where}: {model} parameter {bad[0] + 1} = {p[bad[0]]:g} is not "
+                         f"finite or not plausible (|value| <= {MAX_FOCAL_PX:g})")
     zeros = {"SIMPLE_PINHOLE": 3, "PINHOLE": 4, "SIMPLE_RADIAL": 4, "RADIAL": 5,
              "OPENCV": 8, "FULL_OPENCV": 12}
     if model not in zeros:
@@ -91,6 +112,14 @@ def camera_from_colmap(model, width, height, params, pixel_size_mm=0.01, where="
                                  "rational model) is not the frame camera's polynomial")
     if abs(fx - fy) > 1e-9 * max(abs(fx), 1.0):
         raise InputError(f"{where}: fx {fx} != fy {fy}; the frame camera has square pixels")
+    if not fx > 1e-3:
+        raise InputError(f"{where}: focal length {fx:g} px must be > 0 px")
+    if not (abs(cx) <= 2 * MAX_SIDE_PX and abs(cy) <= 2 * MAX_SIDE_PX):
+        raise InputError(f"{where}: principal point {cx:g}, {cy:g} px is not plausible")
+    if not all(abs(v) <= MAX_COEFF for v in (k1, k2, k3, p1, p2)):
+        raise InputError(f"{where}: distortion coefficients k1, k2, k3, p1, p2 = "
+                         + ", ".join(f"{v:g}" for v in (k1, k2, k3, p1, p2))
+                         + f" are not plausible (|k| <= {MAX_COEFF:g})")
     f = fx * pixel_size_mm
     return FrameCamera(f, pixel_size_mm, int(width), int(height), (cx - 0.5, cy - 0.5),
                        (k1 / f ** 2, k2 / f ** 4, k3 / f ** 6), (p2 / f, -p1 / f))
@@ -149,6 +178,8 @@ def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
     if not os.path.isdir(path):
         raise InputError("not a folder (a COLMAP model: cameras, images, points3D .bin or "
                          ".txt)", path=path)
+    from photogrammetry.sfm.colmap_bin import check_binary_model
+    check_binary_model(path)
     rec, missing = _load_model(path)
     cameras = {cid: camera_from_colmap(c.model.name, c.width, c.height, c.params,
                                        pixel_size_mm, f"{path}: camera {cid}")
@@ -161,18 +192,32 @@ def read_colmap(path, system="omega-phi-kappa", pixel_size_mm=0.01):
         if not im.has_pose:
             continue
         cfw = im.cam_from_world() if callable(im.cam_from_world) else im.cam_from_world
+        q = np.asarray(cfw.rotation.quat, float)
+        t_c = np.asarray(cfw.translation, float)
+        where = f"image {im.name!r}"
+        if not (np.all(np.isfinite(q)) and abs(float(np.linalg.norm(q)) - 1.0) < 1e-3):
+            raise InputError(f"{where}: the rotation quaternion is not finite or not of unit "
+                             "norm", path=path)
+        if not np.all(np.abs(t_c) <= MAX_WORLD_M):
+            raise InputError(f"{where}: translation " + ", ".join(f"{v:g}" for v in t_c)
+                             + f" m is not finite or beyond {MAX_WORLD_M:g} m", path=path)
         R_cw = np.asarray(cfw.rotation.matrix(), float)
         name = os.path.splitext(im.name)[0]
         ids.append(name)
-        pos.append(-R_cw.T @ np.asarray(cfw.translation, float))
+        pos.append(-R_cw.T @ t_c)
         R.append(from_cv_rotation(R_cw))
         image_camera[name] = im.camera_id
         cam = cameras[im.camera_id]
         for p in im.points2D:
             if p.has_point3D() and p.point3D_id in points:
+                uv = np.asarray(p.xy, float)
+                if not np.all(np.abs(uv) <= MAX_SIDE_PX):
+                    raise InputError(f"{where}: 2-D point " + ", ".join(f"{v:g}" for v in uv)
+                                     + " px is not finite or far outside the image",
+                                     path=path)
                 img_id.append(name)
                 pt_id.append(str(p.point3D_id))
-                xy.append(cam.pixel_to_photo(np.asarray(p.xy, float) - 0.5))
+                xy.append(cam.pixel_to_photo(uv - 0.5))
     if not ids:
         raise InputError("no registered image in the model", path=path)
     eo = ExposureOrientation(ids, np.zeros(len(ids)), np.array(pos),

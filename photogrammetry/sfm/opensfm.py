@@ -73,16 +73,60 @@ class OpenSfmProject:
         self.eo, self.points, self.reference_lla_deg = eo, points, reference
 
 
-def _num(d, key, path, where):
+def _num(d, key, path, where, lo=None, hi=None, unit="", default=None):
+    """``d[key]`` as a finite float in ``[lo, hi]`` (InputError naming `where` and `key`
+    otherwise; `default` when the key is absent and a default is given)."""
+    if key not in d and default is not None:
+        return float(default)
     try:
-        v = float(d[key])
+        v = d[key]
+        if isinstance(v, bool):
+            raise TypeError
+        v = float(v)
     except KeyError:
         raise InputError(f"{where}: missing {key!r}", path=path) from None
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: {key} = {d[key]!r} is not a number", path=path) from None
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{where}: {key} = {_short(d[key])} is not a number"
+                         + (f" ({unit})" if unit else ""), path=path) from None
     if not math.isfinite(v):
-        raise InputError(f"{where}: {key} is not finite", path=path)
+        raise InputError(f"{where}: {key} = {v} is not finite", path=path)
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        rng = f"[{lo:g}, {hi:g}]" if lo is not None and hi is not None else (
+            f">= {lo:g}" if lo is not None else f"<= {hi:g}")
+        raise InputError(f"{where}: {key} = {v:g}{' ' + unit if unit else ''} is out of "
+                         f"range (expected {rng}{' ' + unit if unit else ''})", path=path)
     return v
+
+
+def _short(v, n=40):
+    """A short repr of a JSON value for a message."""
+    r = repr(v)
+    return r if len(r) <= n else r[:n] + "..."
+
+
+def _vec3(d, key, path, where, bound, unit):
+    """``d[key]`` as 3 finite floats of magnitude <= bound (InputError otherwise)."""
+    v = d.get(key) if isinstance(d, dict) else None
+    if (not isinstance(v, (list, tuple)) or len(v) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+        raise InputError(f"{where}: {key} must be a list of 3 numbers ({unit}), got "
+                         f"{_short(v)}", path=path)
+    out = [float(x) for x in v]
+    for i, x in enumerate(out):
+        if not math.isfinite(x) or abs(x) > bound:
+            raise InputError(f"{where}: {key}[{i}] = {x:g} is "
+                             + ("not finite" if not math.isfinite(x) else
+                                f"out of range (|value| <= {bound:g} {unit})"), path=path)
+    return out
+
+
+#: Plausible magnitudes: an image side (px), a normalised focal length / principal
+#: point / distortion coefficient, a coordinate in the topocentric world frame (m).
+MAX_SIDE_PX = 200_000
+MAX_NORMALISED = 1e3
+MAX_WORLD_M = 1e7
+#: A keypoint of tracks.csv, normalised by the larger side (the image spans +-0.5).
+MAX_TRACK_XY = 1.0
 
 
 def camera_from_opensfm(params, pixel_size_mm=DEFAULT_PIXEL_SIZE_MM, path=None, name="?"):
@@ -97,20 +141,31 @@ def camera_from_opensfm(params, pixel_size_mm=DEFAULT_PIXEL_SIZE_MM, path=None, 
     """
     where = f"camera {name!r}"
     kind = params.get("projection_type")
-    w = int(_num(params, "width", path, where))
-    h = int(_num(params, "height", path, where))
+    if not isinstance(params, dict):
+        raise InputError(f"{where}: expected an object of camera parameters, got "
+                         f"{_short(params)}", path=path)
+    w = _num(params, "width", path, where, 1, MAX_SIDE_PX, "px")
+    h = _num(params, "height", path, where, 1, MAX_SIDE_PX, "px")
+    if w != int(w) or h != int(h):
+        raise InputError(f"{where}: width, height = {w:g}, {h:g} px must be whole numbers",
+                         path=path)
+    w, h = int(w), int(h)
     s = max(w, h)
+    M = MAX_NORMALISED
+
+    def num(n, lo=-M, hi=M):
+        return _num(params, n, path, where, lo, hi, "normalised")
     if kind == "brown":
-        fx, fy = _num(params, "focal_x", path, where), _num(params, "focal_y", path, where)
+        fx, fy = num("focal_x", 1e-6), num("focal_y", 1e-6)
         if abs(fx - fy) > 1e-9 * max(abs(fx), 1.0):
             raise InputError(f"{where}: focal_x {fx} != focal_y {fy}; the frame camera has "
                              "square pixels", path=path)
-        cx, cy = _num(params, "c_x", path, where), _num(params, "c_y", path, where)
-        k = [_num(params, n, path, where) for n in ("k1", "k2", "k3")]
-        p1, p2 = _num(params, "p1", path, where), _num(params, "p2", path, where)
+        cx, cy = num("c_x", -1.0, 1.0), num("c_y", -1.0, 1.0)
+        k = [num(n) for n in ("k1", "k2", "k3")]
+        p1, p2 = num("p1"), num("p2")
     elif kind == "perspective":
-        fx, cx, cy = _num(params, "focal", path, where), 0.0, 0.0
-        k = [_num(params, "k1", path, where), _num(params, "k2", path, where), 0.0]
+        fx, cx, cy = num("focal", 1e-6), 0.0, 0.0
+        k = [num("k1"), num("k2"), 0.0]
         p1 = p2 = 0.0
     else:
         raise InputError(f"{where}: projection_type {kind!r} is not read (brown, "
@@ -166,23 +221,27 @@ def read_reconstruction(path, system="omega-phi-kappa", pixel_size_mm=DEFAULT_PI
     rec = _load(path)
     cams = rec.get("cameras") or {}
     shots = rec.get("shots") or {}
+    if not isinstance(cams, dict) or not isinstance(shots, dict):
+        raise InputError("cameras and shots must be objects (name -> entry)", path=path)
     if not cams or not shots:
         raise InputError("no cameras or no shots in the reconstruction", path=path)
     cameras = {n: (camera_from_opensfm(c, pixel_size_mm, path, n), c) for n, c in cams.items()}
     ref = rec.get("reference_lla") or {}
-    reference = (float(ref.get("latitude", 0.0)), float(ref.get("longitude", 0.0)),
-                 float(ref.get("altitude", 0.0)))
+    if not isinstance(ref, dict):
+        raise InputError(f"reference_lla must be an object (latitude, longitude, altitude), "
+                         f"got {_short(ref)}", path=path)
+    reference = (_num(ref, "latitude", path, "reference_lla", -90, 90, "deg", 0.0),
+                 _num(ref, "longitude", path, "reference_lla", -180, 360, "deg", 0.0),
+                 _num(ref, "altitude", path, "reference_lla", -1e4, 1e5, "m", 0.0))
     ids, pos, R, shot_camera, times = [], [], [], {}, []
     for sid in sorted(shots):
         sh = shots[sid]
         where = f"shot {sid!r}"
-        try:
-            r = np.array(sh["rotation"], float).reshape(3)
-            t = np.array(sh["translation"], float).reshape(3)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"{where}: rotation and translation must be 3 numbers each",
-                             path=path) from None
-        if sh.get("camera") not in cameras:
+        if not isinstance(sh, dict):
+            raise InputError(f"{where}: expected an object, got {_short(sh)}", path=path)
+        r = np.array(_vec3(sh, "rotation", path, where, 1e3, "rad, axis-angle"))
+        t = np.array(_vec3(sh, "translation", path, where, MAX_WORLD_M, "m"))
+        if not isinstance(sh.get("camera"), str) or sh["camera"] not in cameras:
             raise InputError(f"{where}: camera {sh.get('camera')!r} is not in cameras",
                              path=path)
         from scipy.spatial.transform import Rotation
@@ -191,12 +250,17 @@ def read_reconstruction(path, system="omega-phi-kappa", pixel_size_mm=DEFAULT_PI
         shot_camera[ids[-1]] = sh["camera"]
         pos.append(-R_cw.T @ t)
         R.append(from_cv_rotation(R_cw))
-        times.append(float(sh.get("capture_time", 0.0)))
+        times.append(_num(sh, "capture_time", path, where, -1e12, 1e12, "s", 0.0))
     frame = EnuFrame.from_degrees(*reference)
     eo = ExposureOrientation(ids, np.zeros(len(ids)), np.array(pos),
                              matrix_to_angles(np.array(R), system), system, frame.header())
-    points = {str(k): np.array(v["coordinates"], float)
-              for k, v in (rec.get("points") or {}).items() if "coordinates" in v}
+    pts = rec.get("points") or {}
+    if not isinstance(pts, dict):
+        raise InputError(f"points must be an object (id -> point), got {_short(pts)}",
+                         path=path)
+    points = {str(k): np.array(_vec3(v, "coordinates", path, f"point {k!r}", MAX_WORLD_M,
+                                     "m"))
+              for k, v in pts.items() if isinstance(v, dict) and "coordinates" in v}
     return OpenSfmProject(path, cameras, shot_camera, eo, points, reference)
 
 
@@ -218,31 +282,42 @@ def read_tracks(path, project):
         raise InputError("file not found", path=path)
     ids, pids, xy = [], [], []
     skipped = 0
-    with open(path, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, 1):
-            s = line.rstrip("\r\n")
-            if not s.strip() or s.startswith("OPENSFM_TRACKS_VERSION"):
-                continue
-            parts = s.split("\t")
-            if len(parts) < 5:
-                raise InputError("expected tab-separated image, track_id, feature_id, x, y, "
-                                 "...", path=path, line=n)
-            iid = os.path.splitext(parts[0])[0]
-            try:
-                x, y = float(parts[3]), float(parts[4])
-            except ValueError:
-                raise InputError(f"x, y must be numbers (normalised), got {parts[3]!r}, "
-                                 f"{parts[4]!r}", path=path, line=n) from None
-            if iid not in project.shot_camera:
-                skipped += 1
-                continue
-            cam = project.cameras[project.shot_camera[iid]][0]
-            w, h = cam.width_px, cam.height_px
-            S = max(w, h)
-            uv = np.array([x * S - 0.5 + w / 2.0, y * S - 0.5 + h / 2.0])
-            ids.append(iid)
-            pids.append(parts[1])
-            xy.append(cam.pixel_to_photo(uv))
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    for n, bline in enumerate(raw.splitlines(), 1):
+        try:
+            s = bline.decode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError("not UTF-8 text", path=path, line=n) from None
+        if not s.strip() or s.startswith("OPENSFM_TRACKS_VERSION"):
+            continue
+        parts = s.split("\t")
+        if len(parts) < 5 or not parts[0].strip() or not parts[1].strip():
+            raise InputError("expected tab-separated image, track_id, feature_id, x, y, "
+                             "...", path=path, line=n)
+        iid = os.path.splitext(parts[0])[0]
+        if not parts[1].strip().isdigit():
+            raise InputError(f"track_id {parts[1][:30]!r} is not a whole number (OpenSfM "
+                             "numbers its tracks)", path=path, line=n)
+        try:
+            x, y = float(parts[3]), float(parts[4])
+        except ValueError:
+            raise InputError(f"x, y must be numbers (normalised), got {parts[3][:30]!r}, "
+                             f"{parts[4][:30]!r}", path=path, line=n) from None
+        if not (abs(x) <= MAX_TRACK_XY and abs(y) <= MAX_TRACK_XY):
+            raise InputError(f"x, y = {x:g}, {y:g} are not finite coordinates normalised by "
+                             f"the larger image side (|x|, |y| <= {MAX_TRACK_XY:g})",
+                             path=path, line=n)
+        if iid not in project.shot_camera:
+            skipped += 1
+            continue
+        cam = project.cameras[project.shot_camera[iid]][0]
+        w, h = cam.width_px, cam.height_px
+        S = max(w, h)
+        uv = np.array([x * S - 0.5 + w / 2.0, y * S - 0.5 + h / 2.0])
+        ids.append(iid)
+        pids.append(parts[1].strip())
+        xy.append(cam.pixel_to_photo(uv))
     if not ids:
         raise InputError("no observation of a shot of the reconstruction", path=path)
     return ids, pids, np.array(xy), skipped
