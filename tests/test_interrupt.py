@@ -48,11 +48,6 @@ def flight(tmp_path_factory):
     return simulate_flight(SHORT, tmp_path_factory.mktemp("intr") / "flight", seed=9)
 
 
-def _process_on_output_folder():
-    text = (ROOT / "ins" / "cli_process.py").read_text()
-    return "output_folder" in text and '"--force"' in text
-
-
 def _command(name, flight):
     """(argv, outputs, is_folder, takes --force)."""
     f = flight
@@ -159,8 +154,6 @@ def _campaign(name, flight, tmp_path):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_ctrl_c_at_random_moments(name, flight, tmp_path):
-    if name == "process" and not _process_on_output_folder():
-        pytest.skip("ins process does not build its folder with ins.common.fileio.output_folder yet")
     duration, outcomes, problems = _campaign(name, flight, tmp_path)
     print(f"\n{name}: {RUNS} runs of {duration:.2f} s: {dict(outcomes)}")
     assert not problems, "\n".join(problems)
