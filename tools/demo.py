@@ -288,6 +288,7 @@ def plot_angles(out, eo, d_ins, d_ref, names):
         pyplot,
         save_png,
         strip_starts,
+        with_gaps,
     )
     plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
@@ -295,9 +296,9 @@ def plot_angles(out, eo, d_ins, d_ref, names):
     starts = strip_starts(list(eo.image_id), heading_rad=eo.angles[:, 2])
     for k, ax in enumerate(axes):
         ins_as, ref_as = d_ins[:, k] / ARCSEC, d_ref[:, k] / ARCSEC
-        ax.plot(x, ins_as, "o-", ms=3,
+        ax.plot(*with_gaps(x, ins_as, starts), "o-", ms=3,
                 label=f"INS EO (no boresight)\nRMS {np.sqrt(np.mean(ins_as ** 2)):.0f} arcsec")
-        ax.plot(x, ref_as, "s-", ms=3,
+        ax.plot(*with_gaps(x, ref_as, starts), "s-", ms=3,
                 label=f"refined\nRMS {np.sqrt(np.mean(ref_as ** 2)):.0f} arcsec")
         ax.axhline(0, color="k", lw=0.5)
         ax.set_ylabel(f"{names[k]} error, arcsec")

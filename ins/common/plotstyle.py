@@ -20,7 +20,7 @@ import numpy as np
 
 __all__ = ["ARCSEC", "TRANSIENT_S", "pyplot", "save_png", "length_unit", "robust_limits",
            "legend_right", "plain_log_ticks", "time_label", "exposure_axis", "strip_starts",
-           "mark_strips"]
+           "mark_strips", "with_gaps"]
 
 ARCSEC = np.pi / 180.0 / 3600.0
 TRANSIENT_S = 60.0
@@ -151,6 +151,14 @@ def exposure_axis(time_s):
         xlabel, origin = time_label(float(t.min()))
         return t - t.min(), "exposure " + xlabel, origin
     return np.arange(len(t), dtype=float), "image number (file order)", ""
+
+
+def with_gaps(x, y, starts):
+    """``x``, ``y`` with a NaN point before each index of ``starts`` (the strips' first
+    images), so that a line plot does not join one strip to the next across a turn."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    cut = np.asarray(sorted(starts), dtype=np.int64)
+    return np.insert(x, cut, np.nan), np.insert(y, cut, np.nan)
 
 
 def strip_starts(image_ids=None, time_s=None, heading_rad=None):

@@ -50,18 +50,20 @@ def _plot_corrections(result, path):
         pyplot,
         save_png,
         strip_starts,
+        with_gaps,
     )
     plt = pyplot()
     a = result.assessment
     fig, ax = plt.subplots(figsize=(9, 4.2))
     idx, xlabel, origin = exposure_axis(result.eo.time)
+    kappa = result.eo.angles[:, 2] if result.eo.angles.ndim == 2 else None
+    starts = strip_starts(list(result.eo.image_id), heading_rad=kappa)
     for k, name in enumerate(a.names):
-        ax.plot(idx[a.used], a.diff[a.used, k] * _AS, ".-", label=f"{name}")
+        y = np.where(a.used, a.diff[:, k] * _AS, np.nan)
+        ax.plot(*with_gaps(idx, y, starts), ".-", label=f"{name}")
         ax.axhline(a.mean[k] * _AS, color=f"C{k}", lw=0.8, ls=":",
                    label=f"{name} mean, {a.mean[k] * _AS:.0f} arcsec")
     ax.axhline(0, color="k", lw=0.5)
-    kappa = result.eo.angles[:, 2] if result.eo.angles.ndim == 2 else None
-    starts = strip_starts(list(result.eo.image_id), heading_rad=kappa)
     mark_strips(ax, starts, len(idx), x=idx)
     ax.set_xlabel(f"{xlabel}; dashed lines: strip boundaries")
     ax.set_ylabel("INS - adjusted, arcsec")
