@@ -13,7 +13,9 @@ config's key names and units::
                0.5 deg/sqrt(h)) and 70-180 ug/sqrt(Hz) (VRW up to 0.1 m/s/sqrt(h));
                zero-rate offsets up to 1 deg/s and accelerometer offsets up to 30 mg
                (the datasheets' untrimmed limits: a phone's gyro reads 0.1-0.6 deg/s at
-               rest), 1 % sensitivity, 0.5 deg cross-axis; zero-velocity updates at rest
+               rest), 1 % sensitivity, 0.5 deg cross-axis; those offsets are turn-on
+               values, stable in a run: random constants with the datasheets' in-run
+               instability (about 20 deg/h, 0.3 mg) on top; zero-velocity updates at rest
     land       mems for a land vehicle: ``[measurements] nhc = true`` (lateral and
                vertical velocity 0 in the VEHICLE axes: give the IMU's mounting as
                ``[vehicle] mounting_rpy_deg`` unless its axes are the vehicle's;
@@ -44,7 +46,8 @@ PRESETS = {
     "consumer": {"imu_noise": {"arw_deg_sqrth": 0.5, "vrw_mps_sqrth": 0.15,
                                "gyro_bias_std_dph": 3600.0, "accel_bias_std_mgal": 30000.0,
                                "gyro_scale_std_ppm": 10000.0, "accel_scale_std_ppm": 10000.0,
-                               "corr_time_h": 1.0},
+                               "corr_time_h": 1.0, "gyro_bias_instability_dph": 20.0,
+                               "accel_bias_instability_mgal": 300.0},
                  "states": {"gyro_misalignment_std_arcsec": 2000.0,
                             "accel_misalignment_std_arcsec": 2000.0},
                  "measurements": {"zupt": True}},
