@@ -11,6 +11,7 @@ of their integration interval.
 __version__ = "0.1.0"
 
 from ins.common.errors import InputError, InputWarning, QualityError  # noqa: E402
+from ins.common.lazy import lazy_api  # noqa: E402
 
 # The public API, imported on first use (PEP 562): ``import ins.cli.main`` stays light, so
 # that the command-line tools install their Ctrl-C handler before numpy and numba load.
@@ -34,17 +35,6 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
-
+__getattr__, __dir__ = lazy_api(__name__, _LAZY)
 
 __all__ = ["InputError", "InputWarning", "QualityError"] + sorted(_LAZY)

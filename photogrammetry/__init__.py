@@ -13,6 +13,8 @@ assessment, batches and tiles, report), :mod:`~photogrammetry.sfm`,
 
 __version__ = "0.1.0"
 
+from ins.common.lazy import lazy_api  # noqa: E402
+
 _LAZY = {
     "FrameCamera": "orientation.camera", "CameraMounting": "orientation.camera",
     "read_camera": "orientation.camera", "write_camera": "orientation.camera",
@@ -31,17 +33,6 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        import importlib
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
-
+__getattr__, __dir__ = lazy_api(__name__, _LAZY)
 
 __all__ = sorted(_LAZY)

@@ -44,7 +44,7 @@ GRAPH = {
     # the simulator's GNSS antenna uses the lever-arm model, its scanner the georeferencing
     "ins.simulate": _INS_BELOW_CLI,
     "ins.cli": {"ins", "ins.gnss"} | _INS_BELOW_CLI,     # ins.__version__
-    "photogrammetry": set(),
+    "photogrammetry": {"ins.common"},        # the lazy public API (ins.common.lazy)
     "photogrammetry.imagery": {"ins.common"},
     "photogrammetry.orientation": {"ins.common", "ins.nav", "photogrammetry.imagery"},
     "photogrammetry.adjustment": {"ins.common", "ins.nav", "photogrammetry.orientation"},
