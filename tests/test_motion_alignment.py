@@ -218,3 +218,23 @@ def test_walk_outage_with_the_consumer_preset_and_the_facts_only(tmp_path):
         s = truth.evaluate(traj.time[gap])
         dn = earth.ned_offset(s.lla, traj.lla[gap])
         assert np.hypot(dn[:, 0], dn[:, 1]).max() < bound, name
+
+
+def test_noise_from_the_rest_when_none_is_given(car):
+    """The white noise measured over the rest is the simulator's (consumer grade: ARW
+    0.4 deg/sqrt(h), VRW 0.1 m/s/sqrt(h)); the 300-612 deg/h gyro offsets pick the
+    consumer priors, a tactical IMU's the tactical ones."""
+    from ins.estimation.motion_alignment import noise_from_rest
+    truth, imu, gnss = car
+    ms = align_anywhere(imu, gnss)
+    noise, text = noise_from_rest(imu, ms.alignment.time, ms.alignment.time + ms.rest_s,
+                                  ms.gyro_bias_b)
+    arw, vrw = np.max(noise.arw_deg_sqrth), np.max(noise.vrw_mps_sqrth)
+    assert 0.33 < arw < 0.48 and 0.08 < vrw < 0.12
+    assert np.all(noise.gyro_bias_std_dph == 3600.0) and "'consumer' preset" in text
+    tac = apply_errors(synthesize_imu(truth, 100.0, truth.t_start, truth.t_start + 12.0),
+                       ImuErrorModel.preset("tactical"), seed=2)
+    noise, text = noise_from_rest(tac, truth.t_start, truth.t_start + 11.0,
+                                  np.deg2rad(np.array([1.0, -0.8, 0.6]) / 3600))
+    assert np.all(noise.gyro_bias_std_dph == 1.0) and "'tactical' preset" in text
+    assert 0.09 < np.max(noise.arw_deg_sqrth) < 0.15          # the tactical grade's 0.12

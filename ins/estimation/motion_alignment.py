@@ -40,7 +40,7 @@ from ins.nav import earth
 from ins.nav.mechanization import NavState
 from ins.nav.rotation import euler_to_dcm, euler_to_quat, quat_to_dcm, rotvec_to_quat
 
-__all__ = ["MotionStart", "align_anywhere", "gnss_velocities", "REST_SPEED_MPS",
+__all__ = ["MotionStart", "align_anywhere", "gnss_velocities", "noise_from_rest", "REST_SPEED_MPS",
            "EXCITATION_MPS", "MAX_WINDOW_S"]
 
 #: GNSS horizontal speed below which the carrier counts as at rest, m/s (RTK velocity
@@ -281,3 +281,43 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
     how += (f"; heading by velocity matching over {t_a:.1f} .. {t_e:.1f} s: "
             f"{np.rad2deg(psi) % 360:.2f} +- {head_std:.2f} deg")
     return MotionStart(al, bias_b, rest_s, (t_a, t_e), how)
+
+
+def noise_from_rest(imu, t_start, t_end, gyro_bias_b):
+    """IMU noise settings from a rest, for a user who gave none.
+
+    The white noise is measured: ARW and VRW from the scatter of the rates and specific
+    forces over ``[t_start, t_end]`` (s; ``std * sqrt(dt)``; an idling engine's vibration
+    counts as noise, which errs on the safe side).  The bias and scale priors, which a
+    rest cannot measure, are those of the preset (:mod:`ins.estimation.presets`) of the
+    smallest grade whose gyro bias sigma is at least a third of the rest's gyro offset
+    ``|gyro_bias_b|`` (rad/s; a grade is known by its offsets).
+
+    Returns
+    -------
+    (ins.estimation.error_model.ImuNoise, str)
+        The settings and a sentence saying where they came from.
+    """
+    from dataclasses import replace
+
+    from ins.estimation.error_model import ImuNoise
+    from ins.estimation.presets import PRESETS
+    i0 = int(np.searchsorted(imu.time, t_start - 1e-9))
+    i1 = int(np.searchsorted(imu.time, t_end, side="right")) - 1
+    dt = np.diff(imu.time[i0:i1 + 1])
+    w = imu.dtheta_b[i0 + 1:i1 + 1] / dt[:, None]
+    f = imu.dvel_b[i0 + 1:i1 + 1] / dt[:, None]
+    root_dt = np.sqrt(np.median(dt))
+    arw = float(np.max(np.std(w, axis=0)) * root_dt) * 180.0 / np.pi * 60.0   # deg/sqrt(h)
+    vrw = float(np.max(np.std(f, axis=0)) * root_dt) * 60.0                  # m/s/sqrt(h)
+    offset_dph = float(np.linalg.norm(gyro_bias_b)) * 180.0 / np.pi * 3600.0
+    grades = sorted(("tactical", "mems", "consumer"),
+                    key=lambda g: PRESETS[g]["imu_noise"]["gyro_bias_std_dph"])
+    grade = next((g for g in grades if PRESETS[g]["imu_noise"]["gyro_bias_std_dph"]
+                  >= offset_dph / 3.0), grades[-1])
+    noise = replace(ImuNoise(**PRESETS[grade]["imu_noise"]), arw_deg_sqrth=arw,
+                    vrw_mps_sqrth=vrw)
+    text = (f"IMU noise from the rest (none given): ARW {arw:.3g} deg/sqrt(h) and VRW "
+            f"{vrw:.3g} m/s/sqrt(h) measured over {t_end - t_start:.1f} s; bias and scale "
+            f"priors of the '{grade}' preset (the rest's gyro offset {offset_dph:.0f} deg/h)")
+    return noise, text

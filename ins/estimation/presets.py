@@ -94,6 +94,7 @@ def apply_preset(cfg, name, given=None):
              if k not in given.get("imu_noise", {})}
     if noise and cfg.source != "manifest":
         out.noise = replace(cfg.noise, **noise)
+        out.noise_source = f"preset {name}"
     for table, attr in _DICT_TABLES.items():
         fill = {k: v for k, v in values.get(table, {}).items()
                 if k not in given.get(table, {})}

@@ -128,6 +128,7 @@ class _Start:
     position_source: str = None
     gyro_bias_b: np.ndarray = None
     how: str = None
+    noise: object = None          # IMU noise settings found at the start (none given)
 
 
 def _lever(cfg, mount=None):
@@ -237,7 +238,7 @@ def _method(cfg):
 def _anywhere(cfg, gnss, lever, blocks):
     """Start from the IMU and the GNSS alone (:func:`align_anywhere`): the IMU blocks up
     to the end of the matching window are read ahead and given back."""
-    from ins.estimation.motion_alignment import MAX_WINDOW_S, align_anywhere
+    from ins.estimation.motion_alignment import MAX_WINDOW_S, align_anywhere, noise_from_rest
     first, blocks = _peek(blocks)
     t_start = cfg.start_s if cfg.start_s is not None else float(first.time[0])
     head, rest = [], iter(blocks)
@@ -249,11 +250,19 @@ def _anywhere(cfg, gnss, lever, blocks):
                          for k_ in ("time", "dtheta_b", "dvel_b")))
     ms = align_anywhere(imu, gnss, t_start, cfg.noise)
     al = ms.alignment
+    noise, how = None, ms.how
+    if cfg.noise_source is None and ms.gyro_bias_b is not None:
+        noise, text = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)
+        how += "; " + text
+        from ins.estimation.error_model import MGAL     # the level sigma of that grade
+        tilt = np.rad2deg(float(np.max(noise.accel_bias_std_mgal)) * MGAL
+                          / float(earth.normal_gravity(al.state.lla[0], al.state.lla[2])))
+        al = replace(al, att_std_deg=np.array([tilt, tilt, al.att_std_deg[2]]))
     lla = _less_lever_arm(al.state.lla, al.state.q_nb, lever, al.time)
     al = replace(al, state=NavState(lla, al.state.v_n, al.state.q_nb))
     return _Start(al.state, al.time, al, itertools.chain(head, rest), initial_time=al.time,
                   position_source="the start position from the GNSS (anywhere alignment)",
-                  gyro_bias_b=ms.gyro_bias_b, how=ms.how)
+                  gyro_bias_b=ms.gyro_bias_b, how=how, noise=noise)
 
 
 def _rest_length(gnss, t_start):
@@ -355,7 +364,8 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     start = t0 if t0 is not None else cfg.start_s
     sensors0 = None if st.gyro_bias_b is None else np.concatenate([st.gyro_bias_b,
                                                                     np.zeros(9)])
-    settings = FilterSettings(noise=cfg.noise, lever=lever, use_velocity=cfg.use_velocity,
+    settings = FilterSettings(noise=cfg.noise if st.noise is None else st.noise, lever=lever,
+                              use_velocity=cfg.use_velocity,
                               reject_probability=cfg.reject_probability,
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
@@ -381,6 +391,10 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
                            al, counts)
     result.start_check = start_check
     result.start_how = st.how
+    if st.noise is not None:                  # judged against the settings it ran with
+        from copy import copy
+        cfg = copy(cfg)
+        cfg.noise = st.noise
     result.quality = assess_quality(result, gnss, lever, cfg)
     q = result.quality
     for msg in q["warnings"]:

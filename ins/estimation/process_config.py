@@ -125,6 +125,7 @@ class ProcessConfig:
     reject_probability: float = 1e-5
     smooth: bool = True
     recover: bool = True
+    noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
@@ -222,6 +223,7 @@ def _fill(cfg, data, where, path=None):
                                        unit="s")
     if "imu_noise" in data:
         cfg.noise = _noise(data["imu_noise"], where("imu_noise"))
+        cfg.noise_source = "config"
     gnss = data.get("gnss", {})
     if "lever_arm_b_m" in gnss:
         cfg.lever_bp = _vector(gnss["lever_arm_b_m"], where("gnss", "lever_arm_b_m"),
@@ -411,6 +413,7 @@ def config_from_manifest(flight_dir, overrides=None):
                            where("lever_arm", "platform_centre_to_antenna_a_m"), bound=limits.MAX_LEVER_ARM_M,
                            unit="m")
     cfg.noise = _manifest_noise(man.get("imu", {}), where("imu"))
+    cfg.noise_source = "manifest"
     cfg.priors = _manifest_priors(man.get("imu", {}), where("imu"))
     stationary = man.get("stationary", {})
     segments = stationary.get("segments_s", stationary.get("segments")) \
