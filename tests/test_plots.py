@@ -179,11 +179,16 @@ def style_figures(monkeypatch):
     return saved
 
 
-def _eo(n_strips=3, per=5):
+def _eo(n_strips=3, per=5, times=True):
+    """Strips of ``per`` images 2 s apart, strip j starting at T0 + 100 j s (a turn of
+    92 s between strips); ``times=False``: no exposure times (NaN)."""
     ids = [f"S{s:02d}_{k:03d}" for s in range(1, n_strips + 1) for k in range(1, per + 1)]
     kappa = np.repeat(np.deg2rad([0.0, 180.0, 0.0][:n_strips]), per)
     angles = np.column_stack([np.zeros_like(kappa), np.zeros_like(kappa), kappa])
-    return SimpleNamespace(image_id=ids, angles=angles)
+    time = (T0 + 100.0 * np.repeat(np.arange(n_strips), per) + 2.0 * np.tile(np.arange(per),
+                                                                            n_strips))
+    return SimpleNamespace(image_id=ids, angles=angles,
+                           time=time if times else np.full(len(ids), np.nan))
 
 
 def _strip_lines(ax):
@@ -205,11 +210,33 @@ def test_refine_corrections_plot_marks_strips(tmp_path, style_figures):
     ax = fig.axes[0]
     assert ax.get_ylabel() == "INS - adjusted, arcsec"
     assert "Angle corrections" in ax.get_title()
-    assert _strip_lines(ax) == [4.5, 9.5]                      # between S01/S02, S02/S03
+    assert _strip_lines(ax) == [54.0, 154.0]      # mid-turn between S01/S02, S02/S03, s
+    assert ax.get_xlabel().startswith("exposure time since start, s")
+    assert f"start = GPS second of week {T0:.3f}" in ax.get_title()
     assert [t.get_text() for t in ax.texts] == ["strip 1", "strip 2", "strip 3"]
+    # no line across a turn: the x data of each series hold a gap between strips
+    for ln in ax.get_lines():
+        x = ln.get_xdata()
+        if len(x) > 2:
+            assert np.isnan(x).sum() == 2
     assert _outside(fig, ax, ax.get_legend())
     means = [t.get_text() for t in ax.get_legend().get_texts() if "mean" in t.get_text()]
     assert means == ["phi mean, -100 arcsec", "omega mean, 150 arcsec", "kappa mean, 20 arcsec"]
+
+
+def test_plots_over_exposures_without_times_fall_back_to_image_numbers(tmp_path,
+                                                                    style_figures):
+    from photogrammetry.adjustment.report import _plot_corrections
+    eo = _eo(times=False)
+    n = len(eo.image_id)
+    diff = np.zeros((n, 3))
+    a = SimpleNamespace(diff=diff, used=np.ones(n, bool), names=("phi", "omega", "kappa"),
+                        mean=diff.mean(axis=0))
+    path = str(tmp_path / "corr.png")
+    _plot_corrections(SimpleNamespace(assessment=a, eo=eo), path)
+    ax = style_figures[path].axes[0]
+    assert ax.get_xlabel().startswith("image number (file order)")
+    assert _strip_lines(ax) == [4.5, 9.5]
 
 
 def test_refine_residual_plot_title_and_units(tmp_path, style_figures):
@@ -246,8 +273,9 @@ def test_demo_angle_plot_marks_strips(tmp_path, style_figures):
     assert [ax.get_ylabel() for ax in fig.axes] == ["phi error, arcsec", "omega error, arcsec",
                                                     "kappa error, arcsec"]
     assert "truth" in fig._suptitle.get_text()
+    assert fig.axes[-1].get_xlabel().startswith("exposure time since start, s")
     for ax in fig.axes:
-        assert _strip_lines(ax) == [3.5]
+        assert _strip_lines(ax) == [53.0]
         assert _outside(fig, ax, ax.get_legend())
         texts = [t.get_text() for t in ax.get_legend().get_texts()]
         assert "RMS 30 arcsec" in texts[0] and "RMS 3 arcsec" in texts[1]

@@ -216,7 +216,7 @@ def test_default_misalignment_priors_follow_the_grade():
     # the KF-GINS-like config (1 ppm): 1 arcsec, the 21 states' figures on the benchmark
     s = FilterSettings(noise=ImuNoise(), layout=survey)
     np.testing.assert_allclose(s.prior_std() / ARCSEC, np.ones(6))
-    expected = {"tactical": 100.0, "mems": 1000.0, "land": 1000.0, "consumer": 2000.0}
+    expected = {"tactical": 100.0, "mems": 360.0, "land": 360.0, "consumer": 2000.0}
     for name, arcsec in expected.items():
         cfg = apply_preset(ProcessConfig(imu="i", gnss="g"), name)
         s = FilterSettings(noise=cfg.noise, **filter_options(cfg))
