@@ -12,13 +12,13 @@ C_bv w_nv_v`` and ``f_b = C_bn (a_n + (2 w_ie + w_en) x v_n - g_n)`` with the an
 ``rates``).  Only the Earth model (WGS84 radii, normal gravity, Earth rate) is shared
 with the filter.
 """
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from ins.nav import earth
+from ins.simulate.ground import GroundTruth
 
 T0 = 300000.0
 DURATION_S = 240.0
@@ -30,19 +30,11 @@ SPEED_MPS, SPEED_AMP_MPS, SPEED_PERIOD_S = 15.0, 3.0, 40.0
 GRADE_AMP_DEG, GRADE_PERIOD_S = 2.0, 50.0
 
 
-@dataclass
-class Sample:
-    time: np.ndarray
-    lla: np.ndarray
-    v_n: np.ndarray
-    q_nb: np.ndarray
-    C_nv: np.ndarray
-
-
-class CarTruth:
+class CarTruth(GroundTruth):
     """The drive of the module notes with the IMU mounted at ``mounting_rpy_deg`` (the
     IMU's roll, pitch, yaw in the vehicle axes: ``C_vb = Rz(y) Ry(p) Rx(r)``, built here
-    with scipy's intrinsic "ZYX" Euler angles)."""
+    with scipy's intrinsic "ZYX" Euler angles).  Its own profiles; the IMU's rates and the
+    truth at given epochs as for any ground journey (:class:`ins.simulate.ground.GroundTruth`)."""
 
     def __init__(self, mounting_rpy_deg=(0.0, 0.0, 0.0), duration_s=DURATION_S):
         self.t_start, self.t_end = T0, T0 + duration_s
@@ -84,30 +76,6 @@ class CarTruth:
         # C_nv = Rz(psi) Ry(th): body rates of the Euler angles (roll 0)
         w_nv_v = np.column_stack([-dpsi * st, dth, dpsi * ct])
         return v_n.squeeze() if np.ndim(t) == 0 else v_n, a_n, C_nv, w_nv_v
-
-    def lla(self, t):
-        return self.sol.sol(np.atleast_1d(np.asarray(t, float))).T
-
-    def rates(self, time):
-        """``w_ib_b`` (rad/s), ``f_b`` (m/s^2), shape (n, 3)."""
-        time = np.atleast_1d(np.asarray(time, dtype=float))
-        lla = self.lla(time)
-        v_n, a_n, C_nv, w_nv_v = self._kin(time)
-        v_n = np.atleast_2d(v_n)
-        C_bn = np.einsum("ji,njk->nik", self.C_vb, np.transpose(C_nv, (0, 2, 1)))
-        w_ie = earth.earth_rate_n(lla[:, 0])
-        w_en = earth.transport_rate_n(lla[:, 0], lla[:, 2], v_n)
-        g_n = earth.gravity_n(lla[:, 0], lla[:, 2])
-        w_ib_b = (np.einsum("nij,nj->ni", C_bn, w_ie + w_en) + w_nv_v @ self.C_vb)
-        f_b = np.einsum("nij,nj->ni", C_bn, a_n + np.cross(2 * w_ie + w_en, v_n) - g_n)
-        return w_ib_b, f_b
-
-    def evaluate(self, time):
-        time = np.atleast_1d(np.asarray(time, dtype=float))
-        v_n, _, C_nv, _ = self._kin(time)
-        C_nb = C_nv @ self.C_vb
-        return Sample(time, self.lla(time), np.atleast_2d(v_n),
-                      Rotation.from_matrix(C_nb).as_quat(), C_nv)
 
 
 #: The walk: (centre s after the start, duration s, heading change deg) of its turns, and

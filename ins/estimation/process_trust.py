@@ -18,7 +18,8 @@ of the GNSS measurements rejected by the innovation test is a
 accepted measurement at all, or a written solution (smoothed, or forward with
 ``smooth = false``) farther than :data:`DEPART_SIGMAS` (10) fix sigmas from every fix
 for :data:`DEPART_SPAN_S` (30 s) or more, or from the last fixes of its span for
-:data:`DEPART_END_S` (10 s) or more, is a :class:`~ins.common.errors.QualityError` naming
+:data:`DEPART_END_S` (10 s) or more, or from more than :data:`DEPART_ERROR_FRACTION`
+(10 %) of all the fixes, is a :class:`~ins.common.errors.QualityError` naming
 the likely cause (start state, IMU noise settings, lever arm, time base), unless
 ``accept_poor`` (then a warning).  A recovery of the forward filter from a run of
 rejected fixes is a warning, :data:`RECOVERY_ERROR_COUNT` of them a QualityError.  A
@@ -51,6 +52,11 @@ DEPART_SPAN_S = 30.0
 #: the 30 s; the comma2k19 segment with a tactical IMU's noise settings left its last
 #: 12 s 10-135 m from the fixes).
 DEPART_END_S = 10.0
+#: ... or, in stretches of any length, departing from more than this fraction of the fixes
+#: (a filter kept near the fixes by recoveries can leave them again and again: the
+#: comma2k19 phone with navigation-grade noise settings, 57 m residual RMS, 150 m at most,
+#: in stretches shorter than 30 s).
+DEPART_ERROR_FRACTION = 0.1
 #: Recoveries of the forward filter from a run of rejected position fixes
 #: (:mod:`ins.estimation.updates`): one is a warning (a poor start, an unmodelled moment),
 #: this many a QualityError (the filter's model does not hold: its sigmas are not to be
@@ -251,6 +257,12 @@ def assess_quality(result, gnss, lever, cfg=None):
                                    f"hold and its sigmas cannot be trusted)")
         else:
             q["warnings"].append(text + "; " + _causes(result, q, cfg))
+    far = norm > DEPART_SIGMAS
+    if len(far) and far.mean() > DEPART_ERROR_FRACTION:
+        problems.append(
+            f"the solution is more than {DEPART_SIGMAS:g} fix sigmas from {int(far.sum())} of "
+            f"its {len(far)} GNSS fixes ({100 * far.mean():.0f} %, more than "
+            f"{100 * DEPART_ERROR_FRACTION:g} %; up to {float(dist.max()):.3g} m)")
     span = None if departure is None else departure["to_s"] - departure["from_s"]
     if departure is not None and (span >= DEPART_SPAN_S
                                   or (departure["at_end"] and span >= DEPART_END_S)):
