@@ -53,6 +53,8 @@ class Journey:
         Start latitude, longitude (deg), ellipsoidal height (m).
     t0 : float
         GPS second of week of the start.
+    outages : tuple of (start_s, duration_s)
+        Spans without GNSS records (s after the start).
     """
 
     duration_s: float
