@@ -210,9 +210,13 @@ def test_ctrl_c_in_a_dask_run_of_refine(tiled_block, tmp_path):
             outcomes["130"] += 1
         elif proc.returncode == 0 and not lines and (work / "out.csv").exists():
             outcomes["0"] += 1
+        elif proc.returncode == 130 and len(lines) == 1 and \
+                "interrupted after the output was complete" in lines[0] and \
+                (work / "out.csv").exists():
+            outcomes["130, output complete"] += 1
         else:
             problems.append(where)
     print(f"\nrefine --tile-images --workers 2: {RUNS} runs of {duration:.1f} s: "
           f"{dict(outcomes)}")
     assert not problems, "\n".join(problems)
-    assert outcomes["130"] >= RUNS // 2
+    assert outcomes["130"] + outcomes["130, output complete"] >= RUNS // 2

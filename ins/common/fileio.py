@@ -37,12 +37,14 @@ def atomic_open(path, mode="wb"):
                                      path)
         raise FileNotFoundError(errno.ENOENT, "the output's directory does not exist",
                                 directory)
+    tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(dir=directory, prefix="." + os.path.basename(path) + ".",
-                                   suffix=".part")
-    except OSError as exc:               # name the user's path, not the hidden temporary
-        raise _fs_error(exc, path) from None
-    try:
+        with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
+            try:
+                fd, tmp = tempfile.mkstemp(dir=directory, suffix=".part",
+                                           prefix="." + os.path.basename(path) + ".")
+            except OSError as exc:       # name the user's path, not the hidden temporary
+                raise _fs_error(exc, path) from None
         os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600; give the usual mode
         with os.fdopen(fd, mode) as f:
             yield f
@@ -53,8 +55,9 @@ def atomic_open(path, mode="wb"):
                 raise _fs_error(exc, path) from None
             interrupts.record_output(path)
     except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
         raise
 
 
@@ -132,11 +135,13 @@ def output_folder(path, force=False):
     check_output_folder(path, force)
     parent = os.path.dirname(os.path.abspath(path))
     name = os.path.basename(os.path.abspath(path))
+    tmp = None
     try:
-        tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
-    except OSError as exc:
-        raise _fs_error(exc, path) from None
-    try:
+        with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
+            try:
+                tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
+            except OSError as exc:
+                raise _fs_error(exc, path) from None
         yield tmp
         check_output_folder(path, force)
         os.chmod(tmp, 0o777 & ~_umask())
@@ -155,6 +160,7 @@ def output_folder(path, force=False):
             interrupts.record_output(path)
             shutil.rmtree(old, ignore_errors=True)
     except BaseException:
-        with interrupts.deferred():
-            shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            with interrupts.deferred():
+                shutil.rmtree(tmp, ignore_errors=True)
         raise
