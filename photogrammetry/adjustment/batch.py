@@ -307,6 +307,8 @@ def _local_cluster(workers, processes):
 
     import dask
     from dask.distributed import LocalCluster
+
+    from ins.common import interrupts
     for name in ("distributed", "distributed.nanny", "distributed.scheduler"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
     # the semaphores of workers killed on close are the resource tracker's to clean up
@@ -317,6 +319,7 @@ def _local_cluster(workers, processes):
     folder = tempfile.mkdtemp(prefix="insphoto-dask-")
     exe = os.fsdecode(multiprocessing.spawn.get_executable())
     scratch = (folder, dask.config.set({"temporary-directory": folder}), exe)
+    cluster = None
     try:
         if os.name == "posix" and processes:
             wrapper = os.path.join(folder, "python-ignoring-sigint")
@@ -324,11 +327,14 @@ def _local_cluster(workers, processes):
                 fh.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(exe)} \"$@\"\n")
             os.chmod(wrapper, 0o755)
             multiprocessing.spawn.set_executable(wrapper)
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                               dashboard_address=None, local_directory=folder,
-                               silence_logs=logging.CRITICAL)
+        # Ctrl-C waits for the start-up (a second or two): a cluster cut off half started
+        # has workers that nobody closes, and they write scratch after its removal
+        with interrupts.deferred():
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                   processes=processes, dashboard_address=None,
+                                   local_directory=folder, silence_logs=logging.CRITICAL)
     except BaseException:
-        _close_cluster(None, None, scratch)
+        _close_cluster(None, cluster, scratch)
         raise
     return cluster, scratch
 
