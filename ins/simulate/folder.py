@@ -177,6 +177,10 @@ class FlightProducts:
     seed: int
     progress: Callable[[float], None]
 
+    def rng(self, name):
+        """``product_rng(seed, name)``: the generator of the product ``name``."""
+        return product_rng(self.seed, name)
+
 
 def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
                     products=()):
@@ -241,6 +245,9 @@ def _write_products(plan, plan_text, folder, seed, grade, progress, products):
     files = _write_gnss_and_mount(plan, truth, folder, seed)
     rest(0.2, 1.0)
     added = []
+    if plan.scanner is not None:            # the plan's own LiDAR products
+        from ins.simulate.lidar import write_lidar
+        products = products + (write_lidar,)
     share = 0.8 / max(len(products), 1)
     for k, writer in enumerate(products):
         start = 0.2 + k * share

@@ -43,6 +43,13 @@ output folder (docs/interfaces.md; manifest.toml names every file, frame and uni
   tiepoints.csv    image_id,point_id,x_mm,y_mm (distorted, with pixel noise)
   ground_points.csv  point_id,X_m,Y_m,Z_m (mapping frame)
   plan.toml    a verbatim copy of the plan
+  with a [scanner] table in the plan (a laser line scanner rigid on the IMU; see
+  data/flights/lidar_demo.toml), for ins georeference and ins strip-check:
+  returns.csv  time_s,range_m,scan_angle_deg,intensity,return_number,strip (the strips)
+  scanner.toml the scanner file a user has: boresight 0 (unknown), the plan's lever arm
+               and sigmas; scanner_true.toml with the true boresight
+  points_true.csv  time_s,x_ecef_m,y_ecef_m,z_ecef_m,strip: the terrain point of each
+               return (WGS84 ECEF, m)
 
   The same plan and seed give the same bytes.  The folder is built beside FLIGHT_DIR and
   renamed into place when complete; a non-empty FLIGHT_DIR is refused unless --force,
@@ -103,6 +110,9 @@ def _cmd_simulate(args):
         fl = manifest["flight"]
         print(f"wrote {folder}: {fl['end_time_s'] - fl['start_time_s']:.1f} s of flight, "
               f"{fl['imu_rate_hz']:g} Hz IMU ({fl['grade']}), {fl['n_images']} images, "
-              f"{fl['n_tiepoint_observations']} tie-point observations, seed {fl['seed']}, "
+              f"{fl['n_tiepoint_observations']} tie-point observations, "
+              + (f"{manifest['scanner']['n_returns']} laser returns, "
+                 if "scanner" in manifest else "")
+              + f"seed {fl['seed']}, "
               f"in {wallclock.perf_counter() - t0:.1f} s")
     return 0
