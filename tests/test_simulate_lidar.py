@@ -113,3 +113,70 @@ def test_lidar_products_against_the_truth(lidar_folder):
     p0 = georeference(truth, ret.time, returns_to_scanner(given, ret.range_m,
                                                           ret.scan_angle_rad), given)
     assert np.sqrt(np.mean(np.sum((p0.xyz_ecef_m - pts[:, 1:4]) ** 2, axis=1))) > 0.3
+
+
+def _gauss_markov(rng, t, tau_s, k):
+    """k independent unit-variance first-order Gauss-Markov processes at the times t (s),
+    started in their stationary distribution; shape (len(t), k)."""
+    x = np.empty((len(t), k))
+    x[0] = rng.standard_normal(k)
+    a = np.exp(-np.diff(t) / tau_s)
+    w = rng.standard_normal((len(t) - 1, k)) * np.sqrt(1 - a * a)[:, None]
+    for i in range(1, len(t)):
+        x[i] = a[i - 1] * x[i - 1] + w[i - 1]
+    return x
+
+
+def test_point_sigmas_with_time_correlated_trajectory_errors(lidar_folder):
+    """Point sigmas against errors that are correlated in time, as a GNSS/INS solution's
+    are: the true trajectory plus a drawn error, a sum of a slow (300 s, longer than the
+    flight) and a fast (2 s) Gauss-Markov process per position and attitude component
+    with the stated, time-varying sigmas of a TrajectoryStd.  Within one flight every
+    point shares the one draw of the slow part, so the mean z^2 of a single flight is a
+    chi-square of few degrees of freedom (it spreads over about 0.1 .. 3 for honest
+    sigmas); over independent draws its mean is 1 per axis."""
+    from ins.io.navfiles import read_trajectory
+    from ins.lidar.georeference import TrajectoryStd, georeference, returns_to_scanner
+    from ins.lidar.lidar_files import iter_returns
+    from ins.lidar.scanner import Scanner, read_scanner
+    from ins.nav.earth import dcm_en, offset_lla
+    from ins.nav.rotation import euler_to_quat, quat_to_euler
+    from ins.nav.trajectory import Trajectory
+    f = lidar_folder
+    truth = read_trajectory(f / "truth.nav")
+    true = read_scanner(f / "scanner_true.toml")     # its mounting exact: no mounting sigmas
+    scanner = Scanner(model="polygon", range_sigma_m=true.range_sigma_m,
+                      scan_angle_sigma_rad=true.scan_angle_sigma_rad,
+                      lever_arm_m=true.lever_arm_m, boresight_rad=true.boresight_rad)
+    ret = next(iter(iter_returns(str(f / "returns.csv"), "polygon", 10 ** 7)))
+    pts = np.loadtxt(f / "points_true.csv", delimiter=",", skiprows=1)
+    keep = np.arange(0, len(ret.time), 7)                # a subset: 2 strips, ~3500 points
+    t_r = ret.time[keep]
+    r_s = returns_to_scanner(scanner, ret.range_m[keep], ret.scan_angle_rad[keep])
+    rpy = quat_to_euler(truth.q_nb)
+    # stated sigmas (N, E, D m; roll, pitch, yaw rad), varying along the flight
+    t_s = truth.time[::50]
+    s0 = np.array([0.02, 0.03, 0.04, *np.deg2rad([0.004, 0.006, 0.012])])
+    std = TrajectoryStd(t_s, s0 * (1 + 0.4 * np.sin((t_s - t_s[0]) / 30.0))[:, None])
+    sig = std.at(truth.time)
+    rng = np.random.default_rng(11)
+    z2, z2_scanner = [], []
+    var_scanner = georeference(truth, t_r, r_s, scanner).var_ned_m2
+    for _ in range(120):
+        u = (np.sqrt(0.8) * _gauss_markov(rng, t_s, 300.0, 6)
+             + np.sqrt(0.2) * _gauss_markov(rng, t_s, 2.0, 6))
+        e = np.column_stack([np.interp(truth.time, t_s, u[:, j]) for j in range(6)]) * sig
+        est = Trajectory(truth.time, offset_lla(truth.lla, e[:, :3]), truth.v_n,
+                         euler_to_quat(rpy + e[:, 3:]))
+        p = georeference(est, t_r, r_s, scanner, std=std)
+        d = np.einsum("nji,nj->ni", dcm_en(*p.lla()[:, :2].T), p.xyz_ecef_m - pts[keep, 1:4])
+        z2.append((d ** 2 / p.var_ned_m2).mean(axis=0))
+        z2_scanner.append((d ** 2 / var_scanner).mean(axis=0))
+    z2 = np.array(z2)
+    # (the interpolation of the drawn error between the 0.5 s samples lowers the fast
+    # part's variance a little: honest sigmas give slightly below 1)
+    assert np.all(z2.mean(axis=0) > 0.85) and np.all(z2.mean(axis=0) < 1.15), z2.mean(0)
+    # one flight alone is no test of them: its z^2 spreads over a decade
+    assert z2.min() < 0.3 and z2.max() > 2.5, (z2.min(), z2.max())
+    # and sigmas that ignore the trajectory (the scanner's alone) fail by far
+    assert np.all(np.mean(z2_scanner, axis=0) > 2.0), np.mean(z2_scanner, axis=0)
