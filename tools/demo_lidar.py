@@ -38,7 +38,8 @@ def run(cmd, ok=(0,)):
 
 def point_errors(laz, truth_csv):
     """NED errors (m) of the LAZ points against the true points, and the horizontal and
-    vertical sigmas written in the file (m); matched by GPS time and strip."""
+    vertical sigmas written in the file (m), the strip and the scan angle (deg) of each
+    point; matched by GPS time and strip."""
     import laspy
 
     from ins.cli.strip_check import read_points_las
@@ -47,6 +48,7 @@ def point_errors(laz, truth_csv):
     t, xyz, strip = read_points_las(str(laz))
     las = laspy.read(str(laz))
     sig_h, sig_v = np.asarray(las["sigma_h_m"], float), np.asarray(las["sigma_v_m"], float)
+    angle_deg = np.asarray(las.scan_angle, float) * 0.006
     tru = np.loadtxt(truth_csv, delimiter=",", skiprows=1)
     key_true = np.round(tru[:, 0] * 1e6).astype(np.int64) * 1000 + tru[:, 4].astype(np.int64)
     key = np.round(t * 1e6).astype(np.int64) * 1000 + strip
@@ -56,7 +58,7 @@ def point_errors(laz, truth_csv):
         raise SystemExit("demo-lidar: points without a true point (time, strip)")
     lla = ecef_to_lla(xyz)
     d = np.einsum("nji,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), xyz - tru[pos, 1:4])
-    return d, sig_h, sig_v, strip
+    return d, sig_h, sig_v, strip, angle_deg
 
 
 def error_lines(name, d, sig_h, sig_v):
@@ -66,6 +68,38 @@ def error_lines(name, d, sig_h, sig_v):
     return (f"| {name} | {rms[0]:.1f} / {rms[1]:.1f} / {rms[2]:.1f} | "
             f"{np.median(sig_h) * 1000:.1f} / {np.median(sig_v) * 1000:.1f} | "
             f"{z2_h:.2f} / {z2_v:.2f} |")
+
+
+def plot_errors(path, before, after, n_max=6000):
+    """Point errors N, E, D (mm) against the scan angle, with the boresight as given and
+    calibrated; the stated 1-sigma (sigma_h / sqrt 2 for N and E, sigma_v for D) as a
+    band of the points' median per degree."""
+    from ins.common.plotstyle import pyplot, save_png
+    plt = pyplot()
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    for col, (name, (d, sig_h, sig_v, strip, angle)) in enumerate(
+            (("boresight 0 (as given)", before), ("calibrated boresight", after))):
+        k = np.random.default_rng(0).choice(len(d), min(n_max, len(d)), replace=False)
+        sig = np.column_stack([sig_h / np.sqrt(2), sig_h / np.sqrt(2), sig_v])
+        bins = np.round(angle).astype(int)
+        centres = np.unique(bins)
+        for row, axis in enumerate("NED"):
+            ax = axes[row, col]
+            for s in np.unique(strip):
+                m = k[strip[k] == s]
+                ax.plot(angle[m], d[m, row] * 1e3, ".", ms=1.5, label=f"strip {s}")
+            band = np.array([np.median(sig[bins == c, row]) for c in centres]) * 1e3
+            ax.fill_between(centres, -band, band, color="0.5", alpha=0.3,
+                            label="stated 1 sigma")
+            ax.axhline(0, color="k", lw=0.5)
+            ax.set_ylabel(f"{axis} error (mm)")
+            if row == 0:
+                ax.set_title(name)
+            if row == 2:
+                ax.set_xlabel("scan angle (deg, + right of the flight)")
+        axes[0, col].legend(fontsize=7, markerscale=5, loc="upper right")
+    fig.suptitle("LiDAR points against the simulator's true terrain points")
+    save_png(fig, path)
 
 
 def main(argv=None):
@@ -131,6 +165,8 @@ def summarize(out, flight):
                                                for v, s in zip(est, sig)) + " |")
     print("| (estimated - true) / sigma | " + " | ".join(
         f"{v:+.2f}" for v in (est - tru) / sig) + " |")
+    plot_errors(out / "point_errors.png", before, after)
+    print(f"\nplot: {out / 'point_errors.png'}")
     return {"before": before, "after": after, "boresight_arcsec": est,
             "boresight_sigma_arcsec": sig, "boresight_true_arcsec": tru}
 
