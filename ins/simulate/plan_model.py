@@ -162,6 +162,8 @@ class FlightPlan:
     terrain: Terrain
     tie_points: TiePoints
     source: str = "<string>"
+    #: ``[gnss_raw]``: :class:`ins.simulate.gnss_raw.RawSettings`, or None (no raw GPS).
+    gnss_raw: object = None
 
     def _footprint(self, along):
         c = self.camera

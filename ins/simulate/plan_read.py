@@ -1,7 +1,9 @@
 """Flight plan of a photogrammetric survey flight (TOML), validated, SI units inside.
 
 The file has the sections ``[block] [flight] [wind] [turbulence] [mount] [imu] [gnss]
-[camera] [terrain] [tie_points]``; key names carry their unit (``_deg``, ``_m``,
+[camera] [terrain] [tie_points]`` and the optional ``[gnss_raw]`` (raw GPS observations
+from broadcast orbits: :mod:`ins.simulate.gnss_raw_plan`); key names carry their unit
+(``_deg``, ``_m``,
 ``_mps``, ``_hz``, ``_s``, ``_percent``).  ``data/flights/demo.toml`` is the documented
 example.  Every key has a default except the block origin; unknown keys and sections are
 errors (:mod:`ins.common.tomlschema`: the message lists the known keys of the section, with
@@ -50,6 +52,7 @@ from ins.common.errors import InputError
 from ins.common.limits import MAX_LEVER_ARM_M, MAX_SIGMA_M
 from ins.common.textfiles import read_toml
 from ins.common.tomlschema import REQUIRED, Table, check_keys
+from ins.simulate.gnss_raw_plan import GNSS_RAW_KEYS, parse_gnss_raw
 from ins.simulate.plan_checks import check_feasible
 from ins.simulate.plan_model import (
     D2R,
@@ -91,6 +94,7 @@ PLAN_KEYS = {
                "boresight_deg"),
     "terrain": ("relief_m", "wavelength_m", "seed_offset"),
     "tie_points": ("per_image", "sigma_px"),
+    "gnss_raw": GNSS_RAW_KEYS,
 }
 
 
@@ -297,6 +301,11 @@ def parse_plan(data, source="<string>"):
     for name, parse in _SECTIONS.items():
         sec = Table(data.get(name), name, source, known=PLAN_KEYS[name], sections=PLAN_KEYS)
         parts[name] = parse(sec)
+        sec.finish()
+    if "gnss_raw" in data:             # optional: raw GPS observations (rover.obs)
+        sec = Table(data["gnss_raw"], "gnss_raw", source, known=GNSS_RAW_KEYS,
+                    sections=PLAN_KEYS)
+        parts["gnss_raw"] = parse_gnss_raw(sec, source)
         sec.finish()
     plan = FlightPlan(**parts, source=str(source))
     check_feasible(plan, data)
