@@ -458,9 +458,40 @@ def test_plan_without_nav_file_names_the_key(tmp_path):
         simulate_flight(plan, tmp_path / "f", seed=1)
 
 
+def test_multipath_process_statistics():
+    """The multipath-like error: unit variance, autocorrelation exp(-lag / tau)."""
+    from ins.simulate.gnss_raw import _gauss_markov
+    x = _gauss_markov(200_000, 1.0, 60.0, np.random.default_rng(0))
+    assert x.std() == pytest.approx(1.0, abs=0.03)
+    for lag in (30, 60, 120):
+        assert np.corrcoef(x[:-lag], x[lag:])[0, 1] == pytest.approx(np.exp(-lag / 60.0),
+                                                                      abs=0.04)
+
+
 def test_az_el_of_the_zenith():
     lla = _station_lla()[None, :]
     from ins.nav.earth import dcm_en
     up = -dcm_en(lla[0, 0], lla[0, 1])[:, 2]
     az, el = az_el(lla, STATION[None, :], (STATION + 2e7 * up)[None, :])
     assert el[0] == pytest.approx(np.pi / 2, abs=1e-9)
+
+
+def test_cli_gnss_raw_option(tmp_path, capsys):
+    """``ins simulate --gnss-raw``: a missing file and a plan outside the file's ephemerides
+    are refused with exit 2 naming the file, no output; the rawsim plan writes rover.obs."""
+    from ins.cli.main import main
+    plan = ROOT / "data" / "flights" / "rawsim.toml"
+    out = tmp_path / "f"
+    assert main(["simulate", str(plan), "-o", str(out), "-q", "--gnss-raw",
+                 str(tmp_path / "none.n")]) == 2
+    assert "none.n: --gnss-raw: no such RINEX navigation file" in capsys.readouterr().err
+    if not NAV.is_file():
+        return
+    demo = ROOT / "data" / "flights" / "demo.toml"            # GPS week 2300
+    assert main(["simulate", str(demo), "-o", str(out), "-q", "--gnss-raw", str(NAV)]) == 2
+    assert "not covered by the broadcast ephemerides" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["simulate", str(plan), "-o", str(out), "-q", "--gnss-raw", str(NAV)]) == 0
+    text = (out / "rover.obs").read_text()
+    assert text.startswith("     3.04           OBSERVATION DATA    G")
+    assert "G    4 C1C L1C D1C S1C" in text

@@ -283,13 +283,11 @@ def clock_process(n, dt, bias0, drift0, bias_noise, drift_noise, rng):
 
 def _gauss_markov(n, dt, tau, rng):
     """Unit-variance first-order Gauss-Markov sequence (stationary start)."""
+    from scipy.signal import lfilter
     phi = np.exp(-dt / tau)
     w = rng.standard_normal(n) * np.sqrt(1.0 - phi ** 2)
-    out = np.empty(n)
-    out[0] = rng.standard_normal()
-    for k in range(1, n):
-        out[k] = phi * out[k - 1] + w[k]
-    return out
+    w[0] = rng.standard_normal()                  # x[0] ~ N(0, 1), x[k] = phi x[k-1] + w[k]
+    return lfilter([1.0], [1.0, -phi], w)
 
 
 def _arc_starts(observed):

@@ -302,11 +302,13 @@ def parse_plan(data, source="<string>"):
         sec = Table(data.get(name), name, source, known=PLAN_KEYS[name], sections=PLAN_KEYS)
         parts[name] = parse(sec)
         sec.finish()
-    if "gnss_raw" in data:             # optional: raw GPS observations (rover.obs)
-        sec = Table(data["gnss_raw"], "gnss_raw", source, known=GNSS_RAW_KEYS,
-                    sections=PLAN_KEYS)
-        parts["gnss_raw"] = parse_gnss_raw(sec, source)
-        sec.finish()
+    # optional: raw GPS observations (rover.obs); read (and checked) in any case
+    sec = Table(data.get("gnss_raw"), "gnss_raw", source, known=GNSS_RAW_KEYS,
+                sections=PLAN_KEYS)
+    raw = parse_gnss_raw(sec, source)
+    sec.finish()
+    if "gnss_raw" in data:
+        parts["gnss_raw"] = raw
     plan = FlightPlan(**parts, source=str(source))
     check_feasible(plan, data)
     return plan
