@@ -272,6 +272,10 @@ def test_cycle_slips_set_lli_and_jump_by_the_cycles(orbits):
     assert amb[30, j] - amb[29, j] == 7 and obs.lli[30, j] == 1
     seen = obs.observed[60] & obs.observed[59]
     assert np.all(amb[60, seen] - amb[59, seen] == -2) and np.all(obs.lli[60, seen] == 1)
+    assert obs.slips[0] == (obs.time_rx[30], prn, 7)
+    assert len(obs.slips) == 1 + seen.sum()
+    with pytest.raises(InputError, match=r"\[gnss_raw\] slips: 500 s is outside"):
+        _simulate(orbits, RawSettings(slips=((500.0, 0, 1),), **QUIET), n=100)
     other = np.ones(obs.lli.shape, bool)
     other[[30, 60]] = False
     assert not np.any(obs.lli[other])                       # no slip elsewhere
@@ -360,6 +364,8 @@ def test_flight_files_and_truth(flight):
     import tomllib
     m = tomllib.loads((flight / "manifest.toml").read_text())
     assert m["files"]["gnss_raw_obs"] == "rover.obs" and m["gnss_raw"]["min_satellites"] == 3
+    made = m["gnss_raw"]["slips_made"]
+    assert len(made) >= 6 and all(c == 4 for _, _, c in made)
     clock = np.loadtxt(flight / "receiver_clock.txt")
     tr = np.genfromtxt(flight / "gnss_raw_truth.csv", delimiter=",", names=True)
     assert len(tr) > 200 and set(np.unique(tr["lli"])) == {0.0, 1.0}
@@ -495,3 +501,51 @@ def test_cli_gnss_raw_option(tmp_path, capsys):
     text = (out / "rover.obs").read_text()
     assert text.startswith("     3.04           OBSERVATION DATA    G")
     assert "G    4 C1C L1C D1C S1C" in text
+
+
+def _rinex3_nav(text2):
+    """The GPS records of a RINEX 2.10 nav text rewritten as RINEX 3.04 (and a Galileo
+    record, which the reader skips)."""
+    lines = text2.splitlines()
+    k = next(i for i, r in enumerate(lines) if "END OF HEADER" in r) + 1
+    out = ["     3.04           N: GNSS NAV DATA    M: Mixed            RINEX VERSION / TYPE",
+           "GPSA   1.1180E-08  1.4900E-08 -5.9600E-08 -5.9600E-08       IONOSPHERIC CORR",
+           "GPSB   8.8060E+04  1.6380E+04 -1.9660E+05 -1.3110E+05       IONOSPHERIC CORR",
+           "    13                                                      LEAP SECONDS",
+           "                                                            END OF HEADER"]
+    gal = ["E11 2005 04 02 02 00 00" + " 1.000000000000E-04" * 3] + \
+        ["    " + " 1.000000000000E+00" * 4] * 7
+    out += gal
+    while k < len(lines):
+        first = lines[k]
+        yy, rest = int(first[3:5]), first[6:].split()[:4]
+        date = f"G{int(first[:2]):02d} {2000 + yy:04d} " + " ".join(f"{int(x):02d}"
+                                                                     for x in rest)
+        out.append(f"{date} {int(float(first[17:22])):02d}{first[22:]}")
+        out += ["    " + r[3:] for r in lines[k + 1:k + 8]]
+        k += 8
+    return "\n".join(out) + "\n"
+
+
+@needs_nav
+def test_rinex3_nav_reads_the_same(tmp_path):
+    from ins.io.rinex_nav import read_gps_nav
+    path = tmp_path / "brdc.rnx"
+    path.write_text(_rinex3_nav(NAV.read_text()))
+    a, b = read_gps_nav(NAV), read_gps_nav(path)
+    assert b.version == 3.04 and b.ephemerides == a.ephemerides
+    assert (b.ion_alpha, b.ion_beta, b.leap_seconds) == (a.ion_alpha, a.ion_beta, 13)
+
+
+@needs_nav
+def test_nav_reader_names_the_bad_line(tmp_path):
+    from ins.io.rinex_nav import read_gps_nav
+    lines = NAV.read_text().splitlines()
+    lines[14] = lines[14][:25] + "x.xx" + lines[14][29:]
+    path = tmp_path / "bad.05n"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"bad\.05n:15: expected a number \(D19\.12\)"):
+        read_gps_nav(path)
+    path.write_text("\n".join(lines[:12]) + "\n")
+    with pytest.raises(InputError, match="no GPS ephemeris"):
+        read_gps_nav(path)

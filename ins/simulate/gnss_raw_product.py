@@ -169,6 +169,7 @@ def write_gnss_raw(flight, settings, rng):
         "wavelength_l1_m": L1_WAVELENGTH, "speed_of_light_mps": C_LIGHT,
         "slips": [[float(a), int(b), int(c)] for a, b, c in s.slips],
         "masks": [[float(a), float(b), int(c)] for a, b, c in s.masks],
+        "slips_made": [[t, p, c] for t, p, c in obs.slips],
         "n_epochs": int(len(time_rx)), "min_satellites": int(n_sat.min()),
         "max_satellites": int(n_sat.max()),
         "antenna": "the antenna of gnss.txt (lever arms l_bp, l_ap and the mount)"}
