@@ -1,6 +1,6 @@
 """Raw GPS of a simulated flight: satellites in view and DOPs over the flight, the code
-residuals against the injected errors, and RTKLIB's single-point positions against the
-antenna's truth.
+residuals against the injected errors, RTKLIB's single-point positions against the
+antenna's truth, and (with base.obs) RTKLIB's kinematic RTK.
 
 Simulates data/flights/rawsim.toml (GPS week 1316, 2005-04-02 00:10, near the GEONET
 station 0759) with the real broadcast orbits of ../shared/real/rtklib_static_pair into a
@@ -26,11 +26,42 @@ PLAN = ROOT / "data" / "flights" / "rawsim.toml"
 NAV = ROOT.parent / "shared" / "real" / "rtklib_static_pair" / "07590920.05n"
 
 
-def simulate(out):
+#: The variant with a dry atmosphere and no multipath (the carrier phases alone).
+CLEAN = "[gnss_raw]\nhumidity_percent = 0.0\nmultipath_code_m = 0.0\nmultipath_phase_m = 0.0\n"
+
+
+def simulate(out, clean=False):
     from photogrammetry.simulate.folder import simulate_flight
+    plan = PLAN
+    if clean:
+        plan = out.parent / "clean.toml"
+        text = PLAN.read_text().replace("[gnss_raw]", CLEAN, 1)
+        plan.write_text("\n".join(r for r in text.splitlines()
+                                   if not r.startswith("multipath_code_m = 0.3")
+                                   and not r.startswith("multipath_phase_m = 0.003")))
     t0 = time.perf_counter()
-    simulate_flight(PLAN, out, seed=1, gnss_raw_nav=NAV)
+    simulate_flight(plan, out, seed=1, gnss_raw_nav=NAV)
     return time.perf_counter() - t0
+
+
+def run_rtk(flight, g, label):
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.nav.earth import ned_offset
+    with tempfile.TemporaryDirectory() as d:
+        sol = solve(flight / "rover.obs", flight / "rover.nav", Path(d) / "rtk.pos",
+                    base=flight / "base.obs",
+                    options=RtklibOptions(mode="kinematic", direction="forward",
+                                          systems=("gps",), elevation_mask_deg=10.0))
+    _, ia, ib = np.intersect1d(np.round(sol.log.time, 3), g.time, return_indices=True)
+    fixed = sol.log.quality[ia] == 1
+    dn = ned_offset(g.lla[ib], sol.log.lla[ia])
+    for name, m in (("fixed", fixed), ("float", ~fixed)):
+        if m.any():
+            rms = np.sqrt(np.mean(dn[m] ** 2, axis=0))
+            print(f"RTKLIB kinematic RTK with base.obs (L1), {label}: {name} {m.sum()} of "
+                  f"{len(ia)} epochs, RMS N/E/D {rms[0]:.3f}/{rms[1]:.3f}/{rms[2]:.3f} m, "
+                  f"mean D {dn[m, 2].mean():+.3f} m")
 
 
 def main():
@@ -93,6 +124,14 @@ def main():
     rms = np.sqrt(np.mean(dn ** 2, axis=0))
     print(f"RTKLIB single point: {len(ia)} of {len(epochs)} epochs solved; RMS N/E/D "
           f"{rms[0]:.2f}/{rms[1]:.2f}/{rms[2]:.2f} m against the antenna (gnss.txt)")
+    if (flight / "base.obs").is_file():
+        run_rtk(flight, g, "as simulated")
+        if tmp is not None:
+            clean = Path(tmp.name) / "clean"
+            simulate(clean, clean=True)
+            run_rtk(clean, read_gnss(clean / "gnss.txt"), "dry atmosphere, no multipath")
+        print("(RTKLIB's relative mode models the hydrostatic delay only: the wet delay, "
+              "different at the base and the aircraft, biases its float solution)")
     if tmp is not None:
         tmp.cleanup()
 

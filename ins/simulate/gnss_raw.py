@@ -91,6 +91,9 @@ class RawSettings:
         ``(time_s after the flight start, prn (0: every satellite), cycles)``.
     masks : tuple of (float, float, int)
         ``(start_s after the flight start, duration_s, n_satellites)``.
+    base_lla : tuple of 3 float or None
+        A static base station (lat, lon rad, ellipsoidal h m) observed as well (the
+        flight folder's ``base.obs``), or None.
     """
 
     nav_file: str = ""
@@ -114,6 +117,7 @@ class RawSettings:
     ambiguity_max: int = 1000
     slips: tuple = ()
     masks: tuple = ()
+    base_lla: tuple | None = None
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ defaults of :class:`ins.simulate.gnss_raw.RawSettings`)::
     ambiguity_max_cycles = 1000
     slips = [[120.0, 7, 3]]       # [time_s after the start, PRN (0: all), cycles]
     masks = [[200.0, 30.0, 3]]    # [start_s after the start, duration_s, satellites kept]
+    base_lla_deg = [35.17, 139.60, 60.0]   # optional static base station -> base.obs
 
 The flight's time (``[flight] gps_week``, ``start_time_s``) must lie within the
 ephemerides of the navigation file (e.g. week 1316, 518400-525600 s for the 2005 day 092
@@ -45,7 +46,7 @@ GNSS_RAW_KEYS = ("nav_file", "rate_hz", "elevation_mask_deg", "sigma_code_m", "s
                  "multipath_time_s", "clock_bias_ms", "clock_drift_ppb",
                  "clock_bias_noise_ns_sqrts", "clock_drift_noise_ppb_sqrts", "iono_scale",
                  "tropo_scale", "humidity_percent", "cn0_zenith_dbhz", "cn0_horizon_dbhz",
-                 "ambiguity_max_cycles", "slips", "masks")
+                 "ambiguity_max_cycles", "slips", "masks", "base_lla_deg")
 
 
 def _rows(sec, key, width, what, check):
@@ -84,6 +85,11 @@ def parse_gnss_raw(sec, source):
                   and r[2] == int(r[2]) and r[2] != 0)
     masks = _rows(sec, "masks", 3, "[[start_s >= 0, duration_s > 0, satellites >= 0], ...]",
                   lambda r: r[0] >= 0 and r[1] > 0 and r[2] == int(r[2]) and r[2] >= 0)
+    base = sec.numbers("base_lla_deg", (), "[lat deg, lon deg, h m]", length=None)
+    if base and (len(base) != 3 or abs(base[0]) > 90 or abs(base[1]) > 360
+                 or not -500 <= base[2] <= 9000):
+        raise sec.error("base_lla_deg", f"expected [lat deg, lon deg, h m], got {list(base)}",
+                        "[lat deg, lon deg, h m]")
     zenith = nonneg("cn0_zenith_dbhz", d.cn0_zenith_dbhz, "dB-Hz in [0, 99]", 99.0)
     horizon = nonneg("cn0_horizon_dbhz", d.cn0_horizon_dbhz, "dB-Hz in [0, 99]", 99.0)
     return RawSettings(
@@ -112,4 +118,6 @@ def parse_gnss_raw(sec, source):
         ambiguity_max=sec.number("ambiguity_max_cycles", d.ambiguity_max,
                                  "integer cycles in [0, 1e7]", 0, 10_000_000, integer=True),
         slips=tuple((float(a), int(b), int(c)) for a, b, c in slips),
-        masks=tuple((float(a), float(b), int(c)) for a, b, c in masks))
+        masks=tuple((float(a), float(b), int(c)) for a, b, c in masks),
+        base_lla=(float(np.deg2rad(base[0])), float(np.deg2rad(base[1])), float(base[2]))
+        if base else None)

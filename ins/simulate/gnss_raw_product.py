@@ -23,11 +23,19 @@ navigation file and writes, beside the IMU and the truth of the flight folder:
     noise`` and ``L1C = (range + c clock_bias - sat_clock - iono + tropo +
     multipath_phase + noise) / lambda_L1 + ambiguity``.
 
+``base.obs``
+    (with ``base_lla_deg``) A static base station's observations of the same epochs:
+    the same model, orbits, ionosphere and troposphere models, its own receiver clock,
+    noise, multipath and ambiguities, no slips or masks; its header's ``APPROX POSITION
+    XYZ`` is its true antenna position (ECEF, m), also in the manifest's ``[gnss_raw]``
+    ``base_ecef_m``.  For differential and RTK processing.
+
 The antenna is that of ``gnss.txt`` (the plan's lever arms and the mount).  The random
 numbers come from ``product_rng(seed, "gnss_raw")``: the raw product leaves the other
 products' bytes unchanged.
 """
 import io
+from dataclasses import replace
 
 import numpy as np
 
@@ -40,11 +48,13 @@ from ins.simulate.gnss import antenna_state
 from ins.simulate.gnss_raw import L1_WAVELENGTH, simulate_raw
 from ins.simulate.gps_orbit import C_LIGHT, BroadcastOrbits
 
-__all__ = ["FILES", "write_gnss_raw", "load_orbits", "epochs", "check_span"]
+__all__ = ["FILES", "BASE_FILE", "write_gnss_raw", "load_orbits", "epochs", "check_span"]
 
 #: Manifest ``[files]`` key -> file name.
 FILES = {"gnss_raw_obs": "rover.obs", "gnss_raw_nav": "rover.nav",
          "receiver_clock": "receiver_clock.txt", "gnss_raw_truth": "gnss_raw_truth.csv"}
+#: The static base station's observations (with ``[gnss_raw] base_lla_deg``).
+BASE_FILE = "base.obs"
 TRUTH_HEADER = ("time_rx_s,prn,time_gps_s,range_m,sat_clock_m,iono_m,tropo_m,"
                 "multipath_code_m,multipath_phase_m,ambiguity_cycles,elevation_deg,"
                 "azimuth_deg,x_sat_m,y_sat_m,z_sat_m,lli\n")
@@ -139,17 +149,23 @@ def write_gnss_raw(flight, settings, rng):
     obs = simulate_raw(orbits, week, time_rx, _receiver(truth, m.l_bp, m.l_ap), settings, rng,
                        t_start=truth.t_start)
     flight.progress(0.6)
-    values = np.stack([obs.code, obs.phase, obs.doppler, obs.snr], axis=2)
-    lli = np.zeros(values.shape, int)
-    lli[:, :, 1] = obs.lli
-    ssi = np.repeat(_ssi(obs.snr)[:, :, None], 4, axis=2)
-    ssi[:, :, 2:] = 0
-    ref = obs.r_rx_e[0]
-    write_rinex3_obs(folder / FILES["gnss_raw_obs"], week, time_rx, obs.prns, values,
-                     lli=lli, ssi=ssi, approx_xyz_m=ref, interval_s=1.0 / settings.rate_hz,
-                     marker="SIMULATED_ROVER", leap_seconds=orbits.nav.leap_seconds,
-                     comments=("simulated by ins simulate (insphoto): truth in",
-                               "receiver_clock.txt and gnss_raw_truth.csv"))
+    _write_obs(folder / FILES["gnss_raw_obs"], obs, obs.r_rx_e[0], settings, orbits,
+               "SIMULATED_ROVER", ("simulated by ins simulate (insphoto): truth in",
+                                   "receiver_clock.txt and gnss_raw_truth.csv"))
+    files = dict(FILES)
+    extra = {}
+    if settings.base_lla is not None:
+        base = simulate_raw(orbits, week, time_rx, _static(settings.base_lla),
+                            replace(settings, slips=(), masks=()),
+                            np.random.default_rng(rng.integers(2 ** 63)), t_start=truth.t_start)
+        _write_obs(folder / BASE_FILE, base, base.r_rx_e[0], settings, orbits,
+                   "SIMULATED_BASE", ("simulated static base station: APPROX POSITION XYZ is",
+                                      "its true antenna position (ECEF, m)"))
+        files["gnss_raw_base_obs"] = BASE_FILE
+        lat, lon, h = settings.base_lla
+        extra = {"base_lla_deg": [float(np.rad2deg(lat)), float(np.rad2deg(lon)), float(h)],
+                 "base_ecef_m": [float(x) for x in base.r_rx_e[0]],
+                 "base_clock_bias_ms": float(base.clock_bias_s[0] * 1e3)}
     with atomic_open(folder / FILES["gnss_raw_nav"], "w") as f:
         f.write(span_text(settings.nav_file, week, truth.t_start, truth.t_end))
     _write_clock(folder / FILES["receiver_clock"], obs)
@@ -172,5 +188,25 @@ def write_gnss_raw(flight, settings, rng):
         "slips_made": [[t, p, c] for t, p, c in obs.slips],
         "n_epochs": int(len(time_rx)), "min_satellites": int(n_sat.min()),
         "max_satellites": int(n_sat.max()),
-        "antenna": "the antenna of gnss.txt (lever arms l_bp, l_ap and the mount)"}
-    return {"files": dict(FILES), "gnss_raw": table}
+        "antenna": "the antenna of gnss.txt (lever arms l_bp, l_ap and the mount)", **extra}
+    return {"files": files, "gnss_raw": table}
+
+
+def _static(lla):
+    lla = np.asarray(lla, dtype=float)
+    r_e = lla_to_ecef(*lla)
+
+    def receiver(t):
+        return np.tile(lla, (len(t), 1)), np.tile(r_e, (len(t), 1))
+    return receiver
+
+
+def _write_obs(path, obs, approx_xyz, settings, orbits, marker, comments):
+    values = np.stack([obs.code, obs.phase, obs.doppler, obs.snr], axis=2)
+    lli = np.zeros(values.shape, int)
+    lli[:, :, 1] = obs.lli
+    ssi = np.repeat(_ssi(obs.snr)[:, :, None], 4, axis=2)
+    ssi[:, :, 2:] = 0
+    write_rinex3_obs(path, obs.week, obs.time_rx, obs.prns, values, lli=lli, ssi=ssi,
+                     approx_xyz_m=approx_xyz, interval_s=1.0 / settings.rate_hz,
+                     marker=marker, leap_seconds=orbits.nav.leap_seconds, comments=comments)
