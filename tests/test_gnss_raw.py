@@ -598,3 +598,30 @@ def test_base_station_rtk_fixes_to_the_truth(flight_with_base, tmp_path):
     d = ned_offset(g.lla[ib[fixed]], sol.log.lla[ia[fixed]])
     rms = np.sqrt(np.mean(d ** 2, axis=0))
     assert np.all(rms < [0.04, 0.04, 0.07]), rms
+
+
+def test_the_banked_aircraft_hides_the_low_satellites_on_the_outside(orbits):
+    """Rolled 30 deg right wing down (heading north): the antenna's horizon tilts down to
+    the east and up to the west.  The elevation above the aircraft's plane from the
+    azimuth and elevation (an independent formula: the line of sight on the aircraft's
+    up axis) decides what is hidden; the lost satellites are in the west."""
+    from scipy.spatial.transform import Rotation
+    lla = _station_lla()
+    C_na = Rotation.from_euler("x", 30.0, degrees=True).as_matrix()
+
+    def banked(t):
+        return np.tile(lla, (len(t), 1)), np.tile(STATION, (len(t), 1)), \
+            np.tile(C_na, (len(t), 1, 1))
+    level = _simulate(orbits, RawSettings(**QUIET), n=5)
+    obs = simulate_raw(orbits, WEEK, T0 + np.arange(5.0), banked, RawSettings(**QUIET),
+                       np.random.default_rng(1))
+    el, az = obs.elevation, obs.azimuth
+    los_n = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], axis=2)
+    up_a = C_na @ np.array([0.0, 0.0, -1.0])
+    el_a = np.arcsin(los_n @ up_a)
+    np.testing.assert_allclose(obs.elevation_antenna[np.isfinite(el)], el_a[np.isfinite(el)],
+                               atol=1e-9)
+    np.testing.assert_array_equal(obs.observed, level.observed & (el_a >= 0.0))
+    lost = level.observed & ~obs.observed
+    assert lost.sum() >= 5 and np.all(np.sin(az[lost]) < 0)        # in the west
+    assert np.all(np.isnan(level.elevation_antenna))                # no attitude given

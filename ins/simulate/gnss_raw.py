@@ -27,6 +27,9 @@ navigation file above the elevation mask, with ``lambda = c / 1575.42 MHz``::
   arc after the file's first epoch and at each slip;
 - masked satellites: in the spans of the mask schedule only the ``n`` highest satellites
   above the elevation mask are observed (all of them if fewer are in view);
+- the vehicle: with its attitude, satellites below ``antenna_mask`` above its x-y plane
+  are hidden (an aircraft banking 25 deg loses the low satellites on the outside of the
+  turn); a satellite coming back starts a new arc;
 - ``S1C``: C/N0 = ``cn0_horizon + (cn0_zenith - cn0_horizon) sin(el)``, dB-Hz.
 
 The derivative in ``D`` is a central difference over +-:data:`DOPPLER_STEP_S` of the
@@ -43,7 +46,7 @@ from ins.nav.earth import dcm_en
 from ins.simulate.gps_orbit import C_LIGHT, OMEGA_E_GPS
 
 __all__ = ["L1_HZ", "L1_WAVELENGTH", "DOPPLER_STEP_S", "RawSettings", "RawObservations",
-           "light_time", "az_el", "klobuchar", "saastamoinen", "clock_process",
+           "light_time", "az_el", "antenna_elevation", "klobuchar", "saastamoinen", "clock_process",
            "simulate_raw", "dops"]
 
 #: GPS L1 carrier frequency, Hz.
@@ -83,6 +86,9 @@ class RawSettings:
         Factors on the Klobuchar and Saastamoinen delays injected (1: the models exactly).
     humidity : float
         Relative humidity of the troposphere model, 0-1.
+    antenna_mask : float
+        Satellites below this elevation in the vehicle's frame (the antenna's horizon,
+        tilted with the attitude of the aircraft) are hidden by the vehicle, rad.
     cn0_zenith_dbhz, cn0_horizon_dbhz : float
         C/N0 at zenith and at the horizon, dB-Hz.
     ambiguity_max : int
@@ -114,6 +120,7 @@ class RawSettings:
     humidity: float = 0.7
     cn0_zenith_dbhz: float = 50.0
     cn0_horizon_dbhz: float = 35.0
+    antenna_mask: float = 0.0
     ambiguity_max: int = 1000
     slips: tuple = ()
     masks: tuple = ()
@@ -144,6 +151,9 @@ class RawObservations:
         Integer ambiguity, cycles.
     elevation, azimuth : ndarray (n, m)
         rad, at the receiver.
+    elevation_antenna : ndarray (n, m)
+        Elevation above the vehicle's horizontal plane (its x-y plane, FRD), rad; NaN
+        without the vehicle's attitude.
     r_sat_e : ndarray (n, m, 3)
         Satellite at transmit time in the ECEF frame at reception, m.
     clock_bias_s, clock_drift : ndarray (n,)
@@ -174,6 +184,7 @@ class RawObservations:
     ambiguity: np.ndarray
     elevation: np.ndarray
     azimuth: np.ndarray
+    elevation_antenna: np.ndarray
     r_sat_e: np.ndarray
     clock_bias_s: np.ndarray
     clock_drift: np.ndarray
@@ -216,6 +227,18 @@ def light_time(sat_state, t, r_rx_e, iterations=4):
         rho = np.linalg.norm(r_sat - r_rx_e, axis=1)
         tau = rho / C_LIGHT
     return rho, r_sat, dt_s
+
+
+def antenna_elevation(lla, C_na, r_rx_e, r_sat_e):
+    """Elevation of satellites above the vehicle's x-y plane (FRD: up is -z), rad.
+
+    ``lla`` (n, 3) rad, rad, m; ``C_na`` (n, 3, 3) vehicle (FRD) to NED; ``r_rx_e``,
+    ``r_sat_e`` (n, 3) ECEF m.
+    """
+    los = r_sat_e - r_rx_e
+    los_n = np.einsum("nji,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), los)
+    los_a = np.einsum("nji,nj->ni", C_na, los_n)
+    return np.arcsin(-los_a[:, 2] / np.linalg.norm(los_a, axis=1))
 
 
 def az_el(lla, r_rx_e, r_sat_e):
@@ -333,8 +356,10 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
     time_rx : ndarray (n,)
         Epochs in receiver clock time, GPS s of week, evenly spaced.
     receiver : callable
-        ``receiver(t) -> (lla (n, 3) rad rad m, r_e (n, 3) m)``: the antenna at true GPS
-        times ``t``.
+        ``receiver(t) -> (lla (n, 3) rad rad m, r_e (n, 3) m[, C_na (n, 3, 3)])``: the
+        antenna at true GPS times ``t`` and, optionally, the attitude of the vehicle that
+        carries it (``C_na``: aircraft FRD to NED), whose body hides the satellites below
+        ``antenna_mask`` in its own frame (the antenna's horizon tilts with the bank).
     settings : RawSettings
     rng : numpy.random.Generator
     t_start : float, optional
@@ -357,13 +382,14 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
                                 s.clock_drift_noise, rng)
     t = time_rx - bias
     h = DOPPLER_STEP_S
-    lla, r_rx = receiver(t)
-    lla_p, r_p = receiver(t + h)
-    lla_m, r_m = receiver(t - h)
+    lla, r_rx, *attitude = receiver(t)
+    lla_p, r_p = receiver(t + h)[:2]
+    lla_m, r_m = receiver(t - h)[:2]
+    C_na = attitude[0] if attitude else None
     prns = np.array(orbits.prns, dtype=int)
     m = len(prns)
     shape = (n, m)
-    rho, dts, iono, trop, el, az = (np.full(shape, np.nan) for _ in range(6))
+    rho, dts, iono, trop, el, az, el_a = (np.full(shape, np.nan) for _ in range(7))
     rate = np.full(shape, np.nan)
     r_sat = np.full((n, m, 3), np.nan)
 
@@ -383,6 +409,8 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
         io_j, tr_j = delays(lla, az_j, el_j, t)
         rho[:, j], dts[:, j], r_sat[:, j] = rho_j, C_LIGHT * dts_j, rs_j
         az[:, j], el[:, j], iono[:, j], trop[:, j] = az_j, el_j, io_j, tr_j
+        if C_na is not None:
+            el_a[:, j] = antenna_elevation(lla, C_na, r_rx, rs_j)
         up = np.flatnonzero(el_j >= s.elevation_mask)     # the Doppler where it is used
         ends = []
         for tt, ll, rr in ((t + h, lla_p, r_p), (t - h, lla_m, r_m)):
@@ -393,6 +421,8 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
             ends.append(rho_k - C_LIGHT * dts_k - io_k + tr_k)
         rate[up, j] = (ends[0] - ends[1]) / (2.0 * h)
     visible = np.isfinite(rho) & (el >= s.elevation_mask)
+    if C_na is not None:
+        visible &= el_a >= s.antenna_mask
     observed = _apply_masks(el, visible, time_rx - t0, s.masks)
     sin_el = np.sin(np.where(observed, el, _PI / 2))
     # ambiguities per arc, slips
@@ -440,7 +470,7 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
         a[hide] = np.nan
     lli[hide] = 0
     return RawObservations(week, time_rx, t, prns, code, phase, doppler, snr, lli, observed,
-                           rho, dts, iono, trop, mp_code, mp_phase, amb, el, az, r_sat,
+                           rho, dts, iono, trop, mp_code, mp_phase, amb, el, az, el_a, r_sat,
                            bias, drift, r_rx, tuple(applied))
 
 

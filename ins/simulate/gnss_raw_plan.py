@@ -9,6 +9,7 @@ defaults of :class:`ins.simulate.gnss_raw.RawSettings`)::
     nav_file = "../shared/real/rtklib_static_pair/07590920.05n"   # relative to the plan
     rate_hz = 1.0
     elevation_mask_deg = 10.0
+    antenna_mask_deg = 0.0        # hidden by the aircraft: below its x-y plane (FRD)
     sigma_code_m = 0.3            # white noise at zenith, / sin(el)
     sigma_phase_m = 0.002
     sigma_doppler_hz = 0.05
@@ -41,7 +42,8 @@ from ins.simulate.gnss_raw import RawSettings
 
 __all__ = ["GNSS_RAW_KEYS", "parse_gnss_raw"]
 
-GNSS_RAW_KEYS = ("nav_file", "rate_hz", "elevation_mask_deg", "sigma_code_m", "sigma_phase_m",
+GNSS_RAW_KEYS = ("nav_file", "rate_hz", "elevation_mask_deg", "antenna_mask_deg",
+                 "sigma_code_m", "sigma_phase_m",
                  "sigma_doppler_hz", "multipath_code_m", "multipath_phase_m",
                  "multipath_time_s", "clock_bias_ms", "clock_drift_ppb",
                  "clock_bias_noise_ns_sqrts", "clock_drift_noise_ppb_sqrts", "iono_scale",
@@ -96,6 +98,8 @@ def parse_gnss_raw(sec, source):
         nav_file=nav,
         rate_hz=pos("rate_hz", d.rate_hz, "Hz in (0, 100]", 100.0),
         elevation_mask=np.deg2rad(nonneg("elevation_mask_deg", 10.0, "deg in [0, 60]", 60.0)),
+        antenna_mask=np.deg2rad(sec.number("antenna_mask_deg", 0.0, "deg in [-90, 60]",
+                                           -90.0, 60.0)),
         sigma_code_m=nonneg("sigma_code_m", d.sigma_code_m, "m >= 0", 100.0),
         sigma_phase_m=nonneg("sigma_phase_m", d.sigma_phase_m, "m >= 0", 0.05),
         sigma_doppler_hz=nonneg("sigma_doppler_hz", d.sigma_doppler_hz, "Hz >= 0", 100.0),

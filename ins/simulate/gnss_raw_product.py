@@ -17,7 +17,9 @@ navigation file and writes, beside the IMU and the truth of the flight folder:
 ``gnss_raw_truth.csv``
     One row per observation: ``time_rx_s,prn,time_gps_s,range_m,sat_clock_m,iono_m,
     tropo_m,multipath_code_m,multipath_phase_m,ambiguity_cycles,elevation_deg,
-    azimuth_deg,x_sat_m,y_sat_m,z_sat_m,lli`` with ``range_m`` the geometric range with
+    azimuth_deg,x_sat_m,y_sat_m,z_sat_m,lli,antenna_elevation_deg`` (the last: above the
+    aircraft's x-y plane, whose body hides what is below ``[gnss_raw] antenna_mask_deg``)
+    with ``range_m`` the geometric range with
     light time and Sagnac, the satellite at transmit time in the ECEF frame at reception,
     so that ``C1C = range + c clock_bias - sat_clock + iono + tropo + multipath_code +
     noise`` and ``L1C = (range + c clock_bias - sat_clock - iono + tropo +
@@ -44,6 +46,7 @@ from ins.common.fileio import atomic_open
 from ins.io.rinex_nav import read_gps_nav, span_text
 from ins.io.rinex_obs import write_rinex3_obs
 from ins.nav.earth import lla_to_ecef
+from ins.nav.rotation import quat_to_dcm
 from ins.simulate.gnss import antenna_state
 from ins.simulate.gnss_raw import L1_WAVELENGTH, simulate_raw
 from ins.simulate.gps_orbit import C_LIGHT, BroadcastOrbits
@@ -57,7 +60,7 @@ FILES = {"gnss_raw_obs": "rover.obs", "gnss_raw_nav": "rover.nav",
 BASE_FILE = "base.obs"
 TRUTH_HEADER = ("time_rx_s,prn,time_gps_s,range_m,sat_clock_m,iono_m,tropo_m,"
                 "multipath_code_m,multipath_phase_m,ambiguity_cycles,elevation_deg,"
-                "azimuth_deg,x_sat_m,y_sat_m,z_sat_m,lli\n")
+                "azimuth_deg,x_sat_m,y_sat_m,z_sat_m,lli,antenna_elevation_deg\n")
 #: Margin kept inside the flight at both ends for the receiver clock and the Doppler's
 #: central difference, s.
 EDGE_S = 0.1
@@ -89,8 +92,10 @@ def check_span(orbits, week, t_start, t_end):
 def _receiver(truth, l_bp, l_ap):
     def receiver(t):
         t = np.clip(t, truth.t_start, truth.t_end)
-        lla, _ = antenna_state(truth.evaluate(t), l_bp, l_ap)
-        return lla, lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2])
+        sample = truth.evaluate(t)
+        lla, _ = antenna_state(sample, l_bp, l_ap)
+        return (lla, lla_to_ecef(lla[:, 0], lla[:, 1], lla[:, 2]),
+                quat_to_dcm(np.atleast_2d(sample.q_na)))
     return receiver
 
 
@@ -104,9 +109,10 @@ def _write_truth(path, obs):
     cols = [obs.time_rx[i], obs.prns[j], obs.time_gps[i], obs.rho[i, j], obs.sat_clock_m[i, j],
             obs.iono_m[i, j], obs.tropo_m[i, j], obs.mp_code_m[i, j], obs.mp_phase_m[i, j],
             obs.ambiguity[i, j], np.rad2deg(obs.elevation[i, j]),
-            np.rad2deg(obs.azimuth[i, j]), *obs.r_sat_e[i, j].T, obs.lli[i, j]]
+            np.rad2deg(obs.azimuth[i, j]), *obs.r_sat_e[i, j].T, obs.lli[i, j],
+            np.rad2deg(obs.elevation_antenna[i, j])]
     fmt = ["%.3f", "%d", "%.12f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.5f", "%d",
-           "%.6f", "%.6f", "%.4f", "%.4f", "%.4f", "%d"]
+           "%.6f", "%.6f", "%.4f", "%.4f", "%.4f", "%d", "%.6f"]
     buf = io.StringIO()
     np.savetxt(buf, np.column_stack(cols), fmt=fmt, delimiter=",")
     with atomic_open(path, "w") as f:
@@ -177,6 +183,7 @@ def write_gnss_raw(flight, settings, rng):
         "nav_source": str(s.nav_file), "rate_hz": s.rate_hz,
         "obs_types": ["C1C", "L1C", "D1C", "S1C"],
         "elevation_mask_deg": float(np.rad2deg(s.elevation_mask)),
+        "antenna_mask_deg": float(np.rad2deg(s.antenna_mask)),
         "sigma_code_m": s.sigma_code_m, "sigma_phase_m": s.sigma_phase_m,
         "sigma_doppler_hz": s.sigma_doppler_hz, "multipath_code_m": s.multipath_code_m,
         "multipath_phase_m": s.multipath_phase_m, "multipath_time_s": s.multipath_time_s,
