@@ -456,6 +456,17 @@ def test_plan_section_errors(tmp_path, line, message):
         load_plan(plan)
 
 
+def test_plan_nav_file_is_relative_to_the_plan(tmp_path):
+    from ins.simulate.plan_read import load_plan
+    (tmp_path / "sub").mkdir()
+    plan = tmp_path / "sub" / "plan.toml"
+    plan.write_text(PLAN.format(start=T0, nav="../nav/brdc.05n"))
+    raw = load_plan(plan).gnss_raw
+    assert raw.nav_file == str(tmp_path / "nav" / "brdc.05n")
+    assert raw.slips == ((20.0, 0, 4),) and raw.masks == ((40.0, 10.0, 3),)
+    assert raw.elevation_mask == pytest.approx(np.deg2rad(10.0)) and raw.base_lla is None
+
+
 def test_plan_without_nav_file_names_the_key(tmp_path):
     from ins.simulate.folder import simulate_flight
     plan = tmp_path / "plan.toml"

@@ -17,12 +17,10 @@ of the navigation file that goes beside simulated observations).
 import datetime as _dt
 from dataclasses import dataclass
 
-import numpy as np
-
 from ins.common.errors import InputError
 
 __all__ = ["GpsEphemeris", "NavData", "read_gps_nav", "gps_week_sow", "span_text",
-           "as_arrays", "SECONDS_PER_WEEK"]
+           "SECONDS_PER_WEEK"]
 
 SECONDS_PER_WEEK = 604800.0
 _GPS_EPOCH = _dt.datetime(1980, 1, 6)
@@ -315,9 +313,3 @@ def span_text(path, week, t_first, t_last, margin_s=7200.0):
                 out.extend(lines[k:k_next])
         k = k_next
     return "\n".join(out) + "\n"
-
-
-def as_arrays(ephemerides):
-    """Structured view: ``{field: ndarray}`` of a sequence of GpsEphemeris (float)."""
-    names = GpsEphemeris.__dataclass_fields__.keys()
-    return {n: np.array([getattr(e, n) for e in ephemerides], dtype=float) for n in names}
