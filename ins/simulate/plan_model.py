@@ -187,6 +187,8 @@ class FlightPlan:
     tie_points: TiePoints
     scanner: ScannerSettings | None = None      # no [scanner] table: no LiDAR products
     source: str = "<string>"
+    #: ``[gnss_raw]``: :class:`ins.simulate.gnss_raw.RawSettings`, or None (no raw GPS).
+    gnss_raw: object = None
 
     def _footprint(self, along):
         c = self.camera

@@ -2,7 +2,9 @@
 
 The file has the sections ``[block] [flight] [wind] [turbulence] [mount] [imu] [gnss]
 [camera] [terrain] [tie_points]`` and the optional ``[scanner]`` (a simulated laser
-scanner: without it the flight has no LiDAR products); key names carry their unit (``_deg``, ``_m``,
+scanner: without it the flight has no LiDAR products) and ``[gnss_raw]`` (raw GPS
+observations from broadcast orbits: :mod:`ins.simulate.gnss_raw_plan`); key names carry
+their unit (``_deg``, ``_m``,
 ``_mps``, ``_hz``, ``_s``, ``_percent``).  ``data/flights/demo.toml`` is the documented
 example.  Every key has a default except the block origin; unknown keys and sections are
 errors (:mod:`ins.common.tomlschema`: the message lists the known keys of the section, with
@@ -51,6 +53,7 @@ from ins.common.errors import InputError
 from ins.common.limits import MAX_LEVER_ARM_M, MAX_SIGMA_M
 from ins.common.textfiles import read_toml
 from ins.common.tomlschema import REQUIRED, Table, check_keys
+from ins.simulate.gnss_raw_plan import GNSS_RAW_KEYS, parse_gnss_raw
 from ins.simulate.plan_checks import check_feasible
 from ins.simulate.plan_model import (
     D2R,
@@ -96,6 +99,7 @@ PLAN_KEYS = {
     "scanner": ("model", "pulse_rate_hz", "scan_rate_hz", "field_of_view_deg",
                 "forward_tilt_deg", "range_sigma_m", "scan_angle_sigma_deg", "lever_arm_m",
                 "boresight_deg", "lever_arm_sigma_m", "boresight_sigma_deg"),
+    "gnss_raw": GNSS_RAW_KEYS,
 }
 
 
@@ -336,6 +340,13 @@ def parse_plan(data, source="<string>"):
         sec = Table(data.get(name), name, source, known=PLAN_KEYS[name], sections=PLAN_KEYS)
         parts[name] = parse(sec)
         sec.finish()
+    # optional: raw GPS observations (rover.obs); read (and checked) in any case
+    sec = Table(data.get("gnss_raw"), "gnss_raw", source, known=GNSS_RAW_KEYS,
+                sections=PLAN_KEYS)
+    raw = parse_gnss_raw(sec, source)
+    sec.finish()
+    if "gnss_raw" in data:
+        parts["gnss_raw"] = raw
     plan = FlightPlan(**parts, source=str(source))
     check_feasible(plan, data)
     return plan
