@@ -189,6 +189,7 @@ def _config(args):
         cfg.truth = args.truth
     if args.no_smooth:
         cfg.smooth = False
+    cfg.gnss_raw_plot = not args.no_plots
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml

@@ -105,6 +105,7 @@ class ProcessConfig:
     imu: str
     gnss: str
     gnss_raw: object = None       # ins.estimation.process_gnss.RawGnss instead of gnss
+    gnss_raw_plot: bool = True    # raw GNSS, kinematic: fwd_bwd_separation.png
     mount: str = None
     truth: str = None
     heading: str = None

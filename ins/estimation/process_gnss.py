@@ -100,7 +100,8 @@ def run_raw_gnss(cfg, folder):
     Parameters
     ----------
     cfg : ins.estimation.process_config.ProcessConfig
-        With ``gnss_raw`` (:class:`RawGnss`); its ``gnss_quality``,
+        With ``gnss_raw`` (:class:`RawGnss`) and ``gnss_raw_plot`` (write the
+        separation figure); its ``gnss_quality``,
         ``gnss_quality_scale`` and time shifts apply to the solution.
     folder : str
         An existing folder: ``gnss.pos`` (and in kinematic mode the separation files)
@@ -133,7 +134,8 @@ def run_raw_gnss(cfg, folder):
         sep = forward_backward(raw.rover, raw.nav or None, folder, base=raw.base,
                                sp3=raw.sp3, clk=raw.clk, options=opts)
         write_separation(sep, os.path.join(folder, SEPARATION_TXT))
-        plot_separation(sep, os.path.join(folder, SEPARATION_PNG))
+        if cfg.gnss_raw_plot:
+            plot_separation(sep, os.path.join(folder, SEPARATION_PNG))
     source = {"path": out, "mode": opts.mode,
               "direction": opts.direction if opts.mode in CARRIER_MODES else None,
               "ephemeris": sol.ephemeris, "counts": sol.counts(),
