@@ -140,3 +140,107 @@ def read_rinex3_obs(path):
                 vals[t] = float(v) if v else np.nan
             rows[sat] = vals
     return out
+
+
+SC2RAD = 3.1415926535898            # GPS pi (IS-GPS-200), as RTKLIB scales semicircles
+
+
+class _Bits:
+    """A big-endian bit string of ``n`` bits, filled field by field."""
+
+    def __init__(self, n):
+        self.bits = [0] * n
+
+    def put(self, pos, length, value):
+        value = int(value) & ((1 << length) - 1)          # two's complement for < 0
+        for k in range(length):
+            self.bits[pos + k] = (value >> (length - 1 - k)) & 1
+        return pos + length
+
+    def words24(self):
+        return [int("".join(map(str, self.bits[24 * i:24 * i + 24])), 2) for i in range(10)]
+
+
+def _q(value, scale):
+    """The integer of a broadcast field (value / scale, exact for decoded values)."""
+    return int(round(value / scale))
+
+
+def lnav_subframes(eph, rtk):
+    """GPS LNAV subframes 1-3 (IS-GPS-200 layout, 10 x 24 data bits each, parity not
+    computed) of an RTKLIB ``eph_t`` read from a RINEX navigation file."""
+    w = rtk.Arr1Dint(1)
+    toc = rtk.time2gpst(eph.toc, w)
+    tow = rtk.time2gpst(eph.ttr, w)
+    week = w[0]                          # subframe 1 holds the week of transmission
+    out = []
+    for sf in (1, 2, 3):
+        b = _Bits(240)
+        b.put(0, 8, 0x8B)                                 # TLM preamble
+        b.put(24, 17, int(tow // 6) + sf - 1)             # HOW: TOW count
+        i = b.put(43, 3, sf) + 2
+        if sf == 1:
+            i = b.put(i, 10, week % 1024)
+            i = b.put(i, 2, eph.code)
+            i = b.put(i, 4, eph.sva)
+            i = b.put(i, 6, eph.svh)
+            i = b.put(i, 2, eph.iodc >> 8)
+            i = b.put(i, 1, eph.flag) + 87
+            i = b.put(i, 8, _q(eph.tgd[0], 2.0 ** -31))
+            i = b.put(i, 8, eph.iodc & 0xFF)
+            i = b.put(i, 16, _q(toc, 16.0))
+            i = b.put(i, 8, _q(eph.f2, 2.0 ** -55))
+            i = b.put(i, 16, _q(eph.f1, 2.0 ** -43))
+            b.put(i, 22, _q(eph.f0, 2.0 ** -31))
+        elif sf == 2:
+            i = b.put(i, 8, eph.iode)
+            i = b.put(i, 16, _q(eph.crs, 2.0 ** -5))
+            i = b.put(i, 16, _q(eph.deln, 2.0 ** -43 * SC2RAD))
+            i = b.put(i, 32, _q(eph.M0, 2.0 ** -31 * SC2RAD))
+            i = b.put(i, 16, _q(eph.cuc, 2.0 ** -29))
+            i = b.put(i, 32, _q(eph.e, 2.0 ** -33))
+            i = b.put(i, 16, _q(eph.cus, 2.0 ** -29))
+            i = b.put(i, 32, _q(np.sqrt(eph.A), 2.0 ** -19))
+            i = b.put(i, 16, _q(eph.toes, 16.0))
+            b.put(i, 1, 0 if eph.fit <= 4.0 else 1)
+        else:
+            i = b.put(i, 16, _q(eph.cic, 2.0 ** -29))
+            i = b.put(i, 32, _q(eph.OMG0, 2.0 ** -31 * SC2RAD))
+            i = b.put(i, 16, _q(eph.cis, 2.0 ** -29))
+            i = b.put(i, 32, _q(eph.i0, 2.0 ** -31 * SC2RAD))
+            i = b.put(i, 16, _q(eph.crc, 2.0 ** -5))
+            i = b.put(i, 32, _q(eph.omg, 2.0 ** -31 * SC2RAD))
+            i = b.put(i, 24, _q(eph.OMGd, 2.0 ** -43 * SC2RAD))
+            i = b.put(i, 8, eph.iode)
+            b.put(i, 14, _q(eph.idot, 2.0 ** -43 * SC2RAD))
+        out.append(b.words24())
+    return out
+
+
+def sfrbx(sv_id, words24):
+    """RXM-SFRBX frame (0x02 0x13) of one GPS L1 C/A subframe: 10 words, the 24 data
+    bits of each above 6 (zero) parity bits."""
+    head = struct.pack("<BBBBBBBx", 0, sv_id, 0, 0, len(words24), 0, 2)
+    return frame(0x02, 0x13, head + b"".join(struct.pack("<I", w << 6) for w in words24))
+
+
+def nav_to_sfrbx(nav_path, rtk):
+    """RXM-SFRBX frames of every GPS ephemeris of a RINEX navigation file (read with
+    RTKLIB's readrnx), and the ephemerides themselves."""
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    rtk.readrnx(str(nav_path), 1, "", obs, nav, sta)
+    ephs = [nav.eph[i] for i in range(nav.n)]
+    data = b""
+    for e in ephs:
+        for words in lnav_subframes(e, rtk):
+            data += sfrbx(e.sat, words)                  # sat number = PRN for GPS
+    return data, ephs
+
+
+def rinex2_to_ubx_with_nav(obs_path, nav_path, rtk):
+    """:func:`rinex2_to_ubx` with the ephemerides of ``nav_path`` as RXM-SFRBX frames
+    after the first epoch."""
+    raw = rinex2_to_ubx(obs_path)
+    first = 8 + struct.unpack("<H", raw[4:6])[0]         # end of the first RXM-RAWX frame
+    nav, ephs = nav_to_sfrbx(nav_path, rtk)
+    return raw[:first] + nav + raw[first:], ephs

@@ -221,7 +221,8 @@ def _observations(path, folder, stem, rtk):
     u-blox log is converted into ``folder`` first."""
     from ins.gnss.ubx import convert_ubx, is_ubx
     if is_ubx(path):
-        return convert_ubx(path, folder, rtk, stem)
+        with _LOCK:                                   # RTKLIB's clock is set meanwhile
+            return convert_ubx(path, folder, rtk, stem)
     return path, None
 
 

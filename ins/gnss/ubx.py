@@ -11,12 +11,19 @@ written).  It returns 1 when it wrote something.  The observation codes are RTKL
 (u-blox L2 CL/CM -> ``C2X``/``L2X`` unless demo5's ``-MULTICODE``); the navigation
 file is written only when the log holds ephemerides (RXM-SFRBX); without them the
 broadcast navigation must come from a RINEX navigation file (``--nav``).
+
+The GPS navigation message gives the week modulo 1024; RTKLIB resolves it against the
+computer's clock (``adjgpsweek``), which puts a log more than about ten years old in
+the wrong 1024-week era.  The conversion therefore sets RTKLIB's clock (``timeset``) to
+the first RXM-RAWX epoch of the log (whose week is complete) and resets it after
+(``timereset``): callers serialize RTKLIB calls (:mod:`ins.gnss.rtklib_engine`).
 """
 import os
+import struct
 
 from ins.common.errors import InputError
 
-__all__ = ["is_ubx", "convert_ubx", "UBX_SYNC", "RINEX_VERSION"]
+__all__ = ["is_ubx", "convert_ubx", "first_rawx_time", "UBX_SYNC", "RINEX_VERSION"]
 
 UBX_SYNC = b"\xb5\x62"
 #: RINEX version of the converted files (x100, RTKLIB's rnxopt_t.rnxver).
@@ -77,7 +84,14 @@ def convert_ubx(path, folder, rtk, stem="rover"):
         for j in range(64):
             opt.mask[i, j] = "1"
     ofile = [obs_path, nav_path] + [""] * (_N_OUTPUT_FILES - 2)
-    status = rtk.convrnx(rtk.STRFMT_UBX, opt, path, ofile)
+    first = first_rawx_time(path)
+    if first is not None:
+        rtk.timeset(rtk.gpst2utc(rtk.gpst2time(*first)))
+    try:
+        status = rtk.convrnx(rtk.STRFMT_UBX, opt, path, ofile)
+    finally:
+        if first is not None:
+            rtk.timereset()
     if status <= 0 or not _has_observation(obs_path):
         raise InputError(f"RTKLIB's convrnx converts no observation from this u-blox log "
                          f"(status {status}; expected UBX RXM-RAWX messages: enable them "
@@ -85,6 +99,31 @@ def convert_ubx(path, folder, rtk, stem="rover"):
     if not _has_ephemeris(nav_path):
         nav_path = None
     return obs_path, nav_path
+
+
+def first_rawx_time(path, limit_bytes=1 << 22):
+    """``(week, tow_s)`` of the first RXM-RAWX message (with a valid checksum) in the
+    first ``limit_bytes`` of a UBX log, or None."""
+    with open(path, "rb") as f:
+        data = f.read(limit_bytes)
+    k = data.find(b"\xb5\x62\x02\x15")
+    while 0 <= k and k + 8 + 16 <= len(data):
+        length = struct.unpack_from("<H", data, k + 4)[0]
+        end = k + 6 + length
+        if end + 2 <= len(data) and data[end:end + 2] == _checksum(data[k + 2:end]):
+            tow, week = struct.unpack_from("<dH", data, k + 6)
+            if week > 0:
+                return int(week), float(tow)
+        k = data.find(b"\xb5\x62\x02\x15", k + 2)
+    return None
+
+
+def _checksum(body):
+    a = b = 0
+    for byte in body:
+        a = (a + byte) & 0xFF
+        b = (b + a) & 0xFF
+    return bytes((a, b))
 
 
 def _has_observation(path):
