@@ -5,8 +5,9 @@ prints the figures of the raw-GNSS path of ``ins gnss`` / ``ins process``.
   fixes (the receiver is static), their mean against RTKLIB's static solution of the
   hour, and the baseline length against the RINEX headers' (GEONET coordinates);
 - forward minus backward separation: RMS/max of all epochs and of those both fixed;
-- the rover as a u-blox log (RXM-RAWX encoded from its RINEX, tests/ubx_frames.py):
-  largest position difference to the RINEX run;
+- the rover as a u-blox log (RXM-RAWX encoded from its RINEX, tests/ubx_frames.py;
+  then with RXM-SFRBX from the navigation file and no --nav): largest position
+  difference to the RINEX run;
 - an SP3 synthesized from the broadcast orbits (tests/sp3_synth.py): largest position
   difference to the broadcast run; an SP3 ending at 00:35: where the solution ends;
 - dynamics on (demo5's default): records the covariance screen repairs/drops;
@@ -28,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from sp3_synth import satellite_states, write_sp3  # noqa: E402
-from ubx_frames import rinex2_to_ubx  # noqa: E402
+from ubx_frames import rinex2_to_ubx, rinex2_to_ubx_with_nav  # noqa: E402
 
 from ins.gnss.rtklib_engine import binding, solve  # noqa: E402
 from ins.gnss.rtklib_options import RtklibOptions  # noqa: E402
@@ -75,6 +76,12 @@ def main(out):
     print(f"u-blox rover: Q equal {np.array_equal(u.log.quality, ref.log.quality)}, "
           f"max |NED| difference to RINEX "
           f"{1e3 * np.abs(ned_offset(ref.log.lla, u.log.lla)).max():.2f} mm")
+    data, _ = rinex2_to_ubx_with_nav(ROVER, NAV, rtk)
+    (out / "rover_nav.ubx").write_bytes(data)
+    un = solve(out / "rover_nav.ubx", None, out / "ubx_nav.pos", base=BASE, options=o)
+    print(f"u-blox rover with RXM-SFRBX, no --nav: Q equal "
+          f"{np.array_equal(un.log.quality, ref.log.quality)}, max |NED| difference to "
+          f"RINEX {1e3 * np.abs(ned_offset(ref.log.lla, un.log.lla)).max():.2f} mm")
     tows = np.arange(518400.0 - 3600, 521970.0 + 3601, 300.0)
     states = satellite_states(rtk, NAV, 1316, tows, 520185.0)
     p = solve(ROVER, NAV, out / "prec.pos", base=BASE, options=o,
