@@ -252,7 +252,7 @@ def run(args):
     from photogrammetry.adjustment.report import write_report
     from photogrammetry.orientation.exposure import write_eo_csv
     jobs = _jobs(args)
-    # the INS sigma file and camera axes of each block (not an argument of the refinement)
+    # the INS attitude sigma common to each block's exposures (not an argument of refine)
     bore_inputs = [task.pop("boresight_inputs") for task, _, _ in jobs]
     for _, out, rep in jobs:               # an unwritable output: now, not after the work
         for path in (out, rep):
