@@ -169,3 +169,16 @@ def test_sigma_file_not_covering_the_exposures_exits_2_without_output(files, tmp
                  "none", "-o", str(out), "--ins-std", str(short)]) == 2
     err = capsys.readouterr().err
     assert "std.txt" in err and "outside the sigma file" in err and not out.exists()
+
+
+def test_sigma_file_ignored_when_the_boresight_is_not_estimated(files, tmp_path):
+    """--datum first ties the attitudes to the INS: no boresight, so a sigma file that does
+    not cover the exposures is not read (it stopped refine with exit 2 before)."""
+    d, eo, tp, cam, _ = files
+    short = tmp_path / "std.txt"
+    np.savetxt(short, _std_rows(np.linspace(0.0, 5.0, 6), [40.0, 30.0, 90.0]))
+    out = tmp_path / "r.csv"
+    assert main(["refine", eo, tp, "--camera", cam, "--datum", "first", "-o", str(out),
+                 "--ins-std", str(short), "-q"]) == 0
+    meta = read_eo_header(out)
+    assert "boresight_sigma_total_deg" not in meta

@@ -182,6 +182,9 @@ def _ins_std(args, eo_path, eo, axes):
     from photogrammetry.orientation.boresight_sigma import ins_common_sigma
     from photogrammetry.orientation.exposure import read_eo_header, read_solution_std
     path = args.ins_std
+    if args.datum != "none":        # the datum takes the INS attitude: no boresight estimate
+        return None, None, (f"the boresight is not estimated with --datum {args.datum} "
+                            "(the adjusted attitudes are tied to the INS's)")
     if not path:
         named = read_eo_header(eo_path).get("trajectory sigma")
         if not named:
