@@ -5,6 +5,8 @@ synthetic constellation (tests/tight_scenario.py) whose truth is known: one, two
 three satellites carry the solution through a span where loose coupling has no fix,
 with all satellites tight coupling is not worse than loose, and a blunder on one
 satellite is rejected alone."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import tight_scenario as ts
@@ -176,3 +178,47 @@ def test_one_bad_satellite_is_rejected_alone(scene):
     assert [r.accepted for r in recs] == [False] + [True] * (len(recs) - 1)
     assert recs[0].axes == (bad.names[i][0],)
     assert ts.horizontal_error(fwd.time, st, truth, epochs.time[i]) < 1.0
+
+
+# ---------------------------------------------------------------------------------------
+# real observations through RTKLIB: the GEONET static pair (rover 0759 at its header
+# position, GEONET's coordinates)
+
+PAIR = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "rtklib_static_pair"
+ROVER_HDR = np.array([-3976219.5082, 3382372.5671, 3652512.9849])
+
+
+@pytest.fixture(scope="module")
+def pair_epochs():
+    pytest.importorskip("pyrtklib5")
+    if not PAIR.is_dir():
+        pytest.skip("../shared/real is absent")
+    from ins.gnss.raw_epochs import read_raw_epochs
+    return read_raw_epochs(PAIR / "07590920.05o", PAIR / "07590920.05n", ROVER_HDR)
+
+
+def test_static_pair_ranges_agree_with_the_known_station(pair_epochs):
+    """Corrected pseudoranges minus the Sagnac range from the station's coordinates,
+    less one clock per epoch: metres (2005 broadcast orbits and clocks, Klobuchar)."""
+    ep = pair_epochs
+    assert len(ep) == 120 and min(map(len, ep.sats)) >= 6
+    assert ep.time[0] == 518400.0                      # GPS seconds of week
+    assert all(n.startswith("G") and len(n) == 3 for n in ep.names[0])
+    res = np.concatenate([(y - sagnac_range(r, ROVER_HDR)) - np.median(
+        y - sagnac_range(r, ROVER_HDR)) for y, r in zip(ep.range_m, ep.sat_pos_e)])
+    assert np.sqrt(np.mean(res ** 2)) < 3.0
+    assert np.max(np.abs(res)) < 12.0
+
+
+def test_sagnac_range_equals_rtklib_geodist(pair_epochs):
+    rtk = pytest.importorskip("pyrtklib5")
+    ep = pair_epochs
+    rr, e = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(3)
+    for k in range(3):
+        rr[k] = ROVER_HDR[k]
+    for r_s in ep.sat_pos_e[0]:
+        rs = rtk.Arr1Ddouble(6)
+        for k in range(3):
+            rs[k] = r_s[k]
+        assert sagnac_range(r_s[None], ROVER_HDR)[0] == pytest.approx(
+            rtk.geodist(rs, rr, e), abs=1e-6)
