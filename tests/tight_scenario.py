@@ -17,7 +17,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from ins.estimation.pseudorange import CLIGHT, RawEpochs  # noqa: E402
+from ins.estimation.pseudorange import CLIGHT  # noqa: E402
+from ins.gnss.raw_epochs import RawEpochs  # noqa: E402
 from ins.io.gnss_log import GnssLog  # noqa: E402
 from ins.nav import earth  # noqa: E402
 from ins.nav.rotation import quat_to_dcm  # noqa: E402

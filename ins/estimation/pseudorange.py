@@ -3,9 +3,9 @@ error-state filter, with the receiver clock's bias and drift as states.
 
 What comes in
 -------------
-:class:`RawEpochs` holds, per GNSS epoch, plain arrays that the satellite side
-(:mod:`ins.gnss.raw_epochs`, RTKLIB through the ``pyrtklib5`` binding, or a simulation)
-has computed: satellite positions and velocities (ECEF at the signal's transmit time, m
+:class:`ins.gnss.raw_epochs.RawEpochs` (or any object with its attributes) holds, per
+GNSS epoch, plain arrays that the satellite side (RTKLIB through the ``pyrtklib5``
+binding, or a simulation) has computed: satellite positions and velocities (ECEF at the signal's transmit time, m
 and m/s), and the observations already corrected for everything that does not depend
 on the receiver's state:
 
@@ -14,8 +14,7 @@ on the receiver's state:
 * ``range_rate_mps = -lambda D + c ddt_s`` (Doppler as a range rate, plus the satellite
   clock drift), m/s.
 
-Nothing here knows RINEX or RTKLIB: this module sits in :mod:`ins.estimation`, below
-:mod:`ins.gnss`.
+Nothing here knows RINEX or RTKLIB, and nothing is imported from :mod:`ins.gnss`.
 
 Measurement model
 -----------------
@@ -69,7 +68,7 @@ from ins.estimation.measurements import (
 from ins.estimation.updates import Updater
 from ins.nav import earth
 
-__all__ = ["RawEpochs", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
+__all__ = ["TightOptions", "TightUpdater", "line_of_sight", "range_rows",
            "sagnac_range", "sagnac_range_rate", "CLIGHT"]
 
 CLIGHT = 299792458.0
@@ -104,68 +103,6 @@ def line_of_sight(r_sat_e, lla):
     e_e = d / np.linalg.norm(d, axis=-1, keepdims=True)
     e_n = e_e @ earth.dcm_en(lla[0], lla[1])
     return e_n, np.arcsin(np.clip(-e_n[:, 2], -1.0, 1.0))
-
-
-@dataclass
-class RawEpochs:
-    """Corrected raw observations per epoch (module notes), ragged over epochs.
-
-    Attributes
-    ----------
-    time : ndarray, shape (m,)
-        Receive time of each epoch, s (the IMU's time scale: GPS seconds of week).
-    sats : list of ndarray (k_i,) of int
-        Satellite numbers (RTKLIB's, or any id) of each epoch.
-    sat_pos_e, sat_vel_e : list of ndarray (k_i, 3)
-        Satellite position (m) and velocity (m/s), ECEF at the transmit time.
-    range_m : list of ndarray (k_i,)
-        Corrected pseudoranges, m (``nan``: none).
-    range_rate_mps : list of ndarray (k_i,)
-        Corrected range rates, m/s (``nan``: no Doppler).
-    snr_dbhz : list of ndarray (k_i,), optional
-        Carrier-to-noise density, dB-Hz.
-    names : list of list of str, optional
-        Satellite names (``G05``) for the innovation file.
-    """
-
-    time: np.ndarray
-    sats: list
-    sat_pos_e: list
-    sat_vel_e: list
-    range_m: list
-    range_rate_mps: list
-    snr_dbhz: list = None
-    names: list = None
-
-    def __post_init__(self):
-        self.time = np.asarray(self.time, dtype=float)
-        if self.names is None:
-            self.names = [[f"S{int(s):03d}" for s in ids] for ids in self.sats]
-        self.has_velocity = False          # what the loose updater asks of a GNSS log
-
-    def __len__(self):
-        return len(self.time)
-
-    def update_events(self, use_velocity=True):
-        """One update event per epoch: ``(time, epoch, kind = 1)``."""
-        n = len(self.time)
-        return self.time.copy(), np.arange(n), np.ones(n, dtype=np.int64)
-
-    def select(self, keep):
-        """A copy with, per epoch ``i``, only the satellites where ``keep(i, sats)`` is
-        True (a boolean array over the epoch's satellites): masking for tests."""
-        out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
-                               "range_rate_mps", "names")}
-        snr = [] if self.snr_dbhz is not None else None
-        for i in range(len(self.time)):
-            m = np.asarray(keep(i, self.sats[i]), dtype=bool)
-            for k in out:
-                v = getattr(self, k)[i]
-                out[k].append(np.asarray(v)[m] if k != "names" else
-                              [n for n, f in zip(v, m) if f])
-            if snr is not None:
-                snr.append(self.snr_dbhz[i][m])
-        return RawEpochs(self.time, snr_dbhz=snr, **out)
 
 
 @dataclass(frozen=True)
@@ -246,7 +183,8 @@ class _Epoch:
 
 
 class TightUpdater(Updater):
-    """The filter's GNSS update for :class:`RawEpochs` (``FilterSettings.updater``):
+    """The filter's GNSS update for :class:`ins.gnss.raw_epochs.RawEpochs`
+    (``FilterSettings.updater``):
     per epoch the pseudoranges and range rates of the satellites above the mask,
     screened one by one, then applied together (module notes).
 

@@ -4,7 +4,7 @@ again): ``readrnx`` reads the files, ``satposs`` gives each satellite's position
 velocity, clock bias and drift at the transmit time (broadcast ephemerides),
 ``satazel`` its elevation and azimuth, ``ionmodel`` the Klobuchar delay (the nav file's
 coefficients) and ``tropmodel`` the Saastamoinen delay.  The result is a
-:class:`ins.estimation.pseudorange.RawEpochs` with corrected GPS L1 pseudoranges
+:class:`RawEpochs` with corrected GPS L1 pseudoranges
 (``P + c dt_s - I - T``, m) and range rates (``-lambda D + c ddt_s``, m/s).
 
 The ionospheric and tropospheric delays need the receiver's position: ``receiver_ecef``
@@ -17,14 +17,78 @@ GPS only (one receiver clock bias in the filter); the first frequency's pseudora
 Doppler (RINEX 2 ``C1``/``P1`` and ``D1``, RINEX 3 the first L1 code RTKLIB keeps).
 Times are GPS seconds of the week (the IMU's convention).
 """
+from dataclasses import dataclass
+
 import numpy as np
 
 from ins.common.errors import InputError
 
-__all__ = ["read_raw_epochs", "GPS_L1_HZ"]
+__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ"]
 
 #: GPS L1 carrier frequency, Hz.
 GPS_L1_HZ = 1575.42e6
+
+
+@dataclass
+class RawEpochs:
+    """Corrected raw observations per epoch (:mod:`ins.estimation.pseudorange`'s notes), ragged over epochs.
+
+    Attributes
+    ----------
+    time : ndarray, shape (m,)
+        Receive time of each epoch, s (the IMU's time scale: GPS seconds of week).
+    sats : list of ndarray (k_i,) of int
+        Satellite numbers (RTKLIB's, or any id) of each epoch.
+    sat_pos_e, sat_vel_e : list of ndarray (k_i, 3)
+        Satellite position (m) and velocity (m/s), ECEF at the transmit time.
+    range_m : list of ndarray (k_i,)
+        Corrected pseudoranges, m (``nan``: none).
+    range_rate_mps : list of ndarray (k_i,)
+        Corrected range rates, m/s (``nan``: no Doppler).
+    snr_dbhz : list of ndarray (k_i,), optional
+        Carrier-to-noise density, dB-Hz.
+    names : list of list of str, optional
+        Satellite names (``G05``) for the innovation file.
+    """
+
+    time: np.ndarray
+    sats: list
+    sat_pos_e: list
+    sat_vel_e: list
+    range_m: list
+    range_rate_mps: list
+    snr_dbhz: list = None
+    names: list = None
+
+    def __post_init__(self):
+        self.time = np.asarray(self.time, dtype=float)
+        if self.names is None:
+            self.names = [[f"S{int(s):03d}" for s in ids] for ids in self.sats]
+        self.has_velocity = False          # what the loose updater asks of a GNSS log
+
+    def __len__(self):
+        return len(self.time)
+
+    def update_events(self, use_velocity=True):
+        """One update event per epoch: ``(time, epoch, kind = 1)``."""
+        n = len(self.time)
+        return self.time.copy(), np.arange(n), np.ones(n, dtype=np.int64)
+
+    def select(self, keep):
+        """A copy with, per epoch ``i``, only the satellites where ``keep(i, sats)`` is
+        True (a boolean array over the epoch's satellites): masking for tests."""
+        out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
+                               "range_rate_mps", "names")}
+        snr = [] if self.snr_dbhz is not None else None
+        for i in range(len(self.time)):
+            m = np.asarray(keep(i, self.sats[i]), dtype=bool)
+            for k in out:
+                v = getattr(self, k)[i]
+                out[k].append(np.asarray(v)[m] if k != "names" else
+                              [n for n, f in zip(v, m) if f])
+            if snr is not None:
+                snr.append(self.snr_dbhz[i][m])
+        return RawEpochs(self.time, snr_dbhz=snr, **out)
 
 
 def _arr(rtk, values):
@@ -52,7 +116,7 @@ def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, r
 
     Returns
     -------
-    ins.estimation.pseudorange.RawEpochs
+    RawEpochs
         Epochs with at least one GPS satellite with a healthy broadcast ephemeris.
 
     Raises
@@ -60,7 +124,6 @@ def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, r
     InputError
         A file RTKLIB reads nothing from (named), or no usable epoch.
     """
-    from ins.estimation.pseudorange import RawEpochs
     from ins.gnss.rtklib_engine import binding
     rtk = binding() if rtk is None else rtk
     nav_paths = [nav_paths] if isinstance(nav_paths, (str, bytes)) or hasattr(
