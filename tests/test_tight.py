@@ -222,3 +222,57 @@ def test_sagnac_range_equals_rtklib_geodist(pair_epochs):
             rs[k] = r_s[k]
         assert sagnac_range(r_s[None], ROVER_HDR)[0] == pytest.approx(
             rtk.geodist(rs, rr, e), abs=1e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# the pipeline: ins process with [gnss] coupling = "tight"
+
+def test_config_coupling_keys(tmp_path):
+    from ins.common.errors import InputError
+    from ins.estimation.process_config import load_config
+    cfg_path = tmp_path / "c.toml"
+    cfg_path.write_text('[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\nrover = "r.obs"\n'
+                        'nav = "r.nav"\n[gnss]\ncoupling = "tight"\nelevation_mask_deg = 15\n')
+    cfg = load_config(cfg_path)
+    assert (cfg.coupling, cfg.elevation_mask_deg) == ("tight", 15.0)
+    assert cfg.rover == str(tmp_path / "r.obs") and cfg.nav == str(tmp_path / "r.nav")
+    cfg_path.write_text('[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\n[gnss]\n'
+                        'coupling = "tigth"\n')
+    with pytest.raises(InputError, match=r"c\.toml: \[gnss\] coupling: expected \"loose\" "
+                                         r"or \"tight\""):
+        load_config(cfg_path)
+
+
+def test_process_tight_end_to_end(scene, monkeypatch):
+    """``process`` with coupling = "tight" on the simulated flight: the RINEX reader
+    replaced by the synthetic constellation (antenna on the config's static arm);
+    the summary counts and the smoothed solution against the truth."""
+    from test_filter import PLAN, given_config, short_flight
+
+    from ins.estimation.process import process
+    from ins.gnss import raw_epochs
+    imu, truth, noise, t0, epochs, bias = scene
+    folder = short_flight(3, PLAN.replace('grade = "navigation"', 'grade = "tactical"'))
+    cfg = given_config(folder, varying=False)
+    cfg.end_s = t0 + 200.0
+    cfg.coupling, cfg.rover, cfg.nav = "tight", "rover.obs", "brdc.nav"
+    l_b = cfg.lever_bp + cfg.lever_ap
+    times = np.arange(t0 + 1.0, t0 + 200.0, 1.0)
+    synth, _ = ts.make_epochs(truth, times, l_b, seed=5)
+    seen = {}
+
+    def fake(obs, nav, receiver_ecef, *a, **k):
+        seen["args"] = (obs, nav, receiver_ecef(t0 + 10.0))
+        return synth
+    monkeypatch.setattr(raw_epochs, "read_raw_epochs", fake)
+    result = process(cfg)
+    c = result.counts
+    assert seen["args"][:2] == ("rover.obs", "brdc.nav")
+    r10 = earth.lla_to_ecef(*truth.lla[np.searchsorted(truth.time, t0 + 10.0)])
+    assert np.linalg.norm(seen["args"][2] - r10) < 5.0      # from the loose log
+    assert c["coupling"] == "tight" and c["satellites_min"] >= 6
+    assert result.fwd.layout.clock is not None
+    sm = result.smoothed
+    j = np.searchsorted(truth.time, sm.time - 1e-6)
+    d = earth.ned_offset(truth.lla[j], sm.lla)
+    assert np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))) < 0.3

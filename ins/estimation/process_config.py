@@ -65,13 +65,14 @@ _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bia
                "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h",
                "gyro_bias_instability_dph", "accel_bias_instability_mgal")
 _SECTIONS = {
-    "files": {"imu", "gnss", "mount", "truth", "heading"},
+    "files": {"imu", "gnss", "mount", "truth", "heading", "rover", "nav"},
     "imu": {"format", "rates", "axes", "time_shift_s"},
     "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
     "imu_noise": set(_NOISE_KEYS),
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
-             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale"},
+             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
+             "coupling", "elevation_mask_deg"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
@@ -128,6 +129,10 @@ class ProcessConfig:
     noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
+    coupling: str = "loose"       # "tight": [files] rover and nav, ins.estimation.tight_pipeline
+    rover: str = None
+    nav: str = None
+    elevation_mask_deg: float = 10.0
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
     priors: dict = field(default_factory=dict)
     measurements: dict = field(default_factory=dict)
@@ -207,7 +212,8 @@ def load_config(path, base=None, files=None):
             raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
                              f"or give --{key})")
     return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
-                               truth=rel.get("truth"), heading=rel.get("heading")),
+                               truth=rel.get("truth"), heading=rel.get("heading"),
+                               rover=rel.get("rover"), nav=rel.get("nav")),
                  data, where, path)
 
 
@@ -231,6 +237,7 @@ def _fill(cfg, data, where, path=None):
         cfg.lever_ap = np.zeros(3)
     cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
     _gnss_input(cfg, gnss, where)
+    _coupling(cfg, gnss, where)
     if "reject_probability" in gnss:
         p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
         if p >= 1:
@@ -356,6 +363,19 @@ def filter_options(cfg):
     """The :class:`ins.estimation.filter_settings.FilterSettings` keywords of ``[states]`` and
     ``[measurements]``."""
     return {"layout": cfg.layout, **cfg.priors, **cfg.measurements}
+
+
+def _coupling(cfg, gnss, where):
+    """``[gnss] coupling`` ("loose" or "tight") and ``elevation_mask_deg`` (tight)."""
+    if "coupling" in gnss:
+        if gnss["coupling"] not in ("loose", "tight"):
+            raise InputError(f"{where('gnss', 'coupling')}: expected \"loose\" or \"tight\", "
+                             f"got {gnss['coupling']!r}")
+        cfg.coupling = gnss["coupling"]
+    if "elevation_mask_deg" in gnss:
+        cfg.elevation_mask_deg = _number(gnss["elevation_mask_deg"],
+                                         where("gnss", "elevation_mask_deg"), lo=0.0, hi=90.0,
+                                         unit="deg")
 
 
 def _gnss_input(cfg, gnss, where):
