@@ -231,11 +231,12 @@ def test_config_coupling_keys(tmp_path):
     from ins.common.errors import InputError
     from ins.estimation.process_config import load_config
     cfg_path = tmp_path / "c.toml"
-    cfg_path.write_text('[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\nrover = "r.obs"\n'
+    cfg_path.write_text('[files]\nimu = "imu.txt"\nrover = "r.obs"\n'
                         'nav = "r.nav"\n[gnss]\ncoupling = "tight"\nelevation_mask_deg = 15\n')
     cfg = load_config(cfg_path)
     assert (cfg.coupling, cfg.elevation_mask_deg) == ("tight", 15.0)
-    assert cfg.rover == str(tmp_path / "r.obs") and cfg.nav == str(tmp_path / "r.nav")
+    assert cfg.gnss_raw.rover == str(tmp_path / "r.obs")
+    assert cfg.gnss_raw.nav == (str(tmp_path / "r.nav"),)
     cfg_path.write_text('[files]\nimu = "imu.txt"\ngnss = "gnss.txt"\n[gnss]\n'
                         'coupling = "tigth"\n')
     with pytest.raises(InputError, match=r"c\.toml: \[gnss\] coupling: expected \"loose\" "
@@ -245,8 +246,9 @@ def test_config_coupling_keys(tmp_path):
 
 def test_process_tight_end_to_end(scene, monkeypatch):
     """``process`` with coupling = "tight" on the simulated flight: the RINEX reader
-    replaced by the synthetic constellation (antenna on the config's static arm);
-    the summary counts and the smoothed solution against the truth."""
+    replaced by the synthetic constellation (antenna on the config's static arm) and
+    RTKLIB's solution by the flight's GNSS log; the summary counts and the smoothed
+    solution against the truth."""
     from test_filter import PLAN, given_config, short_flight
 
     from ins.estimation.process import process
@@ -255,7 +257,9 @@ def test_process_tight_end_to_end(scene, monkeypatch):
     folder = short_flight(3, PLAN.replace('grade = "navigation"', 'grade = "tactical"'))
     cfg = given_config(folder, varying=False)
     cfg.end_s = t0 + 200.0
-    cfg.coupling, cfg.rover, cfg.nav = "tight", "rover.obs", "brdc.nav"
+    from ins.estimation.process_gnss import RawGnss
+    cfg.coupling = "tight"
+    cfg.gnss_raw = RawGnss(rover="rover.obs", nav=("brdc.nav",))
     l_b = cfg.lever_bp + cfg.lever_ap
     times = np.arange(t0 + 1.0, t0 + 200.0, 1.0)
     synth, _ = ts.make_epochs(truth, times, l_b, seed=5)
@@ -265,9 +269,13 @@ def test_process_tight_end_to_end(scene, monkeypatch):
         seen["args"] = (obs, nav, receiver_ecef(t0 + 10.0))
         return synth
     monkeypatch.setattr(raw_epochs, "read_raw_epochs", fake)
+    # RTKLIB's loose solution of the raw input: the flight's own GNSS log
+    from ins.estimation import process as process_module
+    from ins.io.gnss import read_gnss
+    monkeypatch.setattr(process_module, "_gnss", lambda c, folder: (read_gnss(c.gnss), None))
     result = process(cfg)
     c = result.counts
-    assert seen["args"][:2] == ("rover.obs", "brdc.nav")
+    assert seen["args"][:2] == ("rover.obs", ("brdc.nav",))
     r10 = earth.lla_to_ecef(*truth.lla[np.searchsorted(truth.time, t0 + 10.0)])
     assert np.linalg.norm(seen["args"][2] - r10) < 5.0      # from the loose log
     assert c["coupling"] == "tight" and c["satellites_min"] >= 6

@@ -22,6 +22,14 @@ inputs:
                     solution of the antenna (detected from its header: lat/lon/height,
                     d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
                     the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+  --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
+                    config's [files] rover, base, nav, sp3, clk; RINEX or u-blox .ubx):
+                    RTKLIB runs first with the config's [rtklib] settings (ins gnss
+                    --help; optional extra: pip install 'insphoto[gnss]'), writes
+                    OUT_DIR/gnss.pos (and, in kinematic mode, fwd_bwd_separation.txt
+                    and .png), its covariances are screened and the filter takes it
+                    as an RTKLIB .pos; the summary names the source (mode, direction,
+                    fix/float/single counts, records repaired or dropped by the screen)
   --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
                     dgps, single, ppp or numbers 1..6; default all)
   --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
@@ -109,6 +117,16 @@ def add_parser(sub):
     p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
     p.add_argument("--gnss", metavar="F",
                    help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
+    p.add_argument("--rover", metavar="F",
+                   help="raw GNSS: the rover's observations (RINEX or u-blox .ubx), run "
+                        "through RTKLIB first instead of --gnss")
+    p.add_argument("--base", metavar="F", help="raw GNSS: base station observations")
+    p.add_argument("--nav", action="append", metavar="F",
+                   help="raw GNSS: broadcast navigation, RINEX (repeatable)")
+    p.add_argument("--sp3", action="append", metavar="F",
+                   help="raw GNSS: precise orbits (repeatable)")
+    p.add_argument("--clk", action="append", metavar="F",
+                   help="raw GNSS: precise clocks, RINEX CLK (repeatable)")
     p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
                    help="GNSS file format (default: detected from the extension and header)")
     p.add_argument("--gnss-quality", metavar="Q,...",
@@ -133,12 +151,10 @@ def add_parser(sub):
                         "deg/h, mGal, ppm, h)")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
     p.add_argument("--coupling", choices=["loose", "tight"],
-                   help="loose: the GNSS log's positions (default); tight: GPS L1 "
-                        "pseudoranges (m) and Doppler range rates (m/s) of --rover with "
-                        "--nav through RTKLIB, receiver clock bias/drift states; the "
-                        "GNSS log still gives the start and the checks")
-    p.add_argument("--rover", metavar="F", help="rover RINEX observations (tight coupling)")
-    p.add_argument("--nav", metavar="F", help="broadcast navigation RINEX (tight coupling)")
+                   help="loose: the GNSS solution's positions (default); tight: the GPS "
+                        "L1 pseudoranges (m) and Doppler range rates (m/s) of --rover "
+                        "(RINEX) with --nav through RTKLIB, receiver clock bias/drift "
+                        "states; RTKLIB's solution still gives the start and the checks")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
@@ -161,8 +177,8 @@ def add_parser(sub):
 def _config(args):
     from ins.estimation.process_config import config_from_manifest, load_config
     if args.flight_dir:
-        if args.imu or args.gnss:
-            raise InputError("give either FLIGHT_DIR or --imu/--gnss, not both")
+        if args.imu or args.gnss or args.rover:
+            raise InputError("give either FLIGHT_DIR or --imu/--gnss (--rover), not both")
         if not os.path.isdir(args.flight_dir):
             raise InputError(f"FLIGHT_DIR {args.flight_dir}: not a folder")
         cfg = config_from_manifest(args.flight_dir, overrides=args.config)
@@ -178,9 +194,9 @@ def _config(args):
         cfg.truth = args.truth
     if args.no_smooth:
         cfg.smooth = False
-    for key in ("coupling", "rover", "nav"):
-        if getattr(args, key, None):
-            setattr(cfg, key, getattr(args, key))
+    cfg.gnss_raw_plot = not args.no_plots
+    if getattr(args, "coupling", None):
+        cfg.coupling = args.coupling
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
@@ -227,9 +243,17 @@ def output_formats(text):
 def _from_args(args, load_config, path):
     from ins.common.textfiles import read_toml
     has_files = "files" in read_toml(path, "a processing config (TOML)")
-    if not has_files and not (args.imu and args.gnss):
-        raise InputError("--imu and --gnss are required (the config has no [files])")
-    return load_config(path, files={"imu": args.imu, "gnss": args.gnss})
+    if args.gnss and args.rover:
+        raise InputError("give either --gnss (a GNSS solution) or --rover (raw "
+                         "observations through RTKLIB), not both")
+    if not has_files and not (args.imu and (args.gnss or args.rover)):
+        raise InputError("--imu and --gnss (or --rover, --base, --nav) are required (the "
+                         "config has no [files])")
+    raw = {"rover": args.rover, "base": args.base, "nav": args.nav, "sp3": args.sp3,
+           "clk": args.clk}
+    if not args.rover and any(raw.values()):
+        raise InputError("--base, --nav, --sp3, --clk go with --rover (raw GNSS)")
+    return load_config(path, files={"imu": args.imu, "gnss": args.gnss, **raw})
 
 
 def _cmd_process(args):
@@ -251,7 +275,7 @@ def _cmd_process(args):
         with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
             try:
                 result = process(cfg, progress=progress, workdir=work,
-                                 accept_poor=args.accept_poor)
+                                 accept_poor=args.accept_poor, gnss_dir=stage)
             except QualityError as exc:
                 raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
                                    f"outputs anyway).") from None
@@ -262,6 +286,10 @@ def _cmd_process(args):
                 from ins.estimation.plots import write_plots
                 names += write_plots(result, stage, flight_dir=args.flight_dir)
         t2 = wallclock.perf_counter()
+    if result.gnss_source is not None:
+        from ins.estimation.process_gnss import SEPARATION_PNG, SEPARATION_TXT
+        names += [os.path.join(stage, n) for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
+                  if os.path.isfile(os.path.join(args.output, n))]
     paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
     if not args.quiet:
         _summary(result, cfg, paths, t1 - t0, t2 - t1)
@@ -290,6 +318,11 @@ def _table(title, columns, rows, width=10):
 def _summary(result, cfg, paths, t_proc, t_write):
     c = result.counts
     out = sys.stdout
+    if result.gnss_source is not None:
+        from ins.estimation.process_gnss import source_lines
+        shown = next((p for p in paths if os.path.basename(p) == "gnss.pos"), None)
+        for line in source_lines(result.gnss_source, shown):
+            print(line, file=out)
     print(f"{c['imu_epochs']} IMU epochs, {c['gnss_records']} GNSS records: {c['updates']} "
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",

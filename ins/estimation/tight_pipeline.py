@@ -1,14 +1,15 @@
 """``ins process`` with tight coupling (``[gnss] coupling = "tight"``, ``--coupling
-tight``): the rover's RINEX observations and the broadcast navigation file
-(``[files] rover``, ``nav``) through RTKLIB (:func:`ins.gnss.raw_epochs.read_raw_epochs`)
-into the filter's pseudorange and range-rate updates
-(:class:`ins.estimation.pseudorange.TightUpdater`).
+tight``): the rover's RINEX observations and the broadcast navigation file(s) of the raw
+GNSS input (``[files] rover``, ``nav``; :mod:`ins.estimation.process_gnss`) through
+RTKLIB (:func:`ins.gnss.raw_epochs.read_raw_epochs`) into the filter's pseudorange and
+range-rate updates (:class:`ins.estimation.pseudorange.TightUpdater`).
 
-The loose GNSS log (``[files] gnss``: an RTKLIB single-point or better solution of the
-same receiver) is still read: it gives the start (alignment, start check), the receiver
-positions for the atmospheric delays (interpolated in time; the nearest fix outside its
-span) and the trust checks' reference.  Double differences against a base station and
-carrier phase are not done here.
+RTKLIB's solution of the same input (run first, as for loose coupling) still gives the
+start (alignment, start check), the receiver positions for the atmospheric delays
+(interpolated in time; the nearest fix outside its span) and the trust checks'
+reference.  The base station's observations (double differences) and carrier phase are
+not used by the tight updates; a u-blox log as the rover is refused (convert it to
+RINEX first).
 """
 import functools
 
@@ -37,7 +38,7 @@ def tight_inputs(cfg, gnss, settings):
     Parameters
     ----------
     cfg : ins.estimation.process_config.ProcessConfig
-        With ``rover`` and ``nav`` set.
+        With raw GNSS input (``cfg.gnss_raw``: rover and nav).
     gnss : ins.io.gnss_log.GnssLog
         The loose log (receiver positions for the delays).
     settings : ins.estimation.filter_settings.FilterSettings
@@ -51,14 +52,18 @@ def tight_inputs(cfg, gnss, settings):
     from dataclasses import replace
 
     from ins.gnss.raw_epochs import read_raw_epochs
-    for key in ("rover", "nav"):
-        if getattr(cfg, key, None) is None:
-            raise InputError(f"[files] {key}: missing (tight coupling needs the rover's "
-                             f"RINEX observations and the broadcast navigation file)")
+    raw_in = getattr(cfg, "gnss_raw", None)
+    if raw_in is None or not raw_in.nav:
+        raise InputError("[gnss] coupling = \"tight\": needs raw GNSS input, [files] rover "
+                         "and nav (--rover, --nav: the rover's RINEX observations and the "
+                         "broadcast navigation file), not a GNSS solution alone")
+    if str(raw_in.rover).lower().endswith(".ubx"):
+        raise InputError("tight coupling reads RINEX observations: convert the u-blox log "
+                         "first (ins gnss)", path=raw_in.rover)
     if len(gnss) == 0:
         raise InputError("tight coupling: the GNSS log has no fix for the receiver "
                          "positions of the atmospheric delays", path=cfg.gnss)
-    raw = read_raw_epochs(cfg.rover, cfg.nav, _positions(gnss))
+    raw = read_raw_epochs(raw_in.rover, raw_in.nav, _positions(gnss))
     if cfg.gnss_time_shift_s:
         raw.time = raw.time + cfg.gnss_time_shift_s
     layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
