@@ -9,8 +9,8 @@ binding, or a simulation) has computed: satellite positions and velocities (ECEF
 and m/s), and the observations already corrected for everything that does not depend
 on the receiver's state:
 
-* ``range_m = P + c dt_s - I - T`` (pseudorange plus the satellite clock bias, minus
-  the ionospheric and tropospheric delays), m;
+* ``range_m = P - c TGD + c dt_s - I - T`` (pseudorange less the broadcast group delay,
+  plus the satellite clock bias, minus the ionospheric and tropospheric delays), m;
 * ``range_rate_mps = -lambda D + c ddt_s`` (Doppler as a range rate, plus the satellite
   clock drift), m/s.
 

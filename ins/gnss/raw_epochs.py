@@ -5,7 +5,7 @@ velocity, clock bias and drift at the transmit time (broadcast ephemerides),
 ``satazel`` its elevation and azimuth, ``ionmodel`` the Klobuchar delay (the nav file's
 coefficients) and ``tropmodel`` the Saastamoinen delay.  The result is a
 :class:`RawEpochs` with corrected GPS L1 pseudoranges
-(``P + c dt_s - I - T``, m) and range rates (``-lambda D + c ddt_s``, m/s).
+(``P - c TGD + c dt_s - I - T``, m) and range rates (``-lambda D + c ddt_s``, m/s).
 
 The ionospheric and tropospheric delays need the receiver's position: ``receiver_ecef``
 is one position (a static receiver, or a flight over a small area at a roughly known
@@ -158,6 +158,7 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
                          rtk.Arr1Dint(1))
     e, azel, pos = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(3)
     name, prn = rtk.Arr1Dchar(8), rtk.Arr1Dint(1)
+    tgd = _group_delays(nav)
     data, n = obs.data, obs.n
     i = 0
     while i < n:
@@ -183,7 +184,7 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
                 continue
             iono = rtk.ionmodel(d.time, nav.ion_gps, pos, azel)
             trop = rtk.tropmodel(d.time, pos, azel, 0.7)
-            rng = d.P[0] + rtk.CLIGHT * dts[0] - iono - trop
+            rng = d.P[0] - rtk.CLIGHT * tgd.get(d.sat, 0.0) + rtk.CLIGHT * dts[0] - iono - trop
             rate = (-lam * d.D[0] + rtk.CLIGHT * dts[1]) if d.D[0] != 0.0 else np.nan
             rtk.satno2id(d.sat, name)
             ep["sats"].append(int(d.sat))
@@ -204,6 +205,17 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
     if not out["time"]:
         raise InputError("no epoch with a GPS satellite that has a broadcast ephemeris")
     out["time"] = np.array(out["time"])
+    return out
+
+
+def _group_delays(nav):
+    """Broadcast L1 group delay (TGD, s) per satellite from the ephemerides (the last
+    one read; TGD changes rarely), applied to the L1 pseudorange as RTKLIB's single-
+    frequency code does (``P1 - c TGD``)."""
+    out = {}
+    for k in range(nav.n):
+        e = nav.eph[k]
+        out[int(e.sat)] = float(e.tgd[0])
     return out
 
 
