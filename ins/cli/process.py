@@ -150,6 +150,11 @@ def add_parser(sub):
                         "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
                         "deg/h, mGal, ppm, h)")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
+    p.add_argument("--coupling", choices=["loose", "tight"],
+                   help="loose: the GNSS solution's positions (default); tight: the GPS "
+                        "L1 pseudoranges (m) and Doppler range rates (m/s) of --rover "
+                        "(RINEX) with --nav through RTKLIB, receiver clock bias/drift "
+                        "states; RTKLIB's solution still gives the start and the checks")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
@@ -190,6 +195,8 @@ def _config(args):
     if args.no_smooth:
         cfg.smooth = False
     cfg.gnss_raw_plot = not args.no_plots
+    if getattr(args, "coupling", None):
+        cfg.coupling = args.coupling
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
@@ -320,6 +327,10 @@ def _summary(result, cfg, paths, t_proc, t_write):
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
+    if c.get("coupling") == "tight":
+        print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
+              f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
+              f"and range rates)", file=out)
     for a, b, n, factor in getattr(result.fwd, "recoveries", []):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "

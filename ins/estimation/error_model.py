@@ -114,11 +114,14 @@ STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), (
 #: arm correction (m, b frame, added to the configured arm) and the IMU-GNSS time offset
 #: (s: a GNSS record stamped ``t`` holds the antenna at IMU time ``t + offset``).  All four
 #: are random constants (no process noise), truth minus estimate, fed back like the sensor
-#: errors (``estimate += dx``).
+#: errors (``estimate += dx``).  The receiver clock (tight coupling,
+#: :mod:`ins.estimation.pseudorange`) is the exception: bias (m, ``c dt_r``) and drift
+#: (m/s) with ``bias' = drift`` and white noise on both (:func:`noise_matrix`'s
+#: ``clock_psd``), truth minus estimate like the sensor states.
 OPTIONAL_GROUPS = {"gyro_misalignment": 3, "accel_misalignment": 3, "lever_arm": 3,
-                   "time_offset": 1}
+                   "time_offset": 1, "clock": 2}
 _OPTIONAL_AXES = {"gyro_misalignment": "xyz", "accel_misalignment": "xyz", "lever_arm": "xyz",
-                  "time_offset": ("",)}
+                  "time_offset": ("",), "clock": ("bias", "drift")}
 
 
 class StateLayout:
@@ -281,9 +284,12 @@ class ImuNoise:
                                (self.vrw_mps_sqrth * MPS_SQRTH) ** 2, driving])
 
 
-def noise_matrix(noise, layout=KFGINS):
+def noise_matrix(noise, layout=KFGINS, clock_psd=None):
     """``G Q G^T`` (n x n), attitude independent (see the module notes); the optional
-    groups are random constants (no noise)."""
+    groups are random constants (no noise), except the receiver clock: ``clock_psd`` =
+    (bias, drift) spectral densities, m^2/s and m^2/s^3 (two-state clock model,
+    ``S_bias = c^2 h0 / 2``, ``S_drift = 2 pi^2 c^2 h_-2`` from the Allan-variance
+    coefficients of the oscillator; ``None``: no noise)."""
     q = noise.q_continuous()
     GQG = np.zeros((layout.n, layout.n))
     idx = np.arange(3)
@@ -291,6 +297,9 @@ def noise_matrix(noise, layout=KFGINS):
     GQG[ATT.start + idx, ATT.start + idx] = q[0:3]
     sensors = np.arange(9, 21)
     GQG[sensors, sensors] = q[6:18]
+    if layout.clock is not None and clock_psd is not None:
+        k = np.arange(layout.clock.start, layout.clock.stop)
+        GQG[k, k] = np.asarray(clock_psd, dtype=float)
     return GQG
 
 
@@ -394,6 +403,8 @@ def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s, layout=KFGINS)
         A[VEL, layout.accel_misalignment] = integrals[4]
     idx = np.arange(9, 21)
     A[idx, idx] = -dt / corr_time_s
+    if layout.clock is not None:                     # bias' = drift
+        A[layout.clock.start, layout.clock.start + 1] = dt
     return A
 
 

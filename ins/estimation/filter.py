@@ -109,6 +109,9 @@ class ForwardResult:
     layout : ins.estimation.error_model.StateLayout
         The error states (``dx`` has ``layout.n`` columns, ``sensors`` ``layout.n - 9``:
         the 12 of the KF-GINS layout, then the optional groups' estimates).
+    updater : object
+        The object that processed the GNSS events (``FilterSettings.updater``), for
+        its own counts (tight coupling: satellites used per epoch).
     """
 
     def __init__(self, trajectory, nodes, node_rows, node_time, dx, sensors):
@@ -275,7 +278,7 @@ class _ForwardRun:
     def __init__(self, gnss, settings, workdir):
         self.layout = L = settings.layout
         self.settings = settings
-        self.GQG = noise_matrix(settings.noise, L)
+        self.GQG = noise_matrix(settings.noise, L, settings.clock_psd)
         self.tau = settings.noise.decay_time_s
         self.interval = settings.node_interval_s
         self.sensors = np.zeros(L.n - 9)
@@ -292,7 +295,7 @@ class _ForwardRun:
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
         self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
             [], [], [], [], []
-        self.updater = Updater(settings, gnss)
+        self.updater = (settings.updater or Updater)(settings, gnss)
         self.g_time = self.updater.ev_time         # the GNSS update events' epochs
         self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
         self.acc = np.zeros((16, 3))
@@ -451,6 +454,7 @@ class _ForwardRun:
         out.records = up.records
         out.recoveries = list(up.recoveries)
         out.layout = self.layout
+        out.updater = up
         return out
 
 

@@ -374,8 +374,12 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
                               heading=_headings(cfg, start), **filter_options(cfg))
+    gnss_in = gnss
+    if cfg.coupling == "tight":
+        from ins.estimation.tight_pipeline import tight_inputs
+        gnss_in, settings = tight_inputs(cfg, gnss, settings)
     try:
-        fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
+        fwd = run_forward(blocks, gnss_in, state, settings, start=start, end=cfg.end_s,
                           progress=progress, workdir=workdir, initial_time=st.initial_time)
     except InputError as exc:
         if getattr(exc, "time_s", None) is None:
@@ -391,6 +395,8 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
               "nodes": len(fwd.node_time), "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
               "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries)}
+    from ins.estimation.tight_pipeline import tight_counts
+    counts.update(tight_counts(fwd))
     result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
                            al, counts)
     result.start_check = start_check

@@ -77,7 +77,8 @@ _SECTIONS = {
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
     "imu_noise": set(_NOISE_KEYS),
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
-             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale"},
+             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
+             "coupling", "elevation_mask_deg"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
@@ -136,6 +137,8 @@ class ProcessConfig:
     noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
+    coupling: str = "loose"       # "tight": raw GNSS input, ins.estimation.tight_pipeline
+    elevation_mask_deg: float = 10.0
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
     priors: dict = field(default_factory=dict)
     measurements: dict = field(default_factory=dict)
@@ -260,6 +263,7 @@ def _fill(cfg, data, where, path=None):
         cfg.lever_ap = np.zeros(3)
     cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
     _gnss_input(cfg, gnss, where)
+    _coupling(cfg, gnss, where)
     if "reject_probability" in gnss:
         p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
         if p >= 1:
@@ -385,6 +389,19 @@ def filter_options(cfg):
     """The :class:`ins.estimation.filter_settings.FilterSettings` keywords of ``[states]`` and
     ``[measurements]``."""
     return {"layout": cfg.layout, **cfg.priors, **cfg.measurements}
+
+
+def _coupling(cfg, gnss, where):
+    """``[gnss] coupling`` ("loose" or "tight") and ``elevation_mask_deg`` (tight)."""
+    if "coupling" in gnss:
+        if gnss["coupling"] not in ("loose", "tight"):
+            raise InputError(f"{where('gnss', 'coupling')}: expected \"loose\" or \"tight\", "
+                             f"got {gnss['coupling']!r}")
+        cfg.coupling = gnss["coupling"]
+    if "elevation_mask_deg" in gnss:
+        cfg.elevation_mask_deg = _number(gnss["elevation_mask_deg"],
+                                         where("gnss", "elevation_mask_deg"), lo=0.0, hi=90.0,
+                                         unit="deg")
 
 
 def _gnss_input(cfg, gnss, where):
