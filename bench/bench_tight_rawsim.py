@@ -42,13 +42,16 @@ def main(folder):
                                        for _, _, k in masks) + " | RMS fwd | RMS smoothed "
           "| sats used min/mean | time s |")
     print("|---|" + "---|" * (len(masks) + 4))
-    for coupling in ("loose", "tight"):
+    runs = (("loose", None), ("tight", None), ("tight", (1.0, 1.0)))
+    for coupling, range_sigma in runs:
         cfg = config_from_manifest(str(folder))
         cfg.gnss = None
         cfg.gnss_raw = RawGnss(rover=str(folder / "rover.obs"), nav=(str(folder / "rover.nav"),),
                                options=RtklibOptions(mode="single", systems=("gps",),
                                                      frequencies=1, elevation_mask_deg=10.0))
         cfg.coupling = coupling
+        if range_sigma is not None:         # [gnss] range_sigma_m: the multipath's share
+            cfg.range_sigma_m = range_sigma
         tic = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -65,7 +68,8 @@ def main(folder):
         c = res.counts
         used = (f"{c['satellites_min']}/{c['satellites_mean']:.1f}"
                 if c.get("coupling") == "tight" else "-")
-        print(f"| {coupling} | " + " | ".join(f"{f:.2f} / {s:.2f}" for f, s in
+        name = coupling if range_sigma is None else f"{coupling}, range_sigma_m {list(range_sigma)}"
+        print(f"| {name} | " + " | ".join(f"{f:.2f} / {s:.2f}" for f, s in
                                             zip(*cells)) +
               f" | {rms[0]:.2f} | {rms[1]:.2f} | {used} | {dt:.1f} |")
 

@@ -5,6 +5,7 @@ synthetic constellation (tests/tight_scenario.py) whose truth is known: one, two
 three satellites carry the solution through a span where loose coupling has no fix,
 with all satellites tight coupling is not worse than loose, and a blunder on one
 satellite is rejected alone."""
+import os
 from pathlib import Path
 
 import numpy as np
@@ -284,3 +285,53 @@ def test_process_tight_end_to_end(scene, monkeypatch):
     j = np.searchsorted(truth.time, sm.time - 1e-6)
     d = earth.ned_offset(truth.lla[j], sm.lla)
     assert np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))) < 0.3
+
+
+def test_config_weights_and_clock_keys(tmp_path):
+    """[gnss] range_sigma_m, range_rate_sigma_mps and receiver_clock reach the tight
+    settings; bad values name the key and the unit."""
+    from ins.common.errors import InputError
+    from ins.estimation.process_config import load_config
+    from ins.estimation.pseudorange import CLOCKS, clock_psd
+    cfg_path = tmp_path / "c.toml"
+    base = '[files]\nimu = "imu.txt"\nrover = "r.obs"\nnav = "r.nav"\n[gnss]\ncoupling = "tight"\n'
+    cfg_path.write_text(base + 'range_sigma_m = [1.0, 0.5]\nrange_rate_sigma_mps = 0.1\n'
+                               'receiver_clock = "ocxo"\n')
+    cfg = load_config(cfg_path)
+    assert cfg.range_sigma_m == (1.0, 0.5) and cfg.range_rate_sigma_mps == (0.1, 0.1)
+    assert cfg.receiver_clock == "ocxo"
+    # the two-state clock: S_b = c^2 h0 / 2, S_d = 2 pi^2 c^2 h-2 (an OCXO's drift
+    # wanders sqrt(S_d) = 8.4e-3 m/s per sqrt(s))
+    s_b, s_d = clock_psd(*CLOCKS["ocxo"])
+    assert s_b == pytest.approx(299792458.0 ** 2 * 4e-20)
+    assert np.sqrt(s_d) == pytest.approx(8.43e-3, rel=1e-3)
+    for bad, match in (('range_sigma_m = [-1, 1]', r"range_sigma_m: expected \[a, b\] in m"),
+                       ('range_sigma_m = [0, 0]', r"range_sigma_m: expected \[a, b\] in m"),
+                       ('receiver_clock = "rubidium"', r"receiver_clock: expected one of")):
+        cfg_path.write_text(base + bad + "\n")
+        with pytest.raises(InputError, match=match):
+            load_config(cfg_path)
+
+
+def test_ubx_rover_gives_the_rinex_ranges(tmp_path):
+    """Tight coupling takes a u-blox log as the rover: the static pair's rover encoded as
+    RXM-RAWX frames (tests/ubx_frames.py) gives the same corrected ranges as its RINEX."""
+    pytest.importorskip("pyrtklib5")
+    if not PAIR.is_dir():
+        pytest.skip("../shared/real is absent")
+    from ubx_frames import rinex2_to_ubx
+
+    from ins.estimation.process_gnss import RawGnss
+    from ins.estimation.tight_pipeline import _read
+    from ins.gnss.raw_epochs import read_raw_epochs
+    rover, nav = PAIR / "07590920.05o", PAIR / "07590920.05n"
+    ubx = tmp_path / "rover.ubx"
+    ubx.write_bytes(rinex2_to_ubx(str(rover)))
+    a = read_raw_epochs(rover, nav, ROVER_HDR)
+    b = _read(RawGnss(rover=str(ubx), nav=(str(nav),)), lambda t: ROVER_HDR)
+    assert len(a) == len(b) == 120
+    np.testing.assert_array_equal(a.time, b.time)
+    for ra, rb, sa, sb in zip(a.range_m, b.range_m, a.sats, b.sats):
+        np.testing.assert_array_equal(sa, sb)
+        np.testing.assert_allclose(ra, rb, atol=1e-3)
+    assert os.listdir(tmp_path) == ["rover.ubx"]          # converted in a temporary folder

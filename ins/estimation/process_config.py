@@ -78,7 +78,8 @@ _SECTIONS = {
     "imu_noise": set(_NOISE_KEYS),
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
              "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
-             "coupling", "elevation_mask_deg"},
+             "coupling", "elevation_mask_deg", "range_sigma_m", "range_rate_sigma_mps",
+             "receiver_clock"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
@@ -139,6 +140,9 @@ class ProcessConfig:
     initial_source: str = None
     coupling: str = "loose"       # "tight": raw GNSS input, ins.estimation.tight_pipeline
     elevation_mask_deg: float = 10.0
+    range_sigma_m: tuple = (0.3, 0.3)          # tight: (a, b) of sqrt(a^2 + b^2 / sin^2 el)
+    range_rate_sigma_mps: tuple = (0.05, 0.05)
+    receiver_clock: str = "tcxo"               # tight: the clock states' noise
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
     priors: dict = field(default_factory=dict)
     measurements: dict = field(default_factory=dict)
@@ -402,6 +406,21 @@ def _coupling(cfg, gnss, where):
         cfg.elevation_mask_deg = _number(gnss["elevation_mask_deg"],
                                          where("gnss", "elevation_mask_deg"), lo=0.0, hi=90.0,
                                          unit="deg")
+    for key, unit, bound in (("range_sigma_m", "m", 1000.0),
+                             ("range_rate_sigma_mps", "m/s", 100.0)):
+        if key in gnss:
+            v = _vector(gnss[key], where("gnss", key), n=2, bound=bound, unit=unit)
+            if np.any(v < 0) or not np.any(v > 0):
+                raise InputError(f"{where('gnss', key)}: expected [a, b] in {unit}, a, b >= 0 "
+                                 f"and not both 0 (sigma^2 = a^2 + b^2 / sin^2 elevation), "
+                                 f"got {gnss[key]!r}")
+            setattr(cfg, key, tuple(float(x) for x in v))
+    if "receiver_clock" in gnss:
+        from ins.estimation.pseudorange import CLOCKS
+        if gnss["receiver_clock"] not in CLOCKS:
+            raise InputError(f"{where('gnss', 'receiver_clock')}: expected one of "
+                             f"{', '.join(map(repr, CLOCKS))}, got {gnss['receiver_clock']!r}")
+        cfg.receiver_clock = gnss["receiver_clock"]
 
 
 def _gnss_input(cfg, gnss, where):

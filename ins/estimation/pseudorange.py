@@ -68,7 +68,7 @@ from ins.estimation.measurements import (
 from ins.estimation.updates import Updater
 from ins.nav import earth
 
-__all__ = ["TightOptions", "TightUpdater", "line_of_sight", "range_rows",
+__all__ = ["CLOCKS", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
            "sagnac_range", "sagnac_range_rate", "CLIGHT"]
 
 CLIGHT = 299792458.0
@@ -103,6 +103,24 @@ def line_of_sight(r_sat_e, lla):
     e_e = d / np.linalg.norm(d, axis=-1, keepdims=True)
     e_n = e_e @ earth.dcm_en(lla[0], lla[1])
     return e_n, np.arcsin(np.clip(-e_n[:, 2], -1.0, 1.0))
+
+
+_C = 299792458.0
+
+
+def clock_psd(h0, h_2):
+    """Spectral densities ``(S_bias m^2/s, S_drift m^2/s^3)`` of the two-state clock
+    model from the Allan-variance coefficients ``h0`` (white frequency, s) and ``h_-2``
+    (random-walk frequency, 1/s): ``S_b = c^2 h0 / 2``, ``S_d = 2 pi^2 c^2 h_-2``
+    (Brown and Hwang, the two-state clock model, flicker noise left out)."""
+    return (0.5 * _C ** 2 * h0, 2.0 * np.pi ** 2 * _C ** 2 * h_2)
+
+
+#: Receiver clocks of ``[gnss] receiver_clock`` (tight coupling): ``(h0, h_-2)``.  The
+#: TCXO of a u-blox or phone receiver (h0 2e-19, h-2 2e-20: its drift wanders about
+#: 0.2 m/s per sqrt(s), which leaves one or two satellites weak) and an OCXO (h0 8e-20,
+#: h-2 4e-23) of a geodetic receiver.
+CLOCKS = {"tcxo": (2e-19, 2e-20), "ocxo": (8e-20, 4e-23)}
 
 
 @dataclass(frozen=True)
