@@ -370,3 +370,26 @@ def test_cli_tight_on_a_simulated_raw_flight(tmp_path):
     d = earth.ned_offset(truth.lla[j], sol.lla)
     h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
     assert h < 1.0                     # seed 2: 0.35 m
+
+
+def test_receiver_clock_jump_is_followed(scene):
+    """A millisecond jump of the receiver clock (299.8 km in every pseudorange from an
+    epoch on, as u-blox receivers do): the clock bias is set again at that epoch, the
+    satellites stay in use, and the position does not notice."""
+    from ins.estimation.pseudorange import TightUpdater
+    imu, truth, noise, t0, epochs, _ = scene
+    i = int(np.searchsorted(epochs.time, t0 + 120.0))
+    jumped = epochs.select(lambda k, sats: np.ones(len(sats), bool))
+    ms = 299792.458
+    for k in range(i, len(jumped.time)):
+        jumped.range_m[k] = jumped.range_m[k] + ms
+    fwd, st = ts.run(imu, truth, noise, t0, t0 + 160.0, jumped, True)
+    assert isinstance(fwd.updater, TightUpdater)
+    assert len(fwd.updater.clock_jumps) == 1
+    t_jump, size = fwd.updater.clock_jumps[0]
+    assert t_jump == epochs.time[i] and abs(size - ms) < 5.0
+    after = [ep.used for ep in fwd.updater.epochs if ep.time > epochs.time[i]]
+    assert min(after) >= 4
+    ref, _ = ts.run(imu, truth, noise, t0, t0 + 160.0, epochs, True)
+    assert ts.horizontal_error(fwd.time, st, truth, t0 + 159.0) < 1.0
+    assert not ref.updater.clock_jumps                    # no jump without one

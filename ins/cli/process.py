@@ -359,6 +359,9 @@ def _summary(result, cfg, paths, t_proc, t_write):
         print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
               f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
               f"and range rates)", file=out)
+        for t, jump in c.get("clock_jumps", []):
+            print(f"receiver clock jump at {t:.2f} s: {jump:+.1f} m ({jump / 299792.458:+.4f} "
+                  f"ms) common to the pseudoranges; the clock bias set again", file=out)
     for a, b, n, factor in getattr(result.fwd, "recoveries", []):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "

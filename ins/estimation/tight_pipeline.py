@@ -106,4 +106,5 @@ def tight_counts(fwd):
     if not hasattr(up, "satellites_used"):
         return {"coupling": "loose"}
     lo, mean, _ = up.satellites_used()
-    return {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2)}
+    return {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2),
+            "clock_jumps": list(getattr(up, "clock_jumps", []))}
