@@ -98,8 +98,9 @@ class BlockResult:
     angles : ndarray (m, 3)
         Rad, system order, mapping frame; the prior for images that were not adjusted.
     cov : ndarray (3m, 3m) or None
-        A-posteriori covariance of all angles (image-major), rad^2; None for a block
-        solved with the banded algebra (see `cov_op` and :meth:`cov_blocks`).
+        A-posteriori covariance of all angles (image-major), rad^2, scaled by
+        ``max(sigma0, 1)^2``; None for a block solved with the banded algebra (see
+        `cov_op` and :meth:`cov_blocks`).
     sigma : ndarray (m, 3)
         Per-angle standard deviations, rad (0 for the datum image of ``"first"``).
     sigma0 : float
@@ -542,11 +543,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                            "base-direction parameters): nothing checks the result",
                            rejected=screen["rejected"] | snooped)
     sigma0 = float(np.sqrt(lin.vtpv / redundancy))
+    s_cov = max(sigma0, 1.0)        # covariance scale (photogrammetry.adjustment.coplanarity)
     cov_op = None
     if banded:
         ps = (None if position_sigma is None
               else np.broadcast_to(np.asarray(position_sigma, float), (m, 3)))
-        cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img,
+        cov_op = banded_covariance(lin.H, s_cov, free, lin.WJ, lin.N, cond.img,
                                    ps if mode == "known" else None, n_angles=n_ang,
                                    factor=S)
         cov = None
@@ -554,7 +556,7 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         sigma[free] = np.sqrt(np.einsum("iaa->ia", cov_op.blocks))
         sigma[~adjusted] = prior_sigma[~adjusted]
     else:
-        cov = _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
+        cov = _covariance(S, lin, cond, m, free, adjusted, s_cov, mode, n_ang, prior_sigma,
                           position_sigma)
         sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     if not converged:
