@@ -8,7 +8,8 @@ mechanized at the full IMU rate in a numba loop (:mod:`ins.estimation._filter_ke
 current bias and scale estimates removed, while the integrals that the covariance step
 needs are accumulated; the covariance (21 states, or the layout's
 :class:`ins.estimation.error_model.StateLayout`) is then propagated once per node interval
-(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``).
+(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``;
+compiled with the prior ``Phi P Phi^T + Q_d`` in :func:`ins.estimation._kalman_kernels.predict`).
 On the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
 position RMS by less than 0.1 mm and the heading RMS by 0.02 arcsec, at 2.6 times the
 cost (``bench/bench_process.py``, "Covariance step").
@@ -37,25 +38,22 @@ the estimated errors are fed back (closed loop): the navigation state is correct
 (:mod:`ins.estimation.error_model` sign rules), the sensor estimates updated, and the error state
 reset to zero.
 
-filterpy's :func:`filterpy.kalman.predict` propagates the covariance.  filterpy is
-imported when a filter starts (:func:`filterpy_functions`), not with this module: its
-package imports ``scipy.stats`` (0.6 s), which the command line overlaps with reading
-the IMU log.  Its ``KalmanFilter`` object is not used: the transition and noise change
-at every node and the state is reset after each update, so the object would only hold
-what the functions are given.
+The per-node linear algebra (prior covariance, update, smoother step) runs in compiled
+loops (:mod:`ins.estimation._kalman_kernels`) on ``n x n`` matrices, ``n`` the layout's
+number of states; filterpy's ``predict`` and ``update`` are the reference they are
+tested against (tests/test_kalman_kernels.py), not part of the run (the import of
+filterpy, with scipy.stats, cost more than the whole filter).
 """
 import warnings
 
 import numpy as np
 
 from ins.common.errors import InputError, InputWarning
-from ins.estimation import _filter_kernels
+from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import (
     KFGINS,
     NAV,
     checked_std,
-    discretize,
-    interval_matrix,
     noise_matrix,
 )
 from ins.estimation.filter_stores import NodeStore, TrajectoryStore
@@ -286,6 +284,9 @@ class _ForwardRun:
                                  f"{len(init)}")
             self.sensors[:len(init)] = init
         self.mis = (L.gyro_misalignment is not None or L.accel_misalignment is not None)
+        # first index of the misalignment groups for the compiled A (-1: absent)
+        self.gyro_mis = -1 if L.gyro_misalignment is None else L.gyro_misalignment.start
+        self.accel_mis = -1 if L.accel_misalignment is None else L.accel_misalignment.start
         self.headings = sorted(settings.heading, key=lambda m: m.time)
         self.hj = 0
         self.P = settings.initial_covariance()
@@ -391,11 +392,9 @@ class _ForwardRun:
         dt = t[r] - self.t_a
         mid = 0.5 * (self.state_a + self.state)
         acc = self.acc
-        A = interval_matrix(mid[0], mid[2], mid[NAV.vel], acc[9] / dt,
-                            (acc[0:3], acc[3:6], acc[6:9], acc[10:13], acc[13:16]), dt,
-                            self.tau, L)
-        Phi, Qd = discretize(A, self.GQG, dt)
-        _, P = up.kf_predict(np.zeros(L.n), self.P, Phi, Qd)
+        Phi, _, P = _kalman_kernels.node_predict(
+            float(mid[0]), float(mid[2]), mid[NAV.vel], acc, float(dt), float(self.tau),
+            self.gyro_mis, self.accel_mis, self.GQG, self.P)
         P_prior = P
         w_meas_b = th[r] / (t[r] - t[r - 1])
         f_meas_b = dv[r] / (t[r] - t[r - 1])

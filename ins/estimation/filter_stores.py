@@ -6,7 +6,7 @@ import tempfile
 
 import numpy as np
 
-from ins.estimation.error_model import checked_std
+from ins.estimation.error_model import VARIANCE_RTOL, checked_std
 
 
 class NodeStore:
@@ -30,17 +30,21 @@ class NodeStore:
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.common.errors.QualityError` naming ``time`` (s) and the state."""
-        self.n = len(P_prior)
-        d_prior, d_post = np.diag(P_prior), np.diag(P_post)
+        self.n = n = len(P_prior)
+        d_prior, d_post = P_prior.ravel()[::n + 1], P_post.ravel()[::n + 1]
         scale = np.maximum(np.abs(d_prior), np.abs(d_post))
-        checked_std(d_prior, scale, time, what="forward filter's prior covariance")
-        self.post_std.append(checked_std(d_post, scale, time,
-                                         what="forward filter's posterior covariance"))
-        rec = np.stack([P_prior, P_post, Phi])
-        if self._mem is not None:
-            self._mem.append(rec)
+        floor = -VARIANCE_RTOL * scale
+        if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
+            self.post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
         else:
-            self._file.write(rec.tobytes())
+            checked_std(d_prior, scale, time, what="forward filter's prior covariance")
+            self.post_std.append(checked_std(d_post, scale, time,
+                                             what="forward filter's posterior covariance"))
+        if self._mem is not None:
+            self._mem.append(np.stack([P_prior, P_post, Phi]))
+        else:
+            for a in (P_prior, P_post, Phi):
+                self._file.write(np.ascontiguousarray(a, dtype=np.float64).data)
         self.count += 1
 
     def block(self, j0, j1):

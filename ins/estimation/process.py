@@ -31,7 +31,6 @@ from ins.estimation.process_trust import (
     fix_name,
 )
 from ins.estimation.smoother import iter_smoothed, rts_errors
-from ins.estimation.updates import filterpy_functions
 from ins.io.gnss import read_gnss
 from ins.io.imu_blocks import iter_imu, prefetch, with_location
 from ins.io.imu_files import shifted_blocks
@@ -336,7 +335,6 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
                                               rates=cfg.imu_rates, axes=cfg.imu_axes),
                                      cfg.imu_time_shift_s))
-    filterpy_functions()           # the imports overlap the reader thread's parsing
     gnss = read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
                      quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale,
                      velocity_time_shift_s=cfg.gnss_velocity_time_shift_s)

@@ -1,0 +1,306 @@
+"""Compiled covariance kernels of the GNSS/INS filter and smoother (private).
+
+The run's per-node linear algebra on ``n x n`` covariances (``n`` the number of error
+states of the layout: 21, 27, 33 ...), as numba loops, so that a node costs a few tens
+of microseconds instead of the Python and scipy call overhead of a dozen small numpy
+operations:
+
+- :func:`predict`: ``Phi = I + A + A^2/2 + A^3/6``, ``Q_d = (Phi GQG Phi^T + GQG) dt/2``
+  (:func:`ins.estimation.error_model.discretize`) and ``P- = Phi P Phi^T + Q_d``
+  (filterpy's ``predict``, the tests' reference);
+- :func:`joseph_update`: the Kalman update by one Cholesky factorization of
+  ``S = H P H^T + R``, innovation test, Joseph-form posterior
+  (:func:`ins.estimation.measurements.kalman_update`; filterpy's ``update`` is the
+  tests' reference);
+- :func:`rts_step`: one step of the closed-loop RTS recursion
+  (:func:`ins.estimation.smoother.rts_errors`).
+
+Plain loops, not BLAS: at these sizes the loops are as fast, and the run needs no
+scipy.  Every function takes C-contiguous float64 arrays.
+"""
+import math
+
+import numba as nb
+import numpy as np
+
+from ins.estimation.error_model import fill_navigation
+
+
+@nb.njit(cache=True, inline="always")
+def _mm(a, b, out):
+    """``out = a @ b``."""
+    n, k = a.shape
+    m = b.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+        for p in range(k):
+            aip = a[i, p]
+            if aip != 0.0:
+                for j in range(m):
+                    out[i, j] += aip * b[p, j]
+
+
+@nb.njit(cache=True, inline="always")
+def _mm_bt(a, b, out):
+    """``out = a @ b.T``."""
+    n, k = a.shape
+    m = b.shape[0]
+    for i in range(n):
+        for j in range(m):
+            s = 0.0
+            for p in range(k):
+                s += a[i, p] * b[j, p]
+            out[i, j] = s
+
+
+@nb.njit(cache=True)
+def predict(A, GQG, dt, P):
+    """Transition, process noise and prior covariance of one node interval.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        ``int F dt`` over the interval (:func:`ins.estimation.error_model.interval_matrix`).
+    GQG : ndarray, shape (n, n)
+        Continuous ``G Q G^T``.
+    dt : float
+        Interval, s.
+    P : ndarray, shape (n, n)
+        Covariance at the start of the interval.
+
+    Returns
+    -------
+    Phi, Qd, P_prior : ndarray, shape (n, n)
+    """
+    n = A.shape[0]
+    A2 = np.empty((n, n))
+    A3 = np.empty((n, n))
+    _mm(A, A, A2)
+    _mm(A2, A, A3)
+    Phi = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Phi[i, j] = A[i, j] + 0.5 * A2[i, j] + A3[i, j] / 6.0
+        Phi[i, i] += 1.0
+    T = A2                                              # scratch
+    _mm(Phi, GQG, T)
+    Qd = np.empty((n, n))
+    _mm_bt(T, Phi, Qd)
+    for i in range(n):
+        for j in range(n):
+            Qd[i, j] = 0.5 * dt * (Qd[i, j] + GQG[i, j])
+    _mm(Phi, P, T)
+    Pp = A3                                             # scratch
+    _mm_bt(T, Phi, Pp)
+    for i in range(n):
+        for j in range(n):
+            Pp[i, j] += Qd[i, j]
+    return Phi, Qd, Pp
+
+
+@nb.njit(cache=True)
+def interval(lat, h, v_n, acc, dt, decay_s, n, gyro_mis, accel_mis):
+    """``A = int F dt`` over a node interval (n x n), as
+    :func:`ins.estimation.error_model.interval_matrix` (its reference) from the
+    integrals ``acc`` of :func:`ins.estimation._filter_kernels.propagate_rows` (rows 0-2
+    ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 9 ``sum C_nb dvel``, 10-12 ``S_CNw``, 13-15
+    ``S_CNf``); ``gyro_mis``, ``accel_mis``: first index of those groups, or -1."""
+    A = np.zeros((n, n))
+    fill_navigation(A, lat, h, v_n[0], v_n[1], v_n[2], acc[9, 0] / dt, acc[9, 1] / dt,
+                    acc[9, 2] / dt, dt)
+    for i in range(3):
+        for j in range(3):
+            A[3 + i, 12 + j] = acc[i, j]               # v, b_a: S_C
+            A[3 + i, 18 + j] = acc[6 + i, j]           # v, s_a: S_Cf
+            A[6 + i, 9 + j] = -acc[i, j]               # phi, b_g: -S_C
+            A[6 + i, 15 + j] = -acc[3 + i, j]          # phi, s_g: -S_Cw
+            if gyro_mis >= 0:
+                A[6 + i, gyro_mis + j] = -acc[10 + i, j]
+            if accel_mis >= 0:
+                A[3 + i, accel_mis + j] = acc[13 + i, j]
+    for i in range(9, 21):
+        A[i, i] = -dt / decay_s
+    return A
+
+
+@nb.njit(cache=True)
+def node_predict(lat, h, v_n, acc, dt, decay_s, gyro_mis, accel_mis, GQG, P):
+    """:func:`interval` then :func:`predict`: ``(Phi, Qd, P_prior)`` of a node."""
+    A = interval(lat, h, v_n, acc, dt, decay_s, P.shape[0], gyro_mis, accel_mis)
+    return predict(A, GQG, dt, P)
+
+
+@nb.njit(cache=True, inline="always")
+def _cholesky(S, L):
+    """Lower Cholesky factor of ``S`` into ``L``; False when ``S`` is not positive
+    definite (or not finite)."""
+    m = S.shape[0]
+    for i in range(m):
+        for j in range(m):
+            L[i, j] = 0.0
+    for j in range(m):
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0 or not math.isfinite(d):
+            return False
+        d = math.sqrt(d)
+        L[j, j] = d
+        for i in range(j + 1, m):
+            s = S[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _cho_solve_cols(L, B):
+    """``B <- S^-1 B`` in place (``S = L L^T``), column by column."""
+    m = L.shape[0]
+    for c in range(B.shape[1]):
+        for i in range(m):                      # L y = b
+            s = B[i, c]
+            for k in range(i):
+                s -= L[i, k] * B[k, c]
+            B[i, c] = s / L[i, i]
+        for i in range(m - 1, -1, -1):          # L^T x = y
+            s = B[i, c]
+            for k in range(i + 1, m):
+                s -= L[k, i] * B[k, c]
+            B[i, c] = s / L[i, i]
+
+
+@nb.njit(cache=True)
+def joseph_update(P, H, R, z, threshold):
+    """Kalman update of ``P`` by the measurement ``(H, R)`` with innovation ``z``
+    (predicted minus measured).
+
+    Returns
+    -------
+    status : int
+        0 accepted, 1 rejected by the test ``z^T S^-1 z <= threshold``, 2 ``S`` not
+        positive definite (or not finite).
+    dx : ndarray, shape (n,)
+        Error-state estimate ``K z`` (zeros unless accepted).
+    P_post : ndarray, shape (n, n)
+        ``(I - K H) P (I - K H)^T + K R K^T`` (a copy of ``P`` unless accepted).
+    nis : float
+        ``z^T S^-1 z`` (NaN when ``S`` is not positive definite).
+    S : ndarray, shape (m, m)
+        Innovation covariance ``H P H^T + R`` (symmetrized).
+    """
+    m, n = H.shape
+    PHt = np.empty((n, m))
+    _mm_bt(P, H, PHt)
+    S = np.empty((m, m))
+    _mm(H, PHt, S)
+    for i in range(m):
+        for j in range(m):
+            S[i, j] += R[i, j]
+    for i in range(m):
+        for j in range(i):
+            s = 0.5 * (S[i, j] + S[j, i])
+            S[i, j] = s
+            S[j, i] = s
+    dx = np.zeros(n)
+    L = np.empty((m, m))
+    if not _cholesky(S, L):
+        return 2, dx, P.copy(), np.nan, S
+    nis = 0.0
+    w = np.empty(m)
+    for i in range(m):
+        s = z[i]
+        for k in range(i):
+            s -= L[i, k] * w[k]
+        w[i] = s / L[i, i]
+        nis += w[i] * w[i]
+    if not nis <= threshold:
+        return 1, dx, P.copy(), nis, S
+    Kt = np.empty((m, n))                       # K^T = S^-1 (P H^T)^T
+    for i in range(m):
+        for j in range(n):
+            Kt[i, j] = PHt[j, i]
+    _cho_solve_cols(L, Kt)
+    for j in range(n):
+        s = 0.0
+        for i in range(m):
+            s += Kt[i, j] * z[i]
+        dx[j] = s
+    IKH = np.empty((n, n))                      # I - K H
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(m):
+                s += Kt[k, i] * H[k, j]
+            IKH[i, j] = -s
+        IKH[i, i] += 1.0
+    T = np.empty((n, n))
+    _mm(IKH, P, T)
+    Pn = np.empty((n, n))
+    _mm_bt(T, IKH, Pn)
+    KR = np.empty((n, m))                       # K R
+    for i in range(n):
+        for j in range(m):
+            s = 0.0
+            for k in range(m):
+                s += Kt[k, i] * R[k, j]
+            KR[i, j] = s
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(m):
+                s += KR[i, k] * Kt[k, j]
+            Pn[i, j] += s
+    return 0, dx, Pn, nis, S
+
+
+@nb.njit(cache=True)
+def rts_step(P_prior_next, Phi_next, P_post, Ps_next, v):
+    """One backward step of the closed-loop RTS recursion
+    (:mod:`ins.estimation.smoother`): ``A = P+_j Phi^T (P-_{j+1})^-1``,
+    ``xs = A v`` (``v = dx_{j+1} + xs+_{j+1}``) and
+    ``Ps_j = P+_j + A (Ps_{j+1} - P-_{j+1}) A^T`` (symmetrized).
+
+    Returns ``(ok, xs, Ps_j)``; ``ok`` False when ``P-_{j+1}`` is not positive definite.
+    """
+    n = P_post.shape[0]
+    L = np.empty((n, n))
+    xs = np.zeros(n)
+    if not _cholesky(P_prior_next, L):
+        return False, xs, P_post.copy()
+    At = np.empty((n, n))                       # A^T = (P-)^-1 Phi P+
+    _mm(Phi_next, P_post, At)
+    _cho_solve_cols(L, At)
+    for i in range(n):
+        s = 0.0
+        for k in range(n):
+            s += At[k, i] * v[k]
+        xs[i] = s
+    D = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            D[i, j] = Ps_next[i, j] - P_prior_next[i, j]
+    T = np.empty((n, n))                        # A D = At^T D
+    for i in range(n):
+        for j in range(n):
+            T[i, j] = 0.0
+        for k in range(n):
+            a = At[k, i]
+            if a != 0.0:
+                for j in range(n):
+                    T[i, j] += a * D[k, j]
+    Pj = np.empty((n, n))
+    for i in range(n):                          # T A^T = T At
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += T[i, k] * At[k, j]
+            Pj[i, j] = s
+    for i in range(n):
+        for j in range(i + 1):
+            s = P_post[i, j] + 0.5 * (Pj[i, j] + Pj[j, i])
+            Pj[i, j] = s
+            Pj[j, i] = s
+    return True, xs, Pj
