@@ -15,8 +15,9 @@ operations:
 - :func:`rts_step`: one step of the closed-loop RTS recursion
   (:func:`ins.estimation.smoother.rts_errors`).
 
-Plain loops, not BLAS: at these sizes the loops are as fast, and the run needs no
-scipy.  Every function takes C-contiguous float64 arrays.
+The matrix products go to BLAS (numba's ``@``, through scipy's BLAS: 3-5 times faster
+than plain loops at n = 21..33); the Cholesky factorizations and triangular solves are
+loops.  Every function takes C-contiguous float64 arrays.
 """
 import math
 
@@ -24,34 +25,6 @@ import numba as nb
 import numpy as np
 
 from ins.estimation.error_model import fill_navigation
-
-
-@nb.njit(cache=True, inline="always")
-def _mm(a, b, out):
-    """``out = a @ b``."""
-    n, k = a.shape
-    m = b.shape[1]
-    for i in range(n):
-        for j in range(m):
-            out[i, j] = 0.0
-        for p in range(k):
-            aip = a[i, p]
-            if aip != 0.0:
-                for j in range(m):
-                    out[i, j] += aip * b[p, j]
-
-
-@nb.njit(cache=True, inline="always")
-def _mm_bt(a, b, out):
-    """``out = a @ b.T``."""
-    n, k = a.shape
-    m = b.shape[0]
-    for i in range(n):
-        for j in range(m):
-            s = 0.0
-            for p in range(k):
-                s += a[i, p] * b[j, p]
-            out[i, j] = s
 
 
 @nb.njit(cache=True)
@@ -74,29 +47,11 @@ def predict(A, GQG, dt, P):
     Phi, Qd, P_prior : ndarray, shape (n, n)
     """
     n = A.shape[0]
-    A2 = np.empty((n, n))
-    A3 = np.empty((n, n))
-    _mm(A, A, A2)
-    _mm(A2, A, A3)
-    Phi = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            Phi[i, j] = A[i, j] + 0.5 * A2[i, j] + A3[i, j] / 6.0
-        Phi[i, i] += 1.0
-    T = A2                                              # scratch
-    _mm(Phi, GQG, T)
-    Qd = np.empty((n, n))
-    _mm_bt(T, Phi, Qd)
-    for i in range(n):
-        for j in range(n):
-            Qd[i, j] = 0.5 * dt * (Qd[i, j] + GQG[i, j])
-    _mm(Phi, P, T)
-    Pp = A3                                             # scratch
-    _mm_bt(T, Phi, Pp)
-    for i in range(n):
-        for j in range(n):
-            Pp[i, j] += Qd[i, j]
-    return Phi, Qd, Pp
+    A2 = A @ A
+    Phi = np.eye(n) + A + 0.5 * A2 + (A2 @ A) / 6.0
+    PhiT = np.ascontiguousarray(Phi.T)
+    Qd = 0.5 * dt * ((Phi @ GQG) @ PhiT + GQG)
+    return Phi, Qd, (Phi @ P) @ PhiT + Qd
 
 
 @nb.njit(cache=True)
@@ -192,13 +147,8 @@ def joseph_update(P, H, R, z, threshold):
         Innovation covariance ``H P H^T + R`` (symmetrized).
     """
     m, n = H.shape
-    PHt = np.empty((n, m))
-    _mm_bt(P, H, PHt)
-    S = np.empty((m, m))
-    _mm(H, PHt, S)
-    for i in range(m):
-        for j in range(m):
-            S[i, j] += R[i, j]
+    PHt = P @ np.ascontiguousarray(H.T)
+    S = H @ PHt + R
     for i in range(m):
         for j in range(i):
             s = 0.5 * (S[i, j] + S[j, i])
@@ -218,41 +168,12 @@ def joseph_update(P, H, R, z, threshold):
         nis += w[i] * w[i]
     if not nis <= threshold:
         return 1, dx, P.copy(), nis, S
-    Kt = np.empty((m, n))                       # K^T = S^-1 (P H^T)^T
-    for i in range(m):
-        for j in range(n):
-            Kt[i, j] = PHt[j, i]
+    Kt = np.ascontiguousarray(PHt.T)            # K^T = S^-1 (P H^T)^T
     _cho_solve_cols(L, Kt)
-    for j in range(n):
-        s = 0.0
-        for i in range(m):
-            s += Kt[i, j] * z[i]
-        dx[j] = s
-    IKH = np.empty((n, n))                      # I - K H
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(m):
-                s += Kt[k, i] * H[k, j]
-            IKH[i, j] = -s
-        IKH[i, i] += 1.0
-    T = np.empty((n, n))
-    _mm(IKH, P, T)
-    Pn = np.empty((n, n))
-    _mm_bt(T, IKH, Pn)
-    KR = np.empty((n, m))                       # K R
-    for i in range(n):
-        for j in range(m):
-            s = 0.0
-            for k in range(m):
-                s += Kt[k, i] * R[k, j]
-            KR[i, j] = s
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(m):
-                s += KR[i, k] * Kt[k, j]
-            Pn[i, j] += s
+    K = np.ascontiguousarray(Kt.T)
+    dx = K @ np.ascontiguousarray(z)
+    IKH = np.eye(n) - K @ H
+    Pn = (IKH @ P) @ np.ascontiguousarray(IKH.T) + (K @ R) @ Kt
     return 0, dx, Pn, nis, S
 
 
@@ -270,34 +191,11 @@ def rts_step(P_prior_next, Phi_next, P_post, Ps_next, v):
     xs = np.zeros(n)
     if not _cholesky(P_prior_next, L):
         return False, xs, P_post.copy()
-    At = np.empty((n, n))                       # A^T = (P-)^-1 Phi P+
-    _mm(Phi_next, P_post, At)
+    At = Phi_next @ P_post                      # A^T = (P-)^-1 Phi P+
     _cho_solve_cols(L, At)
-    for i in range(n):
-        s = 0.0
-        for k in range(n):
-            s += At[k, i] * v[k]
-        xs[i] = s
-    D = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            D[i, j] = Ps_next[i, j] - P_prior_next[i, j]
-    T = np.empty((n, n))                        # A D = At^T D
-    for i in range(n):
-        for j in range(n):
-            T[i, j] = 0.0
-        for k in range(n):
-            a = At[k, i]
-            if a != 0.0:
-                for j in range(n):
-                    T[i, j] += a * D[k, j]
-    Pj = np.empty((n, n))
-    for i in range(n):                          # T A^T = T At
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += T[i, k] * At[k, j]
-            Pj[i, j] = s
+    A = np.ascontiguousarray(At.T)
+    xs = A @ np.ascontiguousarray(v)
+    Pj = (A @ (Ps_next - P_prior_next)) @ At
     for i in range(n):
         for j in range(i + 1):
             s = P_post[i, j] + 0.5 * (Pj[i, j] + Pj[j, i])

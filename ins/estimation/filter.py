@@ -8,8 +8,9 @@ mechanized at the full IMU rate in a numba loop (:mod:`ins.estimation._filter_ke
 current bias and scale estimates removed, while the integrals that the covariance step
 needs are accumulated; the covariance (21 states, or the layout's
 :class:`ins.estimation.error_model.StateLayout`) is then propagated once per node interval
-(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``;
-compiled with the prior ``Phi P Phi^T + Q_d`` in :func:`ins.estimation._kalman_kernels.predict`).
+(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``,
+``A = int F dt``; compiled with the prior ``Phi P Phi^T + Q_d``:
+:func:`ins.estimation._kalman_kernels.node_predict`).
 On the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
 position RMS by less than 0.1 mm and the heading RMS by 0.02 arcsec, at 2.6 times the
 cost (``bench/bench_process.py``, "Covariance step").
@@ -39,7 +40,7 @@ the estimated errors are fed back (closed loop): the navigation state is correct
 reset to zero.
 
 The per-node linear algebra (prior covariance, update, smoother step) runs in compiled
-loops (:mod:`ins.estimation._kalman_kernels`) on ``n x n`` matrices, ``n`` the layout's
+kernels (:mod:`ins.estimation._kalman_kernels`) on ``n x n`` matrices, ``n`` the layout's
 number of states; filterpy's ``predict`` and ``update`` are the reference they are
 tested against (tests/test_kalman_kernels.py), not part of the run (the import of
 filterpy, with scipy.stats, cost more than the whole filter).
@@ -56,7 +57,7 @@ from ins.estimation.error_model import (
     checked_std,
     noise_matrix,
 )
-from ins.estimation.filter_stores import NodeStore, TrajectoryStore
+from ins.estimation.filter_stores import NodeStore, Rows, TrajectoryStore
 from ins.estimation.updates import Updater
 from ins.nav import earth
 from ins.nav.mechanization import check_finite
@@ -291,8 +292,8 @@ class _ForwardRun:
         self.hj = 0
         self.P = settings.initial_covariance()
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
-        self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
-            [], [], [], [], []
+        self.node_rows, self.node_time = Rows((), np.int64), Rows(())
+        self.dxs, self.sens, self.node_states = Rows((L.n,)), Rows((L.n - 9,)), Rows((10,))
         self.updater = Updater(settings, gnss)
         self.g_time = self.updater.ev_time         # the GNSS update events' epochs
         self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
@@ -372,10 +373,10 @@ class _ForwardRun:
 
     def _keep_node(self, r, t_r):
         """Record the node at row ``r`` (of this block) after its updates."""
-        self.node_states.append(self.state.copy())
+        self.node_states.append(self.state)
         self.node_rows.append(r + self.row_base)
         self.node_time.append(t_r)
-        self.sens.append(self.sensors.copy())
+        self.sens.append(self.sensors)
         self.state_a, self.t_a = self.state.copy(), t_r
 
     def progress(self, t, last):
@@ -436,9 +437,9 @@ class _ForwardRun:
 
     def result(self):
         up = self.updater
-        out = ForwardResult(self.traj, self.nodes, np.array(self.node_rows),
-                            np.array(self.node_time), np.array(self.dxs), np.array(self.sens))
-        out.node_states = np.array(self.node_states)
+        out = ForwardResult(self.traj, self.nodes, self.node_rows.array(),
+                            self.node_time.array(), self.dxs.array(), self.sens.array())
+        out.node_states = self.node_states.array()
         out.n_updates = up.n_updates
         out.n_rejected = up.n_rejected
         out.n_outside = up.n_outside + int(np.count_nonzero(self.g_pos[self.gj:]))

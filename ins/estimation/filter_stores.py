@@ -9,6 +9,36 @@ import numpy as np
 from ins.estimation.error_model import VARIANCE_RTOL, checked_std
 
 
+class Rows:
+    """Rows of one shape appended one at a time into an array that doubles when full:
+    no Python object per row (a 10 h log at 1 s nodes has 36 000 of them; lists of small
+    arrays cost twice the memory and fragment the heap)."""
+
+    def __init__(self, shape=None, dtype=np.float64):
+        self._a, self._shape, self._dtype, self.count = None, shape, dtype, 0
+
+    def append(self, row):
+        row = np.asarray(row, dtype=self._dtype)
+        if self._a is None:
+            self._a = np.empty((256,) + (row.shape if self._shape is None else self._shape),
+                               self._dtype)
+        elif self.count == len(self._a):
+            grown = np.empty((2 * len(self._a),) + self._a.shape[1:], self._dtype)
+            grown[:self.count] = self._a
+            self._a = grown
+        self._a[self.count] = row
+        self.count += 1
+
+    def __len__(self):
+        return self.count
+
+    def array(self):
+        """The rows so far (a copy), shape (count, ...)."""
+        if self._a is None:
+            return np.empty((0,) + (self._shape or ()), self._dtype)
+        return self._a[:self.count].copy()
+
+
 class NodeStore:
     """``P_prior``, ``P_post`` and ``Phi`` (n x n each, n the number of error states) of
     every node, kept for the RTS pass.
@@ -23,7 +53,7 @@ class NodeStore:
     def __init__(self, workdir=None):
         self.count = 0
         self.n = None
-        self.post_std = []                 # sqrt(diag(P_post)) of every node (small)
+        self._post_std = Rows()            # sqrt(diag(P_post)) of every node (small)
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
 
@@ -35,17 +65,22 @@ class NodeStore:
         scale = np.maximum(np.abs(d_prior), np.abs(d_post))
         floor = -VARIANCE_RTOL * scale
         if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
-            self.post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
+            self._post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
         else:
             checked_std(d_prior, scale, time, what="forward filter's prior covariance")
-            self.post_std.append(checked_std(d_post, scale, time,
-                                             what="forward filter's posterior covariance"))
+            self._post_std.append(checked_std(d_post, scale, time,
+                                              what="forward filter's posterior covariance"))
         if self._mem is not None:
             self._mem.append(np.stack([P_prior, P_post, Phi]))
         else:
             for a in (P_prior, P_post, Phi):
                 self._file.write(np.ascontiguousarray(a, dtype=np.float64).data)
         self.count += 1
+
+    @property
+    def post_std(self):
+        """``sqrt(diag(P_post))`` of every node, array (count, n)."""
+        return self._post_std.array()
 
     def block(self, j0, j1):
         """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, n, n) of P_prior, P_post, Phi."""
@@ -82,7 +117,7 @@ class TrajectoryStore:
         if self._mem is not None:
             self._mem.append(rows)
         else:
-            self._file.write(rows.tobytes())
+            self._file.write(rows.data)           # no second copy (tobytes)
         self._sizes.append(len(rows))
 
     def __len__(self):

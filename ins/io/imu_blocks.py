@@ -19,7 +19,8 @@ from ins.common.errors import InputError
 from ins.io import imu_files
 from ins.nav import imu as imu_mod
 
-BLOCK_ROWS = 1 << 18
+#: Binary records per block (3.7 MB of KF-GINS records); see :data:`TEXT_BLOCK_BYTES`.
+BLOCK_ROWS = 1 << 16
 #: Text read per block (about 26 000 KF-GINS lines): with the parsed rows, the checked
 #: log and the reader thread's queue (:func:`prefetch`) the IMU costs about 8 times this
 #: in memory, whatever the length of the log; larger blocks are no faster.
