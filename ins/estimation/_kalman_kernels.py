@@ -24,7 +24,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ins.estimation.error_model import fill_navigation
+from ins.estimation.error_model import fill_interval
 
 
 @nb.njit(cache=True)
@@ -62,20 +62,8 @@ def interval(lat, h, v_n, acc, dt, decay_s, n, gyro_mis, accel_mis):
     ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 9 ``sum C_nb dvel``, 10-12 ``S_CNw``, 13-15
     ``S_CNf``); ``gyro_mis``, ``accel_mis``: first index of those groups, or -1."""
     A = np.zeros((n, n))
-    fill_navigation(A, lat, h, v_n[0], v_n[1], v_n[2], acc[9, 0] / dt, acc[9, 1] / dt,
-                    acc[9, 2] / dt, dt)
-    for i in range(3):
-        for j in range(3):
-            A[3 + i, 12 + j] = acc[i, j]               # v, b_a: S_C
-            A[3 + i, 18 + j] = acc[6 + i, j]           # v, s_a: S_Cf
-            A[6 + i, 9 + j] = -acc[i, j]               # phi, b_g: -S_C
-            A[6 + i, 15 + j] = -acc[3 + i, j]          # phi, s_g: -S_Cw
-            if gyro_mis >= 0:
-                A[6 + i, gyro_mis + j] = -acc[10 + i, j]
-            if accel_mis >= 0:
-                A[3 + i, accel_mis + j] = acc[13 + i, j]
-    for i in range(9, 21):
-        A[i, i] = -dt / decay_s
+    fill_interval(A, lat, h, v_n[0], v_n[1], v_n[2], acc[9, 0] / dt, acc[9, 1] / dt,
+                  acc[9, 2] / dt, acc, dt, decay_s, gyro_mis, accel_mis)
     return A
 
 

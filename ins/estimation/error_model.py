@@ -410,20 +410,46 @@ def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s, layout=KFGINS)
         Decay time of the sensor states, s (``ImuNoise.decay_time_s``; ``inf``: none).
     layout : StateLayout
     """
-    S_C, S_Cw, S_Cf = integrals[:3]
+    S = np.zeros((16, 3))                  # the layout of the filter's accumulators
+    S[0:3], S[3:6], S[6:9] = integrals[:3]
+    if len(integrals) > 3:
+        S[10:13], S[13:16] = integrals[3], integrals[4]
+    f = np.asarray(f_n, dtype=float)
+    v = np.asarray(v_n, dtype=float)
     A = np.zeros((layout.n, layout.n))
-    A[0:9, 0:9] = navigation_matrix(lat, h, v_n, f_n) * dt
-    A[VEL, BA] = S_C
-    A[VEL, SA] = S_Cf
-    A[ATT, BG] = -S_C
-    A[ATT, SG] = -S_Cw
-    if layout.gyro_misalignment is not None:
-        A[ATT, layout.gyro_misalignment] = -integrals[3]
-    if layout.accel_misalignment is not None:
-        A[VEL, layout.accel_misalignment] = integrals[4]
-    idx = np.arange(9, 21)
-    A[idx, idx] = -dt / corr_time_s
+    fill_interval(A, float(lat), float(h), float(v[0]), float(v[1]), float(v[2]), float(f[0]),
+                  float(f[1]), float(f[2]), S, float(dt), float(corr_time_s),
+                  _start(layout.gyro_misalignment), _start(layout.accel_misalignment))
     return A
+
+
+def _start(sl):
+    return -1 if sl is None else sl.start
+
+
+@register_jitable
+def fill_interval(A, lat, h, vn, ve, vd, fn, fe, fd, S, dt, decay_s, gyro_mis, accel_mis):
+    """Write ``A = int F dt`` (:func:`interval_matrix`) into the zeroed ``A`` (n x n).
+
+    ``S`` (16, 3): rows 0-2 ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 10-12 ``S_CNw``, 13-15
+    ``S_CNf`` (row 9 unused here); ``gyro_mis``, ``accel_mis``: first index of those
+    groups or -1.  The one source of the transition of every state with dynamics: plain
+    Python from :func:`interval_matrix`, compiled into the run's kernel
+    (:func:`ins.estimation._kalman_kernels.interval`).
+    """
+    fill_navigation(A, lat, h, vn, ve, vd, fn, fe, fd, dt)
+    for i in range(3):
+        for j in range(3):
+            A[3 + i, 12 + j] = S[i, j]                 # v, b_a: S_C
+            A[3 + i, 18 + j] = S[6 + i, j]             # v, s_a: S_Cf
+            A[6 + i, 9 + j] = -S[i, j]                 # phi, b_g: -S_C
+            A[6 + i, 15 + j] = -S[3 + i, j]            # phi, s_g: -S_Cw
+            if gyro_mis >= 0:
+                A[6 + i, gyro_mis + j] = -S[10 + i, j]
+            if accel_mis >= 0:
+                A[3 + i, accel_mis + j] = S[13 + i, j]
+    for i in range(9, 21):
+        A[i, i] = -dt / decay_s
 
 
 #: A variance below ``-VARIANCE_RTOL`` times its scale (the same state's prior or forward
