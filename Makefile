@@ -1,4 +1,5 @@
 # make demo  - set up .venv and run the whole chain on the embedded flight plan
+# make demo-lidar - the LiDAR chain (simulated scanner -> georeference -> strip-check)
 # make test  - set up .venv (with the test extras) and run the test suite
 # make bench - speed/accuracy benchmarks with the peers (pyins) side by side
 # make docs  - API reference and guides (Sphinx) into docs/_build/html, warnings as errors
@@ -7,7 +8,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 PIP     = $(PY) -m pip --disable-pip-version-check -q
 
-.PHONY: demo test bench docs clean
+.PHONY: demo demo-lidar test bench docs clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +25,10 @@ $(VENV)/.bench-deps: pyproject.toml | $(VENV)/bin/python
 	$(PIP) install -e '.[bench]'
 	touch $(VENV)/.run-deps $@
 
+$(VENV)/.lidar-deps: pyproject.toml | $(VENV)/bin/python
+	$(PIP) install -e '.[lidar]'
+	touch $(VENV)/.run-deps $@
+
 $(VENV)/.docs-deps: pyproject.toml | $(VENV)/bin/python
 	$(PIP) install -e '.[docs]'
 	touch $(VENV)/.run-deps $@
@@ -33,6 +38,12 @@ $(VENV)/.docs-deps: pyproject.toml | $(VENV)/bin/python
 # every stage against the simulator's truth; report in demo-output/report.md
 demo: $(VENV)/.run-deps
 	$(PY) tools/demo.py --plan data/flights/demo.toml --out demo-output
+
+# The LiDAR chain on data/flights/lidar_demo.toml (a flight with a [scanner]):
+# simulate -> process -> georeference -> strip-check -> georeference calibrated,
+# point errors and the recovered boresight against the simulator's truth
+demo-lidar: $(VENV)/.lidar-deps
+	$(PY) tools/demo_lidar.py --plan data/flights/lidar_demo.toml --out demo-lidar-output
 
 test: $(VENV)/.test-deps
 	$(PY) -m pytest -q
@@ -44,5 +55,5 @@ docs: $(VENV)/.docs-deps
 	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
 
 clean:
-	rm -rf $(VENV) .cache demo-output .pytest_cache docs/_build docs/api/generated
+	rm -rf $(VENV) .cache demo-output demo-lidar-output .pytest_cache docs/_build docs/api/generated
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -263,7 +263,7 @@ def per_state_cost(args, data):
 
         def one():
             Phi, _, Pp = kk.node_predict(0.5, 1000.0, np.array([60.0, 1.0, 0.1]), acc, 1.0,
-                                         14400.0, gm, am, G, P)
+                                         14400.0, gm, am, -1, G, P)
             _, _, Pu, _, _ = kk.joseph_update(Pp, H, R, z, 1e9)
             kk.rts_step(Pp, Phi, Pu, Pu, v)
         one()

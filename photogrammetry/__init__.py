@@ -21,7 +21,7 @@ _LAZY = {
     "ExposureOrientation": "orientation.exposure", "compute_eo": "orientation.exposure",
     "read_events": "orientation.exposure", "read_solution_std": "orientation.exposure",
     "read_eo_csv": "orientation.exposure", "write_eo_csv": "orientation.exposure",
-    "parse_frame": "orientation.mapping",
+    "parse_frame": "orientation.mapping", "boresight_sigma": "orientation.boresight_sigma",
     "angles_to_matrix": "orientation.rotation", "matrix_to_angles": "orientation.rotation",
     "TiePoints": "imagery.tiepoints", "read_tiepoints": "imagery.tiepoints",
     "write_tiepoints": "imagery.tiepoints",

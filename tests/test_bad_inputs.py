@@ -269,6 +269,8 @@ def _cases():
         cases += [Case("compare", slot, f, ln, w) for f, ln, w in NAV_CASES]
     cases += [Case("simulate", "plan", "plan_truncated.toml", None, ("toml",)),
               Case("simulate", "plan", "plan_unknown_key.toml", None, ("speed_kt",)),
+              Case("simulate", "plan", "plan_scanner_arcsec.toml", None,
+                   ("[scanner]", "boresight_arcsec", "boresight_deg")),
               Case("simulate", "plan", "plan_negative_speed.toml", None,
                    ("ground_speed_mps",)),
               Case("simulate", "plan", "plan_misspelt_section.toml", None,

@@ -54,6 +54,9 @@ def test_explicit_inputs_formats_sigma(flight, tmp_path):
                         "-o", str(out)]) == 0
     eo = read_eo_csv(out)
     assert eo.frame == "EPSG:32650; heights = ellipsoidal" and eo.has_sigmas
+    # the header names the sigma file: refine takes the boresight's INS sigma from it
+    from photogrammetry.orientation.exposure import read_eo_header
+    assert read_eo_header(out)["trajectory sigma"] == str(std)
     # independent: the ENU result back to lat/lon (pymap3d), then pyproj's UTM 50N
     import pymap3d
     import pyproj

@@ -193,7 +193,8 @@ def test_cli(tmp_path, capsys):
     out = tmp_path / "rover.pos"
     assert main(["gnss", ROVER, "--base", BASE, "--nav", NAV, "-o", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "of 120 rover epochs solved (kinematic, combined)" in text and "fix " in text
+    assert "of 120 rover epochs solved (kinematic, combined, broadcast ephemeris)" in text
+    assert "fix " in text and "forward/backward separation" in text
     cfg = tmp_path / "cfg.toml"
     cfg.write_text('[rtklib]\nambiguity = "off"\nsystems = ["gps"]\n')
     with warnings.catch_warnings():

@@ -57,12 +57,13 @@ def test_node_predict_matches_python_model_and_filterpy(layout):
                             layout)
     gm = -1 if layout.gyro_misalignment is None else layout.gyro_misalignment.start
     am = -1 if layout.accel_misalignment is None else layout.accel_misalignment.start
-    A = kk.interval(lat, h, v_n, acc, dt, float(tau), layout.n, gm, am)
+    ck = -1 if layout.clock is None else layout.clock.start
+    A = kk.interval(lat, h, v_n, acc, dt, float(tau), layout.n, gm, am, ck)
     np.testing.assert_allclose(A, A_ref, rtol=1e-14, atol=0)
-    GQG = noise_matrix(noise, layout)
+    GQG = noise_matrix(noise, layout, clock_psd=(0.1, 0.01))
     Phi_ref, Qd_ref = discretize(A_ref, GQG, dt)
     _, P_ref = fp_predict(np.zeros(layout.n), P, Phi_ref, Qd_ref)
-    Phi, Qd, Pp = kk.node_predict(lat, h, v_n, acc, dt, float(tau), gm, am, GQG, P)
+    Phi, Qd, Pp = kk.node_predict(lat, h, v_n, acc, dt, float(tau), gm, am, ck, GQG, P)
     np.testing.assert_allclose(Phi, Phi_ref, rtol=1e-13, atol=1e-18)
     np.testing.assert_allclose(Qd, Qd_ref, rtol=1e-12, atol=1e-25)
     scale = np.sqrt(np.outer(np.diag(P_ref), np.diag(P_ref)))

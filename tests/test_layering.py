@@ -39,7 +39,9 @@ GRAPH = {
     # its solution back with ins.io's .pos reader; below estimation, whose pipeline may
     # run it before the filter (and tight coupling take its satellite data)
     "ins.gnss": {"ins.common", "ins.nav", "ins.io"},
-    "ins.estimation": {"ins.common", "ins.nav", "ins.io"},     # filter, smoother, pipeline
+    # filter, smoother, pipeline (which runs RTKLIB first on raw observations; tight
+    # coupling reads them through ins.gnss.raw_epochs)
+    "ins.estimation": {"ins.common", "ins.nav", "ins.io", "ins.gnss"},
     "ins.lidar": {"ins.common", "ins.nav", "ins.io"},
     # the simulator's GNSS antenna uses the lever-arm model, its scanner the georeferencing
     "ins.simulate": _INS_BELOW_CLI,

@@ -246,7 +246,7 @@ def test_plan_keys_are_the_keys_the_reader_reads(demo_plan, monkeypatch):
             tables.append(self)
 
     monkeypatch.setattr(plan_mod, "Table", Recording)
-    parse_plan(copy.deepcopy(demo_plan))
+    parse_plan({**copy.deepcopy(demo_plan), "scanner": {}})    # [scanner] is optional
     assert {t.name for t in tables} == set(PLAN_KEYS)
     for t in tables:
         assert t.used == set(PLAN_KEYS[t.name]), (t.name, set(PLAN_KEYS[t.name]) - t.used)

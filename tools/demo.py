@@ -170,8 +170,14 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
     order = [1, 0, 2] if eo_ins.system == "phi-omega-kappa" else [0, 1, 2]
     noise_true = apparent.std(axis=0, ddof=1)[order]
 
-    ins_sigma = ins_camera_sigma(proc / "solution_std.txt", eo_ins.time, mounting)
-    b_sigma_total = np.hypot(a.boresight_sigma, ins_sigma)
+    # the boresight's sigma with the INS attitude's common error over the exposures (as
+    # photogrammetry refine states it in its report and CSV: the EO file names the
+    # trajectory's sigma file)
+    from photogrammetry.orientation.boresight_sigma import boresight_sigma
+    from photogrammetry.orientation.exposure import read_solution_std
+    bs = boresight_sigma(a.boresight_sigma, read_solution_std(proc / "solution_std.txt"),
+                         eo_ins.time, mounting.axes)
+    b_sigma_total = bs.total
 
     def row(label, values, unit, fmt="{:9.1f}"):
         return f"| {label} | " + " | ".join(fmt.format(v) for v in values) + f" | {unit} |"
@@ -201,12 +207,16 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
             "(mean; what a calibration can see)", b_apparent / ARCSEC, "arcsec"),
         row("boresight rx/ry/rz: estimated by the refinement", a.boresight / ARCSEC,
             "arcsec"),
-        row("boresight rx/ry/rz: sigma of the estimate", a.boresight_sigma / ARCSEC,
+        row("boresight rx/ry/rz: sigma, adjustment alone", bs.adjustment / ARCSEC,
             "arcsec"),
-        row("boresight rx/ry/rz: sigma with the INS attitude sigma (smoothed, mean over "
-            "the exposures, in the camera frame; the calibration cannot tell them apart)",
+        row("boresight rx/ry/rz: sigma, INS attitude common to the exposures (smoothed "
+            "sigma, camera frame, fully correlated: an upper bound)", bs.ins_common / ARCSEC,
+            "arcsec"),
+        row("boresight rx/ry/rz: sigma, total (as refine's report and CSV state it)",
             b_sigma_total / ARCSEC, "arcsec"),
-        row("boresight rx/ry/rz: (estimated - simulated) / that sigma",
+        row("boresight rx/ry/rz: (estimated - simulated) / adjustment sigma",
+            (a.boresight - b_true) / bs.adjustment, "", "{:9.2f}"),
+        row("boresight rx/ry/rz: (estimated - simulated) / total sigma",
             (a.boresight - b_true) / b_sigma_total, "", "{:9.2f}"),
         *misalignment_rows(flight, proc, row),
         row(f"INS angle noise {'/'.join(names)}: estimated by the refinement",
@@ -223,23 +233,9 @@ def summarize(out, flight, proc, camera, mounting, eo_ins_file, refined_file, me
                "ins_noise_rad": a.ins_noise, "ins_noise_true_rad": noise_true,
                "boresight_rad": a.boresight, "boresight_sigma_rad": a.boresight_sigma,
                "boresight_sigma_with_ins_rad": b_sigma_total,
+               "boresight_sigma_ins_rad": bs.ins_common,
                "misalignment": misalignment_figures(flight, proc)}
     return lines, figures
-
-
-def ins_camera_sigma(std_file, times, mounting):
-    """The smoothed INS attitude sigma at the exposures in the camera axes (rad): the
-    roll, pitch, yaw sigmas of ``solution_std.txt`` (interpolated to the exposure times)
-    as a body-frame covariance turned into the camera frame through the mounting axes
-    ``C_bc``, averaged over the exposures (the INS error varies slowly: it is common to
-    neighbouring exposures, so the mean, not the mean over sqrt(n), bounds what a
-    boresight calibration absorbs)."""
-    data = np.loadtxt(std_file)
-    sd = np.column_stack([np.interp(times, data[:, 0], np.deg2rad(data[:, k]))
-                          for k in (7, 8, 9)])
-    C_bc = np.asarray(mounting.axes, dtype=float)
-    P_c = np.einsum("ji,nj,jk->nik", C_bc, sd ** 2, C_bc)
-    return np.sqrt(np.einsum("nii->ni", P_c)).mean(axis=0)
 
 
 def misalignment_figures(flight, proc):

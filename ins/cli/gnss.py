@@ -3,17 +3,20 @@ observations with RTKLIB's engine (:mod:`ins.gnss.rtklib_engine`; optional extra
 ``pip install 'insphoto[gnss]'``), with a summary and exit 3 when almost nothing is
 solved or fixed."""
 import argparse
+import os
 
 import numpy as np
 
-from ins.common.errors import QualityError
+from ins.common.errors import InputError, QualityError
 
 EPILOG = """\
 inputs:
-  ROVER.obs, --base: RINEX 2.x/3.x observations; --nav: broadcast navigation (RINEX
-  nav, repeatable); --sp3, --clk: precise orbits and clocks (repeatable; given any,
-  RTKLIB uses the precise ephemeris).  u-blox logs (.ubx): convert them first with
-  RTKLIB's convbin (see the issue notes; not yet built in).
+  ROVER (or --rover), --base: RINEX 2.x/3.x observations, or u-blox logs (.ubx,
+  RXM-RAWX; converted to RINEX 3.04 on the way with RTKLIB's convrnx, their RXM-SFRBX
+  ephemerides too); --nav: broadcast navigation (RINEX nav, repeatable; needed unless
+  the u-blox logs hold ephemerides); --sp3, --clk: precise orbits and clocks
+  (repeatable; given any, RTKLIB uses the precise ephemeris: they must cover the whole
+  span of the observations).
 
 settings (--config FILE, its [rtklib] table, strict keys; the command line wins):
   mode = "single"|"dgnss"|"kinematic"|"static", direction = "forward"|"backward"|
@@ -29,9 +32,18 @@ output: RTKLIB's .pos (lat/lon deg, ellipsoidal height m, GPS week and seconds, 
   Exit 3 (unless --accept-poor) when fewer than half of the rover's epochs are solved,
   or, in kinematic/static mode, fewer than 10 % of them fixed.
 
+forward/backward separation (kinematic mode; --no-separation skips it): RTKLIB is run
+  forward and backward as well, and their difference (forward minus backward, north/
+  east/up m, at the backward position) written beside the output as
+  OUT_fwd_bwd_separation.txt (one epoch a line with both Q flags) and
+  OUT_fwd_bwd_separation.png; the summary gives its RMS and max, of all epochs and of
+  those both directions fixed.  Two fixes with the same integers give the same position
+  (0.1 mm): a fixed epoch where they differ is a wrong fix in one direction.
+
 example:
   ins gnss 07590920.05o --base 30400920.05o --nav 07590920.05n -o rover.pos
   ins gnss rover.obs --nav brdc.nav --mode single -o rover.pos
+  ins gnss --rover rover.ubx --base base.obs --nav brdc.nav -o rover.pos
 """
 
 _QNAME = {1: "fix", 2: "float", 3: "sbas", 4: "dgnss", 5: "single", 6: "ppp"}
@@ -44,10 +56,13 @@ def add_parser(sub):
                                    "station's, broadcast navigation and optional precise "
                                    "products) with RTKLIB demo5's engine into a .pos file.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("rover", metavar="ROVER.obs")
-    p.add_argument("--nav", action="append", required=True, metavar="NAV",
+    p.add_argument("rover_file", nargs="?", metavar="ROVER",
+                   help="rover observations (RINEX, or a u-blox .ubx log)")
+    p.add_argument("--rover", metavar="ROVER", help="the same, as an option")
+    p.add_argument("--nav", action="append", default=[], metavar="NAV",
                    help="broadcast navigation file (RINEX nav; repeatable)")
-    p.add_argument("--base", metavar="BASE.obs", help="base station observations (RINEX)")
+    p.add_argument("--base", metavar="BASE",
+                   help="base station observations (RINEX or u-blox .ubx)")
     p.add_argument("--sp3", action="append", default=[], metavar="SP3",
                    help="precise orbits (repeatable)")
     p.add_argument("--clk", action="append", default=[], metavar="CLK",
@@ -58,6 +73,9 @@ def add_parser(sub):
     p.add_argument("--direction", choices=DIRECTIONS, default=None,
                    help="filter direction (default: the config's, else combined)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.pos")
+    p.add_argument("--no-separation", action="store_true",
+                   help="kinematic mode: skip the forward/backward runs and their "
+                        "separation files")
     p.add_argument("--accept-poor", action="store_true",
                    help="exit 0 even when almost nothing is solved or fixed (default: 3)")
     p.set_defaults(func=_cmd_gnss)
@@ -74,11 +92,21 @@ def _options(args):
     return read_rtklib_options(table, path, mode=args.mode, direction=args.direction)
 
 
+def separation_paths(pos_path):
+    """The separation table and figure beside a ``.pos`` output: ``X_fwd_bwd_separation
+    .txt`` and ``.png`` for ``X.pos``."""
+    stem = os.path.splitext(os.fspath(pos_path))[0]
+    return stem + "_fwd_bwd_separation.txt", stem + "_fwd_bwd_separation.png"
+
+
 def _cmd_gnss(args):
     from ins.gnss.rtklib_engine import poor_reason, solve, spread_enu_m
     from ins.gnss.rtklib_options import CARRIER_MODES
+    if bool(args.rover_file) == bool(args.rover):
+        raise InputError("give the rover's observations once: ROVER or --rover")
+    rover = args.rover_file or args.rover
     opts = _options(args)
-    sol = solve(args.rover, args.nav, args.output, base=args.base, sp3=args.sp3,
+    sol = solve(rover, args.nav or None, args.output, base=args.base, sp3=args.sp3,
                 clk=args.clk, options=opts)
     log = sol.log
     n = len(log)
@@ -86,8 +114,8 @@ def _cmd_gnss(args):
     parts = ", ".join(f"{_QNAME.get(q, q)} {c} ({100 * c / n:.0f} %)"
                       for q, c in sorted(counts.items()))
     how = opts.mode + (f", {opts.direction}" if opts.mode in CARRIER_MODES else "")
-    print(f"{args.output}: {n} of {sol.rover_epochs} rover epochs solved ({how}); {parts}; "
-          f"RTKLIB {sol.run_time_s:.2f} s")
+    print(f"{args.output}: {n} of {sol.rover_epochs} rover epochs solved ({how}, "
+          f"{sol.ephemeris} ephemeris); {parts}; RTKLIB {sol.run_time_s:.2f} s")
     for label, q in (("all", None), ("fixed", 1)):
         s = spread_enu_m(log, q)
         if np.all(np.isfinite(s)):
@@ -96,6 +124,22 @@ def _cmd_gnss(args):
     if log.screen:
         print(f"  covariance screen: {log.screen.repaired_lines.size} repaired, "
               f"{log.screen.dropped_lines.size} dropped")
+    if opts.mode == "kinematic" and not args.no_separation:
+        from ins.gnss.separation import (
+            forward_backward,
+            plot_separation,
+            summary_lines,
+            write_separation,
+        )
+        sep = forward_backward(rover, args.nav or None,
+                               os.path.dirname(os.path.abspath(args.output)), base=args.base,
+                               sp3=args.sp3, clk=args.clk, options=opts)
+        txt, png = separation_paths(args.output)
+        write_separation(sep, txt)
+        plot_separation(sep, png)
+        for line in summary_lines(sep):
+            print("  " + line)
+        print(f"  {txt}\n  {png}")
     reason = poor_reason(sol)
     if reason and not args.accept_poor:
         raise QualityError(f"{args.output}: {reason} (--accept-poor: exit 0)")

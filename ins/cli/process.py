@@ -22,6 +22,14 @@ inputs:
                     solution of the antenna (detected from its header: lat/lon/height,
                     d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
                     the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+  --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
+                    config's [files] rover, base, nav, sp3, clk; RINEX or u-blox .ubx):
+                    RTKLIB runs first with the config's [rtklib] settings (ins gnss
+                    --help; optional extra: pip install 'insphoto[gnss]'), writes
+                    OUT_DIR/gnss.pos (and, in kinematic mode, fwd_bwd_separation.txt
+                    and .png), its covariances are screened and the filter takes it
+                    as an RTKLIB .pos; the summary names the source (mode, direction,
+                    fix/float/single counts, records repaired or dropped by the screen)
   --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
                     dgps, single, ppp or numbers 1..6; default all)
   --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
@@ -96,9 +104,12 @@ def add_parser(sub):
     p = sub.add_parser(
         "process", help="GNSS/INS post-processing: forward Kalman filter + RTS smoother",
         description=(
-            "Loosely coupled GNSS/INS post-processing: error-state Kalman filter with\n"
-            "closed-loop feedback (fixed or mount-varying lever arm), then a backward\n"
-            "Rauch-Tung-Striebel pass.  State layout from the config's [states]:\n"
+            "GNSS/INS post-processing: error-state Kalman filter with closed-loop\n"
+            "feedback (fixed or mount-varying lever arm), then a backward\n"
+            "Rauch-Tung-Striebel pass.  Loosely coupled on a GNSS solution (a ready\n"
+            "one, or RTKLIB's of raw --rover/--base/--nav run first), or tightly coupled\n"
+            "(--coupling tight: GPS L1 pseudoranges and Doppler, receiver clock states;\n"
+            "one to three satellites still count).  State layout from the config's [states]:\n"
             "'survey' (default: the 21 KF-GINS states plus gyro and accelerometer axis\n"
             "misalignment; lever-arm and IMU-GNSS time-offset groups on request) or\n"
             "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
@@ -109,6 +120,16 @@ def add_parser(sub):
     p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
     p.add_argument("--gnss", metavar="F",
                    help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
+    p.add_argument("--rover", metavar="F",
+                   help="raw GNSS: the rover's observations (RINEX or u-blox .ubx), run "
+                        "through RTKLIB first instead of --gnss")
+    p.add_argument("--base", metavar="F", help="raw GNSS: base station observations")
+    p.add_argument("--nav", action="append", metavar="F",
+                   help="raw GNSS: broadcast navigation, RINEX (repeatable)")
+    p.add_argument("--sp3", action="append", metavar="F",
+                   help="raw GNSS: precise orbits (repeatable)")
+    p.add_argument("--clk", action="append", metavar="F",
+                   help="raw GNSS: precise clocks, RINEX CLK (repeatable)")
     p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
                    help="GNSS file format (default: detected from the extension and header)")
     p.add_argument("--gnss-quality", metavar="Q,...",
@@ -132,6 +153,12 @@ def add_parser(sub):
                         "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
                         "deg/h, mGal, ppm, h)")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
+    p.add_argument("--coupling", choices=["loose", "tight"],
+                   help="loose: the GNSS solution's positions (default); tight: the GPS "
+                        "L1 pseudoranges (m) and Doppler range rates (m/s) of --rover "
+                        "(RINEX) with --nav through RTKLIB, receiver clock bias/drift "
+                        "states; RTKLIB's solution still gives the start and the checks; "
+                        "with FLIGHT_DIR its simulated raw GPS (rover.obs, rover.nav)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
@@ -154,8 +181,8 @@ def add_parser(sub):
 def _config(args):
     from ins.estimation.process_config import config_from_manifest, load_config
     if args.flight_dir:
-        if args.imu or args.gnss:
-            raise InputError("give either FLIGHT_DIR or --imu/--gnss, not both")
+        if args.imu or args.gnss or args.rover:
+            raise InputError("give either FLIGHT_DIR or --imu/--gnss (--rover), not both")
         if not os.path.isdir(args.flight_dir):
             raise InputError(f"FLIGHT_DIR {args.flight_dir}: not a folder")
         cfg = config_from_manifest(args.flight_dir, overrides=args.config)
@@ -171,6 +198,11 @@ def _config(args):
         cfg.truth = args.truth
     if args.no_smooth:
         cfg.smooth = False
+    cfg.gnss_raw_plot = not args.no_plots
+    if getattr(args, "coupling", None):
+        cfg.coupling = args.coupling
+    if args.flight_dir and cfg.coupling == "tight" and cfg.gnss_raw is None:
+        _flight_raw_gnss(cfg, args.flight_dir)
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
@@ -178,6 +210,28 @@ def _config(args):
         given = read_toml(args.config, "a processing config (TOML)") if args.config else {}
         cfg = apply_preset(cfg, args.preset, given)
     return cfg
+
+
+def _flight_raw_gnss(cfg, flight_dir):
+    """Tight coupling on a simulated flight folder: its raw GPS (``rover.obs`` and
+    ``rover.nav`` of ``[gnss_raw]``, :mod:`ins.simulate.gnss_raw_product`) with RTKLIB's
+    single-point solution of them as the GNSS log (start, delays, checks), not the
+    folder's ready fixes."""
+    from ins.common.textfiles import read_toml
+    from ins.estimation.process_gnss import RawGnss
+    from ins.gnss.rtklib_options import RtklibOptions
+    files = read_toml(os.path.join(flight_dir, "manifest.toml"), "a flight manifest").get(
+        "files", {})
+    if not (files.get("gnss_raw_obs") and files.get("gnss_raw_nav")):
+        raise InputError(f"--coupling tight: the flight folder {flight_dir} has no raw GPS "
+                         "observations (simulate it with a [gnss_raw] table in the plan or "
+                         "'ins simulate --gnss-raw NAV_FILE')")
+    cfg.gnss_raw = RawGnss(rover=os.path.join(flight_dir, files["gnss_raw_obs"]),
+                           nav=(os.path.join(flight_dir, files["gnss_raw_nav"]),),
+                           options=RtklibOptions(mode="single", systems=("gps",),
+                                                 frequencies=1,
+                                                 elevation_mask_deg=cfg.elevation_mask_deg))
+    cfg.gnss = None
 
 
 def _input_options(cfg, args):
@@ -217,9 +271,17 @@ def output_formats(text):
 def _from_args(args, load_config, path):
     from ins.common.textfiles import read_toml
     has_files = "files" in read_toml(path, "a processing config (TOML)")
-    if not has_files and not (args.imu and args.gnss):
-        raise InputError("--imu and --gnss are required (the config has no [files])")
-    return load_config(path, files={"imu": args.imu, "gnss": args.gnss})
+    if args.gnss and args.rover:
+        raise InputError("give either --gnss (a GNSS solution) or --rover (raw "
+                         "observations through RTKLIB), not both")
+    if not has_files and not (args.imu and (args.gnss or args.rover)):
+        raise InputError("--imu and --gnss (or --rover, --base, --nav) are required (the "
+                         "config has no [files])")
+    raw = {"rover": args.rover, "base": args.base, "nav": args.nav, "sp3": args.sp3,
+           "clk": args.clk}
+    if not args.rover and any(raw.values()):
+        raise InputError("--base, --nav, --sp3, --clk go with --rover (raw GNSS)")
+    return load_config(path, files={"imu": args.imu, "gnss": args.gnss, **raw})
 
 
 def _cmd_process(args):
@@ -241,7 +303,7 @@ def _cmd_process(args):
         with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
             try:
                 result = process(cfg, progress=progress, workdir=work,
-                                 accept_poor=args.accept_poor)
+                                 accept_poor=args.accept_poor, gnss_dir=stage)
             except QualityError as exc:
                 raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
                                    f"outputs anyway).") from None
@@ -252,6 +314,10 @@ def _cmd_process(args):
                 from ins.estimation.plots import write_plots
                 names += write_plots(result, stage, flight_dir=args.flight_dir)
         t2 = wallclock.perf_counter()
+    if result.gnss_source is not None:
+        from ins.estimation.process_gnss import SEPARATION_PNG, SEPARATION_TXT
+        names += [os.path.join(stage, n) for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
+                  if os.path.isfile(os.path.join(args.output, n))]
     paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
     if not args.quiet:
         _summary(result, cfg, paths, t1 - t0, t2 - t1)
@@ -280,10 +346,19 @@ def _table(title, columns, rows, width=10):
 def _summary(result, cfg, paths, t_proc, t_write):
     c = result.counts
     out = sys.stdout
+    if result.gnss_source is not None:
+        from ins.estimation.process_gnss import source_lines
+        shown = next((p for p in paths if os.path.basename(p) == "gnss.pos"), None)
+        for line in source_lines(result.gnss_source, shown):
+            print(line, file=out)
     print(f"{c['imu_epochs']} IMU epochs, {c['gnss_records']} GNSS records: {c['updates']} "
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
+    if c.get("coupling") == "tight":
+        print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
+              f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
+              f"and range rates)", file=out)
     for a, b, n, factor in getattr(result.fwd, "recoveries", []):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "

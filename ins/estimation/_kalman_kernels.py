@@ -55,22 +55,23 @@ def predict(A, GQG, dt, P):
 
 
 @nb.njit(cache=True)
-def interval(lat, h, v_n, acc, dt, decay_s, n, gyro_mis, accel_mis):
+def interval(lat, h, v_n, acc, dt, decay_s, n, gyro_mis, accel_mis, clock):
     """``A = int F dt`` over a node interval (n x n), as
     :func:`ins.estimation.error_model.interval_matrix` (its reference) from the
     integrals ``acc`` of :func:`ins.estimation._filter_kernels.propagate_rows` (rows 0-2
     ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 9 ``sum C_nb dvel``, 10-12 ``S_CNw``, 13-15
-    ``S_CNf``); ``gyro_mis``, ``accel_mis``: first index of those groups, or -1."""
+    ``S_CNf``); ``gyro_mis``, ``accel_mis``, ``clock``: first index of those groups,
+    or -1."""
     A = np.zeros((n, n))
     fill_interval(A, lat, h, v_n[0], v_n[1], v_n[2], acc[9, 0] / dt, acc[9, 1] / dt,
-                  acc[9, 2] / dt, acc, dt, decay_s, gyro_mis, accel_mis)
+                  acc[9, 2] / dt, acc, dt, decay_s, gyro_mis, accel_mis, clock)
     return A
 
 
 @nb.njit(cache=True)
-def node_predict(lat, h, v_n, acc, dt, decay_s, gyro_mis, accel_mis, GQG, P):
+def node_predict(lat, h, v_n, acc, dt, decay_s, gyro_mis, accel_mis, clock, GQG, P):
     """:func:`interval` then :func:`predict`: ``(Phi, Qd, P_prior)`` of a node."""
-    A = interval(lat, h, v_n, acc, dt, decay_s, P.shape[0], gyro_mis, accel_mis)
+    A = interval(lat, h, v_n, acc, dt, decay_s, P.shape[0], gyro_mis, accel_mis, clock)
     return predict(A, GQG, dt, P)
 
 

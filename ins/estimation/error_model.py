@@ -114,11 +114,14 @@ STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), (
 #: arm correction (m, b frame, added to the configured arm) and the IMU-GNSS time offset
 #: (s: a GNSS record stamped ``t`` holds the antenna at IMU time ``t + offset``).  All four
 #: are random constants (no process noise), truth minus estimate, fed back like the sensor
-#: errors (``estimate += dx``).
+#: errors (``estimate += dx``).  The receiver clock (tight coupling,
+#: :mod:`ins.estimation.pseudorange`) is the exception: bias (m, ``c dt_r``) and drift
+#: (m/s) with ``bias' = drift`` and white noise on both (:func:`noise_matrix`'s
+#: ``clock_psd``), truth minus estimate like the sensor states.
 OPTIONAL_GROUPS = {"gyro_misalignment": 3, "accel_misalignment": 3, "lever_arm": 3,
-                   "time_offset": 1}
+                   "time_offset": 1, "clock": 2}
 _OPTIONAL_AXES = {"gyro_misalignment": "xyz", "accel_misalignment": "xyz", "lever_arm": "xyz",
-                  "time_offset": ("",)}
+                  "time_offset": ("",), "clock": ("bias", "drift")}
 
 
 class StateLayout:
@@ -281,9 +284,12 @@ class ImuNoise:
                                (self.vrw_mps_sqrth * MPS_SQRTH) ** 2, driving])
 
 
-def noise_matrix(noise, layout=KFGINS):
+def noise_matrix(noise, layout=KFGINS, clock_psd=None):
     """``G Q G^T`` (n x n), attitude independent (see the module notes); the optional
-    groups are random constants (no noise)."""
+    groups are random constants (no noise), except the receiver clock: ``clock_psd`` =
+    (bias, drift) spectral densities, m^2/s and m^2/s^3 (two-state clock model,
+    ``S_bias = c^2 h0 / 2``, ``S_drift = 2 pi^2 c^2 h_-2`` from the Allan-variance
+    coefficients of the oscillator; ``None``: no noise)."""
     q = noise.q_continuous()
     GQG = np.zeros((layout.n, layout.n))
     idx = np.arange(3)
@@ -291,6 +297,9 @@ def noise_matrix(noise, layout=KFGINS):
     GQG[ATT.start + idx, ATT.start + idx] = q[0:3]
     sensors = np.arange(9, 21)
     GQG[sensors, sensors] = q[6:18]
+    if layout.clock is not None and clock_psd is not None:
+        k = np.arange(layout.clock.start, layout.clock.stop)
+        GQG[k, k] = np.asarray(clock_psd, dtype=float)
     return GQG
 
 
@@ -419,7 +428,8 @@ def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s, layout=KFGINS)
     A = np.zeros((layout.n, layout.n))
     fill_interval(A, float(lat), float(h), float(v[0]), float(v[1]), float(v[2]), float(f[0]),
                   float(f[1]), float(f[2]), S, float(dt), float(corr_time_s),
-                  _start(layout.gyro_misalignment), _start(layout.accel_misalignment))
+                  _start(layout.gyro_misalignment), _start(layout.accel_misalignment),
+                  _start(layout.clock))
     return A
 
 
@@ -428,12 +438,13 @@ def _start(sl):
 
 
 @register_jitable
-def fill_interval(A, lat, h, vn, ve, vd, fn, fe, fd, S, dt, decay_s, gyro_mis, accel_mis):
+def fill_interval(A, lat, h, vn, ve, vd, fn, fe, fd, S, dt, decay_s, gyro_mis, accel_mis,
+                  clock):
     """Write ``A = int F dt`` (:func:`interval_matrix`) into the zeroed ``A`` (n x n).
 
     ``S`` (16, 3): rows 0-2 ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 10-12 ``S_CNw``, 13-15
-    ``S_CNf`` (row 9 unused here); ``gyro_mis``, ``accel_mis``: first index of those
-    groups or -1.  The one source of the transition of every state with dynamics: plain
+    ``S_CNf`` (row 9 unused here); ``gyro_mis``, ``accel_mis``, ``clock``: first index of
+    those groups or -1.  The one source of the transition of every state with dynamics: plain
     Python from :func:`interval_matrix`, compiled into the run's kernel
     (:func:`ins.estimation._kalman_kernels.interval`).
     """
@@ -450,6 +461,8 @@ def fill_interval(A, lat, h, vn, ve, vd, fn, fe, fd, S, dt, decay_s, gyro_mis, a
                 A[3 + i, accel_mis + j] = S[13 + i, j]
     for i in range(9, 21):
         A[i, i] = -dt / decay_s
+    if clock >= 0:                                     # receiver clock: bias' = drift
+        A[clock, clock + 1] = dt
 
 
 #: A variance below ``-VARIANCE_RTOL`` times its scale (the same state's prior or forward

@@ -108,6 +108,9 @@ class ForwardResult:
     layout : ins.estimation.error_model.StateLayout
         The error states (``dx`` has ``layout.n`` columns, ``sensors`` ``layout.n - 9``:
         the 12 of the KF-GINS layout, then the optional groups' estimates).
+    updater : object
+        The object that processed the GNSS events (``FilterSettings.updater``), for
+        its own counts (tight coupling: satellites used per epoch).
     """
 
     def __init__(self, trajectory, nodes, node_rows, node_time, dx, sensors):
@@ -274,7 +277,7 @@ class _ForwardRun:
     def __init__(self, gnss, settings, workdir):
         self.layout = L = settings.layout
         self.settings = settings
-        self.GQG = noise_matrix(settings.noise, L)
+        self.GQG = noise_matrix(settings.noise, L, settings.clock_psd)
         self.tau = settings.noise.decay_time_s
         self.interval = settings.node_interval_s
         self.sensors = np.zeros(L.n - 9)
@@ -288,13 +291,14 @@ class _ForwardRun:
         # first index of the misalignment groups for the compiled A (-1: absent)
         self.gyro_mis = -1 if L.gyro_misalignment is None else L.gyro_misalignment.start
         self.accel_mis = -1 if L.accel_misalignment is None else L.accel_misalignment.start
+        self.clock_i = -1 if getattr(L, "clock", None) is None else L.clock.start
         self.headings = sorted(settings.heading, key=lambda m: m.time)
         self.hj = 0
         self.P = settings.initial_covariance()
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
         self.node_rows, self.node_time = Rows((), np.int64), Rows(())
         self.dxs, self.sens, self.node_states = Rows((L.n,)), Rows((L.n - 9,)), Rows((10,))
-        self.updater = Updater(settings, gnss)
+        self.updater = (settings.updater or Updater)(settings, gnss)
         self.g_time = self.updater.ev_time         # the GNSS update events' epochs
         self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
         self.acc = np.zeros((16, 3))
@@ -395,7 +399,7 @@ class _ForwardRun:
         acc = self.acc
         Phi, _, P = _kalman_kernels.node_predict(
             float(mid[0]), float(mid[2]), mid[NAV.vel], acc, float(dt), float(self.tau),
-            self.gyro_mis, self.accel_mis, self.GQG, self.P)
+            self.gyro_mis, self.accel_mis, self.clock_i, self.GQG, self.P)
         P_prior = P
         w_meas_b = th[r] / (t[r] - t[r - 1])
         f_meas_b = dv[r] / (t[r] - t[r - 1])
@@ -451,6 +455,7 @@ class _ForwardRun:
         out.records = up.records
         out.recoveries = list(up.recoveries)
         out.layout = self.layout
+        out.updater = up
         return out
 
 

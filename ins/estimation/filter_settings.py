@@ -99,6 +99,16 @@ class FilterSettings:
         Recover from a run of rejected position fixes by inflating the navigation
         states' covariance (:data:`ins.estimation.updates.RECOVER_AFTER_S`); False keeps
         rejecting them.
+    clock_bias_std_m, clock_drift_std_mps : float
+        Prior sigma of the receiver clock states (layout group ``clock``), m and m/s.
+    clock_psd : (float, float)
+        Spectral densities of the clock's bias and drift noise, m^2/s and m^2/s^3
+        (:func:`ins.estimation.error_model.noise_matrix`; default: a TCXO, h0 = 2e-19,
+        h-2 = 2e-20).
+    updater : callable, optional
+        ``updater(settings, gnss)`` makes the object that processes the GNSS update
+        events (default :class:`ins.estimation.updates.Updater`; tight coupling:
+        :class:`ins.estimation.pseudorange.TightUpdater`).
     """
 
     noise: ImuNoise = field(default_factory=ImuNoise)
@@ -125,6 +135,11 @@ class FilterSettings:
     nhc_C_vb: object = None
     heading: tuple = ()
     recover: bool = True
+    clock_bias_std_m: float = 30.0
+    clock_drift_std_mps: float = 1.0
+    clock_psd: tuple = (0.5 * 299792458.0 ** 2 * 2e-19,
+                        2.0 * np.pi ** 2 * 299792458.0 ** 2 * 2e-20)
+    updater: object = None
 
     def prior_std(self):
         """Prior standard deviations of the optional groups of :attr:`layout`, SI."""
@@ -132,7 +147,8 @@ class FilterSettings:
         edge = {"gyro_misalignment": (gyro, ARCSEC, 3),
                 "accel_misalignment": (accel, ARCSEC, 3),
                 "lever_arm": (self.lever_arm_std_m, 1.0, 3),
-                "time_offset": (self.time_offset_std_ms, 1e-3, 1)}
+                "time_offset": (self.time_offset_std_ms, 1e-3, 1),
+                "clock": ((self.clock_bias_std_m, self.clock_drift_std_mps), 1.0, 2)}
         return np.concatenate([[]] + [np.broadcast_to(np.asarray(edge[g][0], float), edge[g][2])
                                       * edge[g][1] for g in self.layout.groups])
 

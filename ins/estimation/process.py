@@ -70,6 +70,7 @@ class ProcessResult:
     quality: dict = None
     start_check: dict = None
     start_how: str = None
+    gnss_source: dict = None
 
     def iter_forward(self):
         for _, time, states in self.fwd.trajectory.chunks():
@@ -308,7 +309,7 @@ def _read_until(blocks, t_end):
     return head, blocks
 
 
-def process(cfg, progress=None, workdir=None, accept_poor=False):
+def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     """Run the whole post-processing described by ``cfg`` (a :class:`ProcessConfig`).
 
     The IMU log is read block by block (in a reader thread) and streamed through the
@@ -320,6 +321,11 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
 
     The start is checked against the GNSS fixes and the result assessed
     (:func:`assess_quality`, module notes); the assessment is ``result.quality``.
+
+    With raw GNSS (``cfg.gnss_raw``), RTKLIB runs first (:mod:`ins.estimation.process_gnss`)
+    and writes ``gnss.pos`` (and the forward/backward separation) into ``gnss_dir``
+    (default ``workdir``, else a temporary folder); ``result.gnss_source`` says what
+    it did.
 
     Raises
     ------
@@ -335,9 +341,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
                                               rates=cfg.imu_rates, axes=cfg.imu_axes),
                                      cfg.imu_time_shift_s))
-    gnss = read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
-                     quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale,
-                     velocity_time_shift_s=cfg.gnss_velocity_time_shift_s)
+    gnss, gnss_source = _gnss(cfg, gnss_dir if gnss_dir is not None else workdir)
     mount = read_mount(cfg.mount) if cfg.mount else None
     lever = _lever(cfg, mount)
     st = _start(cfg, blocks, gnss, lever)
@@ -368,8 +372,12 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
                               heading=_headings(cfg, start), **filter_options(cfg))
+    gnss_in = gnss
+    if cfg.coupling == "tight":
+        from ins.estimation.tight_pipeline import tight_inputs
+        gnss_in, settings = tight_inputs(cfg, gnss, settings)
     try:
-        fwd = run_forward(blocks, gnss, state, settings, start=start, end=cfg.end_s,
+        fwd = run_forward(blocks, gnss_in, state, settings, start=start, end=cfg.end_s,
                           progress=progress, workdir=workdir, initial_time=st.initial_time)
     except InputError as exc:
         if getattr(exc, "time_s", None) is None:
@@ -385,10 +393,13 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
               "nodes": len(fwd.node_time), "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
               "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries)}
+    from ins.estimation.tight_pipeline import tight_counts
+    counts.update(tight_counts(fwd))
     result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
                            al, counts)
     result.start_check = start_check
     result.start_how = st.how
+    result.gnss_source = gnss_source
     if st.noise is not None:                  # judged against the settings it ran with
         from copy import copy
         cfg = copy(cfg)
@@ -405,6 +416,20 @@ def process(cfg, progress=None, workdir=None, accept_poor=False):
     if cfg.truth:
         result = with_truth(result, cfg.truth)
     return result
+
+
+def _gnss(cfg, folder):
+    """The GNSS log of the run and, with raw observations, what RTKLIB did (else None)."""
+    if cfg.gnss_raw is None:
+        return read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
+                         quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale,
+                         velocity_time_shift_s=cfg.gnss_velocity_time_shift_s), None
+    from ins.estimation.process_gnss import run_raw_gnss
+    if folder is not None:
+        return run_raw_gnss(cfg, folder)
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="ins-gnss-") as tmp:
+        return run_raw_gnss(cfg, tmp)
 
 
 def _headings(cfg, start):

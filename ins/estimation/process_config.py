@@ -4,7 +4,10 @@ config (:func:`load_config`) or from a flight folder's manifest (:func:`config_f
 Configuration (TOML; ``data/configs/kfgins_like.toml``), keys named like KF-GINS's YAML
 with the unit in the name::
 
-    [files]      imu, gnss, mount (optional), truth (optional): paths relative to the file
+    [files]      imu, gnss, mount (optional), truth (optional): paths relative to the file;
+                 instead of gnss, raw observations run through RTKLIB first: rover,
+                 base, nav (one or a list), sp3, clk (ins.estimation.process_gnss)
+    [rtklib]     RTKLIB's settings with raw observations (ins.gnss.rtklib_options)
     [imu]        format = "kfgins"|"kfgins-bin"|"csv", rates = false, axes = "FRD",
                  time_shift_s = 0 (added to the IMU's stamps at read time)
     [initial]    lat_deg, lon_deg, h_m, vel_ned_mps, rpy_deg, time_s (optional),
@@ -60,18 +63,23 @@ from ins.common import limits
 from ins.common.errors import InputError
 from ins.common.tomlschema import check_keys
 from ins.estimation.error_model import LAYOUTS, OPTIONAL_GROUPS, ImuNoise, StateLayout
+from ins.estimation.process_gnss import RAW_KEYS
+from ins.gnss.rtklib_options import KEYS as RTKLIB_KEYS
 
 _NOISE_KEYS = ("arw_deg_sqrth", "vrw_mps_sqrth", "gyro_bias_std_dph", "accel_bias_std_mgal",
                "gyro_scale_std_ppm", "accel_scale_std_ppm", "corr_time_h",
                "gyro_bias_instability_dph", "accel_bias_instability_mgal")
 _SECTIONS = {
-    "files": {"imu", "gnss", "mount", "truth", "heading"},
+    "files": {"imu", "gnss", "mount", "truth", "heading", *RAW_KEYS},
+    "rtklib": set(RTKLIB_KEYS),
     "imu": {"format", "rates", "axes", "time_shift_s"},
     "initial": {"lat_deg", "lon_deg", "h_m", "vel_ned_mps", "rpy_deg", "time_s",
                 "pos_std_ned_m", "vel_std_ned_mps", "att_std_deg"},
     "imu_noise": set(_NOISE_KEYS),
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
-             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale"},
+             "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
+             "coupling", "elevation_mask_deg", "range_sigma_m", "range_rate_sigma_mps",
+             "receiver_clock"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
@@ -98,6 +106,8 @@ class ProcessConfig:
 
     imu: str
     gnss: str
+    gnss_raw: object = None       # ins.estimation.process_gnss.RawGnss instead of gnss
+    gnss_raw_plot: bool = True    # raw GNSS, kinematic: fwd_bwd_separation.png
     mount: str = None
     truth: str = None
     heading: str = None
@@ -128,6 +138,11 @@ class ProcessConfig:
     noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
+    coupling: str = "loose"       # "tight": raw GNSS input, ins.estimation.tight_pipeline
+    elevation_mask_deg: float = 10.0
+    range_sigma_m: tuple = (0.3, 0.3)          # tight: (a, b) of sqrt(a^2 + b^2 / sin^2 el)
+    range_rate_sigma_mps: tuple = (0.05, 0.05)
+    receiver_clock: str = "tcxo"               # tight: the clock states' noise
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
     priors: dict = field(default_factory=dict)
     measurements: dict = field(default_factory=dict)
@@ -200,15 +215,36 @@ def load_config(path, base=None, files=None):
     where = lambda sec, key="": f"{path}: [{sec}]" + (f" {key}" if key else "")  # noqa: E731
     check_keys(data, _SECTIONS, path)
     base = os.path.dirname(os.path.abspath(path)) if base is None else base
-    rel = {k: os.path.join(base, v) for k, v in data.get("files", {}).items()}
-    rel.update({k: v for k, v in (files or {}).items() if v is not None})
+    rel = {k: _relative(base, v) for k, v in data.get("files", {}).items()}
+    given = {k: v for k, v in (files or {}).items() if v not in (None, [], ())}
+    if given.keys() & {"gnss", "rover"}:          # the command line's GNSS input wins
+        for k in ("gnss", *RAW_KEYS):
+            rel.pop(k, None)
+    rel.update(given)
+    from ins.estimation.process_gnss import raw_gnss_config
+    raw = raw_gnss_config(rel, data.get("rtklib"), path)
     for key in ("imu", "gnss"):
-        if key not in rel:
+        if key not in rel and not (key == "gnss" and raw is not None):
             raise InputError(f"{where('files', key)}: missing (path of the {key} log; "
-                             f"or give --{key})")
-    return _fill(ProcessConfig(imu=rel["imu"], gnss=rel["gnss"], mount=rel.get("mount"),
-                               truth=rel.get("truth"), heading=rel.get("heading")),
-                 data, where, path)
+                             f"or give --{key}" + ("; or raw observations: [files] rover, "
+                                                   "base, nav" if key == "gnss" else "")
+                             + ")")
+    cfg = ProcessConfig(imu=rel["imu"], gnss=rel.get("gnss"), gnss_raw=raw,
+                        mount=rel.get("mount"), truth=rel.get("truth"),
+                        heading=rel.get("heading"))
+    if raw is not None:
+        cfg.gnss_format = "rtklib"
+    return _fill(cfg, data, where, path)
+
+
+def _relative(base, value):
+    """A ``[files]`` path (or list of paths) relative to ``base``; other values as they
+    are (checked by their reader)."""
+    if isinstance(value, str):
+        return os.path.join(base, value)
+    if isinstance(value, list):
+        return [os.path.join(base, v) if isinstance(v, str) else v for v in value]
+    return value
 
 
 def _fill(cfg, data, where, path=None):
@@ -231,6 +267,7 @@ def _fill(cfg, data, where, path=None):
         cfg.lever_ap = np.zeros(3)
     cfg.use_velocity = bool(gnss.get("use_velocity", cfg.use_velocity))
     _gnss_input(cfg, gnss, where)
+    _coupling(cfg, gnss, where)
     if "reject_probability" in gnss:
         p = _number(gnss["reject_probability"], where("gnss", "reject_probability"), True)
         if p >= 1:
@@ -356,6 +393,34 @@ def filter_options(cfg):
     """The :class:`ins.estimation.filter_settings.FilterSettings` keywords of ``[states]`` and
     ``[measurements]``."""
     return {"layout": cfg.layout, **cfg.priors, **cfg.measurements}
+
+
+def _coupling(cfg, gnss, where):
+    """``[gnss] coupling`` ("loose" or "tight") and ``elevation_mask_deg`` (tight)."""
+    if "coupling" in gnss:
+        if gnss["coupling"] not in ("loose", "tight"):
+            raise InputError(f"{where('gnss', 'coupling')}: expected \"loose\" or \"tight\", "
+                             f"got {gnss['coupling']!r}")
+        cfg.coupling = gnss["coupling"]
+    if "elevation_mask_deg" in gnss:
+        cfg.elevation_mask_deg = _number(gnss["elevation_mask_deg"],
+                                         where("gnss", "elevation_mask_deg"), lo=0.0, hi=90.0,
+                                         unit="deg")
+    for key, unit, bound in (("range_sigma_m", "m", 1000.0),
+                             ("range_rate_sigma_mps", "m/s", 100.0)):
+        if key in gnss:
+            v = _vector(gnss[key], where("gnss", key), n=2, bound=bound, unit=unit)
+            if np.any(v < 0) or not np.any(v > 0):
+                raise InputError(f"{where('gnss', key)}: expected [a, b] in {unit}, a, b >= 0 "
+                                 f"and not both 0 (sigma^2 = a^2 + b^2 / sin^2 elevation), "
+                                 f"got {gnss[key]!r}")
+            setattr(cfg, key, tuple(float(x) for x in v))
+    if "receiver_clock" in gnss:
+        from ins.estimation.pseudorange import CLOCKS
+        if gnss["receiver_clock"] not in CLOCKS:
+            raise InputError(f"{where('gnss', 'receiver_clock')}: expected one of "
+                             f"{', '.join(map(repr, CLOCKS))}, got {gnss['receiver_clock']!r}")
+        cfg.receiver_clock = gnss["receiver_clock"]
 
 
 def _gnss_input(cfg, gnss, where):

@@ -2,8 +2,9 @@
 ``pyrtklib5`` binding: optional extra ``pip install 'insphoto[gnss]'``).
 
 :func:`solve` runs RTKLIB's ``postpos`` (the engine of ``rnx2rtkp``/``rtkpost``) on a
-rover's RINEX 2/3 observations, an optional base station's, the broadcast navigation
-file(s) and optional precise products (SP3 orbits and clocks, RINEX CLK), with the
+rover's RINEX 2/3 observations (or a u-blox log, converted on the way by
+:mod:`ins.gnss.ubx`), an optional base station's, the broadcast navigation file(s)
+and optional precise products (SP3 orbits and clocks, RINEX CLK), with the
 settings of :class:`~ins.gnss.rtklib_options.RtklibOptions`, and reads the solution back
 with :func:`ins.io.rtklib.read_pos` (whose covariance screen catches RTKLIB's invalid
 sigmas).  Nothing of RTKLIB's algorithms is written again here.
@@ -71,6 +72,8 @@ class GnssSolution:
     options : RtklibOptions
     run_time_s : float
         Wall time of RTKLIB's ``postpos``, s.
+    ephemeris : str
+        ``"broadcast"``, or ``"precise"`` when SP3/CLK files were given.
     """
 
     log: object
@@ -78,6 +81,7 @@ class GnssSolution:
     rover_epochs: int
     options: RtklibOptions
     run_time_s: float
+    ephemeris: str = "broadcast"
 
     def counts(self):
         """``{Q: number of epochs}`` of the solution (RTKLIB's quality flags)."""
@@ -92,9 +96,10 @@ def _check_file(path, what):
     return path
 
 
-def count_epochs(path, rtk=None):
+def count_epochs(path, rtk=None, shown=None):
     """Number of observation epochs in a RINEX observation file (RTKLIB's ``readrnx``
-    and ``sortobs``).
+    and ``sortobs``); ``shown`` is the file named in the message (the u-blox log a
+    RINEX file was converted from).
 
     Raises
     ------
@@ -112,7 +117,8 @@ def count_epochs(path, rtk=None):
         rtk.freenav(nav, 0xFF)
     if n <= 0:
         raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
-                         "2.x/3.x observations)", path=path)
+                         "2.x/3.x observations or a u-blox log with RXM-RAWX)",
+                         path=path if shown is None else os.fspath(shown))
     return int(n)
 
 
@@ -122,14 +128,17 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     Parameters
     ----------
     rover : str or os.PathLike
-        Rover RINEX observation file.
-    nav : str or os.PathLike or sequence of them
+        Rover observations: RINEX 2.x/3.x, or a u-blox log (``.ubx``, RXM-RAWX;
+        converted on the way by :func:`ins.gnss.ubx.convert_ubx`).
+    nav : str or os.PathLike or sequence of them, or None
         Broadcast navigation file(s) (RINEX nav: GPS ``.n``, GLONASS ``.g``, mixed ``.p``
-        / RINEX 3 ``_MN.rnx``).
+        / RINEX 3 ``_MN.rnx``); may be empty when a u-blox log holds the ephemerides
+        (RXM-SFRBX).
     out_path : str or os.PathLike
         The ``.pos`` file to write (RTKLIB's llh layout, GPS week and seconds).
     base : str or os.PathLike, optional
-        Base station RINEX observations (required by every mode but ``single``).
+        Base station observations, RINEX or u-blox (required by every mode but
+        ``single``).
     sp3, clk : sequence of paths
         Precise orbits (SP3) and clocks (RINEX CLK); given any, RTKLIB uses the precise
         ephemeris.
@@ -143,25 +152,20 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     ------
     InputError
         The extra missing, a missing or unreadable input, a mode that needs a base
-        without one, RTKLIB writing no solution epoch.
+        without one, no broadcast navigation, RTKLIB writing no solution epoch.
     """
     rtk = binding()
     opts = RtklibOptions() if options is None else options
-    navs = [nav] if isinstance(nav, (str, os.PathLike)) else list(nav)
-    if not navs:
-        raise InputError("RTKLIB needs a broadcast navigation file (RINEX nav; --nav)")
+    navs = [] if nav is None else ([nav] if isinstance(nav, (str, os.PathLike)) else list(nav))
     navs = [_check_file(p, "RINEX navigation") for p in navs]
     precise = [_check_file(p, "precise orbit (SP3)") for p in sp3]
     precise += [_check_file(p, "precise clock (RINEX CLK)") for p in clk]
     if opts.uses_base and base is None:
         raise InputError(f"RTKLIB mode {opts.mode!r} needs the base station's observations "
                          f"(--base, or [files] base); mode 'single' needs none")
-    rover_epochs = count_epochs(rover, rtk)
-    files = [os.fspath(rover)]
+    rover = _check_file(rover, "rover observations (RINEX or u-blox)")
     if opts.uses_base:
-        count_epochs(base, rtk)
-        files.append(os.fspath(base))
-    files += navs + precise
+        base = _check_file(base, "base observations (RINEX or u-blox)")
     out_path = os.fspath(out_path)
     folder = os.path.dirname(os.path.abspath(out_path))
     if os.path.isdir(out_path):
@@ -170,6 +174,21 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
         raise InputError("the output's folder does not exist", path=out_path)
     tmp = tempfile.mkdtemp(prefix=".rtklib-", dir=folder)
     try:
+        rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk)
+        rover_epochs = count_epochs(rover_obs, rtk, shown=rover)
+        files = [rover_obs]
+        converted_navs = [rover_nav]
+        if opts.uses_base:
+            base_obs, base_nav = _observations(base, tmp, "base", rtk)
+            count_epochs(base_obs, rtk, shown=base)
+            files.append(base_obs)
+            converted_navs.append(base_nav)
+        navs += [p for p in converted_navs if p]
+        if not navs:
+            raise InputError("RTKLIB needs the broadcast navigation (--nav, or [files] nav: "
+                             "RINEX nav); a u-blox log gives it only with RXM-SFRBX "
+                             "messages", path=rover)
+        files += navs + precise
         tmp_pos = os.path.join(tmp, "solution.pos")
         with _LOCK:
             po, so, fo = fill_prcopt(opts, rtk, precise=bool(precise))
@@ -178,16 +197,33 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
                                  len(files), tmp_pos, "", "")
             run_time = wallclock.perf_counter() - t0
         if status != 0 or not os.path.isfile(tmp_pos) or not _has_epoch(tmp_pos):
+            shown = [rover] + ([base] if opts.uses_base else []) + navs + precise
             raise InputError(f"RTKLIB wrote no solution epoch (postpos status {status}): "
                              f"no common epochs or satellites between the observations "
-                             f"and the navigation data? inputs: {', '.join(files)}",
-                             path=os.fspath(rover))
+                             f"and the navigation data{_precise_hint(precise)}? inputs: "
+                             f"{', '.join(map(os.fspath, shown))}", path=rover)
         os.replace(tmp_pos, out_path)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     from ins.io.rtklib import read_pos
     log = read_pos(out_path)
-    return GnssSolution(log, out_path, rover_epochs, opts, run_time)
+    return GnssSolution(log, out_path, rover_epochs, opts, run_time,
+                        "precise" if precise else "broadcast")
+
+
+def _precise_hint(precise):
+    return (" (the precise orbits and clocks must cover the whole span of the "
+            "observations)" if precise else "")
+
+
+def _observations(path, folder, stem, rtk):
+    """(RINEX observation path, converted navigation path or None) of ``path``: a
+    u-blox log is converted into ``folder`` first."""
+    from ins.gnss.ubx import convert_ubx, is_ubx
+    if is_ubx(path):
+        with _LOCK:                                   # RTKLIB's clock is set meanwhile
+            return convert_ubx(path, folder, rtk, stem)
+    return path, None
 
 
 def _has_epoch(path):

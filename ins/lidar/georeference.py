@@ -17,8 +17,12 @@ Euler angles (``d r / d roll = (Rz Ry e_x) x d``, ``d r / d pitch = (Rz e_y) x d
 ``d r / d yaw = e_z x d`` with ``d = C_nb (l_b + C_bs r_s)``), the lever-arm sigmas,
 the boresight sigmas (``d (C_bs r_s) / d rx = axes Rx (e_x x Ry Rz r_s)`` and alike),
 the range noise along the ray and the scan-angle noise (``d r_s / d theta = r_s x
-e_x``).  Time correlation of the trajectory errors and the correlations between its
-states are neglected (the files give no more than sigmas).  The trajectory sigmas come
+e_x``).  The correlations between the trajectory's states are neglected (the files
+give no more than sigmas).  The time correlation of its errors does not change a point's
+own (marginal) sigma, but all points of a strip share one draw of the slowly varying
+trajectory error: the mean z^2 of one flight's points has one or two degrees of freedom
+per axis, and only independent flights (or draws) average it to 1
+(``docs/interfaces.md``, "Sigmas").  The trajectory sigmas come
 from ``solution_std.txt`` (``ins process``) or an Applanix SMRMSG file, interpolated
 linearly, held constant beyond their first and last epochs.
 

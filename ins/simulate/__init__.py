@@ -25,6 +25,10 @@ sensor_errors
 gnss
     :func:`~ins.simulate.gnss.simulate_gnss`: the antenna's fixes through the lever arm
     and the mount.
+gnss_raw, gps_orbit, gnss_raw_plan, gnss_raw_product
+    Raw GPS L1 observations (RINEX 3.04 ``rover.obs``) of the antenna from real broadcast
+    orbits (own IS-GPS-200 orbit, Klobuchar, Saastamoinen, clocks, multipath, slips,
+    masks) with their truth: the plan's ``[gnss_raw]`` or ``ins simulate --gnss-raw``.
 manifest
     ``manifest.toml``: the INS tables and the merge of the tables of product writers.
 folder

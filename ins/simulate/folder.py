@@ -177,9 +177,13 @@ class FlightProducts:
     seed: int
     progress: Callable[[float], None]
 
+    def rng(self, name):
+        """``product_rng(seed, name)``: the generator of the product ``name``."""
+        return product_rng(self.seed, name)
+
 
 def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
-                    products=()):
+                    products=(), gnss_raw_nav=None):
     """Simulate the INS part of a survey flight (and the given products) into a folder.
 
     Parameters
@@ -204,6 +208,12 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
         (module docstring), called in order after the INS products.  The complete flight
         folder of ``ins simulate`` is
         :func:`photogrammetry.simulate.folder.simulate_flight`.
+    gnss_raw_nav : str or os.PathLike, optional
+        RINEX GPS navigation file: write the raw observations (``rover.obs``, ``rover.nav``,
+        ``receiver_clock.txt``, ``gnss_raw_truth.csv``: :mod:`ins.simulate.gnss_raw_product`)
+        with the plan's ``[gnss_raw]`` settings or their defaults; replaces the plan's
+        ``[gnss_raw] nav_file``.  Without it, the plan's ``[gnss_raw]`` (when present)
+        decides.
 
     Returns
     -------
@@ -226,21 +236,41 @@ def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
     out_dir = Path(out_dir)
     check_output_folder(out_dir, force)            # before the work, not only after it
     plan, plan_text = _plan_and_text(plan)
+    raw = _raw_settings(plan, gnss_raw_nav)
     with output_folder(out_dir, force) as tmp:
         _write_products(plan, plan_text, Path(tmp), int(seed), grade or plan.imu.grade,
-                        progress, tuple(products))
+                        progress, tuple(products), raw)
     return out_dir
 
 
-def _write_products(plan, plan_text, folder, seed, grade, progress, products):
+def _raw_settings(plan, nav):
+    """The settings of the raw GPS observations (or None), with ``nav`` as nav_file."""
+    if nav is None:
+        return plan.gnss_raw
+    from dataclasses import replace
+
+    from ins.simulate.gnss_raw import RawSettings
+    return replace(plan.gnss_raw or RawSettings(), nav_file=os.path.abspath(os.fspath(nav)))
+
+
+def _write_products(plan, plan_text, folder, seed, grade, progress, products, raw=None):
     from ins.simulate.truth import build_truth
     truth = build_truth(plan)
+    if raw is not None:                  # the orbits must cover the flight: before the work
+        from ins.simulate import gnss_raw_product
+        gnss_raw_product.check_span(gnss_raw_product.load_orbits(raw, plan.source),
+                                    plan.flight.gps_week, truth.t_start, truth.t_end)
+        products = (lambda flight: gnss_raw_product.write_gnss_raw(
+            flight, raw, product_rng(seed, "gnss_raw")),) + products
     stages = _Stages(progress, (truth.t_end - truth.t_start) * plan.imu.rate_hz + 1)
     log, model, first = _write_imu_and_truth(plan, truth, folder, seed, grade, stages)
     rest = stages.stage("rest")
     files = _write_gnss_and_mount(plan, truth, folder, seed)
     rest(0.2, 1.0)
     added = []
+    if plan.scanner is not None:            # the plan's own LiDAR products
+        from ins.simulate.lidar import write_lidar
+        products = products + (write_lidar,)
     share = 0.8 / max(len(products), 1)
     for k, writer in enumerate(products):
         start = 0.2 + k * share

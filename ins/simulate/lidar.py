@@ -13,6 +13,18 @@ The terrain lives here, not in :mod:`photogrammetry.simulate.terrain` (``ins`` n
 imports ``photogrammetry``): :class:`SineTerrain`, an ellipsoidal height that is a sum of
 sine waves over the north/east coordinates of a local tangent plane.  Any object with
 ``height(lat_rad, lon_rad)`` (m, ellipsoidal) can be passed instead.
+
+:func:`write_lidar` is the product writer of a flight plan's ``[scanner]`` table
+(:mod:`ins.simulate.folder`): it scans the plan's strips over a :class:`SineTerrain` of
+the plan's ``[terrain]`` relief and wavelength (its own draw: not the camera's terrain of
+:mod:`photogrammetry.simulate.terrain`) and writes into the flight folder
+
+* ``returns.csv``: the returns CSV of ``ins georeference`` (time_s, range_m,
+  scan_angle_deg, intensity, return_number, strip = the plan's strip index + 1);
+* ``scanner.toml``: the scanner file a user would have (boresight zero: unknown; the
+  plan's lever arm and sigmas), and ``scanner_true.toml`` with the true boresight;
+* ``points_true.csv``: ``time_s,x_ecef_m,y_ecef_m,z_ecef_m,strip``, the terrain point of
+  each return (WGS84 ECEF, m).
 """
 from dataclasses import dataclass
 
@@ -25,7 +37,12 @@ from ins.nav.earth import dcm_en, lla_to_ecef, ned_offset
 from ins.nav.interpolation import interpolate_trajectory
 from ins.nav.rotation import quat_to_dcm, quat_to_euler, wrap_to_pi
 
-__all__ = ["SineTerrain", "SimulatedReturns", "simulate_returns", "strip_windows"]
+__all__ = ["SineTerrain", "SimulatedReturns", "simulate_returns", "strip_windows",
+           "write_lidar", "LIDAR_FILES"]
+
+#: Manifest ``[files]`` key -> file name of the LiDAR products.
+LIDAR_FILES = {"returns": "returns.csv", "scanner": "scanner.toml",
+               "scanner_true": "scanner_true.toml", "points_true": "points_true.csv"}
 
 
 @dataclass(frozen=True)
@@ -192,3 +209,59 @@ def strip_windows(truth, azimuth_deg, tol_deg=3.0, min_s=5.0, trim_s=1.0):
         if t1 - t0 >= min_s:
             out.append((t0, t1, len(out) + 1))
     return out
+
+
+def write_lidar(flight):
+    """Product writer of the plan's ``[scanner]`` (module notes): the returns of every
+    strip, the scanner files and the true points; returns the manifest tables
+    (``[files]`` and ``[scanner]``).
+
+    Parameters
+    ----------
+    flight : ins.simulate.folder.FlightProducts
+        Its ``plan.scanner`` must be set.
+    """
+    from ins.common.fileio import atomic_open
+    from ins.lidar.scanner import Scanner, write_scanner
+    from ins.nav.trajectory import Trajectory
+
+    plan, cfg = flight.plan, flight.plan.scanner
+    b = plan.block
+    true = Scanner(model=cfg.model, forward_tilt_rad=cfg.forward_tilt,
+                   range_sigma_m=cfg.range_sigma_m, scan_angle_sigma_rad=cfg.scan_angle_sigma,
+                   lever_arm_m=cfg.lever_arm_m, boresight_rad=cfg.boresight,
+                   lever_arm_sigma_m=cfg.lever_arm_sigma_m,
+                   boresight_sigma_rad=cfg.boresight_sigma)
+    windows = [(s.t_start, s.t_end, s.index + 1) for s in flight.truth.strips]
+    rate = cfg.pulse_rate_hz
+    # the truth at the pulse times themselves (the interpolation then returns it exactly)
+    t = np.concatenate([np.arange(np.ceil(t0 * rate), np.floor(t1 * rate) + 1) / rate
+                        for t0, t1, _ in windows])
+    if len(t) > 20_000_000:
+        raise InputError(f"[scanner] pulse_rate_hz: {len(t)} returns over the strips; at "
+                         "most 20 million (expected a lower rate, Hz)", path=plan.source)
+    chunks = [flight.truth.evaluate(t[k:k + 200_000]) for k in range(0, len(t), 200_000)]
+    truth = Trajectory(t, *(np.concatenate([getattr(c, n) for c in chunks])
+                            for n in ("lla", "v_n", "q_nb")))
+    flight.progress(0.3)
+    terrain = SineTerrain.random((b.origin_lat, b.origin_lon, b.origin_h), b.origin_h,
+                                 plan.terrain.relief_m, plan.terrain.wavelength_m,
+                                 flight.rng(f"lidar/terrain/{plan.terrain.seed_offset}"))
+    sim = simulate_returns(truth, true, terrain, windows, flight.rng("lidar"),
+                           pulse_rate_hz=rate, scan_rate_hz=cfg.scan_rate_hz,
+                           field_of_view_deg=np.rad2deg(cfg.field_of_view))
+    flight.progress(0.7)
+    folder = flight.folder
+    sim.write_csv(folder / LIDAR_FILES["returns"])
+    write_scanner(folder / LIDAR_FILES["scanner"], true.with_boresight(np.zeros(3)))
+    write_scanner(folder / LIDAR_FILES["scanner_true"], true)
+    with atomic_open(folder / LIDAR_FILES["points_true"], "w") as f:
+        f.write("time_s,x_ecef_m,y_ecef_m,z_ecef_m,strip\n")
+        np.savetxt(f, np.column_stack([sim.time, sim.true_xyz_ecef_m, sim.strip]),
+                   fmt=["%.7f", "%.4f", "%.4f", "%.4f", "%d"], delimiter=",")
+    flight.progress(1.0)
+    return {"files": dict(LIDAR_FILES),
+            "scanner": {"n_returns": int(len(sim.time)), "pulse_rate_hz": float(rate),
+                        "strips": [int(w[2]) for w in windows],
+                        "boresight_true_deg": [float(v) for v in np.rad2deg(cfg.boresight)],
+                        "terrain": "SineTerrain of ins.simulate.lidar (own draw)"}}

@@ -19,7 +19,7 @@ FORMAT = "insphoto-flight/1"
 #: Order of the manifest's top-level keys in the format; keys of no product listed here
 #: come last, in the order they were added.
 TABLE_ORDER = ("format", "flight", "files", "frames", "mapping_frame", "lever_arm", "mount",
-               "imu", "gnss", "tie_points", "initial", "stationary")
+               "imu", "gnss", "tie_points", "scanner", "initial", "stationary")
 #: Order of the frames in ``[frames]`` (``c`` camera and ``m`` mapping frame come from the
 #: image products).
 FRAME_ORDER = ("imu", "n", "a", "c", "m", "gnss", "truth", "mount")

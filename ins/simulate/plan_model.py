@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 __all__ = ["FlightPlan", "Block", "Flight", "Wind", "Turbulence", "Mount", "ImuSettings",
-           "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "G_TURN", "MOUNT_KNEE",
+           "GnssSettings", "CameraSettings", "Terrain", "TiePoints", "ScannerSettings", "G_TURN", "MOUNT_KNEE",
            "NADIR_AXES"]
 
 D2R = math.pi / 180.0
@@ -149,6 +149,30 @@ class TiePoints:
 
 
 @dataclass(frozen=True)
+class ScannerSettings:
+    """A simulated laser line scanner rigid on the IMU (``[scanner]``; SI inside).
+
+    The pulses, scan pattern and noise of :func:`ins.simulate.lidar.simulate_returns`;
+    the mounting as in the scanner file (:mod:`ins.lidar.scanner`): ``lever_arm_m``
+    from the IMU centre to the scanner origin in ``b`` (m), ``C_bs = Rx Ry Rz`` of the
+    TRUE ``boresight`` (rad) with the identity axes.  The scanner file given to the user
+    has the boresight zero (unknown) and the sigmas ``lever_arm_sigma_m``,
+    ``boresight_sigma`` (rad).
+    """
+    model: str = "polygon"                       # "polygon" | "oscillating"
+    pulse_rate_hz: float = 2000.0
+    scan_rate_hz: float = 20.0
+    field_of_view: float = 60.0 * D2R            # rad, full width
+    forward_tilt: float = 0.0                    # rad
+    range_sigma_m: float = 0.02
+    scan_angle_sigma: float = 0.001 * D2R        # rad
+    lever_arm_m: tuple = (0.0, 0.0, 0.0)
+    boresight: tuple = (0.0, 0.0, 0.0)           # rad (rx, ry, rz), the truth
+    lever_arm_sigma_m: tuple = (0.0, 0.0, 0.0)
+    boresight_sigma: tuple = (0.0, 0.0, 0.0)     # rad, stated in the user's scanner file
+
+
+@dataclass(frozen=True)
 class FlightPlan:
     """A validated flight plan (SI units inside; see the module docstring)."""
     block: Block
@@ -161,7 +185,10 @@ class FlightPlan:
     camera: CameraSettings
     terrain: Terrain
     tie_points: TiePoints
+    scanner: ScannerSettings | None = None      # no [scanner] table: no LiDAR products
     source: str = "<string>"
+    #: ``[gnss_raw]``: :class:`ins.simulate.gnss_raw.RawSettings`, or None (no raw GPS).
+    gnss_raw: object = None
 
     def _footprint(self, along):
         c = self.camera

@@ -1,7 +1,10 @@
 """Flight plan of a photogrammetric survey flight (TOML), validated, SI units inside.
 
 The file has the sections ``[block] [flight] [wind] [turbulence] [mount] [imu] [gnss]
-[camera] [terrain] [tie_points]``; key names carry their unit (``_deg``, ``_m``,
+[camera] [terrain] [tie_points]`` and the optional ``[scanner]`` (a simulated laser
+scanner: without it the flight has no LiDAR products) and ``[gnss_raw]`` (raw GPS
+observations from broadcast orbits: :mod:`ins.simulate.gnss_raw_plan`); key names carry
+their unit (``_deg``, ``_m``,
 ``_mps``, ``_hz``, ``_s``, ``_percent``).  ``data/flights/demo.toml`` is the documented
 example.  Every key has a default except the block origin; unknown keys and sections are
 errors (:mod:`ins.common.tomlschema`: the message lists the known keys of the section, with
@@ -50,6 +53,7 @@ from ins.common.errors import InputError
 from ins.common.limits import MAX_LEVER_ARM_M, MAX_SIGMA_M
 from ins.common.textfiles import read_toml
 from ins.common.tomlschema import REQUIRED, Table, check_keys
+from ins.simulate.gnss_raw_plan import GNSS_RAW_KEYS, parse_gnss_raw
 from ins.simulate.plan_checks import check_feasible
 from ins.simulate.plan_model import (
     D2R,
@@ -62,6 +66,7 @@ from ins.simulate.plan_model import (
     GnssSettings,
     ImuSettings,
     Mount,
+    ScannerSettings,
     Terrain,
     TiePoints,
     Turbulence,
@@ -91,6 +96,10 @@ PLAN_KEYS = {
                "boresight_deg"),
     "terrain": ("relief_m", "wavelength_m", "seed_offset"),
     "tie_points": ("per_image", "sigma_px"),
+    "scanner": ("model", "pulse_rate_hz", "scan_rate_hz", "field_of_view_deg",
+                "forward_tilt_deg", "range_sigma_m", "scan_angle_sigma_deg", "lever_arm_m",
+                "boresight_deg", "lever_arm_sigma_m", "boresight_sigma_deg"),
+    "gnss_raw": GNSS_RAW_KEYS,
 }
 
 
@@ -263,9 +272,39 @@ def _tie_points(sec):
                      sigma_px=sec.number("sigma_px", 0.5, "px >= 0", 0.0))
 
 
+def _scanner(sec):
+    """``[scanner]`` (the table is optional: absent, the plan has no scanner)."""
+    d = ScannerSettings()
+    fov = sec.number("field_of_view_deg", 60.0, "deg in (0, 150]", 0.0, 150.0, lo_open=True)
+    return ScannerSettings(
+        model=sec.choice("model", d.model, ("polygon", "oscillating")),
+        pulse_rate_hz=sec.number("pulse_rate_hz", d.pulse_rate_hz, "Hz in (0, 1e6]", 0.0,
+                                 1e6, lo_open=True),
+        scan_rate_hz=sec.number("scan_rate_hz", d.scan_rate_hz, "Hz in (0, 1000]", 0.0,
+                                1000.0, lo_open=True),
+        field_of_view=fov * D2R,
+        forward_tilt=sec.number("forward_tilt_deg", 0.0, "deg in [-30, 30]", -30.0,
+                                30.0) * D2R,
+        range_sigma_m=sec.number("range_sigma_m", d.range_sigma_m, "m in [0, 10]", 0.0, 10.0),
+        scan_angle_sigma=sec.number("scan_angle_sigma_deg", 0.001, "deg in [0, 1]", 0.0,
+                                    1.0) * D2R,
+        lever_arm_m=sec.numbers("lever_arm_m", (0.0, 0.0, 0.0), "m, body FRD", length=3,
+                                bound=MAX_LEVER_ARM_M),
+        boresight=tuple(v * D2R for v in sec.numbers(
+            "boresight_deg", (0.0, 0.0, 0.0), "deg (rx, ry, rz)", length=3, bound=5.0)),
+        lever_arm_sigma_m=sec.numbers("lever_arm_sigma_m", (0.0, 0.0, 0.0), "m >= 0",
+                                      length=3, lo=0.0, bound=MAX_LEVER_ARM_M),
+        boresight_sigma=tuple(v * D2R for v in sec.numbers(
+            "boresight_sigma_deg", (0.0, 0.0, 0.0), "deg >= 0", length=3, lo=0.0,
+            bound=5.0)))
+
+
+#: Sections whose absence means "none" rather than their defaults.
+OPTIONAL_SECTIONS = ("scanner",)
+
 _SECTIONS = {"block": _block, "flight": _flight, "wind": _wind, "turbulence": _turbulence,
              "mount": _mount, "imu": _imu, "gnss": _gnss, "camera": _camera,
-             "terrain": _terrain, "tie_points": _tie_points}
+             "terrain": _terrain, "tie_points": _tie_points, "scanner": _scanner}
 
 
 def parse_plan(data, source="<string>"):
@@ -295,9 +334,19 @@ def parse_plan(data, source="<string>"):
                          path=source)
     parts = {}
     for name, parse in _SECTIONS.items():
+        if name in OPTIONAL_SECTIONS and name not in data:
+            parts[name] = None
+            continue
         sec = Table(data.get(name), name, source, known=PLAN_KEYS[name], sections=PLAN_KEYS)
         parts[name] = parse(sec)
         sec.finish()
+    # optional: raw GPS observations (rover.obs); read (and checked) in any case
+    sec = Table(data.get("gnss_raw"), "gnss_raw", source, known=GNSS_RAW_KEYS,
+                sections=PLAN_KEYS)
+    raw = parse_gnss_raw(sec, source)
+    sec.finish()
+    if "gnss_raw" in data:
+        parts["gnss_raw"] = raw
     plan = FlightPlan(**parts, source=str(source))
     check_feasible(plan, data)
     return plan

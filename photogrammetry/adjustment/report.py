@@ -11,7 +11,7 @@ from ins.common.fileio import atomic_open
 from ins.nav.rotation import wrap_to_pi
 from photogrammetry.adjustment.coplanarity import STATUS_TEXT
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "report_text", "boresight_lines"]
 
 _AS = 180.0 / np.pi * 3600.0
 
@@ -98,8 +98,69 @@ def _trust_lines(q):
             + [f"- {r}" for r in q.reasons] + [""])
 
 
-def report_text(result, plots=()):
-    """The report as Markdown text (plots: file names to link)."""
+def boresight_lines(assessment, boresight_sigma=None, note=None, csv=False):
+    """The estimated boresight with its two sigmas, as report lines (Markdown) or, with
+    ``csv``, as ``key = value`` comment lines of the refined CSV (deg).
+
+    Parameters
+    ----------
+    assessment : photogrammetry.adjustment.assessment.Assessment
+    boresight_sigma : photogrammetry.orientation.boresight_sigma.BoresightSigma, optional
+        With the INS attitude's common sigma (default: the adjustment's sigma alone).
+    note : str, optional
+        Why there is no INS sigma (stated with the adjustment-only sigma).
+    csv : bool
+    """
+    from photogrammetry.orientation.boresight_sigma import BoresightSigma
+    a = assessment
+    if not a.boresight_observable:
+        return []
+    bs = boresight_sigma if boresight_sigma is not None else BoresightSigma(a.boresight_sigma)
+    note = note or "no INS sigma file was given"
+    why = ("the estimate also holds the INS attitude error common to the exposures "
+           "(a body-fixed error cannot be told from a boresight)")
+    if csv:
+        def deg(v):
+            return ", ".join(f"{x:.8f}" for x in np.rad2deg(v))
+        out = [f"boresight_rx_ry_rz_deg = {deg(a.boresight)}",
+               f"boresight_sigma_adjustment_deg = {deg(bs.adjustment)}"]
+        if bs.has_ins:
+            return out + [f"boresight_sigma_ins_common_deg = {deg(bs.ins_common)}",
+                          f"boresight_sigma_total_deg = {deg(bs.total)}",
+                          f"boresight sigma = total: sqrt(adjustment^2 + ins_common^2); "
+                          f"{why}; INS sigma from {bs.source}, taken as fully correlated "
+                          "over the exposures (an upper bound)"]
+        return out + [f"boresight sigma = adjustment only ({note}): it understates the "
+                      f"error, {why}"]
+    rows = ["| boresight | rx | ry | rz |", "|---|---:|---:|---:|",
+            "| estimate (deg) | " + _deg3(a.boresight) + " |",
+            "| sigma, adjustment alone (arcsec) | " + _fmt3(bs.adjustment) + " |"]
+    head = ["**Boresight misalignment** (rx, ry, rz of the camera file, "
+            "`C_bc = axes Rx Ry Rz`, GLS): "
+            + ", ".join(f"{v * 180 / np.pi:.5f} +- {e * 180 / np.pi:.5f} deg"
+                        for v, e in zip(a.boresight, bs.total))
+            + (" (total sigma)" if bs.has_ins else " (adjustment's sigma alone)"), ""]
+    if bs.has_ins:
+        rows += ["| sigma, INS attitude common to the exposures (arcsec) | "
+                 + _fmt3(bs.ins_common) + " |",
+                 "| **sigma, total** (arcsec): calibrate with this | " + _fmt3(bs.total)
+                 + " |", "",
+                 f"The total sigma is sqrt(adjustment^2 + INS^2): {why}.  The INS part is the "
+                 f"smoothed roll, pitch, yaw sigma of `{bs.source}` at the exposures, turned "
+                 "into the camera frame and taken as fully correlated over the block (the "
+                 "mean of the sigmas: an upper bound, as the INS error is strongly "
+                 "correlated in time but not wholly)."]
+    else:
+        rows += ["", f"The sigma is the adjustment's alone ({note}).  It understates the "
+                 f"boresight's error: {why}, of the size of the smoothed INS attitude sigma "
+                 "(often many times the adjustment's sigma).  Give the trajectory's sigma "
+                 "file (`--ins-std solution_std.txt`) for the total sigma."]
+    return head + rows
+
+
+def report_text(result, plots=(), boresight_sigma=None, boresight_note=None):
+    """The report as Markdown text (plots: file names to link; ``boresight_sigma``,
+    ``boresight_note``: see :func:`boresight_lines`)."""
     s, blk, a = result.settings, result.block, result.assessment
     names = a.names
     px = s["pixel_size_mm"]
@@ -159,10 +220,7 @@ def report_text(result, plots=()):
                  (" The bases are taken as exact (no EO position sigmas; "
                   "--position-sigma-m)." if s["method"] == "known-base" else "")), ""]
     if a.boresight_observable:
-        lines += ["**Boresight misalignment** (rx, ry, rz of the camera file, "
-                  "`C_bc = axes Rx Ry Rz`, GLS): "
-                  + ", ".join(f"{v * 180 / np.pi:.5f} +- {e * 180 / np.pi:.5f} deg"
-                              for v, e in zip(a.boresight, a.boresight_sigma)), ""]
+        lines += boresight_lines(a, boresight_sigma, boresight_note) + [""]
     else:
         lines += ["Boresight: not observable with this datum/method (the block is oriented "
                   "by INS angles); use --method known-base --datum none.", ""]
@@ -182,14 +240,16 @@ def report_text(result, plots=()):
     return "\n".join(lines)
 
 
-def write_report(path, result):
-    """Write the Markdown report and its two PNG plots beside it (atomically)."""
+def write_report(path, result, boresight_sigma=None, boresight_note=None):
+    """Write the Markdown report and its two PNG plots beside it (atomically);
+    ``boresight_sigma``, ``boresight_note``: see :func:`boresight_lines`."""
     stem = os.path.splitext(path)[0]
     plots = [("residuals in the image", stem + "_residuals.png"),
              ("angle corrections along the strips", stem + "_corrections.png")]
     _plot_residuals(result, plots[0][1])
     _plot_corrections(result, plots[1][1])
-    text = report_text(result, [(t, os.path.basename(p)) for t, p in plots])
+    text = report_text(result, [(t, os.path.basename(p)) for t, p in plots],
+                       boresight_sigma, boresight_note)
     with atomic_open(path, "w") as f:
         f.write(text)
     return [p for _, p in plots]

@@ -180,6 +180,8 @@ def run(args):
     if args.format == "csv":
         comments = [f"trajectory = {traj_path}", f"events = {events_path}",
                     f"camera = {camera_path}", f"attitude interpolation = {args.attitude_interp}"]
+        if args.sigma:          # photogrammetry refine finds the INS sigma here (boresight)
+            comments.insert(1, f"trajectory sigma = {args.sigma}")
         write_eo_csv(args.output, eo, comments=comments)
     elif args.format == "applanix":
         write_eo_applanix(args.output, eo)

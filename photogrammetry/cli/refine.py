@@ -42,6 +42,16 @@ output:
   sigma0, redundancy, per-image sigmas and correlations, INS-minus-adjusted mean, RMS,
   INS noise, boresight (rx, ry, rz as in the camera file).
 
+boresight sigma (known-base, datum none):
+  the estimate holds the INS attitude error common to the exposures (a body-fixed error
+  cannot be told from a boresight), so its sigma is stated twice: the adjustment's alone,
+  and the total sqrt(adjustment^2 + INS^2) with the INS attitude sigma (roll, pitch, yaw of
+  the smoothed trajectory's sigma file, at the exposures, in the camera frame, taken as
+  fully correlated over the block: an upper bound).  The sigma file: --ins-std, else the
+  EO file's '# trajectory sigma =' line (photogrammetry eo --sigma).  Without one the
+  report says the sigma is the adjustment's alone and understates the error.  REFINED.csv
+  carries both in its comments (boresight_sigma_adjustment_deg, boresight_sigma_total_deg).
+
 outliers:
   every pair starts robustly (minimal samples of 5 points, 3 with known-base, solved
   exactly from the prior and scored by MSAC at |misclosure| < 5 sigma), is iterated on
@@ -113,6 +123,10 @@ def add_parser(sub):
                    help="sigma of each EO position, m per coordinate (known-base: the base "
                         "errors are propagated into the angle covariance and the INS "
                         "assessment; default: the EO sigmas, else exact bases)")
+    p.add_argument("--ins-std", metavar="STD.txt",
+                   help="the trajectory's sigmas (solution_std.txt of ins process: roll, pitch, "
+                        "yaw deg) for the boresight's total sigma (default: the EO file's "
+                        "'# trajectory sigma =' line, if any)")
     p.add_argument("--no-snooping", action="store_true", help="no outlier rejection")
     p.add_argument("--accept-poor", action="store_true",
                    help="write the outputs even when a pair's or the block's sigma0 or an "
@@ -139,7 +153,7 @@ def _task(args, eo_path, tp_path, cam_path):
     from photogrammetry.orientation.exposure import read_eo_csv
     if cam_path is None:
         raise InputError("--camera CAM.toml is required (photo scale and distortion)")
-    camera, _ = read_camera(cam_path)
+    camera, mounting = read_camera(cam_path)
     eo = read_eo_csv(eo_path)
     tp = read_tiepoints(tp_path, camera)
     tp.check_images(eo.image_id, eo_path)
@@ -153,10 +167,49 @@ def _task(args, eo_path, tp_path, cam_path):
         raise InputError(f"--prior-sigma-deg must be an angle sigma > 0 deg and <= 30 deg, "
                          f"got {args.prior_sigma_deg:g}")
     prior = None if args.prior_sigma_deg is None else np.deg2rad(args.prior_sigma_deg)
-    return {"eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
+    return {"boresight_inputs": _ins_std(args, eo_path, eo, mounting.axes),
+            "eo": eo, "tiepoints": tp, "camera": camera, "system": args.system,
             "method": args.method, "datum": args.datum, "sigma_mm": sigma_mm,
             "prior_sigma_rad": prior, "position_sigma_m": args.position_sigma_m,
             "snooping": not args.no_snooping, "accept_poor": True}
+
+
+def _ins_std(args, eo_path, eo, axes):
+    """The INS attitude sigma common to the exposures, in the camera frame, for the
+    boresight's total sigma: ``(sigma rad (3,), path, None)`` or ``(None, None, why
+    not)``.  The file: --ins-std, else the EO file's ``# trajectory sigma =`` line (as
+    written, else relative to the EO file's folder)."""
+    from photogrammetry.orientation.boresight_sigma import ins_common_sigma
+    from photogrammetry.orientation.exposure import read_eo_header, read_solution_std
+    path = args.ins_std
+    if args.datum != "none":        # the datum takes the INS attitude: no boresight estimate
+        return None, None, (f"the boresight is not estimated with --datum {args.datum} "
+                            "(the adjusted attitudes are tied to the INS's)")
+    if not path:
+        named = read_eo_header(eo_path).get("trajectory sigma")
+        if not named:
+            return None, None, ("no INS sigma file was given (--ins-std, or a "
+                                f"'# trajectory sigma =' line in {eo_path})")
+        path = next((p for p in (named, os.path.join(os.path.dirname(eo_path), named))
+                     if os.path.isfile(p)), None)
+        if path is None:
+            return None, None, f"the INS sigma file {named} named in {eo_path} was not found"
+    t, std = read_solution_std(path)
+    return ins_common_sigma(t, std, eo.time, axes, names=list(eo.image_id), path=path), \
+        path, None
+
+
+def _boresight_sigma(res, inputs):
+    """:class:`BoresightSigma` of a result, and the reason when it has no INS part."""
+    from photogrammetry.orientation.boresight_sigma import BoresightSigma
+    ins, path, why_not = inputs
+    return BoresightSigma(res.assessment.boresight_sigma, ins, path), why_not
+
+
+def _boresight_comments(res, bs, why_not):
+    """Comment lines (``key = value``) of the refined CSV: the boresight and its sigmas."""
+    from photogrammetry.adjustment.report import boresight_lines
+    return boresight_lines(res.assessment, bs, why_not, csv=True)
 
 
 def _jobs(args):
@@ -202,6 +255,8 @@ def run(args):
     from photogrammetry.adjustment.report import write_report
     from photogrammetry.orientation.exposure import write_eo_csv
     jobs = _jobs(args)
+    # the INS attitude sigma common to each block's exposures (not an argument of refine)
+    bore_inputs = [task.pop("boresight_inputs") for task, _, _ in jobs]
     for _, out, rep in jobs:               # an unwritable output: now, not after the work
         for path in (out, rep):
             if path:
@@ -229,8 +284,9 @@ def run(args):
     # the outputs of every block (CSV, report, its plots) are written as one set: a
     # Ctrl-C meanwhile takes effect once the set is complete (ins.common.interrupts)
     with interrupts.deferred():
-        for (task, out, rep), res in zip(jobs, results):
+        for (task, out, rep), res, b_in in zip(jobs, results, bore_inputs):
             blk = res.block
+            bs, why_not = _boresight_sigma(res, b_in)
             q = blk.quality
             flags = (() if q is None or not q.poor else
                      ("QUALITY POOR (written with --accept-poor): " + r for r in q.reasons))
@@ -241,12 +297,13 @@ def run(args):
                       "sigmas per tile (no covariance across tiles)",))
             write_eo_csv(out, res.eo, comments=(
                 f"refined by photogrammetry refine: method = {s['method']}; "
-                f"datum = {s['datum']}; sigma0 = {blk.sigma0:.4f}",) + tiled + tuple(flags))
+                f"datum = {s['datum']}; sigma0 = {blk.sigma0:.4f}",) + tiled
+                + tuple(_boresight_comments(res, bs, why_not)) + tuple(flags))
             if q is not None and q.poor:
                 warnings.warn(f"{out}: refinement flagged as poor (written with "
                               f"--accept-poor): {q.reasons[0]}", QualityWarning)
             if rep:
-                write_report(rep, res)
+                write_report(rep, res, boresight_sigma=bs, boresight_note=why_not)
             if not args.quiet:
                 s = res.settings
                 s0 = blk.sigma0 * s['sigma_mm'] / s['pixel_size_mm']

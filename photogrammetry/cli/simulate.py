@@ -43,6 +43,20 @@ output folder (docs/interfaces.md; manifest.toml names every file, frame and uni
   tiepoints.csv    image_id,point_id,x_mm,y_mm (distorted, with pixel noise)
   ground_points.csv  point_id,X_m,Y_m,Z_m (mapping frame)
   plan.toml    a verbatim copy of the plan
+  with a [scanner] table in the plan (a laser line scanner rigid on the IMU; see
+  data/flights/lidar_demo.toml), for ins georeference and ins strip-check:
+  returns.csv  time_s,range_m,scan_angle_deg,intensity,return_number,strip (the strips)
+  scanner.toml the scanner file a user has: boresight 0 (unknown), the plan's lever arm
+               and sigmas; scanner_true.toml with the true boresight
+  points_true.csv  time_s,x_ecef_m,y_ecef_m,z_ecef_m,strip: the terrain point of each
+               return (WGS84 ECEF, m)
+  with [gnss_raw] in the plan or --gnss-raw NAV_FILE (raw GPS L1 from broadcast orbits):
+  rover.obs    RINEX 3.04 C1C L1C D1C S1C (m, cycles, Hz, dB-Hz) of the antenna, epochs in
+               receiver clock time, LLI bit 0 at arc starts and cycle slips
+  rover.nav    the navigation file's header and GPS records of the flight's span
+  receiver_clock.txt  time_rx_s time_gps_s clock_bias_s clock_drift_s_per_s (truth)
+  gnss_raw_truth.csv  per observation: geometric range (light time, Sagnac), satellite
+               clock, iono, tropo, multipath, ambiguity, elevation, azimuth (m, cycles, deg)
 
   The same plan and seed give the same bytes.  The folder is built beside FLIGHT_DIR and
   renamed into place when complete; a non-empty FLIGHT_DIR is refused unless --force,
@@ -74,6 +88,12 @@ def add_parser(sub):
                         "apply)")
     p.add_argument("--force", action="store_true",
                    help="replace a non-empty FLIGHT_DIR (only once the new folder is complete)")
+    p.add_argument("--gnss-raw", metavar="NAV_FILE", default=None,
+                   help="RINEX GPS navigation file (broadcast orbits): also write raw L1 "
+                        "observations rover.obs (RINEX 3.04) with rover.nav, "
+                        "receiver_clock.txt and gnss_raw_truth.csv, with the plan's "
+                        "[gnss_raw] settings or their defaults; the plan's [flight] gps_week "
+                        "and start_time_s must fall within the file's ephemerides")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=_cmd_simulate)
 
@@ -94,8 +114,10 @@ def _cmd_simulate(args):
                          path=args.output)
     check_output_folder(out, args.force)      # OSError naming FLIGHT_DIR: exit 2
     progress = Progress("simulate", not args.quiet)
+    if args.gnss_raw is not None and not Path(args.gnss_raw).is_file():
+        raise InputError("--gnss-raw: no such RINEX navigation file", path=args.gnss_raw)
     folder = simulate_flight(args.plan, out, args.seed, grade=args.grade, force=args.force,
-                             progress=progress)
+                             progress=progress, gnss_raw_nav=args.gnss_raw)
     if not args.quiet:
         import tomllib
         with open(folder / "manifest.toml", "rb") as f:
@@ -103,6 +125,9 @@ def _cmd_simulate(args):
         fl = manifest["flight"]
         print(f"wrote {folder}: {fl['end_time_s'] - fl['start_time_s']:.1f} s of flight, "
               f"{fl['imu_rate_hz']:g} Hz IMU ({fl['grade']}), {fl['n_images']} images, "
-              f"{fl['n_tiepoint_observations']} tie-point observations, seed {fl['seed']}, "
+              f"{fl['n_tiepoint_observations']} tie-point observations, "
+              + (f"{manifest['scanner']['n_returns']} laser returns, "
+                 if "scanner" in manifest else "")
+              + f"seed {fl['seed']}, "
               f"in {wallclock.perf_counter() - t0:.1f} s")
     return 0

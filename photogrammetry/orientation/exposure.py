@@ -40,6 +40,7 @@ from photogrammetry.orientation.rotation import (
 )
 
 __all__ = ["ExposureOrientation", "compute_eo", "read_events", "read_solution_std",
+           "read_eo_header",
            "write_eo_csv", "read_eo_csv", "write_eo_applanix", "read_eo_applanix",
            "write_eo_patb", "read_eo_patb", "angle_names", "wrapped_deg"]
 
@@ -335,6 +336,21 @@ def _header_values(lines, path):
             key, value = body.split("=", 1)
             meta.setdefault(key.strip(), value.strip())
     return meta
+
+
+def read_eo_header(path):
+    """The ``# key = value`` comment lines at the top of an EO CSV as a dict of strings
+    (the first of a repeated key; ``units`` from ``# units:``), e.g. ``system``,
+    ``frame`` and the sources ``photogrammetry eo`` names (``trajectory``,
+    ``trajectory sigma``, ``events``, ``camera``)."""
+    text = textfiles.read_text(str(path), "an EO CSV file (image_id,time_s,X_m,...)")
+    comments = []
+    for line in text.splitlines():
+        if line.startswith("#"):
+            comments.append(line)
+        elif line.strip():
+            break
+    return _header_values(comments, str(path))
 
 
 def read_eo_csv(path):

@@ -19,14 +19,17 @@ __all__ = ["FILES", "simulate_flight"]
 FILES = {**ins_folder.FILES, **images.FILES}
 
 
-def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None):
+def simulate_flight(plan, out_dir, seed, grade=None, force=False, progress=None,
+                    gnss_raw_nav=None):
     """Simulate a survey flight and write its folder (``docs/interfaces.md``): truth, IMU
     with sensor errors, GNSS antenna log, mount angles, exposures, true EO, terrain and
     tie points, and ``manifest.toml``.
 
     The parameters, return value and errors are those of
-    :func:`ins.simulate.folder.simulate_flight` (without ``products``): the folder is
+    :func:`ins.simulate.folder.simulate_flight` (without ``products``; ``gnss_raw_nav``
+    adds the raw GPS observations of :mod:`ins.simulate.gnss_raw_product`): the folder is
     built aside and swapped into place whole; the same plan and seed give the same bytes.
     """
     return ins_folder.simulate_flight(plan, out_dir, seed, grade=grade, force=force,
-                                      progress=progress, products=(images.write_images,))
+                                      progress=progress, products=(images.write_images,),
+                                      gnss_raw_nav=gnss_raw_nav)

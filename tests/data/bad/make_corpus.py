@@ -204,6 +204,9 @@ def _text_files(plan_text, config_text):
         "plan_misspelt_section.toml": plan_text.replace("[tie_points]", "[tiepoints]"),
         "plan_negative_speed.toml": plan_text.replace("ground_speed_mps = 50.0",
                                                       "ground_speed_mps = -50.0"),
+        "plan_scanner_arcsec.toml": plan_text + (
+            "\n[scanner]\npulse_rate_hz = 2000.0\nlever_arm_m = [0.1, 0.05, 0.2]\n"
+            "boresight_arcsec = [360, -288, 540]   # the unit of boresight_deg\n"),
         # processing configs (ins process --config)
         "config_unknown_key.toml": config_text.replace("[imu_noise]",
                                                        "[imu_noise]\narw_dph = 0.003"),

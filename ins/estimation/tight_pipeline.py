@@ -1,0 +1,109 @@
+"""``ins process`` with tight coupling (``[gnss] coupling = "tight"``, ``--coupling
+tight``): the rover's RINEX observations and the broadcast navigation file(s) of the raw
+GNSS input (``[files] rover``, ``nav``; :mod:`ins.estimation.process_gnss`) through
+RTKLIB (:func:`ins.gnss.raw_epochs.read_raw_epochs`) into the filter's pseudorange and
+range-rate updates (:class:`ins.estimation.pseudorange.TightUpdater`).
+
+RTKLIB's solution of the same input (run first, as for loose coupling) still gives the
+start (alignment, start check), the receiver positions for the atmospheric delays
+(interpolated in time; the nearest fix outside its span) and the trust checks'
+reference.  The base station's observations (double differences) and carrier phase are
+not used by the tight updates.  A u-blox log as the rover is converted on the way.
+``[gnss] range_sigma_m``, ``range_rate_sigma_mps`` and ``receiver_clock`` set the
+weights and the clock model (:class:`ins.estimation.pseudorange.TightOptions`,
+:data:`ins.estimation.pseudorange.CLOCKS`): the defaults (RTKLIB's 0.3 m + 0.3 m /
+sin(el)) suit a geodetic receiver; a range error correlated over a minute (multipath)
+is not white noise, and on the simulated flight with 0.3 m of it the smoothed
+trajectory within 60 s of 3, 2 and 1 satellites is 1.45 m off with them, 0.97 m with
+``range_sigma_m = [1, 1]`` (``bench/bench_tight_rawsim.py``).
+"""
+import functools
+
+import numpy as np
+
+from ins.common.errors import InputError
+from ins.estimation.error_model import StateLayout
+from ins.estimation.pseudorange import CLOCKS, TightOptions, TightUpdater, clock_psd
+from ins.nav import earth
+
+__all__ = ["COUPLINGS", "tight_inputs", "tight_counts"]
+
+COUPLINGS = ("loose", "tight")
+
+
+def _positions(gnss):
+    """``f(t) -> ECEF (3,)`` from the loose log, interpolated per axis."""
+    r = earth.lla_to_ecef(gnss.lla[:, 0], gnss.lla[:, 1], gnss.lla[:, 2])
+    t = np.asarray(gnss.time, dtype=float)
+    return lambda s: np.array([np.interp(s, t, r[:, k]) for k in range(3)])
+
+
+def tight_inputs(cfg, gnss, settings):
+    """The raw epochs and the filter settings of a tight run.
+
+    Parameters
+    ----------
+    cfg : ins.estimation.process_config.ProcessConfig
+        With raw GNSS input (``cfg.gnss_raw``: rover and nav).
+    gnss : ins.io.gnss_log.GnssLog
+        The loose log (receiver positions for the delays).
+    settings : ins.estimation.filter_settings.FilterSettings
+        The loose run's settings; the layout gains the ``clock`` group.
+
+    Returns
+    -------
+    raw : ins.gnss.raw_epochs.RawEpochs
+    settings : FilterSettings
+    """
+    from dataclasses import replace
+
+    from ins.gnss.ubx import is_ubx
+    raw_in = getattr(cfg, "gnss_raw", None)
+    if raw_in is None or not (raw_in.nav or is_ubx(raw_in.rover)):
+        raise InputError("[gnss] coupling = \"tight\": needs raw GNSS input, [files] rover "
+                         "and nav (--rover, --nav: the rover's RINEX observations and the "
+                         "broadcast navigation file; a u-blox log with its own ephemerides "
+                         "needs no nav), not a GNSS solution alone")
+    if len(gnss) == 0:
+        raise InputError("tight coupling: the GNSS log has no fix for the receiver "
+                         "positions of the atmospheric delays", path=cfg.gnss)
+    raw = _read(raw_in, _positions(gnss))
+    if cfg.gnss_time_shift_s:
+        raw.time = raw.time + cfg.gnss_time_shift_s
+    layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
+    options = TightOptions(elevation_mask_deg=cfg.elevation_mask_deg,
+                           range_sigma_m=tuple(cfg.range_sigma_m),
+                           range_rate_sigma_mps=tuple(cfg.range_rate_sigma_mps))
+    return raw, replace(settings, layout=layout, clock_psd=clock_psd(*CLOCKS[cfg.receiver_clock]),
+                        updater=functools.partial(TightUpdater, options=options))
+
+
+def _read(raw_in, positions):
+    """The raw epochs of the rover: RINEX as it is, a u-blox log converted first (RTKLIB's
+    convrnx, :func:`ins.gnss.ubx.convert_ubx`, into a temporary folder); the log's own
+    ephemerides are used when no nav file is given."""
+    import tempfile
+
+    from ins.gnss.raw_epochs import read_raw_epochs
+    from ins.gnss.rtklib_engine import binding
+    from ins.gnss.ubx import convert_ubx, is_ubx
+    if not is_ubx(raw_in.rover):
+        return read_raw_epochs(raw_in.rover, raw_in.nav, positions)
+    with tempfile.TemporaryDirectory(prefix="ins-ubx-") as tmp:
+        obs, nav = convert_ubx(raw_in.rover, tmp, binding())
+        navs = tuple(raw_in.nav) or ((nav,) if nav else ())
+        if not navs:
+            raise InputError("tight coupling: the u-blox log holds no ephemeris (RXM-SFRBX) "
+                             "and no nav file is given ([files] nav, --nav)",
+                             path=raw_in.rover)
+        return read_raw_epochs(obs, navs, positions)
+
+
+def tight_counts(fwd):
+    """Summary counts of a tight run: satellites used per epoch (min, mean) and the
+    coupling; ``{"coupling": "loose"}`` for a loose one."""
+    up = getattr(fwd, "updater", None)
+    if not hasattr(up, "satellites_used"):
+        return {"coupling": "loose"}
+    lo, mean, _ = up.satellites_used()
+    return {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2)}

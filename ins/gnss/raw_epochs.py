@@ -1,0 +1,232 @@
+"""Per-epoch satellite data for tight coupling from RINEX observations and broadcast
+navigation, all through RTKLIB (``pyrtklib5``; nothing of RTKLIB's algorithms written
+again): ``readrnx`` reads the files, ``satposs`` gives each satellite's position,
+velocity, clock bias and drift at the transmit time (broadcast ephemerides),
+``satazel`` its elevation and azimuth, ``ionmodel`` the Klobuchar delay (the nav file's
+coefficients) and ``tropmodel`` the Saastamoinen delay.  The result is a
+:class:`RawEpochs` with corrected GPS L1 pseudoranges
+(``P - c TGD + c dt_s - I - T``, m) and range rates (``-lambda D + c ddt_s``, m/s).
+
+The ionospheric and tropospheric delays need the receiver's position: ``receiver_ecef``
+is one position (a static receiver, or a flight over a small area at a roughly known
+height) or a callable of time (s) giving it (e.g. from the loose solution).  A position
+wrong by 1 km moves the delays by millimetres horizontally; by about 0.3 m per km of
+height error at zenith (troposphere).
+
+GPS only (one receiver clock bias in the filter); the first frequency's pseudorange and
+Doppler (RINEX 2 ``C1``/``P1`` and ``D1``, RINEX 3 the first L1 code RTKLIB keeps).
+Times are GPS seconds of the week (the IMU's convention).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ins.common.errors import InputError
+
+__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ"]
+
+#: GPS L1 carrier frequency, Hz.
+GPS_L1_HZ = 1575.42e6
+
+
+@dataclass
+class RawEpochs:
+    """Corrected raw observations per epoch (:mod:`ins.estimation.pseudorange`'s notes), ragged over epochs.
+
+    Attributes
+    ----------
+    time : ndarray, shape (m,)
+        Receive time of each epoch, s (the IMU's time scale: GPS seconds of week).
+    sats : list of ndarray (k_i,) of int
+        Satellite numbers (RTKLIB's, or any id) of each epoch.
+    sat_pos_e, sat_vel_e : list of ndarray (k_i, 3)
+        Satellite position (m) and velocity (m/s), ECEF at the transmit time.
+    range_m : list of ndarray (k_i,)
+        Corrected pseudoranges, m (``nan``: none).
+    range_rate_mps : list of ndarray (k_i,)
+        Corrected range rates, m/s (``nan``: no Doppler).
+    snr_dbhz : list of ndarray (k_i,), optional
+        Carrier-to-noise density, dB-Hz.
+    names : list of list of str, optional
+        Satellite names (``G05``) for the innovation file.
+    """
+
+    time: np.ndarray
+    sats: list
+    sat_pos_e: list
+    sat_vel_e: list
+    range_m: list
+    range_rate_mps: list
+    snr_dbhz: list = None
+    names: list = None
+
+    def __post_init__(self):
+        self.time = np.asarray(self.time, dtype=float)
+        if self.names is None:
+            self.names = [[f"S{int(s):03d}" for s in ids] for ids in self.sats]
+        self.has_velocity = False          # what the loose updater asks of a GNSS log
+
+    def __len__(self):
+        return len(self.time)
+
+    def update_events(self, use_velocity=True):
+        """One update event per epoch: ``(time, epoch, kind = 1)``."""
+        n = len(self.time)
+        return self.time.copy(), np.arange(n), np.ones(n, dtype=np.int64)
+
+    def select(self, keep):
+        """A copy with, per epoch ``i``, only the satellites where ``keep(i, sats)`` is
+        True (a boolean array over the epoch's satellites): masking for tests."""
+        out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
+                               "range_rate_mps", "names")}
+        snr = [] if self.snr_dbhz is not None else None
+        for i in range(len(self.time)):
+            m = np.asarray(keep(i, self.sats[i]), dtype=bool)
+            for k in out:
+                v = getattr(self, k)[i]
+                out[k].append(np.asarray(v)[m] if k != "names" else
+                              [n for n, f in zip(v, m) if f])
+            if snr is not None:
+                snr.append(self.snr_dbhz[i][m])
+        return RawEpochs(self.time, snr_dbhz=snr, **out)
+
+
+def _arr(rtk, values):
+    a = rtk.Arr1Ddouble(len(values))
+    for i, v in enumerate(values):
+        a[i] = float(v)
+    return a
+
+
+def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, rtk=None):
+    """Read and correct a receiver's GPS observations (module notes).
+
+    Parameters
+    ----------
+    obs_path : str
+        RINEX 2/3 observation file.
+    nav_paths : str or sequence of str
+        Broadcast navigation file(s) (GPS ephemerides and Klobuchar coefficients).
+    receiver_ecef : array_like (3,) or callable
+        Receiver position for the atmospheric delays, ECEF m, or ``f(t_gps_s) -> (3,)``.
+    elevation_min_deg : float
+        Satellites below are left out here (the filter applies its own mask), deg.
+    rtk : module, optional
+        The binding (default: :func:`ins.gnss.rtklib_engine.binding`).
+
+    Returns
+    -------
+    RawEpochs
+        Epochs with at least one GPS satellite with a healthy broadcast ephemeris.
+
+    Raises
+    ------
+    InputError
+        A file RTKLIB reads nothing from (named), or no usable epoch.
+    """
+    from ins.gnss.rtklib_engine import binding
+    rtk = binding() if rtk is None else rtk
+    nav_paths = [nav_paths] if isinstance(nav_paths, (str, bytes)) or hasattr(
+        nav_paths, "__fspath__") else list(nav_paths)
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    try:
+        if not rtk.readrnx(str(obs_path), 1, "", obs, nav, sta) or obs.n <= 0:
+            raise InputError("RTKLIB reads no observation from this file (expected RINEX "
+                             "2.x/3.x observations)", path=str(obs_path))
+        for p in nav_paths:
+            if not rtk.readrnx(str(p), 1, "", obs, nav, sta):
+                raise InputError("RTKLIB reads nothing from this navigation file",
+                                 path=str(p))
+        if nav.n <= 0:
+            raise InputError("no GPS broadcast ephemeris in the navigation file(s)",
+                             path=str(nav_paths[0]))
+        rtk.sortobs(obs)
+        rtk.uniqnav(nav)
+        return RawEpochs(**_epochs(rtk, obs, nav, receiver_ecef, elevation_min_deg))
+    finally:
+        rtk.freeobs(obs)
+        rtk.freenav(nav, 0xFF)
+
+
+def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
+    lam = rtk.CLIGHT / GPS_L1_HZ
+    fixed = None if callable(receiver_ecef) else np.asarray(receiver_ecef, float)
+    out = {k: [] for k in ("time", "sats", "sat_pos_e", "sat_vel_e", "range_m",
+                           "range_rate_mps", "snr_dbhz", "names")}
+    week = rtk.Arr1Dint(1)
+    rs, dts, var, svh = (rtk.Arr1Ddouble(6), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(1),
+                         rtk.Arr1Dint(1))
+    e, azel, pos = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(3)
+    name, prn = rtk.Arr1Dchar(8), rtk.Arr1Dint(1)
+    tgd = _group_delays(nav)
+    data, n = obs.data, obs.n
+    i = 0
+    while i < n:
+        t0 = data[i].time
+        j = i
+        while j < n and abs(rtk.timediff(data[j].time, t0)) < 1e-6:
+            j += 1
+        t_s = rtk.time2gpst(t0, week)
+        r = np.asarray(fixed if fixed is not None else receiver_ecef(t_s), float)
+        rr = _arr(rtk, r)
+        rtk.ecef2pos(rr, pos)
+        ep = {k: [] for k in out if k != "time"}
+        for k in range(i, j):
+            d = data[k]
+            if rtk.satsys(d.sat, prn) != rtk.SYS_GPS or d.P[0] == 0.0:
+                continue
+            rtk.satposs(d.time, d, 1, nav, rtk.EPHOPT_BRDC, rs, dts, var, svh)
+            if svh[0] != 0 or (rs[0] == 0.0 and rs[1] == 0.0 and rs[2] == 0.0):
+                continue
+            rtk.geodist(rs, rr, e)
+            el = rtk.satazel(pos, e, azel)
+            if el < np.deg2rad(el_min_deg):
+                continue
+            iono = rtk.ionmodel(d.time, nav.ion_gps, pos, azel)
+            trop = rtk.tropmodel(d.time, pos, azel, 0.7)
+            rng = d.P[0] - rtk.CLIGHT * tgd.get(d.sat, 0.0) + rtk.CLIGHT * dts[0] - iono - trop
+            rate = (-lam * d.D[0] + rtk.CLIGHT * dts[1]) if d.D[0] != 0.0 else np.nan
+            rtk.satno2id(d.sat, name)
+            ep["sats"].append(int(d.sat))
+            ep["sat_pos_e"].append([rs[0], rs[1], rs[2]])
+            ep["sat_vel_e"].append([rs[3], rs[4], rs[5]])
+            ep["range_m"].append(rng)
+            ep["range_rate_mps"].append(rate)
+            ep["snr_dbhz"].append(d.SNR[0] * 0.001 if d.SNR[0] > 1000 else float(d.SNR[0]))
+            ep["names"].append(_name(name))
+        i = j
+        if not ep["sats"]:
+            continue
+        out["time"].append(t_s)
+        for k, v in ep.items():
+            out[k].append(v if k == "names" else np.array(
+                v, dtype=int if k == "sats" else float).reshape((len(v), 3) if k in (
+                    "sat_pos_e", "sat_vel_e") else (len(v),)))
+    if not out["time"]:
+        raise InputError("no epoch with a GPS satellite that has a broadcast ephemeris")
+    out["time"] = np.array(out["time"])
+    return out
+
+
+def _group_delays(nav):
+    """Broadcast L1 group delay (TGD, s) per satellite from the ephemerides (the last
+    one read; TGD changes rarely), applied to the L1 pseudorange as RTKLIB's single-
+    frequency code does (``P1 - c TGD``)."""
+    out = {}
+    for k in range(nav.n):
+        e = nav.eph[k]
+        out[int(e.sat)] = float(e.tgd[0])
+    return out
+
+
+def _name(arr):
+    """The text of an ``Arr1Dchar`` (the binding gives the C string from an index on)."""
+    c = arr[0]
+    if isinstance(c, str):
+        return c
+    chars = []
+    for k in range(len(arr)):
+        if not arr[k]:
+            break
+        chars.append(chr(arr[k]))
+    return "".join(chars)
