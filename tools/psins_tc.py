@@ -87,14 +87,17 @@ def ephemerides(ephs):
     return out
 
 
-def psins_spp(ephs_list, obs_t, week, x0=None):
+def psins_spp(ephs_list, obs_t, week, x0=None, corrections=False):
     """PSINS's single point position of one epoch (its demo's GNSS for loose coupling,
     ``lspvt``), ECEF m and receiver clock m: C/A pseudoranges with the satellite clock
     (relativistic term included, no TGD), no ionosphere or troposphere, the Sagnac
     rotation by ``w_ie rho / c``, weights ``sin(el)^2`` with an elevation below 15 deg taken as 0.01 deg (a weight of
     3e-8: left out in effect), 20
     Gauss-Newton steps at most.  The orbits are IS-GPS-200's (PSINS uses WGS84's GM
-    3.986004418e14 instead of 3.986005e14: see :func:`gm_effect_m`)."""
+    3.986004418e14 instead of 3.986005e14: see :func:`gm_effect_m`).  ``corrections``:
+    less what our tight coupling takes off through RTKLIB (``c TGD``, RTKLIB's Klobuchar
+    with its default coefficients, the set having none, and Saastamoinen), to tell
+    PSINS's choice of leaving them in from the rest."""
     import pymap3d
 
     from ins.simulate.gps_orbit import C_LIGHT, OMEGA_E_GPS, eph_state
@@ -102,11 +105,12 @@ def psins_spp(ephs_list, obs_t, week, x0=None):
     rows = [r for r in obs_t if int(r[1]) in by]
     sat = []
     for r in rows:
-        p, _, dt, _ = eph_state(by[int(r[1])], week, [r[0] - r[2] / C_LIGHT])
-        sat.append((p[0], r[2] + C_LIGHT * dt[0]))
+        e = by[int(r[1])]
+        p, _, dt, _ = eph_state(e, week, [r[0] - r[2] / C_LIGHT])
+        sat.append((p[0], r[2] + C_LIGHT * dt[0] - (C_LIGHT * e.tgd if corrections else 0.0)))
     x = np.zeros(4) if x0 is None else np.array(x0, float)
     for _ in range(20):
-        lat, lon, _ = pymap3d.ecef2geodetic(*x[:3], deg=False)
+        lat, lon, _h = pymap3d.ecef2geodetic(*x[:3], deg=False)
         up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
         A, dz, w = [], [], []
         for p, pr in sat:
@@ -117,7 +121,10 @@ def psins_spp(ephs_list, obs_t, week, x0=None):
             los = (p - x[:3]) / rho
             el = np.arcsin(los @ up) if np.any(x[:3]) else np.pi / 2
             A.append(np.r_[-los, 1.0])
-            dz.append(pr - rho - x[3])
+            delay = 0.0
+            if corrections and np.any(x[:3]):
+                delay = _rtklib_delays(week, obs_t[0][0], (lat, lon, _h), los, el)
+            dz.append(pr - delay - rho - x[3])
             w.append(np.sin(el if el >= np.deg2rad(15.0) else np.deg2rad(0.01)) ** 2)
         A, W = np.array(A), np.diag(w)
         dx = np.linalg.solve(A.T @ W @ A, A.T @ W @ np.array(dz))
@@ -125,6 +132,20 @@ def psins_spp(ephs_list, obs_t, week, x0=None):
         if dx @ dx < 1e-6:
             break
     return x
+
+
+def _rtklib_delays(week, t, lla, los_e, el):
+    """RTKLIB's Klobuchar (default coefficients) + Saastamoinen delay, m."""
+    import pyrtklib5 as rtk
+    lat, lon, h = lla
+    east = np.array([-np.sin(lon), np.cos(lon), 0.0])
+    north = np.array([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+    pos, azel, ion = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(8)
+    for i, v in enumerate((lat, lon, h)):
+        pos[i] = float(v)
+    azel[0], azel[1] = float(np.arctan2(los_e @ east, los_e @ north) % (2 * np.pi)), float(el)
+    tt = rtk.gpst2time(week, float(t))
+    return rtk.ionmodel(tt, ion, pos, azel) + rtk.tropmodel(tt, pos, azel, 0.7)
 
 
 def gm_effect_m(ephs_list, week, t):
@@ -312,19 +333,22 @@ def psins_comparison(data, eph_list, week, imu, out):
     from ins.nav.interpolation import interpolate_trajectory
     obss = load(data)[2]
     t = np.unique(obss[(obss[:, 0] > imu.time[0]) & (obss[:, 0] < imu.time[-1]), 0])
-    x, lla = None, []
-    for ti in t:
-        x = psins_spp(eph_list, obss[obss[:, 0] == ti], week, x)
-        lat, lon, h = pymap3d.ecef2geodetic(*x[:3], deg=False)
-        lla.append((lat, lon, h))
-    lla = np.array(lla)
-    print(f"PSINS's GNSS positions (its demo's lspvt: no ionosphere, troposphere or TGD; "
-          f"{len(t)} epochs; its GM moves the satellites by at most "
-          f"{gm_effect_m(eph_list, week, t[0]):.2f} m more) minus our smoothed trajectories:")
-    for coupling in ("loose", "tight"):
-        d = earth.ned_offset(interpolate_trajectory(out[coupling].smoothed, t).lla, lla)
-        print(f"  - {coupling}: mean N/E/D {'/'.join(f'{v:.2f}' for v in d.mean(0))} m, "
-              f"RMS {'/'.join(f'{v:.2f}' for v in np.sqrt(np.mean(d ** 2, 0)))} m")
+    print(f"PSINS's GNSS positions (its demo's lspvt; {len(t)} epochs; its GM moves the "
+          f"satellites by at most {gm_effect_m(eph_list, week, t[0]):.2f} m more) minus our "
+          "smoothed trajectories:")
+    for corrections in (False, True):
+        x, lla = None, []
+        for ti in t:
+            x = psins_spp(eph_list, obss[obss[:, 0] == ti], week, x, corrections)
+            lla.append(pymap3d.ecef2geodetic(*x[:3], deg=False))
+        lla = np.array(lla)
+        what = ("with c TGD, Klobuchar and Saastamoinen taken off as RTKLIB does"
+                if corrections else "as PSINS: no TGD, ionosphere or troposphere")
+        for coupling in ("loose", "tight"):
+            d = earth.ned_offset(interpolate_trajectory(out[coupling].smoothed, t).lla, lla)
+            print(f"  - {coupling}, {what}: mean N/E/D "
+                  f"{'/'.join(f'{v:.2f}' for v in d.mean(0))} m, RMS "
+                  f"{'/'.join(f'{v:.2f}' for v in np.sqrt(np.mean(d ** 2, 0)))} m")
 
 
 def main():
