@@ -153,3 +153,22 @@ def test_tight_keeps_going_on_three_satellites(case):
            for name, traj in (("loose", loose), ("tight", tight.forward))}
     # measured: loose (no fix, inertial only for 30 s) 6.4 m, tight on 3 satellites 1.4 m
     assert end["tight"] < 3.0 and end["tight"] < 0.5 * end["loose"]
+
+
+def test_ins_process_tight_writes_the_clock_states(case, tmp_path):
+    """``ins process --coupling tight`` with optional states (the mems preset's
+    misalignments) writes states.txt with the receiver clock (it failed with KeyError
+    'clock' before the clock had an edge unit)."""
+    from ins.cli.main import main
+    _, folder, _ = case
+    out = tmp_path / "out"
+    assert main(["process", "--config", str(folder / "all" / "config.toml"), "-o", str(out),
+                 "--preset", "mems", "--coupling", "tight", "--no-plots"]) == 0
+    words = (out / "states.txt").read_text().splitlines()[0].split()[1:]
+    columns = words[:next(i for i, w in enumerate(words) if w.startswith("("))]
+    rows = np.loadtxt(out / "states.txt")
+    assert rows.shape[1] == len(columns)
+    bias, drift = rows[:, columns.index("clock_bias_m")], rows[:, columns.index("clock_drift_mps")]
+    # what the file must hold, not a truth (none exists): finite values of a clock
+    # (measured: bias -0.1 to 2.6 m, drift within 0.1 m/s)
+    assert np.all(np.isfinite(bias)) and np.all(np.abs(drift) < 10.0)

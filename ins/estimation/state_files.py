@@ -1,7 +1,8 @@
 """Files of the filter's optional states and measurements, written by ``ins process`` beside
 the solution: ``innovations.txt`` (every tested measurement, per axis:
 :func:`ins.estimation.measurements.write_innovations`) and ``states.txt`` (the smoothed estimates
-and sigmas of the optional state groups, in edge units: arcsec, m, ms)."""
+and sigmas of the optional state groups, in edge units: arcsec, m, ms; the receiver clock
+of tight coupling in m and m/s)."""
 import numpy as np
 
 from ins.estimation.error_model import OPTIONAL_GROUPS
@@ -10,9 +11,16 @@ from ins.estimation.measurements import write_innovations
 __all__ = ["write_innovations", "write_optional_states", "GROUP_UNITS"]
 
 ARCSEC = np.pi / 180.0 / 3600.0
-#: Edge unit of each optional group: (suffix, SI per unit).
+#: Edge unit of each optional group: (suffix, SI per unit); a tuple of suffixes names
+#: each component's (the clock's bias m and drift m/s).
 GROUP_UNITS = {"gyro_misalignment": ("arcsec", ARCSEC), "accel_misalignment": ("arcsec", ARCSEC),
-               "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3)}
+               "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3),
+               "clock": (("m", "mps"), 1.0)}
+
+
+def _suffix(group, k):
+    s = GROUP_UNITS[group][0]
+    return s[k] if isinstance(s, tuple) else s
 
 
 def optional_columns(layout):
@@ -21,7 +29,7 @@ def optional_columns(layout):
     unit = {}
     for g in layout.groups:
         for k in range(OPTIONAL_GROUPS[g]):
-            unit[layout.names[getattr(layout, g).start + k]] = GROUP_UNITS[g][0]
+            unit[layout.names[getattr(layout, g).start + k]] = _suffix(g, k)
     return ([f"{n}_{unit[n]}" for n in names] + [f"std_{n}_{unit[n]}" for n in names])
 
 
@@ -40,7 +48,7 @@ def write_optional_states(path, result):
         f.write("# time_s " + " ".join(optional_columns(layout))
                 + "  (smoothed, at the filter nodes; lever arm: correction added to the "
                   "configured arm, b frame; time offset: a GNSS record stamped t is at IMU "
-                  "time t + offset)\n")
+                  "time t + offset; clock: receiver clock bias and drift, c dt)\n")
         for t, e, s in zip(result.node_time, est, std):
             f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s])) + "\n")
     return path
