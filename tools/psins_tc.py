@@ -33,6 +33,18 @@ satellites removed for 30 s (``--outage``), against the all-satellite tight smoo
 solution.
 
     .venv/bin/python tools/psins_tc.py [--data DIR] [--preset mems] [--keep DIR]
+
+The same runs from the command line, in the folder the tool keeps (``--keep DIR``)::
+
+    ins process --config DIR/all/config.toml -o OUT --preset mems [--coupling tight]
+
+Preset: ``mems`` by default.  The gyros are better than that (the rest's mean rate less
+the Earth's is 1-2 deg/h), but the alignment takes the rest's mean rate, Earth rate
+included, as the initial gyro bias (``ins.estimation.motion_alignment``); with
+``--preset tactical``'s 1 deg/h prior the vertical 8.4 deg/h of Earth rate stays in the
+z bias and loose and tight end 2.8 deg apart in heading, with mems' wider priors 0.24.
+The IMU's heading is 90 deg from the car's track (heading - course over ground, printed):
+PSINS's y axis, our forward, points across this car.
 """
 import argparse
 import tempfile
