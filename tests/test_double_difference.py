@@ -301,6 +301,33 @@ def test_a_bad_satellite_is_rejected_alone_in_the_filter(dd_flight, dd_runs, mon
     assert n_bad == sum(not r.accepted for r in up0.records) + 2
 
 
+def test_base_without_doppler_keeps_the_range_rates(dd_flight, dd_runs, monkeypatch):
+    """The base's Doppler removed (a reference station's RINEX 2 often has none): the
+    rover's range rates are still used (between satellites), the smoothed solution as
+    good as with the base's Doppler."""
+    from ins.gnss import raw_pairs
+    from ins.io.navfiles import read_nav
+    _, clean, _ = dd_runs
+    read = raw_pairs.read_pair
+
+    def no_doppler(*a, **k):
+        p = read(*a, **k)
+        p.base.range_rate_mps = [np.full(len(v), np.nan) for v in p.base.range_rate_mps]
+        return p
+    monkeypatch.setattr(raw_pairs, "read_pair", no_doppler)
+    res, _ = _process(dd_flight, str(dd_flight / "base.obs"))
+    n = {r: sum(x.name == "dd_range_rate" and x.accepted for x in u.records)
+         for r, u in (("clean", clean.fwd.updater), ("none", res.fwd.updater))}
+    assert n["none"] >= 0.99 * n["clean"] > 500, n
+    truth = read_nav(str(dd_flight / "truth.nav"))
+    rms = []
+    for r in (clean, res):
+        j = np.clip(np.searchsorted(truth.time, r.smoothed.time - 1e-6), 0, len(truth.time) - 1)
+        d = earth.ned_offset(truth.lla[j], r.smoothed.lla)
+        rms.append(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)))
+    assert rms[1] < 1.2 * rms[0], rms
+
+
 def clean_names(updater, e):
     """Satellites of epoch ``e`` in the accepted pseudorange DDs."""
     t = updater.epochs[e].time
@@ -352,3 +379,38 @@ def test_static_pair_dd_residuals_at_code_noise(tmp_path):
     # the rover alone after one clock per epoch (orbits, satellite clocks, Klobuchar and
     # Saastamoinen residuals left): 1.46 m
     assert rms < 0.5 * np.sqrt(np.mean(np.concatenate(und) ** 2))
+
+
+def test_static_position_of_the_real_base():
+    """``base_position = "single"``: the base's least-squares position from its own
+    pseudoranges, started 400 m off, lands within metres of its GEONET coordinates."""
+    _needs_real()
+    from ins.gnss.raw_epochs import read_raw_epochs
+    from ins.gnss.raw_pairs import header_position, static_position
+    base = PAIR / "30400920.05o"
+    hdr = header_position(base)
+    ep = read_raw_epochs(base, PAIR / "07590920.05n", hdr)
+    x = static_position(ep, hdr + np.array([300.0, -200.0, 100.0]))
+    assert np.linalg.norm(x - hdr) < 3.0                     # 1.8 m
+
+
+def test_ubx_rover_pairs_like_its_rinex(tmp_path):
+    """Tight DD with a u-blox rover log: converted on the way, the same pairs as its
+    RINEX (the pair's rover encoded as RXM-RAWX, tests/ubx_frames.py)."""
+    _needs_real()
+    from ubx_frames import rinex2_to_ubx
+
+    from ins.estimation.process_gnss import RawGnss
+    from ins.estimation.tight_pipeline import _read
+    rover, base, nav = (PAIR / n for n in ("07590920.05o", "30400920.05o", "07590920.05n"))
+    hdr = np.array([-3976219.5082, 3382372.5671, 3652512.9849])
+    (tmp_path / "rover.ubx").write_bytes(rinex2_to_ubx(str(rover)))
+    a = _read(RawGnss(rover=str(rover), base=str(base), nav=(str(nav),)), lambda t: hdr)
+    b = _read(RawGnss(rover=str(tmp_path / "rover.ubx"), base=str(base), nav=(str(nav),)),
+              lambda t: hdr)
+    assert len(a) == len(b) == 120
+    np.testing.assert_array_equal(a.base.time, b.base.time)
+    for k in range(len(a)):
+        np.testing.assert_array_equal(a.sats[k], b.sats[k])
+        np.testing.assert_allclose(a.range_m[k], b.range_m[k], atol=1e-3)
+        np.testing.assert_array_equal(a.base.range_m[k], b.base.range_m[k])

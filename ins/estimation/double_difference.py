@@ -28,6 +28,12 @@ mm to cm per 10 km), the troposphere's wet part between two heights (cm for hund
 metres, not modelled beyond Saastamoinen), and the multipath and noise of both
 receivers, which do not cancel.
 
+A base without Doppler (RINEX 2 files of a reference station often have none): the
+static base's range rate is known but for the satellite clock drift's error (mm/s), so
+its predicted value stands in for the measurement, with no variance; the range-rate
+"DDs" are then the rover's between-satellite differences, which still cancel its clock
+drift.
+
 Rows: ``H_DD,i = H_i - H_k``, ``H_i`` the rover's row of
 :func:`ins.estimation.pseudorange.range_rows` (line of sight projected on the antenna
 position / velocity); innovation ``predicted - measured`` of the DD.  Covariance: with
@@ -285,10 +291,14 @@ class DoubleDifferenceUpdater(Updater):
         if self.opt.use_doppler:
             y_d = np.asarray(g.range_rate_mps[k], float)[ir]
             y_db = np.asarray(b.range_rate_mps[k], float)[ib]
+            # no base Doppler: the static base's range rate as predicted (exact but for
+            # the satellite clock drift's error, mm/s), with no variance of its own
+            has_b = np.isfinite(y_db)
+            y_db = np.where(has_b, y_db, sagnac_range_rate(rs_b, vs_b, b.r_e, np.zeros(3)))
             kinds.append((_Kind("dd_range_rate", "m/s", sd_d - (y_d - y_db), H_d,
                                 self._var(el, self.opt.range_rate_sigma_mps)
-                                + self._var(el_b, self.opt.range_rate_sigma_mps)),
-                          up & np.isfinite(y_d) & np.isfinite(y_db)))
+                                + has_b * self._var(el_b, self.opt.range_rate_sigma_mps)),
+                          up & np.isfinite(y_d)))
         if np.count_nonzero(up) < 2:
             return P, dx
         ref0 = self._choose_ref(names, np.where(up, el, -np.inf))

@@ -11,7 +11,9 @@ tolerance only bounds how far apart in time the satellite-dependent errors are t
 a rover epoch without a base epoch keeps its place with no base satellites (no update).
 
 The base antenna's position (ECEF, m) is the ``APPROX POSITION XYZ`` of the base file's
-RINEX header, or ``[rtklib] base_lla_deg`` when given; an error in it moves the rover
+RINEX header, or ``[rtklib] base_lla_deg`` when given, or with ``[rtklib] base_position
+= "single"`` the least-squares position from all the base's pseudoranges (one clock per
+epoch; starting from the header's); an error in it moves the rover
 by about the same amount (the double differences are relative), and at 1 km it leaves
 double-difference range errors of about ``|baseline| 1 km / 20 000 km`` (metres at
 most).
@@ -23,7 +25,8 @@ import numpy as np
 from ins.common.errors import InputError
 from ins.gnss.raw_epochs import RawEpochs
 
-__all__ = ["BaseEpochs", "PairedEpochs", "header_position", "base_position", "pair_epochs",
+__all__ = ["BaseEpochs", "PairedEpochs", "header_position", "base_position",
+           "static_position", "pair_epochs",
            "read_pair", "DEFAULT_TOLERANCE_S"]
 
 #: Largest difference of the rover's and base's epoch times (receiver clocks), s.
@@ -63,12 +66,47 @@ def header_position(obs_path):
 
 def base_position(base_path, options=None):
     """The base antenna, ECEF m: ``options.base_lla_deg`` (:class:`~ins.gnss.
-    rtklib_options.RtklibOptions`) when set, else the base file's header."""
+    rtklib_options.RtklibOptions`) when set, else the base file's header (also the
+    start of ``base_position = "single"``, :func:`static_position`)."""
     lla = getattr(options, "base_lla_deg", None)
     if lla is not None:
         from ins.nav import earth
         return earth.lla_to_ecef(np.deg2rad(lla[0]), np.deg2rad(lla[1]), float(lla[2]))
     return header_position(base_path)
+
+
+def static_position(epochs, r0_e, elevation_min_deg=10.0, iterations=6):
+    """Least-squares position of a static receiver from all its corrected pseudoranges
+    (:class:`RawEpochs`), one clock bias per epoch eliminated (each epoch's residuals
+    and rows less their mean; equal weights), satellites below ``elevation_min_deg``
+    (deg, seen from ``r0_e``) left out: ``[rtklib] base_position = "single"`` for the
+    double differences.  ``r0_e``: the start (the header's position), ECEF m.
+    Returns ECEF m."""
+    import pymap3d
+
+    from ins.nav import earth
+    x = np.asarray(r0_e, float).copy()
+    lat, lon, _ = pymap3d.ecef2geodetic(*x, deg=False)
+    up_e = earth.dcm_en(lat, lon)[:, 2] * -1.0
+    for _ in range(iterations):
+        N, rhs = np.zeros((3, 3)), np.zeros(3)
+        for r_s, y in zip(epochs.sat_pos_e, epochs.range_m):
+            d = np.asarray(r_s, float) - x
+            rho = np.linalg.norm(d, axis=1)
+            e = d / rho[:, None]
+            ok = np.isfinite(y) & (e @ up_e >= np.sin(np.deg2rad(elevation_min_deg)))
+            if np.count_nonzero(ok) < 2:
+                continue
+            rho = rho + 7.292115e-5 * (r_s[:, 0] * x[1] - r_s[:, 1] * x[0]) / 299792458.0
+            A, r = -e[ok], (np.asarray(y, float) - rho)[ok]
+            A, r = A - A.mean(axis=0), r - r.mean()
+            N += A.T @ A
+            rhs += A.T @ r
+        dx = np.linalg.solve(N, rhs)
+        x += dx
+        if np.linalg.norm(dx) < 1e-4:
+            break
+    return x
 
 
 @dataclass
@@ -177,6 +215,9 @@ def read_pair(rover_path, base_path, nav_paths, rover_ecef, options=None,
     r_b = base_position(base_path, options)
     rover = read_raw_epochs(rover_path, nav_paths, rover_ecef, rtk=rtk)
     base = read_raw_epochs(base_path, nav_paths, r_b, rtk=rtk)
+    if getattr(options, "base_lla_deg", None) is None and getattr(
+            options, "base_position", "rinex") == "single":
+        r_b = static_position(base, r_b)
     pairs = pair_epochs(rover, base, r_b, tolerance_s, name=os.path.basename(str(base_path)))
     if not np.any(np.isfinite(pairs.base.time)):
         raise InputError(f"no base epoch within {tolerance_s:g} s of a rover epoch (rover "
