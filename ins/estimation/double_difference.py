@@ -56,7 +56,9 @@ freedom, the filter's ``reject_probability``) with ``S = H P H^T + D Sigma D^T``
 satellite with the largest ``w`` beyond the threshold is dropped and the test redone on
 the others (a new reference if it was the reference).  With two satellites a failed DD
 cannot name its satellite: both are dropped.  Pseudoranges and range rates are screened
-on their own; the accepted rows of both are applied in one update.
+on their own; the accepted rows of both are applied in one update.  The records (the
+innovation file) name a DD ``G07-G28`` (satellite, reference) and a rejected satellite
+alone, with its w as the NIS and no innovation.
 """
 from dataclasses import dataclass
 
@@ -324,9 +326,9 @@ class DoubleDifferenceUpdater(Updater):
             R = dd_covariance(kind.var[idx], r)
             s = np.sqrt(np.diag(H @ P @ H.T + R))
             for row, i in enumerate(i for i in idx if i != ref):
-                self.records.append(UpdateRecord(kind.name, (names[i], names[ref]), kind.unit,
-                                                 tg, z[row:row + 1], s[row:row + 1],
-                                                 float((z[row] / s[row]) ** 2), True))
+                self.records.append(UpdateRecord(
+                    kind.name, (f"{names[i]}-{names[ref]}",), kind.unit, tg, z[row:row + 1],
+                    s[row:row + 1], float((z[row] / s[row]) ** 2), True))
             H_all.append(H)
             z_all.append(z)
             R_blocks.append(R)
