@@ -148,6 +148,21 @@ def test_w_test_is_chi2_of_one_dof():
     np.testing.assert_allclose(w.mean(axis=0), 1.0, atol=0.08)
 
 
+def test_reference_kept_while_usable_then_the_highest():
+    from types import SimpleNamespace
+
+    from ins.estimation.double_difference import DoubleDifferenceUpdater
+    choose = DoubleDifferenceUpdater._choose_ref
+    u = SimpleNamespace(_ref=None, ref_changes=0)
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 1.2, 0.8])) == 1
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 0.9, 1.3])) == 1      # kept
+    assert u.ref_changes == 0
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, -np.inf, 1.3])) == 2  # masked
+    assert choose(u, ["G01", "G03"], np.array([1.4, 1.3])) == 1
+    assert choose(u, ["G01", "G05"], np.array([1.4, 1.3])) == 0                  # set
+    assert (u._ref, u.ref_changes) == ("G01", 2)
+
+
 def _epochs(times, sats):
     k = [len(s) for s in sats]
     return RawEpochs(np.asarray(times, float), [np.asarray(s) for s in sats],

@@ -242,8 +242,9 @@ class DoubleDifferenceUpdater(Updater):
         return sigma[0] ** 2 + (sigma[1] / s_el) ** 2
 
     def _choose_ref(self, names, el):
-        """The previous reference if present, else the highest satellite (index)."""
-        if self._ref in names:
+        """The previous reference if present and usable (``el`` finite: above the masks),
+        else the highest satellite; returns its index, counts the changes."""
+        if self._ref in names and np.isfinite(el[names.index(self._ref)]):
             return names.index(self._ref)
         k = int(np.argmax(el))
         if self._ref is not None:
