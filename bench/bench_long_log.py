@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from ins.common import textformat
+from ins.common.errors import InputError
 from ins.io.gnss import write_gnss
 from ins.io.gnss_log import GnssLog  # noqa: E402
 from ins.nav import earth  # noqa: E402
@@ -134,6 +135,28 @@ def horizontal_error_m(nav_path, every=1):
     return traj.time[::every], np.hypot(dn, de), len(traj)
 
 
+def mechanize(cli, imu, work, n, every):
+    """``ins mechanize`` of the log (every ``every``-th epoch written) and its drift."""
+    code, wall, rss, tail = run(cli + [
+        "mechanize", str(imu), "--init-lla", f"{LAT_DEG},{LON_DEG},{H_M}",
+        "--init-vel", "0,0,0", "--init-att", "0,0,0", "--every", str(every), "-q",
+        "-o", str(work / "mech.nav")])
+    print(f"ins mechanize: exit {code}, wall {wall:.1f} s, peak RSS {rss:.0f} MiB "
+          f"({n / wall / 1e6:.2f} M epochs/s)")
+    if code:
+        print("  " + "\n  ".join(tail))
+        return
+    try:
+        tt, h, m = horizontal_error_m(work / "mech.nav")
+    except InputError as exc:       # the unaided vertical channel left the file's range
+        print(f"  (not evaluated: {exc})")
+        return
+    k = min(np.searchsorted(tt, T0 + 3600.0), len(tt) - 1)
+    print(f"  free-inertial horizontal drift (no aiding; noise and biases): "
+          f"{h[k]:.0f} m after {(tt[k] - T0) / 3600:.2g} h; {m:,} epochs written "
+          f"(every {every}th; later the unaided vertical channel diverges)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=10.0)
@@ -143,6 +166,7 @@ def main():
     ap.add_argument("--workdir", default=None, help="folder for the files (default: temp)")
     ap.add_argument("--keep", action="store_true", help="keep the files")
     ap.add_argument("--skip-process", action="store_true")
+    ap.add_argument("--skip-mechanize", action="store_true")
     args = ap.parse_args()
 
     work = Path(args.workdir or tempfile.mkdtemp(prefix="long-log-", dir=ROOT / ".cache"
@@ -162,20 +186,8 @@ def main():
               f"covariance per epoch would be {n * 21 * 21 * 8 / 2**30:.1f} GiB")
         cli = [sys.executable, "-m", "ins.cli.main"]
         every = int(round(args.rate))
-        code, wall, rss, tail = run(cli + [
-            "mechanize", str(imu), "--init-lla", f"{LAT_DEG},{LON_DEG},{H_M}",
-            "--init-vel", "0,0,0", "--init-att", "0,0,0", "--every", str(every), "-q",
-            "-o", str(work / "mech.nav")])
-        print(f"ins mechanize: exit {code}, wall {wall:.1f} s, peak RSS {rss:.0f} MiB "
-              f"({n / wall / 1e6:.2f} M epochs/s)")
-        if code:
-            print("  " + "\n  ".join(tail))
-        else:
-            tt, h, m = horizontal_error_m(work / "mech.nav")
-            k = min(np.searchsorted(tt, T0 + 3600.0), len(tt) - 1)
-            print(f"  free-inertial horizontal drift (no aiding; noise and biases): "
-                  f"{h[k]:.0f} m after {(tt[k] - T0) / 3600:.2g} h; {m:,} epochs written "
-                  f"(every {every}th; later the unaided vertical channel diverges)")
+        if not args.skip_mechanize:
+            mechanize(cli, imu, work, n, every)
         if args.skip_process:
             return
         out = work / "out"

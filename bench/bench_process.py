@@ -10,12 +10,15 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - the smoothed heading RMS over the whole flight,
 - the horizontal error at the end of each 60 s outage (gnss_outage.txt),
 - the covariance step: 1 s against 0.1 s (the accuracy it costs),
-- speed: read + forward + smoother in-process, and whole ``ins process`` runs (a fresh
-  process each, numba cache warm): wall seconds and peak resident memory (VmHWM),
+- speed: whole ``ins process`` runs (a fresh process each, numba cache warm, no plots)
+  with 21, 27 (the default layout) and 31 error states beside KF-GINS in the same run
+  (``--kfgins BIN``, else its README figure): wall and CPU seconds, peak resident
+  memory (``ru_maxrss``); then the cost per IMU epoch and per node against the number
+  of states (whole runs in-process, and the compiled node kernels alone up to 45),
 - with ``--with-pyins``, pyins's ``run_feedback_filter`` (1 s step) in the same run.
 
 Usage: python bench/bench_process.py [--data DIR] [--repeat N] [--with-pyins] [--quick]
-[--layout kfgins|survey]
+[--layout kfgins|survey] [--kfgins BIN] [--speed-only]
 """
 import argparse
 import json
@@ -148,57 +151,131 @@ def rate_check(peerlib, truth, data):
                 + f"  ({res.counts['nodes']} nodes, {wall:.2f} s)")
 
 
+#: The layouts of the speed tables: (name, [states] lines of the config, label).
+SPEED_LAYOUTS = (("kfgins", 'layout = "kfgins"', "21 (KF-GINS)"),
+                 ("survey", 'layout = "survey"', "27 (default: survey)"),
+                 ("survey+la+to", 'layout = "survey"\nlever_arm = true\ntime_offset = true',
+                  "31 (+ lever arm, time offset)"))
+
+
+def _layout_config(tmp, name, states):
+    """data/configs/kfgins_like.toml with its [states] table replaced."""
+    text = (ROOT / "data" / "configs" / "kfgins_like.toml").read_text()
+    head, _, tail = text.partition("[states]")
+    tail = tail[tail.index("\n[") if "\n[" in tail else len(tail):]
+    path = Path(tmp) / f"config_{name}.toml"
+    path.write_text(head + "[states]\n" + states + "\n" + tail)
+    return path
+
+
+def _run_child(cmd):
+    """Run ``cmd``; (wall s, CPU s of the child, peak RSS MiB of the child) by wait4."""
+    t = time.perf_counter()
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, cwd=ROOT)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        if os.waitstatus_to_exitcode(status) != 0:
+            err.seek(0)
+            print(err.read().decode(errors="replace")[-2000:])
+            raise SystemExit(f"failed: {' '.join(map(str, cmd))}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+
+
+def _median_runs(cmd, repeat):
+    runs = [_run_child(cmd) for _ in range(repeat)]
+    return tuple(float(np.median([r[i] for r in runs])) for i in range(3)) + (
+        min(r[0] for r in runs), max(r[2] for r in runs))
+
+
 def speed(args, data):
-    from ins.estimation.process import process
-    cfg, _ = config_for(data, "gnss.txt")
-    process(cfg)                                   # warm the numba cache
-    best = []
-    for _ in range(args.repeat):
-        t = time.perf_counter()
-        process(cfg)
-        best.append(time.perf_counter() - t)
-    print(f"\nSpeed, 302 001 epochs, in-process read + forward + smoother: best "
-          f"{min(best):.2f} s of {args.repeat} (KF-GINS forward only, whole process: "
-          f"{KFGINS['wall']} s; target <= {KFGINS['wall'] / 2:.2f} s)")
-    cfg_path = ROOT / "data" / "configs" / "kfgins_like.toml"
+    """Whole ``ins process`` runs (fresh process each, numba cache warm, no plots)
+    beside KF-GINS in the same run (``--kfgins BIN``; else its README figure), then the
+    cost per epoch and per node against the number of error states."""
+    print(f"\nSpeed, {data}: wall and CPU medians of {args.repeat}, peak RSS (ru_maxrss) "
+          f"max; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print("| run | states | wall s (min) | CPU s | peak RSS MB | wall / KF-GINS |")
+    print("|---|---|---|---|---|---|")
+    if args.kfgins:
+        yaml = data / "kfgins_gnss.yaml"
+        kw, kc, krss, kmin, krss_max = _median_runs([args.kfgins, str(yaml)], args.repeat)
+        kf_label = "KF-GINS forward EKF (this run)"
+    else:
+        kw, kc, kmin, krss_max = KFGINS["wall"], float("nan"), KFGINS["wall"], 4.7
+        kf_label = "KF-GINS forward EKF (README figure, not run: --kfgins BIN)"
+    print(f"| {kf_label} | 21 | {kw:.2f} ({kmin:.2f}) | {kc:.2f} | {krss_max:.0f} | 1.00 |")
     with tempfile.TemporaryDirectory() as tmp:
-        for extra, label in ((["--no-plots"], "ins process (writes solution.nav + sigma + "
-                                              "biases, no plots)"),
-                             (["--no-plots", "--forward"], "ins process --forward (also "
-                                                           "forward.nav, no plots)"),
-                             ([], "ins process with PNG plots")):
-            walls, rss, cpu = [], [], []
-            for _ in range(args.repeat):
-                cmd = [sys.executable, "-c", _CHILD, "--imu", str(data / "imu_noisy.txt"),
-                       "--gnss", str(data / "gnss.txt"), "--config", str(cfg_path), "-q",
-                       "-o", tmp, "--force"] + extra
-                t = time.perf_counter()
-                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-                walls.append(time.perf_counter() - t)
-                if proc.returncode != 0:
-                    print(proc.stderr)
-                    raise SystemExit("ins process failed")
-                last = proc.stderr.strip().splitlines()[-1].split()
-                rss.append(int(last[0]))
-                cpu.append(float(last[1]))
-            print(f"{label}: wall median {np.median(walls):.2f} s (min {min(walls):.2f}), "
-                  f"CPU (user + sys, all threads) median {np.median(cpu):.2f} s, "
-                  f"peak RSS {max(rss) / 1024:.0f} MB, load average "
-                  f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+        for name, states, label in SPEED_LAYOUTS:
+            cfg = _layout_config(tmp, name, states)
+            cmd = [sys.executable, "-m", "ins.cli.main", "process", "--imu",
+                   str(data / "imu_noisy.txt"), "--gnss", str(data / "gnss.txt"), "--config",
+                   str(cfg), "-q", "-o", str(Path(tmp) / "out"), "--force", "--no-plots"]
+            _run_child(cmd)                                    # numba cache warm
+            w, c, _, wmin, rss = _median_runs(cmd, args.repeat)
+            print(f"| ins process (forward + smoother, no plots) | {label} | {w:.2f} "
+                  f"({wmin:.2f}) | {c:.2f} | {rss:.0f} | {w / kw:.2f} |")
+    per_state_cost(args, data)
 
 
-# The child runs the CLI and reports its own peak RSS (VmHWM, kB) on the last stderr line.
-_CHILD = """
-import sys
-from ins.cli.main import main
-code = main(['process'] + sys.argv[1:])
-import os
-t = os.times()
-for line in open('/proc/self/status'):
-    if line.startswith('VmHWM'):
-        sys.stderr.write(line.split()[1] + ' ' + str(t.user + t.system) + '\\n')
-sys.exit(code)
-"""
+def per_state_cost(args, data):
+    """Cost per IMU epoch and per node against the number of error states: whole runs
+    in-process (read + forward + smoother, warm), and the compiled node kernels alone
+    (prior covariance + one 3-axis update + one smoother step) for larger n, the price
+    of extra states (tight coupling's clocks)."""
+    from ins.estimation.error_model import LAYOUTS, StateLayout
+    from ins.estimation.process import process
+    global LAYOUT
+    print("\nCost against the number of error states (in-process, warm, CPU time of the "
+          "process; best of the repeats)")
+    print("| states | CPU per IMU epoch (us) | CPU per node (ms) | wall s |")
+    print("|---|---|---|---|")
+    for groups, label in (((), "21"), (LAYOUTS["survey"], "27"),
+                          (LAYOUTS["survey"] + ("lever_arm", "time_offset"), "31")):
+        cfg, _ = config_for(data, "gnss.txt")
+        cfg.layout = StateLayout(groups)
+        process(cfg)
+        best = None
+        for _ in range(args.repeat):
+            t, c = time.perf_counter(), time.process_time()
+            res = process(cfg)
+            run = (time.process_time() - c, time.perf_counter() - t)
+            best = run if best is None or run[0] < best[0] else best
+        ep, nodes = res.counts["imu_epochs"], res.counts["nodes"]
+        print(f"| {label} | {1e6 * best[0] / ep:.2f} | {1e3 * best[0] / nodes:.3f} | "
+              f"{best[1]:.2f} |")
+    try:
+        from ins.estimation import _kalman_kernels as kk
+    except ImportError:                     # an older tree (the "before" figures)
+        return
+    print("\nCompiled node kernels alone (node_predict + joseph_update 3x n + rts_step), "
+          "per node, best of 5 x 200:")
+    print("| states | us per node | us per IMU epoch at 200 Hz, 1 s nodes |")
+    print("|---|---|---|")
+    rng = np.random.default_rng(0)
+    for n in (21, 27, 31, 33, 39, 45):
+        M = rng.normal(size=(n, n))
+        P = M @ M.T * 1e-3 + np.eye(n)
+        G = np.diag(rng.uniform(1e-9, 1e-6, n))
+        H = rng.normal(size=(3, n))
+        R, z, v = np.eye(3), rng.normal(size=3) * 1e-3, rng.normal(size=n)
+        acc = rng.normal(size=(16, 3)) * 0.1
+        gm, am = (21, 24) if n >= 27 else (-1, -1)
+
+        def one():
+            Phi, _, Pp = kk.node_predict(0.5, 1000.0, np.array([60.0, 1.0, 0.1]), acc, 1.0,
+                                         14400.0, gm, am, -1, G, P)
+            _, _, Pu, _, _ = kk.joseph_update(Pp, H, R, z, 1e9)
+            kk.rts_step(Pp, Phi, Pu, Pu, v)
+        one()
+        best = min(_timeit(one, 200) for _ in range(5))
+        print(f"| {n} | {1e6 * best:.1f} | {1e6 * best / 200:.3f} |")
+
+
+def _timeit(f, k):
+    t = time.process_time()
+    for _ in range(k):
+        f()
+    return (time.process_time() - t) / k
 
 
 def with_pyins(peerlib, truth, data):
@@ -281,6 +358,10 @@ def main():
                          "(default: the tests' short simulated flight)")
     ap.add_argument("--quick", action="store_true", help="accuracy only (no 0.1 s step, "
                                                          "no subprocess timings)")
+    ap.add_argument("--kfgins", default=os.environ.get("KFGINS_BIN"),
+                    help="KF-GINS executable, run on the dataset's kfgins_gnss.yaml in the "
+                         "speed table (default: $KFGINS_BIN; without it the README figure)")
+    ap.add_argument("--speed-only", action="store_true", help="only the speed tables")
     ap.add_argument("--layout", default="kfgins", choices=["kfgins", "survey"],
                     help="error states of the in-process runs (the subprocess timings use "
                          "data/configs/kfgins_like.toml: kfgins)")
@@ -292,6 +373,9 @@ def main():
     data = Path(args.data) if args.data else ensure_bench_data()
     if data is None:
         raise SystemExit("the shared dataset script is missing (../shared/bench/ins)")
+    if args.speed_only:
+        speed(args, data)
+        return
     peerlib = _peerlib(SHARED)
     truth = peerlib.load_nav(str(data / "truth.nav"))
     accuracy(args, peerlib, truth, data)

@@ -322,3 +322,58 @@ def make_large_block(n_images, n_per_strip=50, seed=0, f_px=10000.0, pixel_mm=0.
             "boresight": bs, "f_mm": f_mm, "sigma_mm": sigma_mm, "pixel_mm": pixel_mm,
             "system": system, "obs": obs, "X": X,
             "outliers": {i: np.zeros(len(obs[i][0]), bool) for i in obs}}
+
+
+def make_cross_strip_pair(n_points, n_mismatches, seed=0, f_px=10000.0, pixel_mm=0.01,
+                          width_px=8000, height_px=6000, height_m=1000.0, relief_m=50.0,
+                          side_overlap=0.3, noise_px=0.5, prior_off_deg=0.2,
+                          max_angle_deg=2.0, system=SYSTEM):
+    """A cross-strip pair like the real aerial ones of issue 26 (22 and 46 SIFT matches,
+    a few per cent of them mismatches, the prior 0.2 deg off): two frames of adjacent
+    strips flown in opposite directions (kappa 180 deg apart), the base across the
+    strip, the common points in the side overlap (30 % of the frame height) with relief.
+
+    `n_mismatches` of the points are matched to the wrong place in image 2 (the image
+    position of another ground point of the overlap, with the noise).  The prior of
+    image 1 is its true attitude; that of image 2 is ``prior_off_deg`` off in every
+    angle (random signs).
+
+    Returns
+    -------
+    dict with ``angles`` (2, 3) true rad, ``R`` (2, 3, 3), ``positions`` (2, 3) m,
+    ``xy1``, ``xy2`` (n, 2) observed mm, ``prior`` (2, 3) rad, ``mismatched`` (indices),
+    ``f_mm``, ``sigma_mm``, ``pixel_mm``, ``width_px``, ``height_px``, ``system``.
+    """
+    rng = np.random.default_rng(seed)
+    f_mm = f_px * pixel_mm
+    w_mm, h_mm = width_px * pixel_mm, height_px * pixel_mm
+    scale = height_m / f_mm
+    w_g, h_g = w_mm * scale, h_mm * scale
+    gap = (1 - side_overlap) * h_g
+    lim = np.deg2rad(max_angle_deg)
+    ang = rng.uniform(-lim, lim, (2, 3))
+    ang[1, 2] += np.pi
+    R = angles_to_matrix(ang, system)
+    C = np.array([[0.0, 0.0, height_m],
+                  [rng.normal(0, 30.0), gap, height_m + rng.normal(0, 5.0)]])
+    X = np.column_stack([rng.uniform(-0.5 * w_g, 0.5 * w_g, 20 * n_points),
+                         rng.uniform(gap - 0.5 * h_g, 0.5 * h_g, 20 * n_points),
+                         rng.uniform(-relief_m, relief_m, 20 * n_points)])
+    xy = [project(R[k:k + 1], C[k:k + 1], X[None], f_mm)[0] for k in range(2)]
+    half = 0.5 * np.array([w_mm, h_mm]) - 20 * pixel_mm
+    inside = np.flatnonzero(np.all(np.abs(xy[0]) < half, axis=1)
+                            & np.all(np.abs(xy[1]) < half, axis=1))
+    if len(inside) < n_points + n_mismatches:
+        raise RuntimeError("too few points in the side overlap")
+    idx = inside[:n_points]
+    sigma_mm = noise_px * pixel_mm
+    xy1 = xy[0][idx] + rng.normal(0, sigma_mm, (n_points, 2))
+    xy2 = xy[1][idx] + rng.normal(0, sigma_mm, (n_points, 2))
+    bad = rng.choice(n_points, n_mismatches, replace=False)
+    xy2[bad] = (xy[1][inside[n_points:n_points + n_mismatches]]
+                + rng.normal(0, sigma_mm, (n_mismatches, 2)))
+    prior = ang + np.vstack([np.zeros(3),
+                             np.deg2rad(prior_off_deg) * rng.choice([-1.0, 1.0], 3)])
+    return {"angles": ang, "R": R, "positions": C, "xy1": xy1, "xy2": xy2, "prior": prior,
+            "mismatched": bad, "f_mm": f_mm, "sigma_mm": sigma_mm, "pixel_mm": pixel_mm,
+            "width_px": width_px, "height_px": height_px, "system": system}

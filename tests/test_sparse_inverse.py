@@ -63,3 +63,24 @@ def test_pattern_check():
     # column 2 without row 3: (3, 2) is missing, the inverse would read it
     open_ = sparse.csc_matrix(([1.0, 1.0], ([2, 3], [0, 0])), shape=(4, 4))
     assert not pattern_is_closed(open_.indptr, open_.indices, 4)
+
+
+def test_same_pattern_reuses_the_ordering_with_the_same_results():
+    """A second matrix of the same pattern (new values: the next Gauss-Newton iterate)
+    is factored in the first one's minimum-degree order: solves and inverse entries
+    against numpy's dense ones, and the fill of the first factor."""
+    A = _grid_spd(11, 13, 3)
+    B = A.copy()
+    B.data = B.data * np.random.default_rng(4).uniform(0.8, 1.2, B.nnz)
+    B = (B + B.T) / 2 + sparse.diags(np.abs(B).sum(axis=1).A1)   # SPD, same pattern
+    B = sparse.csc_matrix(B)
+    f = SparseSPD(A)
+    g = SparseSPD(B)
+    assert g.order is not None and g.nnz == f.nnz       # the ordering reused, same fill
+    rhs = np.random.default_rng(5).normal(size=(B.shape[0], 2))
+    np.testing.assert_allclose(g.solve(rhs), np.linalg.solve(B.toarray(), rhs), rtol=1e-9,
+                               atol=1e-12)
+    Z = np.linalg.inv(B.toarray())
+    coo = sparse.tril(B).tocoo()
+    np.testing.assert_allclose(g.inverse_entries(coo.row, coo.col), Z[coo.row, coo.col],
+                               rtol=1e-9, atol=1e-12 * np.abs(Z).max())

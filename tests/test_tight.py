@@ -335,3 +335,61 @@ def test_ubx_rover_gives_the_rinex_ranges(tmp_path):
         np.testing.assert_array_equal(sa, sb)
         np.testing.assert_allclose(ra, rb, atol=1e-3)
     assert os.listdir(tmp_path) == ["rover.ubx"]          # converted in a temporary folder
+
+
+def test_cli_tight_on_a_simulated_raw_flight(tmp_path):
+    """``ins simulate`` with raw GPS (data/flights/rawsim.toml, the pair's real broadcast
+    orbits, masks of 3, 2 and 1 satellites), then ``ins process FLIGHT --coupling tight``
+    as a user types it: exit 0, the per-satellite plot, and the smoothed receiver clock
+    of states.txt against the simulator's clock truth (an output the loose run has not)."""
+    pytest.importorskip("pyrtklib5")
+    if not PAIR.is_dir():
+        pytest.skip("../shared/real is absent")
+    from ins.cli.main import main
+    from ins.io.navfiles import read_nav
+    root = Path(__file__).resolve().parents[1]
+    flight, out = tmp_path / "flight", tmp_path / "out"
+    assert main(["simulate", str(root / "data" / "flights" / "rawsim.toml"), "-o", str(flight),
+                 "--gnss-raw", str(PAIR / "07590920.05n"), "--seed", "2", "-q"]) == 0
+    assert main(["process", str(flight), "--coupling", "tight", "-o", str(out), "-q"]) == 0
+    assert (out / "satellite_residuals.png").is_file() and (out / "states.txt").is_file()
+    names = open(out / "states.txt").readline().split()[1:]
+    st = np.loadtxt(out / "states.txt")
+    clock = np.loadtxt(flight / "receiver_clock.txt")          # time_rx, time_gps, bias, drift
+    c = 299792458.0
+    bias = np.interp(st[:, 0], clock[:, 0], clock[:, 2] * c)
+    drift = np.interp(st[:, 0], clock[:, 0], clock[:, 3] * c)
+    d_b = st[:, names.index("clock_bias_m")] - bias
+    d_d = st[:, names.index("clock_drift_mps")] - drift
+    # the clock absorbs the ranges' common error (troposphere and ionosphere model
+    # mismatch, multipath): metres; the drift: the TCXO's random walk between epochs
+    assert np.sqrt(np.mean(d_b ** 2)) < 2.0     # seed 2: 0.91 m
+    assert np.sqrt(np.mean(d_d ** 2)) < 0.05    # seed 2: 0.020 m/s
+    sol, truth = read_nav(str(out / "solution.nav")), read_nav(str(flight / "truth.nav"))
+    j = np.clip(np.searchsorted(truth.time, sol.time - 1e-6), 0, len(truth.time) - 1)
+    d = earth.ned_offset(truth.lla[j], sol.lla)
+    h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
+    assert h < 1.0                     # seed 2: 0.35 m
+
+
+def test_receiver_clock_jump_is_followed(scene):
+    """A millisecond jump of the receiver clock (299.8 km in every pseudorange from an
+    epoch on, as u-blox receivers do): the clock bias is set again at that epoch, the
+    satellites stay in use, and the position does not notice."""
+    from ins.estimation.pseudorange import TightUpdater
+    imu, truth, noise, t0, epochs, _ = scene
+    i = int(np.searchsorted(epochs.time, t0 + 120.0))
+    jumped = epochs.select(lambda k, sats: np.ones(len(sats), bool))
+    ms = 299792.458
+    for k in range(i, len(jumped.time)):
+        jumped.range_m[k] = jumped.range_m[k] + ms
+    fwd, st = ts.run(imu, truth, noise, t0, t0 + 160.0, jumped, True)
+    assert isinstance(fwd.updater, TightUpdater)
+    assert len(fwd.updater.clock_jumps) == 1
+    t_jump, size = fwd.updater.clock_jumps[0]
+    assert t_jump == epochs.time[i] and abs(size - ms) < 5.0
+    after = [ep.used for ep in fwd.updater.epochs if ep.time > epochs.time[i]]
+    assert min(after) >= 4
+    ref, _ = ts.run(imu, truth, noise, t0, t0 + 160.0, epochs, True)
+    assert ts.horizontal_error(fwd.time, st, truth, t0 + 159.0) < 1.0
+    assert not ref.updater.clock_jumps                    # no jump without one

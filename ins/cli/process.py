@@ -104,9 +104,12 @@ def add_parser(sub):
     p = sub.add_parser(
         "process", help="GNSS/INS post-processing: forward Kalman filter + RTS smoother",
         description=(
-            "Loosely coupled GNSS/INS post-processing: error-state Kalman filter with\n"
-            "closed-loop feedback (fixed or mount-varying lever arm), then a backward\n"
-            "Rauch-Tung-Striebel pass.  State layout from the config's [states]:\n"
+            "GNSS/INS post-processing: error-state Kalman filter with closed-loop\n"
+            "feedback (fixed or mount-varying lever arm), then a backward\n"
+            "Rauch-Tung-Striebel pass.  Loosely coupled on a GNSS solution (a ready\n"
+            "one, or RTKLIB's of raw --rover/--base/--nav run first), or tightly coupled\n"
+            "(--coupling tight: GPS L1 pseudoranges and Doppler, receiver clock states;\n"
+            "one to three satellites still count).  State layout from the config's [states]:\n"
             "'survey' (default: the 21 KF-GINS states plus gyro and accelerometer axis\n"
             "misalignment; lever-arm and IMU-GNSS time-offset groups on request) or\n"
             "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
@@ -156,7 +159,8 @@ def add_parser(sub):
                         "(RINEX) with --nav through RTKLIB, receiver clock bias/drift "
                         "states; with --base: their double differences against the base "
                         "(no clock states); RTKLIB's solution still gives the start and "
-                        "the checks")
+                        "the checks; with FLIGHT_DIR its simulated raw GPS (rover.obs, "
+                        "rover.nav)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
@@ -199,6 +203,8 @@ def _config(args):
     cfg.gnss_raw_plot = not args.no_plots
     if getattr(args, "coupling", None):
         cfg.coupling = args.coupling
+    if args.flight_dir and cfg.coupling == "tight" and cfg.gnss_raw is None:
+        _flight_raw_gnss(cfg, args.flight_dir)
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
@@ -206,6 +212,28 @@ def _config(args):
         given = read_toml(args.config, "a processing config (TOML)") if args.config else {}
         cfg = apply_preset(cfg, args.preset, given)
     return cfg
+
+
+def _flight_raw_gnss(cfg, flight_dir):
+    """Tight coupling on a simulated flight folder: its raw GPS (``rover.obs`` and
+    ``rover.nav`` of ``[gnss_raw]``, :mod:`ins.simulate.gnss_raw_product`) with RTKLIB's
+    single-point solution of them as the GNSS log (start, delays, checks), not the
+    folder's ready fixes."""
+    from ins.common.textfiles import read_toml
+    from ins.estimation.process_gnss import RawGnss
+    from ins.gnss.rtklib_options import RtklibOptions
+    files = read_toml(os.path.join(flight_dir, "manifest.toml"), "a flight manifest").get(
+        "files", {})
+    if not (files.get("gnss_raw_obs") and files.get("gnss_raw_nav")):
+        raise InputError(f"--coupling tight: the flight folder {flight_dir} has no raw GPS "
+                         "observations (simulate it with a [gnss_raw] table in the plan or "
+                         "'ins simulate --gnss-raw NAV_FILE')")
+    cfg.gnss_raw = RawGnss(rover=os.path.join(flight_dir, files["gnss_raw_obs"]),
+                           nav=(os.path.join(flight_dir, files["gnss_raw_nav"]),),
+                           options=RtklibOptions(mode="single", systems=("gps",),
+                                                 frequencies=1,
+                                                 elevation_mask_deg=cfg.elevation_mask_deg))
+    cfg.gnss = None
 
 
 def _input_options(cfg, args):
@@ -338,6 +366,9 @@ def _summary(result, cfg, paths, t_proc, t_write):
         print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
               f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
               f"and range rates)", file=out)
+        for t, jump in c.get("clock_jumps", []):
+            print(f"receiver clock jump at {t:.2f} s: {jump:+.1f} m ({jump / 299792.458:+.4f} "
+                  f"ms) common to the pseudoranges; the clock bias set again", file=out)
     for a, b, n, factor in getattr(result.fwd, "recoveries", []):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "

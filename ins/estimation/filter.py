@@ -8,7 +8,9 @@ mechanized at the full IMU rate in a numba loop (:mod:`ins.estimation._filter_ke
 current bias and scale estimates removed, while the integrals that the covariance step
 needs are accumulated; the covariance (21 states, or the layout's
 :class:`ins.estimation.error_model.StateLayout`) is then propagated once per node interval
-(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``, ``A = int F dt``).
+(:func:`ins.estimation.error_model.discretize`: ``Phi = I + A + A^2/2 + A^3/6``,
+``A = int F dt``; compiled with the prior ``Phi P Phi^T + Q_d``:
+:func:`ins.estimation._kalman_kernels.node_predict`).
 On the benchmark flight (1 Hz GNSS) propagating at 1 s instead of 0.1 s changes the
 position RMS by less than 0.1 mm and the heading RMS by 0.02 arcsec, at 2.6 times the
 cost (``bench/bench_process.py``, "Covariance step").
@@ -37,28 +39,25 @@ the estimated errors are fed back (closed loop): the navigation state is correct
 (:mod:`ins.estimation.error_model` sign rules), the sensor estimates updated, and the error state
 reset to zero.
 
-filterpy's :func:`filterpy.kalman.predict` propagates the covariance.  filterpy is
-imported when a filter starts (:func:`filterpy_functions`), not with this module: its
-package imports ``scipy.stats`` (0.6 s), which the command line overlaps with reading
-the IMU log.  Its ``KalmanFilter`` object is not used: the transition and noise change
-at every node and the state is reset after each update, so the object would only hold
-what the functions are given.
+The per-node linear algebra (prior covariance, update, smoother step) runs in compiled
+kernels (:mod:`ins.estimation._kalman_kernels`) on ``n x n`` matrices, ``n`` the layout's
+number of states; filterpy's ``predict`` and ``update`` are the reference they are
+tested against (tests/test_kalman_kernels.py), not part of the run (the import of
+filterpy, with scipy.stats, cost more than the whole filter).
 """
 import warnings
 
 import numpy as np
 
 from ins.common.errors import InputError, InputWarning
-from ins.estimation import _filter_kernels
+from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import (
     KFGINS,
     NAV,
     checked_std,
-    discretize,
-    interval_matrix,
     noise_matrix,
 )
-from ins.estimation.filter_stores import NodeStore, TrajectoryStore
+from ins.estimation.filter_stores import NodeStore, Rows, TrajectoryStore
 from ins.estimation.updates import Updater
 from ins.nav import earth
 from ins.nav.mechanization import check_finite
@@ -289,12 +288,16 @@ class _ForwardRun:
                                  f"{len(init)}")
             self.sensors[:len(init)] = init
         self.mis = (L.gyro_misalignment is not None or L.accel_misalignment is not None)
+        # first index of the misalignment groups for the compiled A (-1: absent)
+        self.gyro_mis = -1 if L.gyro_misalignment is None else L.gyro_misalignment.start
+        self.accel_mis = -1 if L.accel_misalignment is None else L.accel_misalignment.start
+        self.clock_i = -1 if getattr(L, "clock", None) is None else L.clock.start
         self.headings = sorted(settings.heading, key=lambda m: m.time)
         self.hj = 0
         self.P = settings.initial_covariance()
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
-        self.node_rows, self.node_time, self.dxs, self.sens, self.node_states = \
-            [], [], [], [], []
+        self.node_rows, self.node_time = Rows((), np.int64), Rows(())
+        self.dxs, self.sens, self.node_states = Rows((L.n,)), Rows((L.n - 9,)), Rows((10,))
         self.updater = (settings.updater or Updater)(settings, gnss)
         self.g_time = self.updater.ev_time         # the GNSS update events' epochs
         self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
@@ -374,10 +377,10 @@ class _ForwardRun:
 
     def _keep_node(self, r, t_r):
         """Record the node at row ``r`` (of this block) after its updates."""
-        self.node_states.append(self.state.copy())
+        self.node_states.append(self.state)
         self.node_rows.append(r + self.row_base)
         self.node_time.append(t_r)
-        self.sens.append(self.sensors.copy())
+        self.sens.append(self.sensors)
         self.state_a, self.t_a = self.state.copy(), t_r
 
     def progress(self, t, last):
@@ -394,11 +397,9 @@ class _ForwardRun:
         dt = t[r] - self.t_a
         mid = 0.5 * (self.state_a + self.state)
         acc = self.acc
-        A = interval_matrix(mid[0], mid[2], mid[NAV.vel], acc[9] / dt,
-                            (acc[0:3], acc[3:6], acc[6:9], acc[10:13], acc[13:16]), dt,
-                            self.tau, L)
-        Phi, Qd = discretize(A, self.GQG, dt)
-        _, P = up.kf_predict(np.zeros(L.n), self.P, Phi, Qd)
+        Phi, _, P = _kalman_kernels.node_predict(
+            float(mid[0]), float(mid[2]), mid[NAV.vel], acc, float(dt), float(self.tau),
+            self.gyro_mis, self.accel_mis, self.clock_i, self.GQG, self.P)
         P_prior = P
         w_meas_b = th[r] / (t[r] - t[r - 1])
         f_meas_b = dv[r] / (t[r] - t[r - 1])
@@ -440,9 +441,9 @@ class _ForwardRun:
 
     def result(self):
         up = self.updater
-        out = ForwardResult(self.traj, self.nodes, np.array(self.node_rows),
-                            np.array(self.node_time), np.array(self.dxs), np.array(self.sens))
-        out.node_states = np.array(self.node_states)
+        out = ForwardResult(self.traj, self.nodes, self.node_rows.array(),
+                            self.node_time.array(), self.dxs.array(), self.sens.array())
+        out.node_states = self.node_states.array()
         out.n_updates = up.n_updates
         out.n_rejected = up.n_rejected
         out.n_outside = up.n_outside + int(np.count_nonzero(self.g_pos[self.gj:]))

@@ -6,7 +6,37 @@ import tempfile
 
 import numpy as np
 
-from ins.estimation.error_model import checked_std
+from ins.estimation.error_model import VARIANCE_RTOL, checked_std
+
+
+class Rows:
+    """Rows of one shape appended one at a time into an array that doubles when full:
+    no Python object per row (a 10 h log at 1 s nodes has 36 000 of them; lists of small
+    arrays cost twice the memory and fragment the heap)."""
+
+    def __init__(self, shape=None, dtype=np.float64):
+        self._a, self._shape, self._dtype, self.count = None, shape, dtype, 0
+
+    def append(self, row):
+        row = np.asarray(row, dtype=self._dtype)
+        if self._a is None:
+            self._a = np.empty((256,) + (row.shape if self._shape is None else self._shape),
+                               self._dtype)
+        elif self.count == len(self._a):
+            grown = np.empty((2 * len(self._a),) + self._a.shape[1:], self._dtype)
+            grown[:self.count] = self._a
+            self._a = grown
+        self._a[self.count] = row
+        self.count += 1
+
+    def __len__(self):
+        return self.count
+
+    def array(self):
+        """The rows so far (a copy), shape (count, ...)."""
+        if self._a is None:
+            return np.empty((0,) + (self._shape or ()), self._dtype)
+        return self._a[:self.count].copy()
 
 
 class NodeStore:
@@ -23,25 +53,34 @@ class NodeStore:
     def __init__(self, workdir=None):
         self.count = 0
         self.n = None
-        self.post_std = []                 # sqrt(diag(P_post)) of every node (small)
+        self._post_std = Rows()            # sqrt(diag(P_post)) of every node (small)
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
 
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.common.errors.QualityError` naming ``time`` (s) and the state."""
-        self.n = len(P_prior)
-        d_prior, d_post = np.diag(P_prior), np.diag(P_post)
+        self.n = n = len(P_prior)
+        d_prior, d_post = P_prior.ravel()[::n + 1], P_post.ravel()[::n + 1]
         scale = np.maximum(np.abs(d_prior), np.abs(d_post))
-        checked_std(d_prior, scale, time, what="forward filter's prior covariance")
-        self.post_std.append(checked_std(d_post, scale, time,
-                                         what="forward filter's posterior covariance"))
-        rec = np.stack([P_prior, P_post, Phi])
-        if self._mem is not None:
-            self._mem.append(rec)
+        floor = -VARIANCE_RTOL * scale
+        if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
+            self._post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
         else:
-            self._file.write(rec.tobytes())
+            checked_std(d_prior, scale, time, what="forward filter's prior covariance")
+            self._post_std.append(checked_std(d_post, scale, time,
+                                              what="forward filter's posterior covariance"))
+        if self._mem is not None:
+            self._mem.append(np.stack([P_prior, P_post, Phi]))
+        else:
+            for a in (P_prior, P_post, Phi):
+                self._file.write(np.ascontiguousarray(a, dtype=np.float64).data)
         self.count += 1
+
+    @property
+    def post_std(self):
+        """``sqrt(diag(P_post))`` of every node, array (count, n)."""
+        return self._post_std.array()
 
     def block(self, j0, j1):
         """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, n, n) of P_prior, P_post, Phi."""
@@ -78,7 +117,7 @@ class TrajectoryStore:
         if self._mem is not None:
             self._mem.append(rows)
         else:
-            self._file.write(rows.tobytes())
+            self._file.write(rows.data)           # no second copy (tobytes)
         self._sizes.append(len(rows))
 
     def __len__(self):

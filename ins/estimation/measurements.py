@@ -35,12 +35,13 @@ Implementations: :class:`GnssPosition` (full 3 x 3 covariance when given),
 :class:`NonHolonomic` (lateral and vertical body velocity zero).  The lever-arm and
 time-offset states enter the GNSS measurements when the layout has them.
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ins.common.errors import QualityError
-from ins.estimation import _filter_kernels
+from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import KFGINS, SENSORS, StateLayout, sym_matrix
 from ins.estimation.lever_arm import antenna_lla, antenna_velocity
 from ins.nav import earth
@@ -48,7 +49,8 @@ from ins.nav.rotation import quat_to_dcm, skew
 
 __all__ = ["NavPoint", "node_acceleration", "GnssPosition", "GnssVelocity",
            "DualAntennaHeading", "ZeroVelocity", "NonHolonomic", "UpdateRecord",
-           "kalman_update", "corrected", "write_innovations", "INNOVATION_COLUMNS"]
+           "kalman_update", "chi2_upper_quantile", "corrected", "write_innovations",
+           "INNOVATION_COLUMNS"]
 
 
 @dataclass
@@ -130,8 +132,10 @@ def node_acceleration(state, f_meas_b):
     s = np.asarray(state, dtype=float)
     v = s[3:6]
     w = 2.0 * earth.earth_rate_n(s[0]) + earth.transport_rate_n(s[0], s[2], v)
+    w_x_v = np.array([w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2],
+                      w[0] * v[1] - w[1] * v[0]])              # np.cross, without its cost
     return (quat_to_dcm(s[6:10]) @ np.asarray(f_meas_b, dtype=float)
-            + earth.gravity_n(s[0], s[2]) - np.cross(w, v))
+            + earth.gravity_n(s[0], s[2]) - w_x_v)
 
 
 def _check_cov(cov, m, what):
@@ -350,7 +354,9 @@ class UpdateRecord:
 
 
 def kalman_update(P, H, R, z, threshold, meas=None):
-    """One Kalman update by a single Cholesky factorization of ``S = H P H^T + R``.
+    """One Kalman update by a single Cholesky factorization of ``S = H P H^T + R``
+    (compiled: :func:`ins.estimation._kalman_kernels.joseph_update`; filterpy's
+    ``update`` is the tests' reference).
 
     Parameters
     ----------
@@ -379,29 +385,67 @@ def kalman_update(P, H, R, z, threshold, meas=None):
     ins.common.errors.QualityError
         ``S`` not positive definite: names the measurement and its epoch.
     """
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
-    PHt = P @ H.T
-    S = H @ PHt + R
-    S = 0.5 * (S + S.T)
-    try:
-        cf = cho_factor(S, lower=True, check_finite=True)
-    except (LinAlgError, ValueError) as exc:
+    f8 = np.float64
+    status, dx, P_post, nis, S = _kalman_kernels.joseph_update(
+        np.ascontiguousarray(P, f8), np.ascontiguousarray(np.atleast_2d(H), f8),
+        np.ascontiguousarray(np.atleast_2d(R), f8), np.ascontiguousarray(z, f8).ravel(),
+        float(threshold))
+    if status == 2:
         name = getattr(meas, "name", "measurement")
         t = getattr(meas, "time", None)
         when = "" if t is None else f" at t = {t:.3f} s"
         raise QualityError(f"{name}{when}: the innovation covariance S = H P H^T + R is "
-                           f"not positive definite (diagonal {np.diag(S)!r}; {exc}); check "
-                           f"the measurement's sigmas and the filter's noise settings") from None
-    w = np.linalg.solve(np.tril(cf[0]), z) if len(z) > 1 else z / cf[0][0]
-    nis = float(w @ w)
+                           f"not positive definite (diagonal {np.diag(S)!r}; its Cholesky "
+                           f"factorization failed); check the measurement's sigmas and the "
+                           f"filter's noise settings")
     sigma = np.sqrt(np.diag(S))
-    if not nis <= threshold:
-        return None, P, nis, sigma
-    K = cho_solve(cf, PHt.T).T
-    dx = K @ z
-    IKH = np.eye(len(P)) - K @ H
-    P = IKH @ P @ IKH.T + K @ R @ K.T
-    return dx, P, nis, sigma
+    if status == 1:
+        return None, P, float(nis), sigma
+    return dx, P_post, float(nis), sigma
+
+
+def chi2_upper_quantile(q, dof):
+    """The chi-square quantile with upper-tail probability ``q``: ``x`` with
+    ``P(X > x) = q`` for ``X`` chi-square with ``dof`` (a positive integer) degrees of
+    freedom (scipy's ``chi2.isf``, the tests' reference; without importing scipy.stats).
+
+    ``q <= 0`` gives ``inf``, ``q >= 1`` gives 0.  Relative accuracy about 1e-13.
+    """
+    dof = int(dof)
+    if dof < 1:
+        raise ValueError(f"dof must be a positive integer, got {dof}")
+    if not q > 0.0:
+        return float("inf")
+    if q >= 1.0:
+        return 0.0
+
+    def upper(x):               # P(X > x): the closed forms for integer dof
+        h = 0.5 * x
+        if dof % 2 == 0:
+            term, total = 1.0, 1.0
+            for k in range(1, dof // 2):
+                term *= h / k
+                total += term
+            return math.exp(-h) * total
+        total = math.erfc(math.sqrt(h))
+        term = math.sqrt(h) / math.gamma(1.5) * math.exp(-h)
+        for k in range(1, (dof - 1) // 2 + 1):
+            total += term
+            term *= h / (k + 0.5)
+        return total
+
+    lo, hi = 0.0, max(float(dof), 1.0)
+    while upper(hi) > q:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):        # bisection to the last bits
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if upper(mid) > q:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 #: Columns of ``innovations.txt`` (units in the names; ``value`` and ``sigma`` in the

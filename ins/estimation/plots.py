@@ -23,7 +23,8 @@ from ins.common.plotstyle import (
 )
 from ins.estimation.error_model import SENSORS, STATE
 
-__all__ = ["plot_errors", "plot_sigma", "plot_biases", "plot_innovations", "injected_biases",
+__all__ = ["plot_errors", "plot_sigma", "plot_biases", "plot_innovations",
+           "plot_satellite_residuals", "injected_biases",
            "write_plots"]
 
 _DPH = np.pi / 180.0 / 3600.0          # rad/s per deg/h
@@ -193,15 +194,11 @@ def plot_innovations(result, path):
     fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
                              squeeze=False)
     for ax, kind in zip(axes[:, 0], kinds):
-        sel = [r for r in recs if r.name == kind]
-        t = np.array([r.time for r in sel]) - t0
-        z = np.array([r.standardized for r in sel])
-        ok = np.array([r.accepted for r in sel])
-        for i, axis in enumerate(sel[0].axes):
-            rms = np.sqrt(np.mean(z[ok, i] ** 2)) if np.any(ok) else np.nan
-            ax.plot(t[ok], z[ok, i], ".", ms=2, label=f"{axis}: RMS {rms:.2f}")
+        for axis, (t, z, ok) in _series([r for r in recs if r.name == kind], t0).items():
+            rms = np.sqrt(np.mean(z[ok] ** 2)) if np.any(ok) else np.nan
+            ax.plot(t[ok], z[ok], ".", ms=2, label=f"{axis}: RMS {rms:.2f}")
             if np.any(~ok):
-                ax.plot(t[~ok], np.clip(z[~ok, i], -10, 10), "x", ms=4, color="k")
+                ax.plot(t[~ok], np.clip(z[~ok], -10, 10), "x", ms=4, color="k")
         ax.axhline(3, color="0.5", lw=0.8, ls="--")
         ax.axhline(-3, color="0.5", lw=0.8, ls="--")
         for a, b, _, _ in recoveries:        # runs of rejected fixes, then the recovery
@@ -221,6 +218,74 @@ def plot_innovations(result, path):
     return save_png(fig, path)
 
 
+def _series(records, t0, standardized=True):
+    """``{axis label: (time - t0, value, accepted)}`` of records whose axes are N/E/D
+    (one label per column) or a satellite each (tight coupling: one record per
+    satellite and epoch).  ``standardized``: ``z / sqrt(S)``, else the innovation."""
+    out = {}
+    for r in records:
+        v = r.standardized if standardized else r.innovation
+        for i, axis in enumerate(r.axes):
+            out.setdefault(axis, []).append((r.time - t0, float(v[i]), r.accepted))
+    return {k: tuple(np.array(c) for c in zip(*rows)) for k, rows in sorted(out.items())}
+
+
+_SAT_KINDS = (("pseudorange", "m"), ("range_rate", "m/s"))
+
+
+def plot_satellite_residuals(result, path):
+    """Tight coupling: each satellite's pseudorange and range-rate innovation (predicted -
+    measured before the update, m and m/s) against time, one colour per satellite with its RMS, rejected
+    ones as crosses, and the satellites used per epoch.  None without such records."""
+    recs = getattr(getattr(result, "fwd", None), "records", None) or []
+    kinds = [(k, u) for k, u in _SAT_KINDS if any(r.name == k for r in recs)]
+    if not kinds:
+        return None
+    plt = pyplot()
+    t0 = float(result.node_time[0])
+    fig, axes = plt.subplots(len(kinds) + 1, 1, figsize=(10, 2.8 * len(kinds) + 3.2),
+                             sharex=True, squeeze=False)
+    cmap = plt.get_cmap("tab20")
+    for ax, (kind, unit) in zip(axes[:, 0], kinds):
+        series = _series([r for r in recs if r.name == kind], t0, standardized=False)
+        lim = []
+        for j, (sat, (t, v, ok)) in enumerate(series.items()):
+            rms = np.sqrt(np.mean(v[ok] ** 2)) if np.any(ok) else np.nan
+            ax.plot(t[ok], v[ok], ".", ms=2, color=cmap(j % 20),
+                    label=f"{sat}: RMS {rms:.2f}")
+            if np.any(~ok):
+                ax.plot(t[~ok], v[~ok], "x", ms=4, color=cmap(j % 20))
+            lim.append(v[ok])
+        vals = np.concatenate(lim) if lim else np.zeros(0)
+        if vals.size:                     # the accepted residuals, a blunder or two outside
+            lo, hi = np.percentile(vals, [0.2, 99.8])
+            pad = 0.15 * (hi - lo) if hi > lo else 1.0
+            ax.set_ylim(lo - pad, hi + pad)
+        ax.set_ylabel(f"{kind}\ninnovation, {unit}")
+        ax.grid(alpha=0.3)
+        legend_right(ax, fontsize=6)
+    used = {}
+    for r in recs:
+        if r.name == "pseudorange":
+            used.setdefault(r.time, 0)
+            used[r.time] += bool(r.accepted)
+    t = np.array(sorted(used)) - t0
+    ax = axes[-1, 0]
+    ax.step(t, [used[k] for k in sorted(used)], where="post", color="k", lw=1)
+    ax.axhline(4, color="tab:red", lw=0.8, ls="--")
+    ax.set_ylabel("satellites used")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    xlabel, origin = time_label(t0)
+    axes[-1, 0].set_xlabel(xlabel)
+    fig.suptitle("Tight coupling: innovations per satellite (predicted - measured, before "
+                 "the update; a shift common to an epoch is the receiver clock's);\ncrosses: "
+                 "rejected; dashed: 4 satellites, below which loose coupling has no fix; "
+                 f"{origin}", fontsize=10)
+    fig.tight_layout()
+    return save_png(fig, path)
+
+
 def write_plots(result, out_dir, flight_dir=None):
     """Write the PNG plots into ``out_dir``; returns their paths.  ``flight_dir``: a
     simulated flight folder whose manifest gives the injected biases (optional)."""
@@ -229,7 +294,9 @@ def write_plots(result, out_dir, flight_dir=None):
              plot_biases(result, os.path.join(out_dir, "biases.png"), injected)]
     if result.errors_smoothed is not None:
         paths.append(plot_errors(result, os.path.join(out_dir, "errors.png")))
-    inn = plot_innovations(result, os.path.join(out_dir, "innovations.png"))
-    if inn is not None:
-        paths.append(inn)
+    for plot, name in ((plot_innovations, "innovations.png"),
+                       (plot_satellite_residuals, "satellite_residuals.png")):
+        p = plot(result, os.path.join(out_dir, name))
+        if p is not None:
+            paths.append(p)
     return paths

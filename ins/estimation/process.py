@@ -31,7 +31,6 @@ from ins.estimation.process_trust import (
     fix_name,
 )
 from ins.estimation.smoother import iter_smoothed, rts_errors
-from ins.estimation.updates import filterpy_functions
 from ins.io.gnss import read_gnss
 from ins.io.imu_blocks import iter_imu, prefetch, with_location
 from ins.io.imu_files import shifted_blocks
@@ -342,7 +341,6 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
                                               rates=cfg.imu_rates, axes=cfg.imu_axes),
                                      cfg.imu_time_shift_s))
-    filterpy_functions()           # the imports overlap the reader thread's parsing
     gnss, gnss_source = _gnss(cfg, gnss_dir if gnss_dir is not None else workdir)
     mount = read_mount(cfg.mount) if cfg.mount else None
     lever = _lever(cfg, mount)

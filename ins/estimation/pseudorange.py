@@ -68,7 +68,7 @@ from ins.estimation.measurements import (
 from ins.estimation.updates import Updater
 from ins.nav import earth
 
-__all__ = ["CLOCKS", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
+__all__ = ["CLOCK_JUMP_SIGMAS", "CLOCKS", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
            "sagnac_range", "sagnac_range_rate", "CLIGHT"]
 
 CLIGHT = 299792458.0
@@ -201,6 +201,11 @@ class _Epoch:
     extra: dict = field(default_factory=dict)
 
 
+#: A common offset of an epoch's pseudoranges beyond this many of the sigmas the filter
+#: expects is a jump of the receiver clock (:meth:`TightUpdater._clock_jump`).
+CLOCK_JUMP_SIGMAS = 20.0
+
+
 class TightUpdater(Updater):
     """The filter's GNSS update for :class:`ins.gnss.raw_epochs.RawEpochs`
     (``FilterSettings.updater``):
@@ -223,6 +228,7 @@ class TightUpdater(Updater):
         self.t_clock = None            # epoch of the clock estimate (s)
         self._clock_set = False
         self.epochs = []
+        self.clock_jumps = []          # (time s, jump m) of the receiver clock
 
     def _sigmas(self, el, snr):
         o = self.opt
@@ -271,6 +277,9 @@ class TightUpdater(Updater):
             self._init_clock(sensors, rho, rate, y_r, y_d, up)
             rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg)
         var_r, var_d = self._sigmas(el, snr)
+        P = self._clock_jump(tg, sensors, P, rho, y_r, var_r, up)
+        if self.clock_jumps and self.clock_jumps[-1][0] == tg:
+            rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg)
         rows, z, R = [], [], []
         thr = self._threshold(1)
         cand = [(i, "pseudorange", "m", rho[i] - y_r[i], H_r[i], var_r[i]) for i in
@@ -310,6 +319,33 @@ class TightUpdater(Updater):
         return P, x
 
     name = "gnss_tight"
+
+    def _clock_jump(self, t, sensors, P, rho, y_r, var_r, up):
+        """A receiver clock that jumped (a millisecond reset of a u-blox or phone
+        receiver: 300 km in every pseudorange) would have every satellite rejected from
+        then on.  When at least two satellites agree on a common offset of the ranges
+        that is beyond :data:`CLOCK_JUMP_SIGMAS` of what the filter expects, and at least
+        half of them agree on it within their sigmas after its removal, the clock bias is
+        set again: ``b += offset``, its covariance back to the prior with no
+        correlation.  The jump is recorded (:attr:`clock_jumps`); returns ``P``."""
+        i = np.flatnonzero(up)
+        if i.size < 2:
+            return P
+        c = self.layout.clock.start
+        d = y_r[i] - rho[i]
+        off = float(np.median(d))
+        expected = np.sqrt(P[c, c] + float(np.median(var_r[i])) + np.trace(P[:3, :3]))
+        if abs(off) <= CLOCK_JUMP_SIGMAS * expected:
+            return P
+        agree = np.abs(d - off) <= 5.0 * np.sqrt(var_r[i] + np.trace(P[:3, :3]))
+        if 2 * np.count_nonzero(agree) < i.size or np.count_nonzero(agree) < 2:
+            return P
+        sensors[c - 9] += off
+        P = P.copy()
+        P[c, :] = P[:, c] = 0.0
+        P[c, c] = self.s.clock_bias_std_m ** 2
+        self.clock_jumps.append((t, off))
+        return P
 
     def _init_clock(self, sensors, rho, rate, y_r, y_d, up):
         """The clock estimate from the first epoch: the median of the measured minus

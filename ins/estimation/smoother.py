@@ -32,14 +32,15 @@ rate of change of the velocity error (1e-4 m/s^2 for 10 arcsec of tilt): 0.01 mm
 filterpy's ``rts_smoother`` is not used: it assumes ``x-_{j+1} = F x+_j`` for the
 stored estimates, which does not hold across the closed-loop resets (the estimates live
 in a different reference trajectory at every node); the recursion above is its
-algebra with the resets accounted for.
+algebra with the resets accounted for.  Each backward step is one compiled kernel
+(:func:`ins.estimation._kalman_kernels.rts_step`).
 """
 from dataclasses import dataclass
 
 import numpy as np
 
 from ins.common.errors import QualityError
-from ins.estimation import _filter_kernels
+from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import STATE_NAMES, checked_std
 
 
@@ -71,8 +72,7 @@ def rts_errors(fwd, full=True):
         forward posterior variance of the same state): the message names the node time
         (``fwd.node_time`` when present, else the node index) and the state.
     """
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
-    dx = np.asarray(fwd.dx)
+    dx = np.asarray(fwd.dx, dtype=float)
     node_time = getattr(fwd, "node_time", None)
     when = ((lambda j: f"t = {float(node_time[j]):.3f} s") if node_time is not None
             else (lambda j: f"node {j}"))
@@ -82,24 +82,23 @@ def rts_errors(fwd, full=True):
     std = np.empty((m, n))
     nxt = None                                          # (P_prior, Phi, Ps) of node j + 1
     for j, P_prior, P_post, Phi in _backward_nodes(fwd):
+        P_post = np.ascontiguousarray(P_post, dtype=float)
         if nxt is None:
             Pj = np.array(P_post)
         else:
             # A = P+_j Phi^T (P-)^-1  <=>  A^T = (P-)^-1 Phi P+_j  (P- symmetric positive)
-            try:
-                cf = cho_factor(nxt[0])
-            except (LinAlgError, ValueError) as exc:
-                raise QualityError(_not_positive(nxt[0], when(j + 1), exc)) from None
-            A = cho_solve(cf, nxt[1] @ P_post).T
-            xs[j] = A @ (dx[j + 1] + xs[j + 1])
-            Pj = P_post + A @ (nxt[2] - nxt[0]) @ A.T
-            Pj = 0.5 * (Pj + Pj.T)
+            ok, xs[j], Pj = _kalman_kernels.rts_step(nxt[0], nxt[1], P_post, nxt[2],
+                                                     dx[j + 1] + xs[j + 1])
+            if not ok:
+                raise QualityError(_not_positive(nxt[0], when(j + 1),
+                                                 "its Cholesky factorization failed"))
         if full:
             Ps[j] = Pj
         std[j] = checked_std(np.diag(Pj), np.diag(P_post),
                              None if node_time is None else node_time[j], names=_names(fwd, n),
                              what="smoothed covariance")
-        nxt = (P_prior, Phi, Pj)
+        nxt = (np.ascontiguousarray(P_prior, dtype=float),
+               np.ascontiguousarray(Phi, dtype=float), Pj)
     return xs, (Ps if full else std)
 
 

@@ -12,7 +12,15 @@ __all__ = ["write_innovations", "write_optional_states", "GROUP_UNITS"]
 ARCSEC = np.pi / 180.0 / 3600.0
 #: Edge unit of each optional group: (suffix, SI per unit).
 GROUP_UNITS = {"gyro_misalignment": ("arcsec", ARCSEC), "accel_misalignment": ("arcsec", ARCSEC),
-               "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3)}
+               "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3),
+               # the receiver clock (tight coupling): bias c*dt in m, drift in m/s
+               "clock": (("m", 1.0), ("mps", 1.0))}
+
+
+def _state_units(group):
+    """(suffix, SI per unit) of each state of an optional group."""
+    u = GROUP_UNITS[group]
+    return list(u) if isinstance(u[0], tuple) else [u] * OPTIONAL_GROUPS[group]
 
 
 def optional_columns(layout):
@@ -20,8 +28,8 @@ def optional_columns(layout):
     names = [n for n in layout.names[21:]]
     unit = {}
     for g in layout.groups:
-        for k in range(OPTIONAL_GROUPS[g]):
-            unit[layout.names[getattr(layout, g).start + k]] = GROUP_UNITS[g][0]
+        for k, (suffix, _) in enumerate(_state_units(g)):
+            unit[layout.names[getattr(layout, g).start + k]] = suffix
     return ([f"{n}_{unit[n]}" for n in names] + [f"std_{n}_{unit[n]}" for n in names])
 
 
@@ -33,14 +41,15 @@ def write_optional_states(path, result):
     layout = result.fwd.layout
     if not layout.groups:
         return None
-    scale = np.concatenate([np.full(OPTIONAL_GROUPS[g], GROUP_UNITS[g][1]) for g in layout.groups])
+    scale = np.array([si for g in layout.groups for _, si in _state_units(g)])
     est = result.smoothed_sensors[:, 12:] / scale
     std = result.smoothed_std[:, 21:] / scale
     with atomic_open(path, "w") as f:
         f.write("# time_s " + " ".join(optional_columns(layout))
                 + "  (smoothed, at the filter nodes; lever arm: correction added to the "
                   "configured arm, b frame; time offset: a GNSS record stamped t is at IMU "
-                  "time t + offset)\n")
+                  "time t + offset; clock: the estimated receiver clock bias c dt, m, "
+                  "and drift, m/s)\n")
         for t, e, s in zip(result.node_time, est, std):
             f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s])) + "\n")
     return path

@@ -129,7 +129,8 @@ def tight_counts(fwd):
     if not hasattr(up, "satellites_used"):
         return {"coupling": "loose"}
     lo, mean, _ = up.satellites_used()
-    out = {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2)}
+    out = {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2),
+           "clock_jumps": list(getattr(up, "clock_jumps", []))}
     if hasattr(up, "base_name"):
         out.update(base=up.base_name, reference_changes=up.ref_changes)
     return out

@@ -13,19 +13,13 @@ from ins.estimation.measurements import (
     NonHolonomic,
     UpdateRecord,
     ZeroVelocity,
+    chi2_upper_quantile,
     kalman_update,
     node_acceleration,
 )
 
-__all__ = ["Updater", "filterpy_functions", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S",
-           "RECOVER_ENTRY_FACTOR", "RECOVER_MAX_FACTOR"]
-
-
-def filterpy_functions():
-    """filterpy's ``predict`` and ``update`` and scipy's ``chi2`` (imported on first use)."""
-    from filterpy.kalman import predict, update
-    from scipy.stats import chi2
-    return predict, update, chi2
+__all__ = ["Updater", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S", "RECOVER_ENTRY_FACTOR",
+           "RECOVER_MAX_FACTOR"]
 
 
 #: A run of rejected GNSS position fixes triggers a recovery (covariance inflation of the
@@ -53,7 +47,6 @@ class Updater:
         self.s = settings
         self.layout = settings.layout
         self.gnss = gnss
-        self.kf_predict, _, self.chi2 = filterpy_functions()
         self.thresholds = {}
         self.threshold = self._threshold(3)
         self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
@@ -67,7 +60,7 @@ class Updater:
 
     def _threshold(self, m):
         if m not in self.thresholds:
-            self.thresholds[m] = float(self.chi2.ppf(1.0 - self.s.reject_probability, m))
+            self.thresholds[m] = chi2_upper_quantile(self.s.reject_probability, m)
         return self.thresholds[m]
 
     def apply(self, meas, point, P):

@@ -3,7 +3,7 @@
 :func:`iter_imu` yields consecutive :class:`ins.nav.imu.ImuLog` pieces of a file with the
 checks of :mod:`ins.nav.imu` (finite values, strictly increasing time also across blocks,
 plausible increments, rates turned into increments, axes mapped into FRD): memory is
-one block (16 MiB of text, or ``block_rows`` binary records) whatever the length of
+one block (4 MiB of text, or ``block_rows`` binary records) whatever the length of
 the log.  KF-GINS text and binary logs are read in blocks; a CSV log is read whole and
 then handed out in pieces.  The text parser releases the GIL, so the blocks can be read
 in a thread beside the filter (:func:`prefetch`).
@@ -19,7 +19,12 @@ from ins.common.errors import InputError
 from ins.io import imu_files
 from ins.nav import imu as imu_mod
 
-BLOCK_ROWS = 1 << 18
+#: Binary records per block (3.7 MB of KF-GINS records); see :data:`TEXT_BLOCK_BYTES`.
+BLOCK_ROWS = 1 << 16
+#: Text read per block (about 26 000 KF-GINS lines): with the parsed rows, the checked
+#: log and the reader thread's queue (:func:`prefetch`) the IMU costs about 8 times this
+#: in memory, whatever the length of the log; larger blocks are no faster.
+TEXT_BLOCK_BYTES = 4 << 20
 
 
 def _format_of(path, format):
@@ -37,7 +42,7 @@ def _text_tables(path, rates):
     layout = ("KF-GINS text: time [s], gyro x y z [rad/s], accel x y z [m/s^2]" if rates
               else "KF-GINS text: time [s], dtheta x y z [rad], dvel x y z [m/s]")
     for values, row_line in textfiles.iter_table(path, 7, 1 << 30, column_names=names,
-                                               hint=layout):
+                                               hint=layout, block_bytes=TEXT_BLOCK_BYTES):
         yield values[:, :7], row_line
 
 

@@ -60,9 +60,10 @@ def _lla_rate(lat, h, v_north, v_east, v_down):
 
 
 #: Public names of the jitable scalar formulas above, for the numba kernels of other
-#: subpackages (``ins.simulate._kernels``): normal gravity (m/s^2), Earth rate and
-#: transport rate as their north, east, down components (rad/s).
+#: subpackages (``ins.simulate._kernels``): normal gravity (m/s^2), radii of curvature
+#: (M, N, m), Earth rate and transport rate as their north, east, down components (rad/s).
 gravity_kernel = _gravity
+radii_kernel = _radii
 earth_rate_kernel = _earth_rate
 transport_rate_kernel = _transport_rate
 
@@ -107,12 +108,16 @@ def normal_gravity(lat, h):
 def gravity_n(lat, h):
     """Normal gravity vector ``[0, 0, g]`` in the NED frame, m/s^2, shape (..., 3)."""
     g = normal_gravity(lat, h)
+    if g.ndim == 0:                                  # one point: no stacking
+        return np.array([0.0, 0.0, g])
     return np.stack([np.zeros_like(g), np.zeros_like(g), g], axis=-1)
 
 
 def earth_rate_n(lat):
     """Earth rotation rate ``w_ie_n = [W cos lat, 0, -W sin lat]``, rad/s, shape (..., 3)."""
     lat = np.asarray(lat, dtype=float)
+    if lat.ndim == 0:
+        return np.array(_earth_rate(lat))
     return np.stack(_earth_rate(lat), axis=-1)
 
 
@@ -131,6 +136,8 @@ def transport_rate_n(lat, h, v_n):
     v_n = _as_vector(v_n, "v_n")
     lat = np.asarray(lat, dtype=float)
     h = np.asarray(h, dtype=float)
+    if v_n.ndim == 1 and lat.ndim == 0 and h.ndim == 0:     # one point
+        return np.array(_transport_rate(lat, h, v_n[0], v_n[1]))
     return np.stack(np.broadcast_arrays(*_transport_rate(lat, h, v_n[..., 0], v_n[..., 1])),
                     axis=-1)
 
@@ -143,6 +150,8 @@ def lla_rate(lat, h, v_n):
     v_n = _as_vector(v_n, "v_n")
     lat = np.asarray(lat, dtype=float)
     h = np.asarray(h, dtype=float)
+    if v_n.ndim == 1 and lat.ndim == 0 and h.ndim == 0:     # one point
+        return np.array(_lla_rate(lat, h, v_n[0], v_n[1], v_n[2]))
     return np.stack(np.broadcast_arrays(
         *_lla_rate(lat, h, v_n[..., 0], v_n[..., 1], v_n[..., 2])), axis=-1)
 
@@ -192,7 +201,27 @@ def ned_offset(lla_from, lla_to):
     """
     a = np.asarray(lla_from, dtype=float)
     b = np.asarray(lla_to, dtype=float)
+    if a.shape == (3,) and b.shape == (3,):          # one pair: the same sums, unstacked
+        return _ned_offset_one(a, b)
     d_e = lla_to_ecef(b[..., 0], b[..., 1], b[..., 2]) - lla_to_ecef(a[..., 0], a[..., 1],
                                                                      a[..., 2])
     C_en = dcm_en(a[..., 0], a[..., 1])
     return np.einsum("...ji,...j->...i", C_en, d_e)
+
+
+def _ecef_one(lat, lon, h):
+    _, rn = _radii(lat)
+    cl = np.cos(lat)
+    return ((rn + h) * cl * np.cos(lon), (rn + h) * cl * np.sin(lon),
+            (rn * (1.0 - E2) + h) * np.sin(lat))
+
+
+def _ned_offset_one(a, b):
+    """:func:`ned_offset` of one pair of points (shape (3,) each)."""
+    xb, yb, zb = _ecef_one(b[0], b[1], b[2])
+    xa, ya, za = _ecef_one(a[0], a[1], a[2])
+    dx, dy, dz = xb - xa, yb - ya, zb - za
+    sl, cl, so, co = np.sin(a[0]), np.cos(a[0]), np.sin(a[1]), np.cos(a[1])
+    return np.array([-sl * co * dx + -sl * so * dy + cl * dz,
+                     -so * dx + co * dy + 0.0 * dz,
+                     -cl * co * dx + -cl * so * dy + -sl * dz])

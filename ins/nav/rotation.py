@@ -336,7 +336,15 @@ def quat_to_dcm(q):
         On a wrong shape, a zero-norm quaternion or a NaN / infinite element (the
         message names the first offending row of a stack).
     """
-    q, single = as_stack(q, "q", (4,), finite=True)
+    a = np.asarray(q, dtype=float)
+    if a.shape == (4,) and np.isfinite(a).all():     # one quaternion: scalar arithmetic
+        norm = np.sqrt(np.add.reduce(a * a))
+        if norm > 0:
+            x, y, z, w = a / norm
+            return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    q, single = as_stack(a, "q", (4,), finite=True)
     return _out(_q2c(_normalized(q)), single)
 
 

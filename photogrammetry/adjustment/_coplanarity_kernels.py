@@ -420,3 +420,57 @@ def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, sign, s2, max
         if status[p] <= 1:
             Q[p] = np.linalg.inv(H)
         base[p] = b
+
+
+@njit(cache=True)
+def joint_weight_blocks(idx, obs, d, s2, tol):
+    """Per tie point, the pseudo-inverse of the joint covariance of its conditions (see
+    :func:`photogrammetry.adjustment.block_conditions._joint_weights`), compiled.
+
+    Parameters
+    ----------
+    idx : ndarray of int (T, c)
+        Conditions of each of T tie points with c conditions.
+    obs : ndarray of int (C, 2); d : ndarray (C, 2, 2); s2 : float; tol : float
+
+    Returns
+    -------
+    vals : ndarray (T, c, c)
+        The weight blocks.
+    rank : int
+        Eigenvalues kept (independent conditions).
+    """
+    T, c = idx.shape
+    vals = np.zeros((T, c, c))
+    rank = 0
+    S = np.empty((c, c))
+    inv = np.empty(c)
+    for t in range(T):
+        for a in range(c):
+            ca = idx[t, a]
+            for b in range(c):
+                cb = idx[t, b]
+                acc = 0.0
+                for s in range(2):
+                    for r in range(2):
+                        if obs[ca, s] == obs[cb, r]:
+                            acc += d[ca, s, 0] * d[cb, r, 0] + d[ca, s, 1] * d[cb, r, 1]
+                S[a, b] = s2 * acc
+        for a in range(c):
+            inv[a] = 1.0 / np.sqrt(S[a, a]) if S[a, a] > 0 else 0.0
+        for a in range(c):
+            for b in range(c):
+                S[a, b] *= inv[a] * inv[b]
+        lam, U = np.linalg.eigh(S)
+        top = lam[c - 1]
+        for k in range(c):
+            if lam[k] > tol * top:
+                rank += 1
+                w = 1.0 / lam[k]
+                for a in range(c):
+                    for b in range(c):
+                        vals[t, a, b] += U[a, k] * w * U[b, k]
+        for a in range(c):
+            for b in range(c):
+                vals[t, a, b] *= inv[a] * inv[b]
+    return vals, rank

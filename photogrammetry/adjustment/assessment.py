@@ -43,7 +43,7 @@ import numpy as np
 
 from ins.nav.rotation import rotvec_to_dcm, wrap_to_pi
 from photogrammetry.adjustment import _coplanarity_kernels as K
-from photogrammetry.adjustment.reml import BandedV, gls_reml_banded
+from photogrammetry.adjustment.reml import banded_v, gls_reml_banded
 from photogrammetry.orientation.rotation import angles_to_matrix, matrix_to_angles
 
 __all__ = ["Assessment", "assess", "gls_variance_components", "LAMBDA_MAX_REL",
@@ -227,7 +227,7 @@ MAX_ROUNDS = 30
 LAMBDA_TRY_REL = 2 * LAMBDA_MAX_REL
 
 
-def _fit(y, A, C, groups, start=None):
+def _fit(y, A, C, groups, start=None, cache=None):
     """GLS + REML of ``y = A x + e``, ``V = lambda C + diag(s^2[groups])``.
 
     ``lambda`` checks the block's covariance ``C`` (about 1 when the conditions of points
@@ -253,7 +253,8 @@ def _fit(y, A, C, groups, start=None):
             t0 = None if t0 is None else np.concatenate([t0[:1], t0[1:] / scale])
             if t0 is not None and fixed is not None:
                 t0[0] = fixed[0]
-            res = gls_reml_banded(y, A, C, groups, scale, fixed, t0, info=info)
+            res = gls_reml_banded(y, A, C, groups, scale, fixed, t0, info=info,
+                                  cache=cache)
             if np.all(np.isfinite(res[2])):
                 start[key] = np.concatenate([res[2][:1], res[2][1:] * scale])
             return res
@@ -286,7 +287,7 @@ def _scale(y, C):
     return max(trace / len(y), float(np.mean(y ** 2)), 1e-30)
 
 
-def _gls(y, A, C, groups, lam, s2):
+def _gls(y, A, C, groups, lam, s2, cache=None):
     """GLS estimate of ``y = A x + e`` with the variance components held,
     ``V = lam C + diag(s2[groups])`` (one factorization of ``V``): ``x`` and its
     covariance ``(A' V^-1 A)^-1``."""
@@ -297,7 +298,7 @@ def _gls(y, A, C, groups, lam, s2):
         Wa, Wy = W[:, :-1], W[:, -1]
         cov = np.linalg.inv(Wa.T @ Wa)
         return cov @ (Wa.T @ Wy), cov
-    Vs = BandedV(C, lam, d)
+    Vs = banded_v(C, lam, d, cache=cache)
     ViA = Vs.solve(A)
     cov = np.linalg.inv(A.T @ ViA)
     return cov @ (ViA.T @ y), cov
@@ -310,7 +311,7 @@ def _small(v, cov):
     return bool(np.max(np.abs(v)) < 1e-12 or np.all(np.abs(v) <= 1e-3 * sig))
 
 
-def _means(C, lam, s2, ones, d, k):
+def _means(C, lam, s2, ones, d, k, cache=None):
     """Sigma of the arithmetic mean ``sqrt(1' V 1) / k``, covariance and value of the
     GLS mean, with ``V = lam C + diag(s2)`` (dense C or a banded operator)."""
     if isinstance(C, np.ndarray):
@@ -319,8 +320,8 @@ def _means(C, lam, s2, ones, d, k):
         Vi = _inv_spd(V + 1e-12 * np.trace(V) / len(V) * np.eye(len(V)))
         Vi_ones = Vi @ ones
     else:
-        Vs = BandedV(C, lam, s2 + 1e-12 * (lam * np.einsum("kaa->", C.blocks)
-                                           + np.sum(s2)) / len(s2))
+        Vs = banded_v(C, lam, s2 + 1e-12 * (lam * np.einsum("kaa->", C.blocks)
+                                            + np.sum(s2)) / len(s2), cache=cache)
         mean_sigma = np.sqrt(np.einsum("na,na->a", ones, Vs.dot(ones))) / k
         Vi_ones = Vs.solve(ones)
     cov_mean = np.linalg.inv(ones.T @ Vi_ones)
@@ -348,7 +349,6 @@ def assess(result, angles_ins, system, datum, method, progress=None):
     Assessment
     """
     ins = np.asarray(angles_ins, dtype=float)
-    m = len(ins)
     used = result.adjusted & (result.sigma.max(axis=1) > 0)
     diff = np.where(used[:, None], wrap_to_pi(ins - result.angles), 0.0)
     d = diff[used]
@@ -389,14 +389,15 @@ def assess(result, angles_ins, system, datum, method, progress=None):
         # negligible, then the REML fit again there (from its last components) until its
         # own increment is negligible
         start, fits, ready = {}, 0, True
+        cache = {}               # the last factor of V, asked for again at the same V
         for boresight_iterations in range(1, MAX_ROUNDS + 1):
             final = ready and fits < 4
             if final:
                 (v, cov_v, lam, lam_sigma, theta, theta_sigma, r, chi2, signed,
-                 negative) = _fit(d_k.ravel(), A, C, groups, start)
+                 negative) = _fit(d_k.ravel(), A, C, groups, start, cache)
                 fits += 1
             else:
-                v, cov_g = _gls(d_k.ravel(), A, C, groups, lam, theta)
+                v, cov_g = _gls(d_k.ravel(), A, C, groups, lam, theta, cache)
             B_k = B_k @ rotvec_to_dcm(v[:3])
             if not observable:
                 P_k = P_k @ rotvec_to_dcm(v[3:6])
@@ -411,7 +412,9 @@ def assess(result, angles_ins, system, datum, method, progress=None):
             raise RuntimeError("the boresight fit did not converge")   # not reached
         dof = 3 * k - A.shape[1]
         e = r.reshape(k, 3)
-        mean_sigma, cov_mean, gls_mean = _means(C, lam, theta[groups], ones, d.ravel(), k)
+        mean_sigma, cov_mean, gls_mean = _means(C, lam, theta[groups], ones, d.ravel(), k,
+                                                cache)
+        cache.clear()
         gls_mean_sigma = np.sqrt(np.diag(cov_mean))
         if observable:
             beta_sigma = np.sqrt(np.diag(cov_v)[:3])

@@ -182,14 +182,29 @@ class SparseSPD:
 
     def __init__(self, A, what="normal matrix"):
         A = sparse.csc_matrix(A)
+        A.sum_duplicates()                       # canonical: sorted, no duplicates
         self.n = A.shape[0]
         bad = InputError(f"{what} is singular or not positive definite (part of the "
                          "block not connected to the datum, or degenerate geometry)")
+        key = _pattern_key(A)
+        order = _ORDERS.get(key)
         try:
-            self.lu = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options=dict(SymmetricMode=True))
+            if order is None:
+                lu = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                          options=dict(SymmetricMode=True))
+            else:                                # the same pattern: its ordering again
+                lu = splu(A[order][:, order].tocsc(), permc_spec="NATURAL",
+                          diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
         except RuntimeError:
             raise bad from None
+        self.lu, self.order = lu, order      # order: None if A itself was factored
+        if order is None:
+            _remember(key, np.argsort(lu.perm_c))   # factor position -> original index
+            self.perm_c = lu.perm_c
+        else:                                # original index -> position in the factor
+            iorder = np.empty_like(order)
+            iorder[order] = np.arange(self.n)
+            self.perm_c = lu.perm_c[iorder]
         self.d = self.lu.U.diagonal()
         if not np.all(self.d > 0):
             raise bad
@@ -202,7 +217,12 @@ class SparseSPD:
 
     def solve(self, rhs):
         """``A^-1 rhs`` for a vector (n,) or a matrix (n, k)."""
-        return self.lu.solve(np.asarray(rhs, dtype=float))
+        rhs = np.asarray(rhs, dtype=float)
+        if self.order is None:
+            return self.lu.solve(rhs)
+        out = np.empty_like(rhs)
+        out[self.order] = self.lu.solve(np.ascontiguousarray(rhs[self.order]))
+        return out
 
     def has_selected_inverse(self):
         """True when the factor is ``L D L^T`` of one symmetric ordering with a closed
@@ -225,7 +245,7 @@ class SparseSPD:
             Z = selected_inverse(L.indptr, L.indices, L.data, self.d)
             self._sel = (L, Z)
         zd, zx = Z
-        p = self.lu.perm_c
+        p = self.perm_c
         r, c = p[np.asarray(rows)], p[np.asarray(cols)]
         lo, hi = np.minimum(r, c), np.maximum(r, c)
         out = zd[lo].copy()
@@ -241,6 +261,29 @@ class SparseSPD:
         """The ``k x k`` diagonal blocks of ``A^-1`` (m, k, k) of the first ``m k``
         unknowns (default all: ``m = n // k``), original order."""
         return _diagonal_blocks(self, k, m)
+
+
+#: Fill-reducing orderings of the last few sparsity patterns factored (a block's
+#: Gauss-Newton iterations and the assessment's REML iterates refactor one pattern
+#: with new values: the minimum-degree ordering is found once, a fifth of a
+#: factorization; the numbers are those of the same elimination order).
+_ORDERS = {}
+_ORDERS_KEPT = 4
+
+
+def _pattern_key(A):
+    """Hashable key of the sparsity pattern of a canonical CSC matrix (a checksum: two
+    patterns that collided would share an ordering, a valid one of more fill)."""
+    import zlib
+    return (A.shape[0], A.nnz, str(A.indices.dtype),
+            zlib.adler32(np.ascontiguousarray(A.indptr)),
+            zlib.adler32(np.ascontiguousarray(A.indices)))
+
+
+def _remember(key, order):
+    _ORDERS[key] = order
+    while len(_ORDERS) > _ORDERS_KEPT:
+        _ORDERS.pop(next(iter(_ORDERS)))
 
 
 def _find_entries(indptr, indices, cols, rows):

@@ -51,7 +51,7 @@ from photogrammetry.adjustment.block_conditions import (
     _reduced_normals,
     pad_pairs,
 )
-from photogrammetry.adjustment.block_covariance import banded_covariance
+from photogrammetry.adjustment.block_covariance import _position_cov, banded_covariance
 from photogrammetry.adjustment.coplanarity import (
     MAX_CHANGE,
     STATUS_TEXT,
@@ -98,8 +98,9 @@ class BlockResult:
     angles : ndarray (m, 3)
         Rad, system order, mapping frame; the prior for images that were not adjusted.
     cov : ndarray (3m, 3m) or None
-        A-posteriori covariance of all angles (image-major), rad^2; None for a block
-        solved with the banded algebra (see `cov_op` and :meth:`cov_blocks`).
+        A-posteriori covariance of all angles (image-major), rad^2, scaled by
+        ``max(sigma0, 1)^2``; None for a block solved with the banded algebra (see
+        `cov_op` and :meth:`cov_blocks`).
     sigma : ndarray (m, 3)
         Per-angle standard deviations, rad (0 for the datum image of ``"first"``).
     sigma0 : float
@@ -159,20 +160,6 @@ class BlockResult:
         s = np.sqrt(np.diag(self.cov))
         inv = np.where(s > 0, 1.0 / np.where(s > 0, s, 1.0), 0.0)
         return self.cov * inv[:, None] * inv[None, :]
-
-
-def _position_cov(WJ, N, img, m, n_ang, position_sigma):
-    """Angle-covariance term of the EO position errors (known-base), to be sandwiched by
-    ``H^-1``: the estimate solves ``J^T W g(theta, X) = 0``, so to first order
-    ``d theta = -H^-1 J^T W G_X dX`` with ``G_X = dg/dX`` (``g = (X_j - X_i) . N``:
-    ``+N`` for image j, ``-N`` for image i).  Returns ``T S_X T^T``, ``T = J^T W G_X``."""
-    C = len(img)
-    cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
-    data = np.concatenate([-N, N], axis=1)
-    G = sparse.csr_matrix((data.ravel(), (np.repeat(np.arange(C), 6), cols.ravel())),
-                          shape=(C, 3 * m))
-    T = (WJ[:, :n_ang].T @ G).toarray()
-    return (T * (position_sigma.ravel() ** 2)[None, :]) @ T.T
 
 
 def _check_options(system, method, datum):
@@ -346,7 +333,7 @@ class _GaussNewton:
         """Iterate from `angles` and bases `b` (copied) to convergence."""
         angles, b = angles.copy(), b.copy()
         converged, S, free, n_ang = False, None, self.free, self.n_ang
-        lin = None
+        lin = prev = None
         for it in range(self.max_iter + 1):
             lin = S = None              # the previous iterate's matrices: memory
             lin = _linearize(angles, self.prior, free, b, cond, joint, self.col, n_ang,
@@ -368,9 +355,13 @@ class _GaussNewton:
             self.iterations += 1
             if self.progress is not None:
                 self.progress(self.iterations, self.max_iter)
-            if big < self.tol and joint:
+            # converged: this step, or the next one at the rate of the last two (fast,
+            # linear), below tol (saves the last of ~4 iterations of 10^6-entry factors)
+            if joint and (big < self.tol or prev is not None and big < 0.1 * prev
+                          and big * big / prev < self.tol):
                 converged = True
                 break
+            prev = big if joint else None
             joint = joint or big < 1e-6
         return _State(angles, b, lin, S, converged, self.iterations)
 
@@ -427,7 +418,8 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
     max_iter : int
         Gauss-Newton iterations per run (and rounds of data snooping).
     tol : float
-        Converged when no step (angles, rad; base-direction parameters) exceeds this
+        Converged when no step (angles, rad; base-direction parameters), or no next
+        step predicted from the last two (at a rate below 0.1), exceeds this
         (default 1e-9 rad: 0.2 milliarcsecond, four orders below the angles' sigmas;
         Gauss-Newton gains about three orders per iteration near the solution).
     progress : callable(done, total), optional
@@ -542,11 +534,12 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
                            "base-direction parameters): nothing checks the result",
                            rejected=screen["rejected"] | snooped)
     sigma0 = float(np.sqrt(lin.vtpv / redundancy))
+    s_cov = max(sigma0, 1.0)        # covariance scale (photogrammetry.adjustment.coplanarity)
     cov_op = None
     if banded:
         ps = (None if position_sigma is None
               else np.broadcast_to(np.asarray(position_sigma, float), (m, 3)))
-        cov_op = banded_covariance(lin.H, sigma0, free, lin.WJ, lin.N, cond.img,
+        cov_op = banded_covariance(lin.H, s_cov, free, lin.WJ, lin.N, cond.img,
                                    ps if mode == "known" else None, n_angles=n_ang,
                                    factor=S)
         cov = None
@@ -554,7 +547,7 @@ def adjust_block(angles_prior, pairs, pair_points, f_mm, system, method="base-fr
         sigma[free] = np.sqrt(np.einsum("iaa->ia", cov_op.blocks))
         sigma[~adjusted] = prior_sigma[~adjusted]
     else:
-        cov = _covariance(S, lin, cond, m, free, adjusted, sigma0, mode, n_ang, prior_sigma,
+        cov = _covariance(S, lin, cond, m, free, adjusted, s_cov, mode, n_ang, prior_sigma,
                           position_sigma)
         sigma = np.sqrt(np.diag(cov)).reshape(m, 3)
     if not converged:

@@ -89,19 +89,20 @@ def _joint_weights(buckets, obs, d, s2, n_cond, tol):
     """
     var = s2 * np.einsum("cij,cij->c", d, d)
     rows, cols, vals, rank = [], [], [], 0
+    obs = np.ascontiguousarray(obs, dtype=np.int64)
+    d = np.ascontiguousarray(d, dtype=float)
     for idx in buckets:
         c = idx.shape[1]
-        o, D = obs[idx], d[idx]                                   # (T, c, 2), (T, c, 2, 2)
-        same = o[:, :, None, :, None] == o[:, None, :, None, :]
-        S = s2 * np.einsum("tabsr,tasx,tbrx->tab", same, D, D)
-        sd = np.sqrt(np.einsum("taa->ta", S))
-        inv = np.where(sd > 0, 1.0 / np.where(sd > 0, sd, 1.0), 0.0)
-        lam, U = np.linalg.eigh(S * inv[:, :, None] * inv[:, None, :])
-        keep = lam > tol * lam[:, -1:]
-        rank += int(keep.sum())
-        Wt = np.einsum("tak,tk,tbk->tab", U, np.where(keep, 1.0 / np.where(keep, lam, 1.0),
-                                                      0.0), U)
-        vals.append((Wt * inv[:, :, None] * inv[:, None, :]).ravel())
+        if c == 1:                          # a condition on its own: 1 / its variance
+            v = var[idx[:, 0]]
+            keep = v > 0
+            rank += int(keep.sum())
+            vals.append(np.where(keep, 1.0 / np.where(keep, v, 1.0), 0.0))
+        else:                               # compiled: per tie point a c x c eigh
+            Wt, r = K.joint_weight_blocks(np.ascontiguousarray(idx, dtype=np.int64), obs, d,
+                                          float(s2), float(tol))
+            rank += int(r)
+            vals.append(Wt.ravel())
         rows.append(np.repeat(idx, c, axis=1).ravel())
         cols.append(np.tile(idx, (1, c)).ravel())
     W = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),

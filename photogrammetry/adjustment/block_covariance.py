@@ -169,3 +169,17 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
         TX = sparse.csr_matrix(WJ.T @ G @ sparse.diags(np.ravel(position_sigma)))
         blocks = blocks + _position_blocks(factor, TX, k)
     return BandedCovariance(S, factor, float(sigma0), TX, free, blocks, n_angles, None)
+
+
+def _position_cov(WJ, N, img, m, n_ang, position_sigma):
+    """Angle-covariance term of the EO position errors (known-base), to be sandwiched by
+    ``H^-1``: the estimate solves ``J^T W g(theta, X) = 0``, so to first order
+    ``d theta = -H^-1 J^T W G_X dX`` with ``G_X = dg/dX`` (``g = (X_j - X_i) . N``:
+    ``+N`` for image j, ``-N`` for image i).  Returns ``T S_X T^T``, ``T = J^T W G_X``."""
+    C = len(img)
+    cols = (3 * img[:, :, None] + np.arange(3)).reshape(C, 6)
+    data = np.concatenate([-N, N], axis=1)
+    G = sparse.csr_matrix((data.ravel(), (np.repeat(np.arange(C), 6), cols.ravel())),
+                          shape=(C, 3 * m))
+    T = (WJ[:, :n_ang].T @ G).toarray()
+    return (T * (position_sigma.ravel() ** 2)[None, :]) @ T.T

@@ -22,7 +22,7 @@ from scipy.sparse.linalg import splu
 
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, rcm_order
 
-__all__ = ["BandedV", "gls_reml_banded", "PROBES"]
+__all__ = ["BandedV", "banded_v", "gls_reml_banded", "PROBES"]
 
 #: Hutchinson probes of the traces (Rademacher, seed 0).
 PROBES = 64
@@ -102,6 +102,31 @@ class BandedV:
         return self.lam * self.op.apply(v) + dv
 
 
+def banded_v(op, lam, d, perm=None, cache=None):
+    """:class:`BandedV` of ``(op, lam, d)``, or the last one made with `cache` when it had
+    the same operator, ``lambda`` and ``d`` (to 1e-12 relative; the assessment asks for one ``V`` several
+    times in a row: the REML fit's last iterate, the GLS rounds held at it, the next
+    fit's start, the means; each is a factorization of the block's size).
+
+    Parameters
+    ----------
+    cache : dict, optional
+        Holds the last ``V`` (the caller's, for the duration of one assessment).
+    """
+    d = np.asarray(d, float)
+    last = None if cache is None else cache.get("V")
+    # equal to 1e-12 relative: the next fit starts from the last components through a
+    # change of scale and back (a rounding apart)
+    if (last is not None and last.op is op and last.lam == float(lam)
+            and last.d.shape == d.shape and np.allclose(last.d, d, rtol=1e-12, atol=0)):
+        return last
+    Vs = BandedV(op, lam, d, perm)
+    if cache is not None:
+        cache["V"] = None                   # the previous factor freed first
+        cache["V"] = Vs
+    return Vs
+
+
 def _projector(Vs, A):
     """``P v = V^-1 v - V^-1 A (A' V^-1 A)^-1 A' V^-1 v`` and ``(A' V^-1 A)^-1``."""
     ViA = Vs.solve(A)
@@ -123,7 +148,7 @@ def _diverged(y, A, op, theta):
 
 
 def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=60,
-                    tol=1e-7, probes=PROBES, info=None):
+                    tol=1e-7, probes=PROBES, info=None, cache=None):
     """GLS + REML of ``y = A x + e``, ``V = theta_0 C + sum_a theta_{a+1} scale G_a``.
 
     Parameters
@@ -142,6 +167,8 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         Filled with ``lambda_rel_sigma``: the relative sigma of ``theta_0`` from the
         average information of all four components at the solution (also when
         ``theta_0`` is held: whether the data could tell it).
+    cache : dict, optional
+        Reuse of the factor of ``V`` across calls (:func:`banded_v`).
 
     Returns
     -------
@@ -160,7 +187,7 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
 
     def stats(theta):
         d = sum(t * g for t, g in zip(theta[1:], Gd)) + floor
-        Vs = BandedV(op, max(theta[0], 0.0), d, perm)
+        Vs = banded_v(op, max(theta[0], 0.0), d, perm, cache)
         P, cov_x = _projector(Vs, A)
         Py = P(y)
         PZ = P(Z)

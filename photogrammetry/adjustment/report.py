@@ -25,8 +25,10 @@ def _plot_residuals(result, path):
     res = np.abs(np.concatenate([blk.residuals[k, :len(p[1])]
                                  for k, p in enumerate(result.pair_points)]))
     rej = np.concatenate([blk.rejected[k, :len(p[1])] for k, p in enumerate(result.pair_points)])
-    sc = ax.scatter(xy[~rej, 0], xy[~rej, 1], c=res[~rej], s=6, cmap="viridis",
-                    vmin=0, vmax=3)
+    # no marker edges: stroking the edge of each of 10^5 markers was most of the
+    # plot's time (1000 images: 1.5 s); the area makes up for the edge's width
+    sc = ax.scatter(xy[~rej, 0], xy[~rej, 1], c=res[~rej], s=10, linewidths=0,
+                    cmap="viridis", vmin=0, vmax=3)
     ax.scatter(xy[rej, 0], xy[rej, 1], marker="x", c="red", s=30,
                label=f"rejected ({int(rej.sum())})")
     fig.colorbar(sc, ax=ax, label="|normalized coplanarity misclosure| (sigma units)",

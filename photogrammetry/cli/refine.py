@@ -37,10 +37,11 @@ datum:
   are weighted observations (EO sigmas or --prior-sigma-deg); none  only known-base.
 
 output:
-  REFINED.csv: EO CSV with the refined angles and their sigmas (deg; position sigmas as
-  given, 0 if none).  REPORT.md with REPORT_residuals.png and REPORT_corrections.png:
-  sigma0, redundancy, per-image sigmas and correlations, INS-minus-adjusted mean, RMS,
-  INS noise, boresight (rx, ry, rz as in the camera file).
+  REFINED.csv: EO CSV with the refined angles and their sigmas (deg; the photo sigma
+  scaled by max(sigma0, 1); position sigmas as given, 0 if none).  REPORT.md with
+  REPORT_residuals.png and REPORT_corrections.png: sigma0, redundancy, per-image sigmas
+  and correlations, INS-minus-adjusted mean, RMS, INS noise, boresight (rx, ry, rz as in
+  the camera file).
 
 boresight sigma (known-base, datum none):
   the estimate holds the INS attitude error common to the exposures (a body-fixed error
