@@ -280,6 +280,19 @@ def test_dd_beats_single_point_on_the_simulated_flight(dd_flight, dd_runs, capsy
     assert "tight coupling (double differences against base.obs)" in capsys.readouterr().out
 
 
+
+def test_satellite_residuals_plot_of_double_differences(dd_runs, tmp_path):
+    """satellite_residuals.png with the DD records: one series per pair, the satellites
+    used (the reference counted) as the updater counted them."""
+    from ins.estimation.plots import plot_satellite_residuals, satellites_used
+    _, dd, _ = dd_runs
+    path = plot_satellite_residuals(dd, str(tmp_path / "sat.png"))
+    assert path and (tmp_path / "sat.png").stat().st_size > 10_000
+    used = satellites_used(dd.fwd.records)
+    want = {ep.time: ep.used for ep in dd.fwd.updater.epochs if ep.used}
+    assert want and {t: n for t, n in used.items() if n} == want
+
+
 def test_a_bad_satellite_is_rejected_alone_in_the_filter(dd_flight, dd_runs, monkeypatch):
     """60 m on the rover's pseudorange of the reference satellite at one epoch and of
     another satellite at a later one: each is dropped alone at its epoch (the other
