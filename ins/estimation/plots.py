@@ -281,7 +281,9 @@ def plot_satellite_residuals(result, path):
         ax.set_ylabel(f"{kind}\ninnovation, {unit}")
         ax.grid(alpha=0.3)
         legend_right(ax, fontsize=6)
-    used = satellites_used(recs)
+    up = getattr(result.fwd, "updater", None)
+    used = ({ep.time: ep.used for ep in up.epochs} if getattr(up, "epochs", None)
+            else satellites_used(recs))     # the updater's: epochs with no record too
     dd_rows = any(r.name == "dd_pseudorange" for r in recs)
     t = np.array(sorted(used)) - t0
     ax = axes[-1, 0]
