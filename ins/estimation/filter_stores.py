@@ -140,8 +140,8 @@ class Table:
 
 
 def read_rows(x, j0, j1):
-    """Rows ``j0 .. j1-1`` of an array, :class:`Rows` or :class:`Table`."""
-    return x[j0:j1] if isinstance(x, np.ndarray) else x.read(j0, j1)
+    """Rows ``j0 .. j1-1`` (a copy) of an array, :class:`Rows` or :class:`Table`."""
+    return np.array(x[j0:j1]) if isinstance(x, np.ndarray) else x.read(j0, j1)
 
 
 def as_array(x):
