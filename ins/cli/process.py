@@ -386,7 +386,8 @@ def _summary(result, cfg, paths, t_proc, t_write):
         al = result.alignment
         from ins.estimation.error_model import NAV
         from ins.nav.rotation import quat_to_euler
-        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, NAV.q_nb]))
+        first = result.fwd.node_rows_of("node_states", 0, 1)[0]      # the first node
+        rpy = np.rad2deg(quat_to_euler(first[NAV.q_nb]))
         print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
               f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
