@@ -204,3 +204,24 @@ def test_cli(tmp_path, capsys):
     assert rc == 3
     cfg.write_text('[rtklib]\nelevation_mask = 75\n')
     assert main(["gnss", ROVER, "--nav", NAV, "--config", str(cfg), "-o", str(out)]) == 2
+
+
+@needs_pair
+def test_a_run_does_not_inherit_the_previous_runs_navigation(tmp_path):
+    """RTKLIB keeps navigation data in C globals: the Klobuchar coefficients of one run's
+    file stayed for the next run, whose file had none (RTKLIB's defaults are meant).
+    Single point on the rover with the nav file stripped of ION ALPHA/BETA must give the
+    same positions after a run with the full file as before it."""
+    pytest.importorskip("pyrtklib5")
+    from ins.gnss.rtklib_engine import solve
+    plain = tmp_path / "no_ion.05n"
+    plain.write_text("".join(line for line in open(NAV).readlines()
+                             if "ION ALPHA" not in line and "ION BETA" not in line))
+    opts = RtklibOptions(mode="single", systems=("gps",), frequencies=1)
+    first = solve(ROVER, str(plain), tmp_path / "a.pos", options=opts).log
+    with_ion = solve(ROVER, NAV, tmp_path / "b.pos", options=opts).log
+    again = solve(ROVER, str(plain), tmp_path / "c.pos", options=opts).log
+    from ins.nav.earth import ned_offset
+    # the two ionosphere models differ by decimetres: the check can fail
+    assert np.max(np.abs(ned_offset(first.lla, with_ion.lla))) > 0.05
+    np.testing.assert_array_equal(first.lla, again.lla)

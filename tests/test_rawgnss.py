@@ -184,7 +184,12 @@ def test_ubx_ephemerides_convert_back_to_the_rinex_navigation(tmp_path):
     assert np.array_equal(a.log.time, b.log.time)
     assert np.array_equal(a.log.quality, b.log.quality)
     from ins.nav.earth import ned_offset
-    assert np.max(np.abs(ned_offset(a.log.lla, b.log.lla))) < 2e-4
+    # the log's SFRBX frames hold subframes 1-3 only, not the Klobuchar coefficients of
+    # subframe 4: RTKLIB takes its default ionosphere, whose difference over the 3.3 km
+    # baseline is about a millimetre in height (0.2 mm here only while RTKLIB kept the
+    # previous run's coefficients in its globals: each run now has a process of its own)
+    d = np.abs(ned_offset(a.log.lla, b.log.lla))
+    assert np.max(d[:, :2]) < 5e-4 and np.max(d[:, 2]) < 2e-3
 
 
 @needs_pair

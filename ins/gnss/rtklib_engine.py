@@ -20,7 +20,9 @@ not fully tested):
   folder beside the output, the solution is moved into place (``os.replace``, atomic)
   and the folder with the side file is removed;
 - RTKLIB's option defaults live in C globals, and ``postpos`` is not re-entrant: runs
-  are serialized by a lock.
+  are serialized by a lock; and it leaves navigation data in those globals for the next
+  run (the Klobuchar coefficients), so that each run is made in a fresh child process
+  (:func:`_postpos_isolated`).
 """
 import os
 import shutil
@@ -191,11 +193,7 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
         files += navs + precise
         tmp_pos = os.path.join(tmp, "solution.pos")
         with _LOCK:
-            po, so, fo = fill_prcopt(opts, rtk, precise=bool(precise))
-            t0 = wallclock.perf_counter()
-            status = rtk.postpos(rtk.gtime_t(), rtk.gtime_t(), 0.0, 0.0, po, so, fo, files,
-                                 len(files), tmp_pos, "", "")
-            run_time = wallclock.perf_counter() - t0
+            status, run_time = _postpos_isolated(opts, bool(precise), files, tmp_pos)
         if status != 0 or not os.path.isfile(tmp_pos) or not _has_epoch(tmp_pos):
             shown = [rover] + ([base] if opts.uses_base else []) + navs + precise
             raise InputError(f"RTKLIB wrote no solution epoch (postpos status {status}): "
@@ -209,6 +207,55 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     log = read_pos(out_path)
     return GnssSolution(log, out_path, rover_epochs, opts, run_time,
                         "precise" if precise else "broadcast")
+
+
+def _postpos(opts, precise, files, out):
+    """RTKLIB's ``postpos`` in this process: ``(status, wall time s)``."""
+    rtk = binding()
+    po, so, fo = fill_prcopt(opts, rtk, precise=precise)
+    t0 = wallclock.perf_counter()
+    status = rtk.postpos(rtk.gtime_t(), rtk.gtime_t(), 0.0, 0.0, po, so, fo, files,
+                         len(files), out, "", "")
+    return status, wallclock.perf_counter() - t0
+
+
+def _postpos_isolated(opts, precise, files, out):
+    """:func:`_postpos` in a fresh Python process (``python -m ins.gnss.rtklib_engine``,
+    the arguments as JSON on its standard input; not multiprocessing, whose spawn would
+    run an unguarded user script again).
+
+    RTKLIB keeps its navigation data in C globals that a run does not fully reset: the
+    Klobuchar coefficients of a navigation file with ``ION ALPHA``/``ION BETA`` stayed
+    for the next run in the same process, whose file had none, instead of RTKLIB's
+    defaults (on the PSINS set, a run after the simulated flight's came out 1.2 m lower).
+    A process per run gives every run RTKLIB's fresh state, as ``rnx2rtkp`` has; it
+    costs the child's start-up (a few tenths of a second)."""
+    import dataclasses
+    import json
+    import subprocess
+    import sys
+    job = {"options": dataclasses.asdict(opts), "precise": precise,
+           "files": [os.fspath(f) for f in files], "out": os.fspath(out)}
+    proc = subprocess.run([sys.executable, "-m", "ins.gnss.rtklib_engine"],
+                          input=json.dumps(job), capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"RTKLIB's postpos process failed (exit {proc.returncode}): "
+                           f"{proc.stderr.strip()[-2000:]}")
+    status, run_time = json.loads(proc.stdout.strip().splitlines()[-1])
+    return status, run_time
+
+
+def _child():
+    """Entry of :func:`_postpos_isolated`'s process: one ``postpos`` run."""
+    import json
+    import sys
+    job = json.loads(sys.stdin.read())
+    o = job["options"]
+    o["systems"] = tuple(o["systems"])
+    if o.get("base_lla_deg") is not None:
+        o["base_lla_deg"] = tuple(o["base_lla_deg"])
+    status, run_time = _postpos(RtklibOptions(**o), job["precise"], job["files"], job["out"])
+    print(json.dumps([int(status), run_time]))
 
 
 def _precise_hint(precise):
@@ -260,3 +307,7 @@ def spread_enu_m(log, quality=None):
     lla = log.lla[keep]
     ned = ned_offset(np.mean(lla, axis=0), lla)
     return np.std(np.column_stack([ned[:, 1], ned[:, 0], -ned[:, 2]]), axis=0, ddof=1)
+
+
+if __name__ == "__main__":
+    _child()
