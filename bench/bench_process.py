@@ -13,7 +13,7 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - speed: whole ``ins process`` runs (a fresh process each, numba cache warm, no plots)
   with 21, 27 (the default layout) and 31 error states beside KF-GINS in the same run
   (``--kfgins BIN``, else its README figure): wall and CPU seconds, peak resident
-  memory (``ru_maxrss``); then the cost per IMU epoch and per node against the number
+  memory (GNU time's %M); then the cost per IMU epoch and per node against the number
   of states (whole runs in-process, and the compiled node kernels alone up to 45),
 - with ``--with-pyins``, pyins's ``run_feedback_filter`` (1 s step) in the same run.
 
@@ -173,17 +173,31 @@ def _layout_config(tmp, name, states):
     return path
 
 
+#: GNU time (Debian package ``time``): the child's peak RSS without this process's.
+GNU_TIME = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
+
+
 def _run_child(cmd):
-    """Run ``cmd``; (wall s, CPU s of the child, peak RSS MiB of the child) by wait4."""
+    """Run ``cmd``; (wall s, CPU s of the child, peak RSS MiB of the child).
+
+    Linux's ``ru_maxrss`` of a child started from this process counts this process's
+    own resident set at the fork (KF-GINS, 5 MiB, showed 33 MiB, this script's size after
+    numpy's import; ``/bin/true`` started by a Python holding 480 MiB shows 485 MiB), so
+    the child runs under GNU time, forked from that small process, and its %M is the
+    child's own peak. Without GNU time, wait4's figure is printed as an upper bound."""
     t = time.perf_counter()
-    with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, cwd=ROOT)
+    with tempfile.TemporaryFile() as err, tempfile.NamedTemporaryFile("r") as rep:
+        full = [GNU_TIME, "-q", "-o", rep.name, "-f", "%U %S %M"] + cmd if GNU_TIME else cmd
+        proc = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=err, cwd=ROOT)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t
         if os.waitstatus_to_exitcode(status) != 0:
             err.seek(0)
             print(err.read().decode(errors="replace")[-2000:])
             raise SystemExit(f"failed: {' '.join(map(str, cmd))}")
+        if GNU_TIME:
+            user, system, rss_kib = rep.read().split()[-3:]
+            return wall, float(user) + float(system), float(rss_kib) / 1024.0
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
 
 
@@ -244,7 +258,9 @@ def speed(args, data):
                 runs[name].append(_run_child(cmd))
     load1 = os.getloadavg()
     print(f"\nSpeed, {data}: whole processes, interleaved, wall and CPU (user + sys) "
-          f"medians of {args.repeat}, peak RSS (ru_maxrss, MiB) max; load average "
+          f"medians of {args.repeat}, peak RSS (MiB) max "
+          f"{'(GNU time %M)' if GNU_TIME else '(wait4: upper bound, counts this process)'}; "
+          f"load average "
           f"{load0[0]:.1f} before, {load1[0]:.1f} after, on {os.cpu_count()} cores")
     print("| run | states | wall s (min) | CPU s | peak RSS MiB | wall / KF-GINS | "
           "CPU / KF-GINS |")
