@@ -119,8 +119,17 @@ def accuracy(args, peerlib, truth, data):
           f"2.1/2.2/17.4 | |")
     for gnss_file in ("gnss.txt", "gnss_outage.txt"):
         cfg, meta = config_for(data, gnss_file)
+        kf_rows = []
+        if args.kfgins:                         # the peer's figures from this run
+            with tempfile.TemporaryDirectory() as tmp:
+                cmd = _kfgins_command(args.kfgins, data, tmp, gnss_file)
+                _run_child(cmd)
+                nav = (Path(tmp) / f"kfgins_out_{Path(gnss_file).stem}"
+                       / "KF_GINS_Navresult.nav")
+                kf_rows = [report(peerlib, truth, meta, f"KF-GINS this run ({gnss_file})",
+                                  peerlib.load_nav(str(nav)))]
         res = process(cfg)
-        rows = [report(peerlib, truth, meta, f"ours forward ({gnss_file})",
+        rows = kf_rows + [report(peerlib, truth, meta, f"ours forward ({gnss_file})",
                        frame(peerlib, res.forward)),
                 report(peerlib, truth, meta, f"ours smoothed ({gnss_file})",
                        frame(peerlib, res.smoothed))]
@@ -205,21 +214,25 @@ def _run_child(cmd):
 PEER = "KF-GINS"
 
 
-def _kfgins_command(binary, data, tmp):
-    """KF-GINS on the dataset's kfgins_gnss.yaml, its output redirected into ``tmp``
+def _kfgins_command(binary, data, tmp, gnss_file="gnss.txt"):
+    """KF-GINS on the dataset's kfgins_gnss.yaml with its input paths pointed at ``data``
+    (the files ours reads, wherever the folder now is) and its output into ``tmp``
     (beside ours: the same disk, the dataset folder untouched)."""
     path = Path(binary)
     if not (path.is_file() and os.access(path, os.X_OK)):
         raise SystemExit(f"--kfgins {binary}: not an executable file (build one with "
                          f"tools/build_kfgins.sh SRC_DIR BUILD_DIR)")
-    src = data / "kfgins_gnss.yaml"
+    src = data / "kfgins_gnss.yaml"                # the outage file differs in gnsspath only
     if not src.is_file():
         raise SystemExit(f"{src}: missing (the dataset is made by make_dataset.py)")
-    out = Path(tmp) / "kfgins_out"
+    out = Path(tmp) / f"kfgins_out_{Path(gnss_file).stem}"
     out.mkdir()
-    lines = [f'outputpath: "{out}"' if line.startswith("outputpath:") else line
+    paths = {"imupath": data / "imu_noisy.txt", "gnsspath": data / gnss_file,
+             "outputpath": out}                 # ours reads the same two files
+    lines = [f'{line.split(":")[0]}: "{paths[line.split(":")[0]]}"'
+             if line.split(":")[0] in paths else line
              for line in src.read_text().splitlines()]
-    yaml = Path(tmp) / "kfgins_gnss.yaml"
+    yaml = Path(tmp) / f"kfgins_{Path(gnss_file).stem}.yaml"
     yaml.write_text("\n".join(lines) + "\n")
     return [str(path.resolve()), str(yaml)]
 
