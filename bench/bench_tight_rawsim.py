@@ -5,14 +5,20 @@ cycle slips, multipath and masks of 3, 2 and 1 satellites for 20 s each), throug
 
 Loose: RTKLIB's single-point solution of the rover (mode single, GPS L1) as the GNSS
 log.  Tight: the same run with ``coupling = "tight"`` (pseudoranges and Doppler through
-RTKLIB's satellite positions and corrections).  Prints the horizontal error against the
+RTKLIB's satellite positions and corrections).  Tight DD (when the folder has
+``base.obs``; ``--no-dd``: not): double differences against the simulated base station
+(``[files] base``; no clock states).  Prints the horizontal error against the
 simulator's truth at the last second of each mask (the masks follow each other:
 loose has one 60 s outage), the RMS over the flight (forward and
-smoothed), the satellites used per epoch and the processing time.
+smoothed), the satellites used per epoch (DD: the common satellites in the pseudorange
+DDs, reference included: one satellite gives no DD, hence 0) and the processing time.
 
     .venv/bin/ins simulate data/flights/rawsim.toml -o /tmp/flight_raw \\
         --gnss-raw ../shared/real/rtklib_static_pair/07590920.05n --seed 1
     .venv/bin/python bench/bench_tight_rawsim.py /tmp/flight_raw
+
+``data/flights/rawsim_dd.toml`` is the same flight with the errors a base cancels
+(ionosphere twice Klobuchar, troposphere 1.1 Saastamoinen) and white code noise only.
 """
 import sys
 import time
@@ -30,7 +36,7 @@ from ins.io.navfiles import read_nav
 from ins.nav import earth
 
 
-def main(folder):
+def main(folder, single_only=False):
     folder = Path(folder)
     man = tomllib.loads((folder / "manifest.toml").read_text())
     plan = tomllib.loads((folder / "plan.toml").read_text())
@@ -42,11 +48,15 @@ def main(folder):
                                        for _, _, k in masks) + " | RMS fwd | RMS smoothed "
           "| sats used min/mean | time s |")
     print("|---|" + "---|" * (len(masks) + 4))
-    runs = (("loose", None), ("tight", None), ("tight", (1.0, 1.0)))
-    for coupling, range_sigma in runs:
+    base = str(folder / "base.obs") if (folder / "base.obs").is_file() else None
+    runs = [("loose", None, None), ("tight", None, None), ("tight", (1.0, 1.0), None)]
+    if base and not single_only:
+        runs += [("tight", None, base), ("tight", (1.0, 1.0), base)]
+    for coupling, range_sigma, base_obs in runs:
         cfg = config_from_manifest(str(folder))
         cfg.gnss = None
         cfg.gnss_raw = RawGnss(rover=str(folder / "rover.obs"), nav=(str(folder / "rover.nav"),),
+                               base=base_obs,
                                options=RtklibOptions(mode="single", systems=("gps",),
                                                      frequencies=1, elevation_mask_deg=10.0))
         cfg.coupling = coupling
@@ -68,11 +78,13 @@ def main(folder):
         c = res.counts
         used = (f"{c['satellites_min']}/{c['satellites_mean']:.1f}"
                 if c.get("coupling") == "tight" else "-")
-        name = coupling if range_sigma is None else f"{coupling}, range_sigma_m {list(range_sigma)}"
+        name = coupling + (" DD" if base_obs else " SPP" if coupling == "tight" else "") + (
+            "" if range_sigma is None else f", range_sigma_m {list(range_sigma)}")
         print(f"| {name} | " + " | ".join(f"{f:.2f} / {s:.2f}" for f, s in
                                             zip(*cells)) +
               f" | {rms[0]:.2f} | {rms[1]:.2f} | {used} | {dt:.1f} |")
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "/tmp/flight_raw")
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    main(args[0] if args else "/tmp/flight_raw", single_only="--no-dd" in sys.argv)

@@ -157,8 +157,10 @@ def add_parser(sub):
                    help="loose: the GNSS solution's positions (default); tight: the GPS "
                         "L1 pseudoranges (m) and Doppler range rates (m/s) of --rover "
                         "(RINEX) with --nav through RTKLIB, receiver clock bias/drift "
-                        "states; RTKLIB's solution still gives the start and the checks; "
-                        "with FLIGHT_DIR its simulated raw GPS (rover.obs, rover.nav)")
+                        "states; with --base: their double differences against the base "
+                        "(no clock states); RTKLIB's solution still gives the start and "
+                        "the checks; with FLIGHT_DIR its simulated raw GPS (rover.obs, "
+                        "rover.nav)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
     p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
@@ -355,7 +357,12 @@ def _summary(result, cfg, paths, t_proc, t_write):
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
-    if c.get("coupling") == "tight":
+    if c.get("coupling") == "tight" and c.get("base"):
+        print(f"tight coupling (double differences against {c['base']}): GPS satellites "
+              f"used per epoch min {c['satellites_min']}, mean {c['satellites_mean']:.1f} "
+              f"(the reference included; it changed {c['reference_changes']} times; updates "
+              f"and rejections count pseudorange and range-rate DDs)", file=out)
+    elif c.get("coupling") == "tight":
         print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
               f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
               f"and range rates)", file=out)
@@ -379,7 +386,8 @@ def _summary(result, cfg, paths, t_proc, t_write):
         al = result.alignment
         from ins.estimation.error_model import NAV
         from ins.nav.rotation import quat_to_euler
-        rpy = np.rad2deg(quat_to_euler(result.fwd.node_states[0, NAV.q_nb]))
+        first = result.fwd.node_rows_of("node_states", 0, 1)[0]      # the first node
+        rpy = np.rad2deg(quat_to_euler(first[NAV.q_nb]))
         print(f"alignment {al.method}: roll {rpy[0]:.4f} pitch {rpy[1]:.4f} yaw "
               f"{np.mod(rpy[2], 360):.4f} deg (stated accuracy {al.att_std_deg[0]:.4f}/"
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)

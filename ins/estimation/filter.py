@@ -57,7 +57,14 @@ from ins.estimation.error_model import (
     checked_std,
     noise_matrix,
 )
-from ins.estimation.filter_stores import NodeStore, Rows, TrajectoryStore
+from ins.estimation.filter_stores import (
+    NodeStore,
+    Rows,
+    TrajectoryStore,
+    as_array,
+    measurement_stores,
+    read_rows,
+)
 from ins.estimation.updates import Updater
 from ins.nav import earth
 from ins.nav.mechanization import check_finite
@@ -102,9 +109,16 @@ class ForwardResult:
         Recoveries from a run of rejected position fixes: time of the first rejected fix
         and of the fix that recovered (s), the fixes rejected in the run, the factor on
         the navigation states' covariance.
-    records : list of ins.estimation.measurements.UpdateRecord
+    records : ins.estimation.filter_stores.RecordStore
         Every tested measurement (GNSS position and velocity, heading, zero velocity,
-        non-holonomic), in processing order: innovations per axis, NIS, accepted.
+        non-holonomic), in processing order: iterating yields
+        :class:`ins.estimation.measurements.UpdateRecord` s (innovations per axis, NIS,
+        accepted); compact numeric rows, on disk with a work folder.
+    stores : dict
+        Where the per-node quantities and the NIS live: arrays, or, for a run with a
+        work folder, :class:`ins.estimation.filter_stores.Rows` in temporary files there
+        (memory does not grow with the number of nodes).  The attributes above read them
+        whole; :meth:`node_rows_of` reads a block of nodes.
     layout : ins.estimation.error_model.StateLayout
         The error states (``dx`` has ``layout.n`` columns, ``sensors`` ``layout.n - 9``:
         the 12 of the KF-GINS layout, then the optional groups' estimates).
@@ -115,9 +129,11 @@ class ForwardResult:
 
     def __init__(self, trajectory, nodes, node_rows, node_time, dx, sensors):
         self.trajectory, self.nodes = trajectory, nodes
-        self.node_rows, self.node_time, self.dx, self.sensors = node_rows, node_time, dx, sensors
+        # arrays, or (a run with a work folder) filter_stores.Rows read when asked for
+        self.stores = {"node_rows": node_rows, "node_time": node_time, "dx": dx,
+                       "sensors": sensors, "node_states": None, "nis": None,
+                       "nis_record": None, "innovation_m": None}
         self.n_updates = self.n_rejected = self.n_outside = self.n_mount_fallback = 0
-        self.nis = self.nis_record = self.innovation_m = None
         self.nis_threshold = np.inf
         self.records = []
         self.recoveries = []
@@ -128,6 +144,30 @@ class ForwardResult:
         if self._whole is None:
             self._whole = self.trajectory.whole()
         return self._whole
+
+    def __getattr__(self, name):
+        # node_rows, node_time, dx, sensors, node_states, nis, nis_record, innovation_m:
+        # arrays (read whole from their store); filter_stores.read_rows reads blocks
+        stores = self.__dict__.get("stores", {})
+        if name in stores:
+            x = stores[name]
+            return None if x is None else as_array(x)
+        raise AttributeError(name)
+
+    def __setattr__(self, name, value):
+        if name in self.__dict__.get("stores", {}):
+            self.stores[name] = value
+        else:
+            object.__setattr__(self, name, value)
+
+    @property
+    def node_count(self):
+        """Number of nodes."""
+        return len(self.stores["node_time"])
+
+    def node_rows_of(self, name, j0, j1):
+        """Rows ``j0 .. j1-1`` of a per-node quantity (``node_time``, ``dx`` ...)."""
+        return read_rows(self.stores[name], j0, j1)
 
     time = property(lambda self: self._arrays()[0])
     states = property(lambda self: self._arrays()[1])
@@ -295,10 +335,16 @@ class _ForwardRun:
         self.headings = sorted(settings.heading, key=lambda m: m.time)
         self.hj = 0
         self.P = settings.initial_covariance()
+        self.workdir = workdir
         self.traj, self.nodes = TrajectoryStore(workdir), NodeStore(workdir)
-        self.node_rows, self.node_time = Rows((), np.int64), Rows(())
-        self.dxs, self.sens, self.node_states = Rows((L.n,)), Rows((L.n - 9,)), Rows((10,))
+        w = {"workdir": workdir}
+        self.node_rows, self.node_time = Rows((), np.int64, **w), Rows((), **w)
+        self.dxs, self.sens = Rows((L.n,), **w), Rows((L.n - 9,), **w)
+        self.node_states = Rows((10,), **w)
         self.updater = (settings.updater or Updater)(settings, gnss)
+        if workdir is not None:           # a record per tested measurement: on disk too
+            up = self.updater
+            up.records, up.nis, up.nis_record, up.innovation = measurement_stores(workdir)
         self.g_time = self.updater.ev_time         # the GNSS update events' epochs
         self.g_pos = (self.updater.ev_kind & 1).astype(bool)     # events with a position
         self.acc = np.zeros((16, 3))
@@ -441,16 +487,21 @@ class _ForwardRun:
 
     def result(self):
         up = self.updater
-        out = ForwardResult(self.traj, self.nodes, self.node_rows.array(),
-                            self.node_time.array(), self.dxs.array(), self.sens.array())
-        out.node_states = self.node_states.array()
+        keep = (lambda x: x) if self.workdir is not None else as_array
+        out = ForwardResult(self.traj, self.nodes, keep(self.node_rows), keep(self.node_time),
+                            keep(self.dxs), keep(self.sens))
+        out.node_states = keep(self.node_states)
         out.n_updates = up.n_updates
         out.n_rejected = up.n_rejected
         out.n_outside = up.n_outside + int(np.count_nonzero(self.g_pos[self.gj:]))
         out.n_mount_fallback = up.n_fallback
-        out.nis = np.array(up.nis)
-        out.nis_record = np.array(up.nis_record, dtype=np.int64)
-        out.innovation_m = np.array(up.innovation).reshape(-1, 3)
+        if isinstance(up.nis, Rows):
+            out.nis, out.nis_record, out.innovation_m = (
+                keep(up.nis), keep(up.nis_record), keep(up.innovation))
+        else:
+            out.nis = np.array(up.nis)
+            out.nis_record = np.array(up.nis_record, dtype=np.int64)
+            out.innovation_m = np.array(up.innovation).reshape(-1, 3)
         out.nis_threshold = up.threshold
         out.records = up.records
         out.recoveries = list(up.recoveries)

@@ -6,8 +6,9 @@ assumption on how the IMU is mounted.
    :data:`REST_SPEED_MPS` (and the gyro shows no turn).  Over the rest the mean specific
    force gives roll and pitch (``static_attitude``; an accelerometer bias ``b`` tilts
    them by ``b / g``, which the filter later separates), and the mean rate gives the
-   gyro biases (the Earth rate, at most 15 deg/h, stays in them: its share is below the
-   bias sigma of a MEMS gyro, and the filter's bias state takes it up).
+   gyro biases, once the heading is known (2.) less the Earth rate in the body (15 deg/h:
+   more than a tactical gyro's bias; left in, it made the gyro look like a MEMS one to
+   the grade choice of :func:`noise_from_rest`).
 2. Heading by velocity matching.  With the gyro (less those biases) the body's rotation
    since the reference epoch ``t_a`` is known, so the specific force can be integrated in
    a frame ``L`` that is level at ``t_a`` and has an arbitrary azimuth: the velocity
@@ -264,6 +265,11 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
                          f"{t_e:.1f} s: the horizontal velocity never changes by "
                          f"{EXCITATION_MPS:g} m/s (no start, stop or turn); give "
                          f"[initial] rpy_deg or start the log before the vehicle moves")
+    if bias_b is not None:
+        # the rest's mean rate holds the Earth's rate (15 deg/h, more than a tactical
+        # gyro's bias): it is taken out with the attitude found (a heading error of
+        # 3 deg leaves 0.8 deg/h of it)
+        bias_b = bias_b - euler_to_dcm([roll, pitch, psi]).T @ earth.earth_rate_n(lat)
     head_std = max(np.rad2deg(s_psi) * HEADING_SIGMA_FACTOR, MIN_HEADING_STD_DEG)
     b_a = (30.0 * 980.665 if noise is None else float(np.max(noise.accel_bias_std_mgal))) * MGAL
     level_std = np.rad2deg(b_a / g) + (0.0 if bias_b is not None else 1.0)

@@ -24,7 +24,7 @@ from ins.common.plotstyle import (
 from ins.estimation.error_model import SENSORS, STATE
 
 __all__ = ["plot_errors", "plot_sigma", "plot_biases", "plot_innovations",
-           "plot_satellite_residuals", "injected_biases",
+           "plot_satellite_residuals", "satellites_used", "injected_biases",
            "write_plots"]
 
 _DPH = np.pi / 180.0 / 3600.0          # rad/s per deg/h
@@ -230,13 +230,30 @@ def _series(records, t0, standardized=True):
     return {k: tuple(np.array(c) for c in zip(*rows)) for k, rows in sorted(out.items())}
 
 
-_SAT_KINDS = (("pseudorange", "m"), ("range_rate", "m/s"))
+_SAT_KINDS = (("pseudorange", "m"), ("range_rate", "m/s"), ("dd_pseudorange", "m"),
+              ("dd_range_rate", "m/s"))
+
+
+def satellites_used(records):
+    """``{time: satellites}`` of tight coupling's pseudorange records (accepted ones), or
+    of its double differences (``n - 1`` DDs of ``n`` satellites, the reference counted)."""
+    used, dd_rows = {}, {}
+    for r in records:
+        if r.name == "pseudorange":
+            used.setdefault(r.time, 0)
+            used[r.time] += bool(r.accepted)
+        elif r.name == "dd_pseudorange":
+            dd_rows[r.time] = dd_rows.get(r.time, 0) + bool(r.accepted)
+    used.update({k: n + 1 if n else 0 for k, n in dd_rows.items()})
+    return used
 
 
 def plot_satellite_residuals(result, path):
     """Tight coupling: each satellite's pseudorange and range-rate innovation (predicted -
     measured before the update, m and m/s) against time, one colour per satellite with its RMS, rejected
-    ones as crosses, and the satellites used per epoch.  None without such records."""
+    ones as crosses, and the satellites used per epoch (double differences: one colour per
+    satellite-reference pair, the satellites used counting the reference).  None without
+    such records."""
     recs = getattr(getattr(result, "fwd", None), "records", None) or []
     kinds = [(k, u) for k, u in _SAT_KINDS if any(r.name == k for r in recs)]
     if not kinds:
@@ -264,11 +281,10 @@ def plot_satellite_residuals(result, path):
         ax.set_ylabel(f"{kind}\ninnovation, {unit}")
         ax.grid(alpha=0.3)
         legend_right(ax, fontsize=6)
-    used = {}
-    for r in recs:
-        if r.name == "pseudorange":
-            used.setdefault(r.time, 0)
-            used[r.time] += bool(r.accepted)
+    up = getattr(result.fwd, "updater", None)
+    used = ({ep.time: ep.used for ep in up.epochs} if getattr(up, "epochs", None)
+            else satellites_used(recs))     # the updater's: epochs with no record too
+    dd_rows = any(r.name == "dd_pseudorange" for r in recs)
     t = np.array(sorted(used)) - t0
     ax = axes[-1, 0]
     ax.step(t, [used[k] for k in sorted(used)], where="post", color="k", lw=1)
@@ -278,8 +294,11 @@ def plot_satellite_residuals(result, path):
     ax.grid(alpha=0.3)
     xlabel, origin = time_label(t0)
     axes[-1, 0].set_xlabel(xlabel)
-    fig.suptitle("Tight coupling: innovations per satellite (predicted - measured, before "
-                 "the update; a shift common to an epoch is the receiver clock's);\ncrosses: "
+    what = ("double differences per satellite-reference pair" if dd_rows else
+            "innovations per satellite")
+    clock = "" if dd_rows else "; a shift common to an epoch is the receiver clock's"
+    fig.suptitle(f"Tight coupling: {what} (predicted - measured, before "
+                 f"the update{clock});\ncrosses: "
                  "rejected; dashed: 4 satellites, below which loose coupling has no fix; "
                  f"{origin}", fontsize=10)
     fig.tight_layout()

@@ -20,6 +20,7 @@ from ins.estimation.alignment import align_gnss_heading, align_static, check_sta
 from ins.estimation.error_model import NAV, STATE
 from ins.estimation.filter import run_forward
 from ins.estimation.filter_settings import FilterSettings
+from ins.estimation.filter_stores import as_array, read_rows
 from ins.estimation.lever_arm import LeverArm
 from ins.estimation.process_config import POSITION_KEYS, filter_options
 from ins.estimation.process_trust import (
@@ -50,19 +51,17 @@ class ProcessResult:
     (from the forward pass's store, in memory or a temporary file); :attr:`forward` and
     :attr:`smoothed` give them whole (in memory).  ``node_time`` holds the filter nodes
     with ``forward_std``/``smoothed_std`` (m, 21) and ``forward_sensors``/
-    ``smoothed_sensors`` (m, 12: gyro bias rad/s, accel bias m/s^2, scales);
+    ``smoothed_sensors`` (m, 12: gyro bias rad/s, accel bias m/s^2, scales), arrays
+    read whole when asked for (from temporary files with a work folder);
+    :meth:`node_chunks` gives them block by block (bounded memory);
     ``errors_forward``/``errors_smoothed`` (:class:`ins.nav.accuracy.TrajectoryErrors`) when
     a truth file was given; ``quality`` the assessment of :func:`assess_quality` and
     ``start_check`` that of :func:`check_start` (when the run made them).
     """
 
     fwd: object
-    xs: object
-    node_time: np.ndarray
-    forward_std: np.ndarray
-    smoothed_std: np.ndarray
-    forward_sensors: np.ndarray
-    smoothed_sensors: np.ndarray
+    xs: object                # smoothed errors (m, n): array or filter_stores.Table; or None
+    s_std: object             # smoothed sigmas (m, n): array or Table; or None
     alignment: object
     counts: dict
     errors_forward: object = None
@@ -91,14 +90,49 @@ class ProcessResult:
     def smoothed(self):
         return Trajectory.concatenate(self.iter_smoothed())
 
+    node_time = property(lambda self: self.fwd.node_time)
+    forward_std = property(lambda self: self.fwd.nodes.post_std)
+    forward_sensors = property(lambda self: self.fwd.sensors)
+
+    @property
+    def smoothed_std(self):
+        return self.forward_std if self.s_std is None else as_array(self.s_std)
+
+    @property
+    def smoothed_sensors(self):
+        if self.xs is None:
+            return self.forward_sensors
+        return self.fwd.sensors + as_array(self.xs)[:, self.fwd.layout.sensors]
+
+    def node_chunks(self, size=1 << 13):
+        """The per-node results block by block (bounded memory): namespaces with ``j0``
+        (first node), ``time``, ``forward_std``, ``smoothed_std``, ``forward_sensors``,
+        ``smoothed_sensors`` and ``solution`` (:meth:`node_solution`) of the block."""
+        from types import SimpleNamespace
+        fwd = self.fwd
+        for j0 in range(0, fwd.node_count, size):
+            j1 = min(j0 + size, fwd.node_count)
+            f_std = read_rows(fwd.nodes.post_std_rows, j0, j1)
+            f_sens = fwd.node_rows_of("sensors", j0, j1)
+            states = fwd.node_rows_of("node_states", j0, j1)
+            if self.xs is None:
+                s_std, s_sens = f_std, f_sens
+            else:
+                xs = read_rows(self.xs, j0, j1)
+                s_std = read_rows(self.s_std, j0, j1)
+                s_sens = f_sens + xs[:, fwd.layout.sensors]
+                for j in range(len(states)):
+                    _filter_kernels.correct_state(states[j], xs[j, STATE.nav])
+            yield SimpleNamespace(j0=j0, time=fwd.node_rows_of("node_time", j0, j1),
+                                  forward_std=f_std, smoothed_std=s_std,
+                                  forward_sensors=f_sens, smoothed_sensors=s_sens,
+                                  solution=states)
+
     def node_solution(self):
         """The written solution (smoothed, else forward) at the nodes (after their
         updates), shape (m, 10) in the ``ins.nav._kernels`` layout."""
-        states = self.fwd.node_states.copy()
-        if self.xs is not None:
-            for j in range(len(states)):
-                _filter_kernels.correct_state(states[j], self.xs[j, STATE.nav])
-        return states
+        parts = [c.solution for c in self.node_chunks()]
+        return np.concatenate(parts) if parts else np.empty((0, 10))
 
     def node_attitude(self):
         """Smoothed attitude quaternions at the nodes, shape (m, 4)."""
@@ -383,20 +417,17 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
         if getattr(exc, "time_s", None) is None:
             raise
         raise with_location(exc, cfg.imu, cfg.imu_format, cfg.imu_time_shift_s) from None
-    f_std = np.array(fwd.nodes.post_std)
     if cfg.smooth:
-        xs, s_std = rts_errors(fwd, full=False)
-        s_sens = fwd.sensors + xs[:, fwd.layout.sensors]
+        xs, s_std = rts_errors(fwd, full=False, workdir=workdir)
     else:
-        xs, s_std, s_sens = None, f_std, fwd.sensors
+        xs, s_std = None, None
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
-              "nodes": len(fwd.node_time), "updates": fwd.n_updates,
+              "nodes": fwd.node_count, "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
               "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries)}
     from ins.estimation.tight_pipeline import tight_counts
     counts.update(tight_counts(fwd))
-    result = ProcessResult(fwd, xs, fwd.node_time, f_std, s_std, fwd.sensors.copy(), s_sens,
-                           al, counts)
+    result = ProcessResult(fwd, xs, s_std, al, counts)
     result.start_check = start_check
     result.start_how = st.how
     result.gnss_source = gnss_source

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from ins.estimation.error_model import SENSORS, STATE
+from ins.estimation.error_model import NAV, SENSORS, STATE
 
 
 def euler_std_deg(q_nb, P_att):
@@ -74,31 +74,42 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
             write_sbet(paths[-1], result.iter_forward())
     std_path = os.path.join(out_dir, "solution_std.txt")
     err_path = os.path.join(out_dir, "imu_errors.txt")
-    rows = np.arange(len(result.node_time))
-    # attitude sigma from the smoothed covariance diagonal (phi-angle block)
-    P_att = np.zeros((len(rows), 3, 3))
-    idx = np.arange(3)
-    P_att[:, idx, idx] = result.smoothed_std[:, STATE.att] ** 2
-    att = euler_std_deg(result.node_attitude(), P_att)
-    table = np.column_stack([result.node_time, result.smoothed_std[:, STATE.pos],
-                             result.smoothed_std[:, STATE.vel], att])
-    header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
-              "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
-    _write_table(std_path, header, table, [6] + [6] * 6 + [8] * 3, textformat, atomic_open)
+    std_header = ("# time_s std_n_m std_e_m std_d_m std_vn_mps std_ve_mps std_vd_mps "
+                  "std_roll_deg std_pitch_deg std_yaw_deg  (smoothed, at the filter nodes)\n")
+    err_header = ("# time_s gyro_bias_x_dph gyro_bias_y_dph gyro_bias_z_dph "
+                  "accel_bias_x_mgal accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm "
+                  "gyro_scale_y_ppm gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm "
+                  "accel_scale_z_ppm (smoothed estimates)\n")
+    std_dec = np.array([6] + [6] * 6 + [8] * 3, dtype=np.int64)
+    err_dec = np.array([6] + [5] * 12, dtype=np.int64)
+    smrmsg = []
+    # block by block over the nodes (bounded memory)
+    with atomic_open(std_path, "wb") as f_std, atomic_open(err_path, "wb") as f_err:
+        f_std.write(std_header.encode())
+        f_err.write(err_header.encode())
+        for c in _node_chunks(result):
+            sd = c.smoothed_std
+            # attitude sigma from the smoothed covariance diagonal (phi-angle block)
+            P_att = np.zeros((len(sd), 3, 3))
+            idx = np.arange(3)
+            P_att[:, idx, idx] = sd[:, STATE.att] ** 2
+            att = euler_std_deg(c.solution[:, NAV.q_nb], P_att)
+            table = np.column_stack([c.time, sd[:, STATE.pos], sd[:, STATE.vel], att])
+            f_std.write(textformat.format_fixed(table, std_dec).tobytes())
+            if "sbet" in formats:
+                smrmsg.append(np.column_stack([c.time, sd[:, STATE.pos], sd[:, STATE.vel],
+                                               np.deg2rad(att)]))
+            s = c.smoothed_sensors
+            table = np.column_stack([c.time, s[:, SENSORS.gyro_bias] / DPH,
+                                     s[:, SENSORS.accel_bias] / MGAL,
+                                     s[:, SENSORS.gyro_scale] / PPM,
+                                     s[:, SENSORS.accel_scale] / PPM])
+            f_err.write(textformat.format_fixed(table, err_dec).tobytes())
     paths.append(std_path)
     if "sbet" in formats:
+        rows = np.concatenate(smrmsg)
         paths.append(os.path.join(out_dir, "smrmsg_solution.out"))
-        write_smrmsg(paths[-1], result.node_time, result.smoothed_std[:, STATE.pos],
-                     result.smoothed_std[:, STATE.vel], np.deg2rad(att))
-    s = result.smoothed_sensors
-    table = np.column_stack([result.node_time, s[:, SENSORS.gyro_bias] / DPH,
-                             s[:, SENSORS.accel_bias] / MGAL, s[:, SENSORS.gyro_scale] / PPM,
-                             s[:, SENSORS.accel_scale] / PPM])
-    header = ("# time_s gyro_bias_x_dph gyro_bias_y_dph gyro_bias_z_dph accel_bias_x_mgal "
-              "accel_bias_y_mgal accel_bias_z_mgal gyro_scale_x_ppm gyro_scale_y_ppm "
-              "gyro_scale_z_ppm accel_scale_x_ppm accel_scale_y_ppm accel_scale_z_ppm "
-              "(smoothed estimates)\n")
-    _write_table(err_path, header, table, [6] + [5] * 12, textformat, atomic_open)
+        write_smrmsg(paths[-1], rows[:, 0], rows[:, 1:4], rows[:, 4:7], rows[:, 7:10])
     paths.append(err_path)
     from ins.estimation.measurements import write_innovations
     from ins.estimation.state_files import write_optional_states
@@ -112,8 +123,13 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
     return paths
 
 
-def _write_table(path, header, table, decimals, textformat, atomic_open):
-    text = textformat.format_fixed(table, np.array(decimals, dtype=np.int64)).tobytes()
-    with atomic_open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(text)
+def _node_chunks(result):
+    """Per-node blocks of ``result`` (:meth:`ins.estimation.process.ProcessResult.node_chunks`),
+    or one block of its arrays (a result given as arrays)."""
+    if hasattr(result, "node_chunks"):
+        yield from result.node_chunks()
+        return
+    from types import SimpleNamespace
+    yield SimpleNamespace(j0=0, time=result.node_time, smoothed_std=result.smoothed_std,
+                          smoothed_sensors=result.smoothed_sensors,
+                          solution=result.node_solution())

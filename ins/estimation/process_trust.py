@@ -26,6 +26,8 @@ rejected fixes is a warning, :data:`RECOVERY_ERROR_COUNT` of them a QualityError
 negative variance beyond rounding, or a covariance
 the smoother cannot factor, is a ``QualityError`` naming the time and the state.
 """
+from types import SimpleNamespace
+
 import numpy as np
 
 from ins.common.errors import InputError
@@ -158,22 +160,33 @@ def fix_residuals(result, gnss, lever):
     index = np.flatnonzero((gnss.time >= nt[0] - 1e-9) & (gnss.time <= nt[-1] + 1e-9))
     if len(index) == 0:
         return index, np.zeros((0, 3)), np.zeros(0)
-    j = np.searchsorted(nt, gnss.time[index] + 1e-9, side="right") - 1
-    states = result.node_solution()[j]
-    tg = gnss.time[index]
-    # the estimated time offset and lever-arm correction (optional states), if any
+    j_all = np.searchsorted(nt, gnss.time[index] + 1e-9, side="right") - 1
+    del nt
     layout = getattr(result.fwd, "layout", None)
-    sens = np.asarray(result.smoothed_sensors)[j]
-    offset = (layout.estimate(sens, "time_offset")[:, 0] if layout is not None
-              else np.zeros(len(j)))
-    lla = states[:, NAV.lla] + earth.lla_rate(states[:, 0], states[:, 2], states[:, NAV.vel]) * (
-        tg + offset - nt[j])[:, None]
-    l_b = lever.at(tg)[0]
-    if layout is not None:
-        l_b = l_b + layout.estimate(sens, "lever_arm")
-    arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, NAV.q_nb]), l_b)
-    ant = lla + earth.lla_rate(lla[:, 0], lla[:, 2], arm)
-    res = earth.ned_offset(gnss.lla[index], ant)
+    res = np.empty((len(index), 3))
+    chunks = (result.node_chunks() if hasattr(result, "node_chunks") else
+              [SimpleNamespace(j0=0, time=result.node_time, solution=result.node_solution(),
+                               smoothed_sensors=np.asarray(result.smoothed_sensors))])
+    for c in chunks:                       # block by block over the nodes
+        sel = np.flatnonzero((j_all >= c.j0) & (j_all < c.j0 + len(c.time)))
+        if len(sel) == 0:
+            continue
+        j = j_all[sel] - c.j0
+        states = c.solution[j]
+        tg = gnss.time[index[sel]]
+        # the estimated time offset and lever-arm correction (optional states), if any
+        sens = c.smoothed_sensors[j]
+        offset = (layout.estimate(sens, "time_offset")[:, 0] if layout is not None
+                  else np.zeros(len(j)))
+        lla = states[:, NAV.lla] + earth.lla_rate(states[:, 0], states[:, 2],
+                                                  states[:, NAV.vel]) * (
+            tg + offset - c.time[j])[:, None]
+        l_b = lever.at(tg)[0]
+        if layout is not None:
+            l_b = l_b + layout.estimate(sens, "lever_arm")
+        arm = np.einsum("nij,nj->ni", quat_to_dcm(states[:, NAV.q_nb]), l_b)
+        ant = lla + earth.lla_rate(lla[:, 0], lla[:, 2], arm)
+        res[sel] = earth.ned_offset(gnss.lla[index[sel]], ant)
     norm = np.sqrt(np.mean((res / gnss.sigma_ned_m[index]) ** 2, axis=1))
     return index, res, norm
 
@@ -217,15 +230,25 @@ def assess_quality(result, gnss, lever, cfg=None):
     sensor_ratio = {}
     if cfg is not None:
         sig = cfg.noise.sensor_std
-        est = np.abs(np.asarray(result.smoothed_sensors))
-        for name, sl, unit, key in (("gyro bias", slice(0, 3), 180 / np.pi * 3600, "deg/h"),
-                                    ("accel bias", slice(3, 6), 1e5, "mGal"),
-                                    ("gyro scale", slice(6, 9), 1e6, "ppm"),
-                                    ("accel scale", slice(9, 12), 1e6, "ppm")):
-            r = est[:, sl] / sig[sl]
-            i = np.unravel_index(int(np.argmax(r)), r.shape)
-            sensor_ratio[name] = (float(r[i]), float(est[i[0], sl][i[1]] * unit),
-                                  float(sig[sl][i[1]] * unit), key, "xyz"[i[1]])
+        groups = (("gyro bias", slice(0, 3), 180 / np.pi * 3600, "deg/h"),
+                  ("accel bias", slice(3, 6), 1e5, "mGal"),
+                  ("gyro scale", slice(6, 9), 1e6, "ppm"),
+                  ("accel scale", slice(9, 12), 1e6, "ppm"))
+        best = {}                      # the largest ratio of each group (its first place)
+        chunks = (result.node_chunks() if hasattr(result, "node_chunks") else
+                  [SimpleNamespace(smoothed_sensors=np.asarray(result.smoothed_sensors))])
+        for ch in chunks:
+            est = np.abs(ch.smoothed_sensors)
+            for name, sl, _, _ in groups:
+                r = est[:, sl] / sig[sl]
+                i = np.unravel_index(int(np.argmax(r)), r.shape)
+                if name not in best or r[i] > best[name][0]:
+                    best[name] = (r[i], est[i[0], sl][i[1]], i[1])
+        for name, sl, unit, key in groups:
+            if name in best:
+                r, e, k = best[name]
+                sensor_ratio[name] = (float(r), float(e * unit), float(sig[sl][k] * unit),
+                                      key, "xyz"[k])
     q = {"tested": tested, "rejected": c["rejected"], "rejected_fraction": frac,
          "positions_tested": len(fwd.nis), "positions_rejected": int(pos_rejected.sum()),
          "residual_rms_m": float(np.sqrt(np.mean(dist ** 2))) if len(dist) else np.nan,

@@ -152,8 +152,8 @@ class TightOptions:
 
 def range_rows(point, r_sat_e, v_sat_e, time):
     """Predicted pseudoranges and range rates (without and with the clock) and their
-    ``H`` rows at ``point`` (:class:`~ins.estimation.measurements.NavPoint` whose layout
-    has the ``clock`` group) for satellites at ``r_sat_e``, ``v_sat_e`` (k, 3) ECEF.
+    ``H`` rows at ``point`` (:class:`~ins.estimation.measurements.NavPoint`; without the
+    layout's ``clock`` group, as for double differences, no clock term and column) for satellites at ``r_sat_e``, ``v_sat_e`` (k, 3) ECEF.
 
     Returns
     -------
@@ -171,7 +171,7 @@ def range_rows(point, r_sat_e, v_sat_e, time):
     C_en = earth.dcm_en(lla[0], lla[1])
     v_e = C_en @ vel.predict(point)
     e_n, el = line_of_sight(r_sat_e, lla)
-    clock = L.estimate(point.sensors, "clock")
+    clock = (0.0, 0.0) if L.clock is None else L.estimate(point.sensors, "clock")
     rho = sagnac_range(r_sat_e, r_e) + clock[0]
     rate = sagnac_range_rate(r_sat_e, v_sat_e, r_e, v_e) + clock[1]
     H_pos = pos.jacobian(point)
@@ -184,8 +184,9 @@ def range_rows(point, r_sat_e, v_sat_e, time):
     v_rel = np.asarray(v_sat_e, float) - v_e
     g_n = (-(v_rel - e_e * np.sum(e_e * v_rel, axis=-1, keepdims=True)) / dist) @ C_en
     H_rate = -e_n @ vel.jacobian(point) + g_n @ H_pos
-    H_rho[:, L.clock.start] = -1.0
-    H_rate[:, L.clock.start + 1] = -1.0
+    if L.clock is not None:
+        H_rho[:, L.clock.start] = -1.0
+        H_rate[:, L.clock.start + 1] = -1.0
     return rho, rate, H_rho, H_rate, el
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import STATE_NAMES, checked_std
+from ins.estimation.filter_stores import Table, read_rows
 
 
 def _backward_nodes(fwd):
@@ -56,13 +57,16 @@ def _backward_nodes(fwd):
             yield j0 + i, block[i, 0], block[i, 1], block[i, 2]
 
 
-def rts_errors(fwd, full=True):
+def rts_errors(fwd, full=True, workdir=None):
     """The backward recursion: smoothed errors ``xs+`` (m, 21) and covariances.
 
     ``fwd`` has ``dx`` and either ``nodes`` (:class:`ins.estimation.filter_stores.NodeStore`, read
     backwards block by block) or the sequences ``P_prior``, ``P_post``, ``Phi``.
     Returns ``(xs, Ps)`` with ``Ps`` (m, 21, 21), or with ``full=False`` ``(xs, std)``
-    with the smoothed standard deviations (m, 21) only (bounded memory).
+    with the smoothed standard deviations (m, 21) only (bounded memory).  With
+    ``workdir`` (and ``full=False``) ``xs`` and ``std`` are
+    :class:`ins.estimation.filter_stores.Table` s in temporary files there, written
+    backwards block by block: memory does not grow with the number of nodes.
 
     Raises
     ------
@@ -72,34 +76,62 @@ def rts_errors(fwd, full=True):
         forward posterior variance of the same state): the message names the node time
         (``fwd.node_time`` when present, else the node index) and the state.
     """
-    dx = np.asarray(fwd.dx, dtype=float)
-    node_time = getattr(fwd, "node_time", None)
-    when = ((lambda j: f"t = {float(node_time[j]):.3f} s") if node_time is not None
+    stores = getattr(fwd, "stores", None)
+    dx_src = stores["dx"] if stores is not None else np.asarray(fwd.dx, dtype=float)
+    t_src = (stores["node_time"] if stores is not None
+             else getattr(fwd, "node_time", None))
+    when = ((lambda j: f"t = {float(t_src[j]):.3f} s") if t_src is not None
             else (lambda j: f"node {j}"))
-    m, n = dx.shape
-    xs = np.zeros((m, n))
+    m = len(dx_src)
+    n = read_rows(dx_src, 0, 1).shape[1]
+    disk = workdir is not None and not full
+    xs_tab, std_tab = Table(m, n, workdir if disk else None), Table(m, n, workdir if disk else None)
     Ps = np.empty((m, n, n)) if full else None
-    std = np.empty((m, n))
+    names = _names(fwd, n)
+    blk = _BLOCK
+    xs_blk, std_blk, hi = np.zeros((blk, n)), np.empty((blk, n)), m   # rows lo .. hi-1
+    lo = max(hi - blk, 0)
+    dx_blk = read_rows(dx_src, lo, hi + 1)              # dx of nodes lo .. hi
+    t_blk = None if t_src is None else read_rows(t_src, lo, hi)
+    x_next = None                                       # xs of node j + 1
     nxt = None                                          # (P_prior, Phi, Ps) of node j + 1
     for j, P_prior, P_post, Phi in _backward_nodes(fwd):
+        if j < lo:                                      # the next block back
+            xs_tab.put(lo, xs_blk[:hi - lo])
+            std_tab.put(lo, std_blk[:hi - lo])
+            hi, lo = lo, max(lo - blk, 0)
+            dx_blk = read_rows(dx_src, lo, hi + 1)
+            t_blk = None if t_src is None else read_rows(t_src, lo, hi)
+        i = j - lo
         P_post = np.ascontiguousarray(P_post, dtype=float)
         if nxt is None:
             Pj = np.array(P_post)
+            xs_blk[i] = 0.0
         else:
             # A = P+_j Phi^T (P-)^-1  <=>  A^T = (P-)^-1 Phi P+_j  (P- symmetric positive)
-            ok, xs[j], Pj = _kalman_kernels.rts_step(nxt[0], nxt[1], P_post, nxt[2],
-                                                     dx[j + 1] + xs[j + 1])
+            ok, xs_blk[i], Pj = _kalman_kernels.rts_step(nxt[0], nxt[1], P_post, nxt[2],
+                                                         dx_blk[i + 1] + x_next)
             if not ok:
                 raise QualityError(_not_positive(nxt[0], when(j + 1),
                                                  "its Cholesky factorization failed"))
         if full:
             Ps[j] = Pj
-        std[j] = checked_std(np.diag(Pj), np.diag(P_post),
-                             None if node_time is None else node_time[j], names=_names(fwd, n),
-                             what="smoothed covariance")
+        std_blk[i] = checked_std(np.diag(Pj), np.diag(P_post),
+                                 None if t_blk is None else t_blk[i], names=names,
+                                 what="smoothed covariance")
+        x_next = xs_blk[i].copy()
         nxt = (np.ascontiguousarray(P_prior, dtype=float),
                np.ascontiguousarray(Phi, dtype=float), Pj)
-    return xs, (Ps if full else std)
+    if m:
+        xs_tab.put(lo, xs_blk[:hi - lo])
+        std_tab.put(lo, std_blk[:hi - lo])
+    if disk:
+        return xs_tab, std_tab
+    return xs_tab.array(), (Ps if full else std_tab.array())
+
+
+#: Nodes per block of the smoother's reads and writes.
+_BLOCK = 512
 
 
 def _names(fwd, n):
@@ -156,11 +188,31 @@ class SmoothedResult:
 def iter_smoothed(fwd, xs, rows=1 << 16):
     """The smoothed trajectory in time order, ``(time, states)`` pieces: the forward
     pieces (read back from ``fwd.trajectory``) corrected by the smoothed errors ``xs``
-    of :func:`rts_errors` (bounded memory: one piece at a time)."""
-    x_before = fwd.dx + xs
+    of :func:`rts_errors` (an array or a :class:`ins.estimation.filter_stores.Table`;
+    bounded memory: one piece and the nodes around it at a time)."""
+    stores = getattr(fwd, "stores", None)
+    if stores is None:
+        src = {"node_rows": fwd.node_rows, "node_time": fwd.node_time, "dx": fwd.dx}
+    else:
+        src = {k: stores[k] for k in ("node_rows", "node_time", "dx")}
+    m = len(src["node_time"])
+    seg = None                       # nodes a .. b-1: rows, time, x_after, x_before
+    a = b = 0
     for row0, time, states in fwd.trajectory.chunks(rows):
-        _filter_kernels.correct_rows(states, time, row0, fwd.node_rows, fwd.node_time, xs,
-                                     x_before)
+        row1 = row0 + len(time) - 1
+        # the nodes from the last at or before row0 to the first at or after row1
+        while b < m and (seg is None or seg[0][-1] < row1):
+            b1 = min(b + max(rows // 16, 64), m)
+            part = [read_rows(src["node_rows"], b, b1), read_rows(src["node_time"], b, b1)]
+            x_after = read_rows(xs, b, b1)
+            part += [x_after, read_rows(src["dx"], b, b1) + x_after]
+            seg = part if seg is None else [np.concatenate([s, p]) for s, p in zip(seg, part)]
+            b = b1
+        k = max(int(np.searchsorted(seg[0], row0, side="right")) - 1, 0)
+        if k:                        # drop the nodes before it
+            seg = [s[k:] for s in seg]
+            a += k
+        _filter_kernels.correct_rows(states, time, row0, *seg)
         yield time, states
 
 

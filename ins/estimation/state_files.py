@@ -2,6 +2,8 @@
 the solution: ``innovations.txt`` (every tested measurement, per axis:
 :func:`ins.estimation.measurements.write_innovations`) and ``states.txt`` (the smoothed estimates
 and sigmas of the optional state groups, in edge units: arcsec, m, ms)."""
+from types import SimpleNamespace
+
 import numpy as np
 
 from ins.estimation.error_model import OPTIONAL_GROUPS
@@ -42,14 +44,19 @@ def write_optional_states(path, result):
     if not layout.groups:
         return None
     scale = np.array([si for g in layout.groups for _, si in _state_units(g)])
-    est = result.smoothed_sensors[:, 12:] / scale
-    std = result.smoothed_std[:, 21:] / scale
+    chunks = (result.node_chunks() if hasattr(result, "node_chunks") else
+              [SimpleNamespace(time=result.node_time, smoothed_sensors=result.smoothed_sensors,
+                               smoothed_std=result.smoothed_std)])
     with atomic_open(path, "w") as f:
         f.write("# time_s " + " ".join(optional_columns(layout))
                 + "  (smoothed, at the filter nodes; lever arm: correction added to the "
                   "configured arm, b frame; time offset: a GNSS record stamped t is at IMU "
                   "time t + offset; clock: the estimated receiver clock bias c dt, m, "
                   "and drift, m/s)\n")
-        for t, e, s in zip(result.node_time, est, std):
-            f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s])) + "\n")
+        for c in chunks:                     # block by block over the nodes
+            est = c.smoothed_sensors[:, 12:] / scale
+            std = c.smoothed_std[:, 21:] / scale
+            for t, e, s in zip(c.time, est, std):
+                f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s]))
+                        + "\n")
     return path

@@ -6,6 +6,7 @@ rejected position fixes ends in a recovery (:meth:`Updater._recover`).
 import numpy as np
 
 from ins.estimation import _filter_kernels
+from ins.estimation.filter_stores import measurement_stores
 from ins.estimation.measurements import (
     GnssPosition,
     GnssVelocity,
@@ -50,8 +51,9 @@ class Updater:
         self.thresholds = {}
         self.threshold = self._threshold(3)
         self.n_updates = self.n_rejected = self.n_fallback = self.n_outside = 0
-        self.nis, self.nis_record, self.innovation = [], [], []
-        self.records = []
+        # one compact row per tested measurement (filter_stores; the forward run swaps
+        # in stores on disk when it has a work folder)
+        self.records, self.nis, self.nis_record, self.innovation = measurement_stores()
         self.cov = getattr(gnss, "cov_ned_m2", None)
         self.ev_time, self.ev_record, self.ev_kind = gnss.update_events(settings.use_velocity)
         self.run = []                 # times of the current run of rejected position fixes
