@@ -13,12 +13,17 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - speed: whole ``ins process`` runs (a fresh process each, numba cache warm, no plots)
   with 21, 27 (the default layout) and 31 error states beside KF-GINS in the same run
   (``--kfgins BIN``, else its README figure): wall and CPU seconds, peak resident
-  memory (``ru_maxrss``); then the cost per IMU epoch and per node against the number
+  memory (GNU time's %M); then the cost per IMU epoch and per node against the number
   of states (whole runs in-process, and the compiled node kernels alone up to 45),
 - with ``--with-pyins``, pyins's ``run_feedback_filter`` (1 s step) in the same run.
 
 Usage: python bench/bench_process.py [--data DIR] [--repeat N] [--with-pyins] [--quick]
-[--layout kfgins|survey] [--kfgins BIN] [--speed-only]
+[--layout kfgins|survey] [--kfgins BIN] [--speed-only] [--speed-layouts kfgins,survey]
+[--no-cost]
+
+KF-GINS (GPL-3, not vendored): clone i2Nav-WHU/KF-GINS and build it against Debian's
+Eigen, yaml-cpp and abseil with ``tools/build_kfgins.sh SRC_DIR BUILD_DIR``; then
+``--kfgins BUILD_DIR/bin/KF-GINS`` (or ``KFGINS_BIN``).
 """
 import argparse
 import json
@@ -114,8 +119,17 @@ def accuracy(args, peerlib, truth, data):
           f"2.1/2.2/17.4 | |")
     for gnss_file in ("gnss.txt", "gnss_outage.txt"):
         cfg, meta = config_for(data, gnss_file)
+        kf_rows = []
+        if args.kfgins:                         # the peer's figures from this run
+            with tempfile.TemporaryDirectory() as tmp:
+                cmd = _kfgins_command(args.kfgins, data, tmp, gnss_file)
+                _run_child(cmd)
+                nav = (Path(tmp) / f"kfgins_out_{Path(gnss_file).stem}"
+                       / "KF_GINS_Navresult.nav")
+                kf_rows = [report(peerlib, truth, meta, f"KF-GINS this run ({gnss_file})",
+                                  peerlib.load_nav(str(nav)))]
         res = process(cfg)
-        rows = [report(peerlib, truth, meta, f"ours forward ({gnss_file})",
+        rows = kf_rows + [report(peerlib, truth, meta, f"ours forward ({gnss_file})",
                        frame(peerlib, res.forward)),
                 report(peerlib, truth, meta, f"ours smoothed ({gnss_file})",
                        frame(peerlib, res.smoothed))]
@@ -168,53 +182,117 @@ def _layout_config(tmp, name, states):
     return path
 
 
+#: GNU time (Debian package ``time``): the child's peak RSS without this process's.
+GNU_TIME = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
+
+
 def _run_child(cmd):
-    """Run ``cmd``; (wall s, CPU s of the child, peak RSS MiB of the child) by wait4."""
+    """Run ``cmd``; (wall s, CPU s of the child, peak RSS MiB of the child).
+
+    Linux's ``ru_maxrss`` of a child started from this process counts this process's
+    own resident set at the fork (KF-GINS, 5 MiB, showed 33 MiB, this script's size after
+    numpy's import; ``/bin/true`` started by a Python holding 480 MiB shows 485 MiB), so
+    the child runs under GNU time, forked from that small process, and its %M is the
+    child's own peak. Without GNU time, wait4's figure is printed as an upper bound."""
     t = time.perf_counter()
-    with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, cwd=ROOT)
+    with tempfile.TemporaryFile() as err, tempfile.NamedTemporaryFile("r") as rep:
+        full = [GNU_TIME, "-q", "-o", rep.name, "-f", "%U %S %M"] + cmd if GNU_TIME else cmd
+        proc = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=err, cwd=ROOT)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t
         if os.waitstatus_to_exitcode(status) != 0:
             err.seek(0)
             print(err.read().decode(errors="replace")[-2000:])
             raise SystemExit(f"failed: {' '.join(map(str, cmd))}")
+        if GNU_TIME:
+            user, system, rss_kib = rep.read().split()[-3:]
+            return wall, float(user) + float(system), float(rss_kib) / 1024.0
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
 
 
-def _median_runs(cmd, repeat):
-    runs = [_run_child(cmd) for _ in range(repeat)]
-    return tuple(float(np.median([r[i] for r in runs])) for i in range(3)) + (
-        min(r[0] for r in runs), max(r[2] for r in runs))
+#: Key of the KF-GINS runs (not a layout name).
+PEER = "KF-GINS"
+
+
+def _kfgins_command(binary, data, tmp, gnss_file="gnss.txt"):
+    """KF-GINS on the dataset's kfgins_gnss.yaml with its input paths pointed at ``data``
+    (the files ours reads, wherever the folder now is) and its output into ``tmp``
+    (beside ours: the same disk, the dataset folder untouched)."""
+    path = Path(binary)
+    if not (path.is_file() and os.access(path, os.X_OK)):
+        raise SystemExit(f"--kfgins {binary}: not an executable file (build one with "
+                         f"tools/build_kfgins.sh SRC_DIR BUILD_DIR)")
+    src = data / "kfgins_gnss.yaml"                # the outage file differs in gnsspath only
+    if not src.is_file():
+        raise SystemExit(f"{src}: missing (the dataset is made by make_dataset.py)")
+    out = Path(tmp) / f"kfgins_out_{Path(gnss_file).stem}"
+    out.mkdir()
+    paths = {"imupath": data / "imu_noisy.txt", "gnsspath": data / gnss_file,
+             "outputpath": out}                 # ours reads the same two files
+    lines = [f'{line.split(":")[0]}: "{paths[line.split(":")[0]]}"'
+             if line.split(":")[0] in paths else line
+             for line in src.read_text().splitlines()]
+    yaml = Path(tmp) / f"kfgins_{Path(gnss_file).stem}.yaml"
+    yaml.write_text("\n".join(lines) + "\n")
+    return [str(path.resolve()), str(yaml)]
+
+
+def _medians(runs):
+    """(median wall, median CPU, max peak RSS, min wall) of ``_run_child`` results."""
+    return (float(np.median([r[0] for r in runs])), float(np.median([r[1] for r in runs])),
+            max(r[2] for r in runs), min(r[0] for r in runs))
 
 
 def speed(args, data):
     """Whole ``ins process`` runs (fresh process each, numba cache warm, no plots)
     beside KF-GINS in the same run (``--kfgins BIN``; else its README figure), then the
-    cost per epoch and per node against the number of error states."""
-    print(f"\nSpeed, {data}: wall and CPU medians of {args.repeat}, peak RSS (ru_maxrss) "
-          f"max; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    print("| run | states | wall s (min) | CPU s | peak RSS MB | wall / KF-GINS |")
-    print("|---|---|---|---|---|---|")
-    if args.kfgins:
-        yaml = data / "kfgins_gnss.yaml"
-        kw, kc, krss, kmin, krss_max = _median_runs([args.kfgins, str(yaml)], args.repeat)
-        kf_label = "KF-GINS forward EKF (this run)"
-    else:
-        kw, kc, kmin, krss_max = KFGINS["wall"], float("nan"), KFGINS["wall"], 4.7
-        kf_label = "KF-GINS forward EKF (README figure, not run: --kfgins BIN)"
-    print(f"| {kf_label} | 21 | {kw:.2f} ({kmin:.2f}) | {kc:.2f} | {krss_max:.0f} | 1.00 |")
+    cost per epoch and per node against the number of error states.
+
+    The runs are interleaved (KF-GINS, then each layout, ``--repeat`` times, after one
+    unmeasured run of each: numba's cache and the page cache warm), so a change of the
+    shared machine's load falls on both sides of the ratio."""
+    layouts = [entry for entry in SPEED_LAYOUTS if entry[0] in args.speed_layouts]
+    load0 = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
-        for name, states, label in SPEED_LAYOUTS:
+        commands = []
+        if args.kfgins:
+            commands.append((PEER, _kfgins_command(args.kfgins, data, tmp)))
+        for name, states, _ in layouts:
             cfg = _layout_config(tmp, name, states)
-            cmd = [sys.executable, "-m", "ins.cli.main", "process", "--imu",
-                   str(data / "imu_noisy.txt"), "--gnss", str(data / "gnss.txt"), "--config",
-                   str(cfg), "-q", "-o", str(Path(tmp) / "out"), "--force", "--no-plots"]
-            _run_child(cmd)                                    # numba cache warm
-            w, c, _, wmin, rss = _median_runs(cmd, args.repeat)
-            print(f"| ins process (forward + smoother, no plots) | {label} | {w:.2f} "
-                  f"({wmin:.2f}) | {c:.2f} | {rss:.0f} | {w / kw:.2f} |")
-    per_state_cost(args, data)
+            commands.append((name, [sys.executable, "-m", "ins.cli.main", "process", "--imu",
+                                    str(data / "imu_noisy.txt"), "--gnss",
+                                    str(data / "gnss.txt"), "--config", str(cfg), "-q", "-o",
+                                    str(Path(tmp) / f"out_{name}"), "--force", "--no-plots"]))
+        for _, cmd in commands:                      # warm: numba cache, page cache
+            _run_child(cmd)
+        runs = {name: [] for name, _ in commands}
+        for _ in range(args.repeat):
+            for name, cmd in commands:
+                runs[name].append(_run_child(cmd))
+    load1 = os.getloadavg()
+    print(f"\nSpeed, {data}: whole processes, interleaved, wall and CPU (user + sys) "
+          f"medians of {args.repeat}, peak RSS (MiB) max "
+          f"{'(GNU time %M)' if GNU_TIME else '(wait4: upper bound, counts this process)'}; "
+          f"load average "
+          f"{load0[0]:.1f} before, {load1[0]:.1f} after, on {os.cpu_count()} cores")
+    print("| run | states | wall s (min) | CPU s | peak RSS MiB | wall / KF-GINS | "
+          "CPU / KF-GINS |")
+    print("|---|---|---|---|---|---|---|")
+    if args.kfgins:
+        kw, kc, krss, kmin = _medians(runs[PEER])
+        print(f"| KF-GINS (this run; forward EKF, writes nav, IMU errors and std at "
+              f"200 Hz) | 21 | {kw:.2f} ({kmin:.2f}) | {kc:.2f} | "
+              f"{krss:.1f} | 1.00 | 1.00 |")
+    else:
+        kw, kc, krss, kmin = KFGINS["wall"], float("nan"), 4.7, KFGINS["wall"]
+        print(f"| KF-GINS (README figure, not run: --kfgins BIN) | 21 | {kw:.2f} | - | "
+              f"{krss:.1f} | 1.00 | - |")
+    for name, _, label in layouts:
+        w, c, rss, wmin = _medians(runs[name])
+        print(f"| ins process (forward + smoother, no plots) | {label} | {w:.2f} "
+              f"({wmin:.2f}) | {c:.2f} | {rss:.1f} | {w / kw:.2f} | {c / kc:.2f} |")
+    if not args.no_cost:
+        per_state_cost(args, data)
 
 
 def per_state_cost(args, data):
@@ -362,10 +440,20 @@ def main():
                     help="KF-GINS executable, run on the dataset's kfgins_gnss.yaml in the "
                          "speed table (default: $KFGINS_BIN; without it the README figure)")
     ap.add_argument("--speed-only", action="store_true", help="only the speed tables")
+    ap.add_argument("--speed-layouts", default=",".join(e[0] for e in SPEED_LAYOUTS),
+                    type=lambda text: text.split(","),
+                    help="error-state layouts of the whole-process timings, comma-separated "
+                         "(default: %(default)s)")
+    ap.add_argument("--no-cost", action="store_true",
+                    help="skip the cost-per-state tables after the speed table")
     ap.add_argument("--layout", default="kfgins", choices=["kfgins", "survey"],
                     help="error states of the in-process runs (the subprocess timings use "
                          "data/configs/kfgins_like.toml: kfgins)")
     args = ap.parse_args()
+    unknown = set(args.speed_layouts) - {e[0] for e in SPEED_LAYOUTS}
+    if unknown:
+        ap.error(f"--speed-layouts: unknown {sorted(unknown)}; expected some of "
+                 f"{[e[0] for e in SPEED_LAYOUTS]}")
     global LAYOUT
     LAYOUT = args.layout
     print(f"layout: {LAYOUT}")
