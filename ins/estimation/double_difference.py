@@ -64,20 +64,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins.estimation import _filter_kernels
-from ins.estimation.measurements import (
-    NavPoint,
-    UpdateRecord,
-    kalman_update,
-    node_acceleration,
-)
+from ins.estimation.measurements import NavPoint, UpdateRecord, node_acceleration
 from ins.estimation.pseudorange import (
     TightOptions,
     _Epoch,
+    apply_rows,
     line_of_sight,
     range_rows,
     sagnac_range,
     sagnac_range_rate,
+    satellites_used,
 )
 from ins.estimation.updates import Updater
 
@@ -339,18 +335,10 @@ class DoubleDifferenceUpdater(Updater):
         if not z_all:
             return P, dx
         from scipy.linalg import block_diag
-        H, z, R = np.vstack(H_all), np.concatenate(z_all), block_diag(*R_blocks)
-        x, P, nis, _ = kalman_update(P, H, R, z, np.inf, self)
-        self.nis.append(nis / len(z) * 3.0)          # as TightUpdater: per row times 3
-        self.nis_record.append(k)
-        self.innovation.append(np.full(3, np.nan))
-        _filter_kernels.correct_state(point.state, x)
-        point.sensors += x[L.sensors]
-        self.n_updates += 1
-        return P, x
+        return apply_rows(self, point, P, np.vstack(H_all), block_diag(*R_blocks),
+                          np.concatenate(z_all), k)
 
     def satellites_used(self):
         """``(min, mean, max)`` satellites in the pseudorange DDs per epoch (reference
         included; 0s included)."""
-        n = np.array([ep.used for ep in self.epochs]) if self.epochs else np.zeros(1)
-        return int(n.min()), float(n.mean()), int(n.max())
+        return satellites_used(self.epochs)

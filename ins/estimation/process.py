@@ -288,7 +288,7 @@ def _anywhere(cfg, gnss, lever, blocks):
     if cfg.noise_source is None and ms.gyro_bias_b is not None:
         noise, text = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)
         how += "; " + text
-        from ins.estimation.error_model import MGAL     # the level sigma of that grade
+        from ins.estimation.error_model import MGAL  # the level sigma of that grade
         tilt = np.rad2deg(float(np.max(noise.accel_bias_std_mgal)) * MGAL
                           / float(earth.normal_gravity(al.state.lla[0], al.state.lla[2])))
         al = replace(al, att_std_deg=np.array([tilt, tilt, al.att_std_deg[2]]))

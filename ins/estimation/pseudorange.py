@@ -68,7 +68,7 @@ from ins.estimation.measurements import (
 from ins.estimation.updates import Updater
 from ins.nav import earth
 
-__all__ = ["CLOCK_JUMP_SIGMAS", "CLOCKS", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
+__all__ = ["CLOCK_JUMP_SIGMAS", "CLOCKS", "apply_rows", "satellites_used", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
            "sagnac_range", "sagnac_range_rate", "CLIGHT"]
 
 CLIGHT = 299792458.0
@@ -306,17 +306,7 @@ class TightUpdater(Updater):
         ep.used = len(used)
         if not rows:
             return P, dx
-        H, z = np.array(rows), np.array(z)
-        x, P, nis, _ = kalman_update(P, H, np.diag(R), z, np.inf, self)
-        # the summary's NIS is of 3-dof position records: the epoch's NIS per row times 3
-        # (its mean stays 3 for a consistent filter); no NED position innovation exists
-        self.nis.append(nis / len(z) * 3.0)
-        self.nis_record.append(k)
-        self.innovation.append(np.full(3, np.nan))
-        _filter_kernels.correct_state(point.state, x)
-        point.sensors += x[L.sensors]
-        self.n_updates += 1
-        return P, x
+        return apply_rows(self, point, P, np.array(rows), np.diag(R), np.array(z), k)
 
     name = "gnss_tight"
 
@@ -359,5 +349,26 @@ class TightUpdater(Updater):
 
     def satellites_used(self):
         """``(min, mean, max)`` satellites used per epoch (0s included)."""
-        n = np.array([ep.used for ep in self.epochs]) if self.epochs else np.zeros(1)
-        return int(n.min()), float(n.mean()), int(n.max())
+        return satellites_used(self.epochs)
+
+
+def satellites_used(epochs):
+    """``(min, mean, max)`` of ``ep.used`` over the epochs (0s included)."""
+    n = np.array([ep.used for ep in epochs]) if epochs else np.zeros(1)
+    return int(n.min()), float(n.mean()), int(n.max())
+
+
+def apply_rows(updater, point, P, H, R, z, k):
+    """The accepted rows of one epoch in one update (``kalman_update`` with no test: the
+    rows were screened one satellite at a time), fed back into ``point``; the summary's
+    NIS is of 3-dof position records: the epoch's NIS per row times 3 (its mean stays 3
+    for a consistent filter), and no NED position innovation exists.  Returns
+    ``(P, dx)`` like :meth:`ins.estimation.updates.Updater.update`."""
+    x, P, nis, _ = kalman_update(P, H, R, z, np.inf, updater)
+    updater.nis.append(nis / len(z) * 3.0)
+    updater.nis_record.append(k)
+    updater.innovation.append(np.full(3, np.nan))
+    _filter_kernels.correct_state(point.state, x)
+    point.sensors += x[updater.layout.sensors]
+    updater.n_updates += 1
+    return P, x
