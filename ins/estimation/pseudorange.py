@@ -20,7 +20,7 @@ Measurement model
 -----------------
 With the antenna ``r`` (ECEF, from the INS position, the lever arm and the record's
 time, as :class:`~ins.estimation.measurements.GnssPosition` predicts it), the unit
-line of sight ``e = (r_s - r) / |r_s - r|`` and ``omega_ie`` the Earth rate,
+line of sight ``e = (r_s - r) / |r_s - r|`` and ``omega_ie`` the Earth rate::
 
     range      = |r_s - r| + omega_ie (x_s y - y_s x) / c + b
     range rate = e . (v_s - v) + omega_ie (v_s,x y + x_s v_y - v_s,y x - y_s v_x) / c + d

@@ -42,7 +42,7 @@ OMEGA_E_GPS = 7.2921151467e-5
 C_LIGHT = 299792458.0
 #: Relativistic clock constant ``-2 sqrt(mu) / c^2``, s/sqrt(m).
 F_REL = -2.0 * np.sqrt(MU_GPS) / C_LIGHT ** 2
-#: Largest |t - toe| of a usable ephemeris, s.
+#: Largest ``|t - toe|`` of a usable ephemeris, s.
 MAX_AGE_S = 7200.0
 
 
