@@ -225,3 +225,17 @@ def test_a_run_does_not_inherit_the_previous_runs_navigation(tmp_path):
     # the two ionosphere models differ by decimetres: the check can fail
     assert np.max(np.abs(ned_offset(first.lla, with_ion.lla))) > 0.05
     np.testing.assert_array_equal(first.lla, again.lla)
+
+
+def test_a_rover_alone_is_positioned_point_by_point():
+    """Without a base and with no mode in [rtklib], the mode is "single" (the default
+    "kinematic" needs a base: a rover alone for tight coupling was refused); a base or
+    a mode given keeps the default or the choice."""
+    from ins.estimation.process_gnss import raw_gnss_config
+    from ins.gnss.rtklib_options import mode_without_base
+    assert raw_gnss_config({"rover": "r.obs", "nav": "n.nav"}, None).options.mode == "single"
+    assert raw_gnss_config({"rover": "r.obs", "base": "b.obs", "nav": "n.nav"},
+                           None).options.mode == "kinematic"
+    assert raw_gnss_config({"rover": "r.obs"}, {"mode": "dgnss"}).options.mode == "dgnss"
+    assert mode_without_base(None, None, "static") == "static"
+    assert mode_without_base({"direction": "forward"}, None) == "single"

@@ -69,7 +69,8 @@ def add_parser(sub):
                    help="precise clocks, RINEX CLK (repeatable)")
     p.add_argument("--config", metavar="TOML", help="file with an [rtklib] table of settings")
     p.add_argument("--mode", choices=MODES, default=None,
-                   help="positioning mode (default: the config's, else kinematic)")
+                   help="positioning mode (default: the config's, else kinematic with --base and "
+                        "single without)")
     p.add_argument("--direction", choices=DIRECTIONS, default=None,
                    help="filter direction (default: the config's, else combined)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.pos")
@@ -82,14 +83,15 @@ def add_parser(sub):
 
 
 def _options(args):
-    from ins.gnss.rtklib_options import read_rtklib_options
+    from ins.gnss.rtklib_options import mode_without_base, read_rtklib_options
     table, path = None, None
     if args.config:
         from ins.common.textfiles import read_toml
         path = args.config
         doc = read_toml(path, "a config with an [rtklib] table (TOML)")
         table = doc.get("rtklib")
-    return read_rtklib_options(table, path, mode=args.mode, direction=args.direction)
+    return read_rtklib_options(table, path, direction=args.direction,
+                               mode=mode_without_base(table, args.base, args.mode))
 
 
 def separation_paths(pos_path):

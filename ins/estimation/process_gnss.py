@@ -70,7 +70,7 @@ def raw_gnss_config(files, rtklib_table, path=None):
         Naming the file and key: both ``gnss`` and ``rover``, raw keys without
         ``rover``, a value that is no path, bad ``[rtklib]`` keys.
     """
-    from ins.gnss.rtklib_options import read_rtklib_options
+    from ins.gnss.rtklib_options import mode_without_base, read_rtklib_options
     where = (lambda key: f"{path}: [files] {key}") if path else (lambda key: f"[files] {key}")
     given = [k for k in RAW_KEYS if files.get(k) not in (None, [], ())]
     if not given:
@@ -84,7 +84,8 @@ def raw_gnss_config(files, rtklib_table, path=None):
     if files.get("gnss") is not None:
         raise InputError(f"{where('gnss')}: give either a GNSS solution (gnss) or raw "
                          f"observations (rover, base, nav), not both")
-    options = read_rtklib_options(rtklib_table, path)
+    options = read_rtklib_options(rtklib_table, path, mode=mode_without_base(
+        rtklib_table, files.get("base") or None))
     return RawGnss(rover=_paths(files["rover"], where("rover"), False),
                    base=_paths(files.get("base"), where("base"), False),
                    nav=_paths(files.get("nav"), where("nav"), True),

@@ -3,7 +3,9 @@ file with strict keys, and put into a COPY of RTKLIB's own defaults.
 
 ``[rtklib]`` (every key optional; the default is RTKLIB demo5's own unless stated)::
 
-    mode               = "single"|"dgnss"|"kinematic"|"static"    ("kinematic")
+    mode               = "single"|"dgnss"|"kinematic"|"static"    ("kinematic"; where
+                         no base is given and the table names no mode, "single":
+                         :func:`mode_without_base`)
     direction          = "forward"|"backward"|"combined"          ("combined"; RTKLIB's
                          default is "forward": the combined forward-backward smoother is
                          what post-processing is for)
@@ -41,7 +43,7 @@ from ins.common.errors import InputError
 from ins.common.tomlschema import Table
 
 __all__ = ["RtklibOptions", "read_rtklib_options", "MODES", "DIRECTIONS", "SYSTEMS",
-           "fill_prcopt", "CARRIER_MODES"]
+           "fill_prcopt", "CARRIER_MODES", "mode_without_base"]
 
 MODES = ("single", "dgnss", "kinematic", "static")
 #: Modes that use the carrier phase (and so fix integer ambiguities).
@@ -103,6 +105,18 @@ class RtklibOptions:
     def uses_base(self):
         """Whether the mode needs a base station's observations."""
         return self.mode != "single"
+
+
+def mode_without_base(table, base, mode=None):
+    """The positioning mode to override with: ``mode`` when given (the command line);
+    ``"single"`` when no base station is given and the ``[rtklib]`` table names no mode
+    (the default "kinematic" needs a base: a rover alone, as for tight coupling, is
+    positioned point by point); else None (the table's or the default)."""
+    if mode is not None:
+        return mode
+    if base is None and (table is None or "mode" not in table):
+        return "single"
+    return None
 
 
 def read_rtklib_options(table, path=None, sections=None, **overrides):
