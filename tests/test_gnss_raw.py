@@ -443,7 +443,7 @@ def test_flight_outside_the_ephemerides_is_refused(tmp_path):
     ('slips = [[20.0, 40, 4]]', r"\[gnss_raw\] slips: expected"),
     ('masks = [[20.0, -1.0, 3]]', r"\[gnss_raw\] masks: expected"),
     ('rate_hz = 0', r"\[gnss_raw\] rate_hz: must be > 0"),
-    ('elevation_mask = 5', r"\[gnss_raw\] elevation_mask: unknown key"),
+    ('elevation_mask_rad = 5', r"\[gnss_raw\] elevation_mask_rad: unknown key"),
 ])
 def test_plan_section_errors(tmp_path, line, message):
     from ins.simulate.plan_read import load_plan
@@ -464,7 +464,7 @@ def test_plan_nav_file_is_relative_to_the_plan(tmp_path):
     raw = load_plan(plan).gnss_raw
     assert raw.nav_file == str(tmp_path / "nav" / "brdc.05n")
     assert raw.slips == ((20.0, 0, 4),) and raw.masks == ((40.0, 10.0, 3),)
-    assert raw.elevation_mask == pytest.approx(np.deg2rad(10.0)) and raw.base_lla is None
+    assert raw.elevation_mask_rad == pytest.approx(np.deg2rad(10.0)) and raw.base_lla is None
 
 
 def test_plan_without_nav_file_names_the_key(tmp_path):

@@ -17,7 +17,7 @@ navigation file above the elevation mask, with ``lambda = c / 1575.42 MHz``::
   sits at its true position at ``t``;
 - ``I``: Klobuchar L1 group delay (IS-GPS-200 20.3.3.5.2.5) from the navigation header's
   alpha/beta, times ``iono_scale``; ``T``: Saastamoinen troposphere (standard atmosphere,
-  relative humidity ``humidity``) times ``tropo_scale``;
+  relative humidity ``humidity_fraction``) times ``tropo_scale``;
 - ``m_P``, ``m_L``: multipath-like errors, per satellite a first-order Gauss-Markov process
   of time constant ``multipath_time_s`` and standard deviation
   ``multipath_*_m / sin(el)``; ``e_P``, ``e_L``, ``e_D``: white noise of standard deviation
@@ -27,7 +27,7 @@ navigation file above the elevation mask, with ``lambda = c / 1575.42 MHz``::
   arc after the file's first epoch and at each slip;
 - masked satellites: in the spans of the mask schedule only the ``n`` highest satellites
   above the elevation mask are observed (all of them if fewer are in view);
-- the vehicle: with its attitude, satellites below ``antenna_mask`` above its x-y plane
+- the vehicle: with its attitude, satellites below ``antenna_mask_rad`` above its x-y plane
   are hidden (an aircraft banking 25 deg loses the low satellites on the outside of the
   turn); a satellite coming back starts a new arc;
 - ``S1C``: C/N0 = ``cn0_horizon + (cn0_zenith - cn0_horizon) sin(el)``, dB-Hz.
@@ -68,7 +68,7 @@ class RawSettings:
         RINEX 2/3 GPS navigation file (broadcast orbits, Klobuchar coefficients).
     rate_hz : float
         Observation rate, Hz.
-    elevation_mask : float
+    elevation_mask_rad : float
         rad.
     sigma_code_m, sigma_phase_m : float
         White noise at zenith, m (divided by sin(el)).
@@ -84,9 +84,9 @@ class RawSettings:
         Random-walk densities of bias (s/sqrt(s)) and drift (1/sqrt(s)).
     iono_scale, tropo_scale : float
         Factors on the Klobuchar and Saastamoinen delays injected (1: the models exactly).
-    humidity : float
+    humidity_fraction : float
         Relative humidity of the troposphere model, 0-1.
-    antenna_mask : float
+    antenna_mask_rad : float
         Satellites below this elevation in the vehicle's frame (the antenna's horizon,
         tilted with the attitude of the aircraft) are hidden by the vehicle, rad.
     cn0_zenith_dbhz, cn0_horizon_dbhz : float
@@ -104,7 +104,7 @@ class RawSettings:
 
     nav_file: str = ""
     rate_hz: float = 1.0
-    elevation_mask: float = np.deg2rad(10.0)
+    elevation_mask_rad: float = np.deg2rad(10.0)
     sigma_code_m: float = 0.3
     sigma_phase_m: float = 0.002
     sigma_doppler_hz: float = 0.05
@@ -117,10 +117,10 @@ class RawSettings:
     clock_drift_noise: float = 6e-10
     iono_scale: float = 1.0
     tropo_scale: float = 1.0
-    humidity: float = 0.7
+    humidity_fraction: float = 0.7
     cn0_zenith_dbhz: float = 50.0
     cn0_horizon_dbhz: float = 35.0
-    antenna_mask: float = 0.0
+    antenna_mask_rad: float = 0.0
     ambiguity_max: int = 1000
     slips: tuple = ()
     masks: tuple = ()
@@ -281,13 +281,13 @@ def klobuchar(lat, lon, az, el, t_gps, alpha, beta):
     return C_LIGHT * delay
 
 
-def saastamoinen(lat, h, el, humidity=0.7):
+def saastamoinen(lat, h, el, humidity_fraction=0.7):
     """Saastamoinen slant troposphere delay, m (hydrostatic + wet, 1/cos(z) mapping).
 
     Standard atmosphere at the receiver's height ``h`` (m; clipped to [0, 10 km])::
 
         P = 1013.25 (1 - 2.2557e-5 h)^5.2568 hPa,  T = 15 - 6.5e-3 h + 273.16 K
-        e = 6.108 humidity exp((17.15 T - 4684) / (T - 38.45)) hPa
+        e = 6.108 humidity_fraction exp((17.15 T - 4684) / (T - 38.45)) hPa
         T_d = 0.0022768 P / (1 - 0.00266 cos 2 lat - 0.00028 h_km) / cos z
         T_w = 0.002277 (1255 / T + 0.05) e / cos z
 
@@ -296,7 +296,7 @@ def saastamoinen(lat, h, el, humidity=0.7):
     hgt = np.clip(np.asarray(h, dtype=float), 0.0, 1e4)
     P = 1013.25 * (1.0 - 2.2557e-5 * hgt) ** 5.2568
     T = 15.0 - 6.5e-3 * hgt + 273.16
-    e = 6.108 * humidity * np.exp((17.15 * T - 4684.0) / (T - 38.45))
+    e = 6.108 * humidity_fraction * np.exp((17.15 * T - 4684.0) / (T - 38.45))
     cos_z = np.cos(_PI / 2.0 - np.asarray(el))
     dry = 0.0022768 * P / (1.0 - 0.00266 * np.cos(2.0 * np.asarray(lat)) - 0.00028 * hgt / 1e3)
     wet = 0.002277 * (1255.0 / T + 0.05) * e
@@ -359,7 +359,7 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
         ``receiver(t) -> (lla (n, 3) rad rad m, r_e (n, 3) m[, C_na (n, 3, 3)])``: the
         antenna at true GPS times ``t`` and, optionally, the attitude of the vehicle that
         carries it (``C_na``: aircraft FRD to NED), whose body hides the satellites below
-        ``antenna_mask`` in its own frame (the antenna's horizon tilts with the bank).
+        ``antenna_mask_rad`` in its own frame (the antenna's horizon tilts with the bank).
     settings : RawSettings
     rng : numpy.random.Generator
     t_start : float, optional
@@ -396,7 +396,8 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
     def delays(lla_, az_, el_, t_):
         i_ = 0.0 if alpha is None or beta is None else \
             s.iono_scale * klobuchar(lla_[:, 0], lla_[:, 1], az_, el_, t_, alpha, beta)
-        return i_, s.tropo_scale * saastamoinen(lla_[:, 0], lla_[:, 2], el_, s.humidity)
+        return i_, s.tropo_scale * saastamoinen(lla_[:, 0], lla_[:, 2], el_,
+                                                s.humidity_fraction)
 
     for j, prn in enumerate(prns):
         def state(tt, prn=prn):
@@ -411,7 +412,7 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
         az[:, j], el[:, j], iono[:, j], trop[:, j] = az_j, el_j, io_j, tr_j
         if C_na is not None:
             el_a[:, j] = antenna_elevation(lla, C_na, r_rx, rs_j)
-        up = np.flatnonzero(el_j >= s.elevation_mask)     # the Doppler where it is used
+        up = np.flatnonzero(el_j >= s.elevation_mask_rad)     # the Doppler where it is used
         ends = []
         for tt, ll, rr in ((t + h, lla_p, r_p), (t - h, lla_m, r_m)):
             tt, ll, rr = tt[up], ll[up], rr[up]
@@ -420,9 +421,9 @@ def simulate_raw(orbits, week, time_rx, receiver, settings, rng, t_start=None, a
             io_k, tr_k = delays(ll, a_k, e_k, tt)
             ends.append(rho_k - C_LIGHT * dts_k - io_k + tr_k)
         rate[up, j] = (ends[0] - ends[1]) / (2.0 * h)
-    visible = np.isfinite(rho) & (el >= s.elevation_mask)
+    visible = np.isfinite(rho) & (el >= s.elevation_mask_rad)
     if C_na is not None:
-        visible &= el_a >= s.antenna_mask
+        visible &= el_a >= s.antenna_mask_rad
     observed = _apply_masks(el, visible, time_rx - t0, s.masks)
     sin_el = np.sin(np.where(observed, el, _PI / 2))
     # ambiguities per arc, slips

@@ -182,8 +182,8 @@ def write_gnss_raw(flight, settings, rng):
     table = {
         "nav_source": str(s.nav_file), "rate_hz": s.rate_hz,
         "obs_types": ["C1C", "L1C", "D1C", "S1C"],
-        "elevation_mask_deg": float(np.rad2deg(s.elevation_mask)),
-        "antenna_mask_deg": float(np.rad2deg(s.antenna_mask)),
+        "elevation_mask_deg": float(np.rad2deg(s.elevation_mask_rad)),
+        "antenna_mask_deg": float(np.rad2deg(s.antenna_mask_rad)),
         "sigma_code_m": s.sigma_code_m, "sigma_phase_m": s.sigma_phase_m,
         "sigma_doppler_hz": s.sigma_doppler_hz, "multipath_code_m": s.multipath_code_m,
         "multipath_phase_m": s.multipath_phase_m, "multipath_time_s": s.multipath_time_s,
