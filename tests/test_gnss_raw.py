@@ -636,3 +636,36 @@ def test_the_banked_aircraft_hides_the_low_satellites_on_the_outside(orbits):
     lost = level.observed & ~obs.observed
     assert lost.sum() >= 5 and np.all(np.sin(az[lost]) < 0)        # in the west
     assert np.all(np.isnan(level.elevation_antenna))                # no attitude given
+
+
+@pytest.mark.skipif(not NAV.is_file(), reason="../shared/real is absent")
+def test_a_flight_far_from_the_nav_files_station_is_warned(tmp_path, capsys):
+    """The pair's navigation file holds the ephemerides its Japanese station received:
+    a flight in Chile at the same time sees 1-2 of those satellites.  The folder is
+    written (a simulation may want that), with a warning that says why no GNSS solution
+    will come of it; the plan near the station gives no warning."""
+    import warnings
+
+    from ins.cli.main import main
+    from ins.common.errors import QualityWarning
+    text = (ROOT / "data" / "flights" / "rawsim.toml").read_text()
+    south = (text.replace("origin_lat_deg = 35.17", "origin_lat_deg = -33.87")
+             .replace("origin_lon_deg = 139.60", "origin_lon_deg = -70.65")
+             .replace("base_lla_deg = [35.165, 139.61, 62.0]",
+                      "base_lla_deg = [-33.865, -70.64, 62.0]"))
+    assert south.count("-33.8") == 2 and "-70.65" in south
+    plan = tmp_path / "south.toml"
+    plan.write_text(south)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["simulate", str(plan), "-o", str(tmp_path / "s"), "-q", "--gnss-raw",
+                     str(NAV)]) == 0
+    msgs = [str(w.message) for w in seen if issubclass(w.category, QualityWarning)]
+    err = capsys.readouterr().err
+    assert any("satellites in view" in m for m in msgs) or "satellites in view" in err
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert main(["simulate", str(ROOT / "data" / "flights" / "rawsim.toml"), "-o",
+                     str(tmp_path / "n"), "-q", "--gnss-raw", str(NAV)]) == 0
+    assert "satellites in view" not in capsys.readouterr().err
+    assert not any("satellites in view" in str(w.message) for w in seen)

@@ -37,11 +37,12 @@ numbers come from ``product_rng(seed, "gnss_raw")``: the raw product leaves the 
 products' bytes unchanged.
 """
 import io
+import warnings
 from dataclasses import replace
 
 import numpy as np
 
-from ins.common.errors import InputError
+from ins.common.errors import InputError, QualityWarning
 from ins.common.fileio import atomic_open
 from ins.io.rinex_nav import read_gps_nav, span_text
 from ins.io.rinex_obs import write_rinex3_obs
@@ -49,7 +50,7 @@ from ins.nav.earth import lla_to_ecef
 from ins.nav.rotation import quat_to_dcm
 from ins.simulate.gnss import antenna_state
 from ins.simulate.gnss_raw import L1_WAVELENGTH, simulate_raw
-from ins.simulate.gps_orbit import C_LIGHT, BroadcastOrbits
+from ins.simulate.gps_orbit import C_LIGHT, MAX_AGE_S, BroadcastOrbits
 
 __all__ = ["FILES", "BASE_FILE", "write_gnss_raw", "load_orbits", "epochs", "check_span"]
 
@@ -87,6 +88,29 @@ def check_span(orbits, week, t_start, t_end):
     """InputError unless the broadcast orbits cover the flight (naming the plan keys)."""
     orbits.check_time(week, t_start, t_end, what="the flight ([flight] gps_week, "
                                                   "start_time_s)")
+
+
+def _warn_few_satellites(obs, time_rel_s, settings, orbits):
+    """A warning when, outside the plan's masks, most epochs see fewer than 4 satellites:
+    a navigation file holds the ephemerides of the satellites its station saw, and a
+    flight far from that station (or at another time) sees few of them."""
+    n = obs.observed.sum(axis=1)
+    free = np.ones(len(n), bool)
+    for start, length, _ in settings.masks:
+        free &= ~((time_rel_s >= start) & (time_rel_s < start + length))
+    few = np.count_nonzero(n[free] < 4)
+    if free.any() and few > 0.5 * np.count_nonzero(free):
+        t_mid = float(np.median(obs.time_gps))
+        valid = sum(np.all(np.isfinite(orbits.state(p, obs.week, [t_mid])[0]))
+                    for p in orbits.prns)
+        warnings.warn(f"{settings.nav_file}: only {int(np.median(n[free]))} satellites in view "
+                      f"(median; fewer than 4 at {few} of {np.count_nonzero(free)} unmasked "
+                      f"epochs): at the flight's time {valid} of the file's "
+                      f"{len(orbits.prns)} satellites have an ephemeris (within "
+                      f"{MAX_AGE_S / 3600:g} h), those its station saw shortly before; fly "
+                      f"near that station or give a navigation file of the flight's place and "
+                      f"time (no GNSS solution is possible from these observations)",
+                      QualityWarning, stacklevel=2)
 
 
 def _receiver(truth, l_bp, l_ap):
@@ -155,6 +179,7 @@ def write_gnss_raw(flight, settings, rng):
     obs = simulate_raw(orbits, week, time_rx, _receiver(truth, m.l_bp, m.l_ap), settings, rng,
                        t_start=truth.t_start)
     flight.progress(0.6)
+    _warn_few_satellites(obs, time_rx - truth.t_start, settings, orbits)
     _write_obs(folder / FILES["gnss_raw_obs"], obs, obs.r_rx_e[0], settings, orbits,
                "SIMULATED_ROVER", ("simulated by ins simulate (insphoto): truth in",
                                    "receiver_clock.txt and gnss_raw_truth.csv"))
