@@ -239,3 +239,18 @@ def test_a_rover_alone_is_positioned_point_by_point():
     assert raw_gnss_config({"rover": "r.obs"}, {"mode": "dgnss"}).options.mode == "dgnss"
     assert mode_without_base(None, None, "static") == "static"
     assert mode_without_base({"direction": "forward"}, None) == "single"
+
+
+@needs_pair
+def test_a_cut_observation_file_is_warned(tmp_path):
+    """A RINEX file cut inside a line (an interrupted download) is read as far as it goes,
+    with a warning naming it; the whole file gives none."""
+    pytest.importorskip("pyrtklib5")
+    from ins.gnss.rtklib_engine import count_epochs
+    cut = tmp_path / "cut.obs"
+    cut.write_bytes(open(ROVER, "rb").read()[:3000])
+    with pytest.warns(InputWarning, match=r"cut\.obs: the file ends inside a line"):
+        assert count_epochs(cut) == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert count_epochs(ROVER) == 120

@@ -29,11 +29,12 @@ import shutil
 import tempfile
 import threading
 import time as wallclock
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from ins.common.errors import InputError
+from ins.common.errors import InputError, InputWarning
 from ins.gnss.rtklib_options import CARRIER_MODES, RtklibOptions, fill_prcopt
 
 __all__ = ["solve", "GnssSolution", "binding", "count_epochs", "GNSS_EXTRA",
@@ -121,7 +122,22 @@ def count_epochs(path, rtk=None, shown=None):
         raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
                          "2.x/3.x observations or a u-blox log with RXM-RAWX)",
                          path=path if shown is None else os.fspath(shown))
+    if _ends_inside_a_line(path):
+        warnings.warn(f"{path if shown is None else os.fspath(shown)}: the file ends inside a "
+                      f"line: cut short (an interrupted download or copy?); RTKLIB read "
+                      f"the {int(n)} epochs before the cut",
+                      InputWarning, stacklevel=2)
     return int(n)
+
+
+def _ends_inside_a_line(path):
+    """Whether a text file's last byte is not a newline (RINEX lines all end with one)."""
+    with open(path, "rb") as f:
+        f.seek(0, os.SEEK_END)
+        if f.tell() == 0:
+            return False
+        f.seek(-1, os.SEEK_END)
+        return f.read(1) not in (b"\n", b"\r")
 
 
 def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
