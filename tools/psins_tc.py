@@ -103,9 +103,9 @@ def psins_spp(ephs_list, obs_t, week, x0=None, corrections=False):
     """PSINS's single point position of one epoch (its demo's GNSS for loose coupling,
     ``lspvt``), ECEF m and receiver clock m: C/A pseudoranges with the satellite clock
     (relativistic term included, no TGD), no ionosphere or troposphere, the Sagnac
-    rotation by ``w_ie rho / c``, weights ``sin(el)^2`` with an elevation below 15 deg taken as 0.01 deg (a weight of
-    3e-8: left out in effect), 20
-    Gauss-Newton steps at most.  The orbits are IS-GPS-200's (PSINS uses WGS84's GM
+    rotation by ``w_ie rho / c``, weights ``sin(el)^2`` with an elevation below 15 deg
+    taken as 0.01 deg (a weight of 3e-8: left out in effect), 20 Gauss-Newton steps at
+    most.  The orbits are IS-GPS-200's (PSINS uses WGS84's GM
     3.986004418e14 instead of 3.986005e14: see :func:`gm_effect_m`).  ``corrections``:
     less what our tight coupling takes off through RTKLIB (``c TGD``, RTKLIB's Klobuchar
     with its default coefficients, the set having none, and Saastamoinen), to tell
@@ -222,7 +222,8 @@ def write_case(folder, data=DATA, outage=None, keep_prns=None, start_s=None):
     write_rinex3_obs(folder / "rover.obs", week, times, prns, values,
                      obs_types=("C1C", "L1C", "D1C"), approx_xyz_m=approx, interval_s=1.0,
                      marker="PSINS", receiver="UNKNOWN", antenna="UNKNOWN",
-                     comments=["PSINS insgpseo_tc.mat obss (tools/psins_tc.py)"])
+                     comments=["PSINS insgpseo_tc.mat obss (tools/psins_tc.py)"],
+                     program="tools/psins_tc.py")
     (folder / "config.toml").write_text(
         '[files]\nimu = "imu.txt"\nrover = "rover.obs"\nnav = ["psins.nav"]\n'
         '[rtklib]\nmode = "single"\nsystems = ["gps"]\nfrequencies = 1\n'

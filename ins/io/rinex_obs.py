@@ -39,11 +39,11 @@ def _hline(text, label):
 
 
 def _header(obs_types, approx_xyz_m, week, first_sow, interval_s, marker, receiver,
-            antenna, leap_seconds, comments):
+            antenna, leap_seconds, comments, program="ins simulate"):
     y, mo, d, h, mi, s = gps_calendar(week, first_sow)
     out = [_hline(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{'G':<20s}",
                   "RINEX VERSION / TYPE"),
-           _hline(f"{'ins simulate':<20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
+           _hline(f"{program:<20.20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
                   f"{h:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE")]
     out += [_hline(c, "COMMENT") for c in comments]
     out += [_hline(marker, "MARKER NAME"), _hline("NON_GEODETIC", "MARKER TYPE"),
@@ -77,7 +77,7 @@ def _field(value, lli, ssi):
 def write_rinex3_obs(path, week, time_s, prns, values, obs_types=("C1C", "L1C", "D1C", "S1C"),
                      lli=None, ssi=None, approx_xyz_m=(0.0, 0.0, 0.0), interval_s=None,
                      marker="SIM", receiver="SIMULATED", antenna="SIMULATED",
-                     leap_seconds=None, comments=()):
+                     leap_seconds=None, comments=(), program="ins simulate"):
     """Write GPS observations as a RINEX 3.04 observation file.
 
     Parameters
@@ -107,6 +107,9 @@ def write_rinex3_obs(path, week, time_s, prns, values, obs_types=("C1C", "L1C", 
         GPS - UTC, s.
     comments : sequence of str
         ``COMMENT`` lines (60 characters each at most).
+    program : str
+        The program named in ``PGM / RUN BY / DATE`` (20 characters at most; default
+        the simulator's).
 
     Returns
     -------
@@ -127,7 +130,8 @@ def write_rinex3_obs(path, week, time_s, prns, values, obs_types=("C1C", "L1C", 
     written = 0
     with atomic_open(path, "w") as f:
         f.write(_header(tuple(obs_types), approx_xyz_m, week, time_s[first] if n else 0.0,
-                        interval_s, marker, receiver, antenna, leap_seconds, comments))
+                        interval_s, marker, receiver, antenna, leap_seconds, comments,
+                        program))
         for i in range(n):
             cols = np.flatnonzero(present[i])
             if len(cols) == 0:
