@@ -377,3 +377,20 @@ def make_cross_strip_pair(n_points, n_mismatches, seed=0, f_px=10000.0, pixel_mm
     return {"angles": ang, "R": R, "positions": C, "xy1": xy1, "xy2": xy2, "prior": prior,
             "mismatched": bad, "f_mm": f_mm, "sigma_mm": sigma_mm, "pixel_mm": pixel_mm,
             "width_px": width_px, "height_px": height_px, "system": system}
+
+
+def write_pair_files(p, folder):
+    """EO (the priors), tie points (mm) and camera files of a :func:`make_cross_strip_pair`
+    pair in ``folder`` (a pathlib.Path); their paths."""
+    from photogrammetry.orientation.camera import FrameCamera, write_camera
+    from photogrammetry.orientation.exposure import ExposureOrientation, write_eo_csv
+    write_camera(folder / "c.toml", FrameCamera(p["f_mm"], p["pixel_mm"], p["width_px"],
+                                                p["height_px"], ((p["width_px"] - 1) / 2,
+                                                                 (p["height_px"] - 1) / 2)))
+    write_eo_csv(folder / "eo.csv", ExposureOrientation(
+        ["a", "b"], [0.0, 1.0], p["positions"], p["prior"], p["system"], "enu"))
+    rows = [f"# sigma_px = {p['sigma_mm'] / p['pixel_mm']:g}", "image_id,point_id,x_mm,y_mm"]
+    for iid, xy in (("a", p["xy1"]), ("b", p["xy2"])):
+        rows += [f"{iid},{k},{x:.7f},{y:.7f}" for k, (x, y) in enumerate(xy)]
+    (folder / "tp.csv").write_text("\n".join(rows) + "\n")
+    return [str(folder / n) for n in ("eo.csv", "tp.csv", "c.toml")]

@@ -20,24 +20,9 @@ from scipy.stats import chi2
 
 from photogrammetry.adjustment.block import adjust_block
 from photogrammetry.cli.main import main
-from photogrammetry.orientation.camera import FrameCamera, write_camera
-from photogrammetry.orientation.exposure import ExposureOrientation, read_eo_csv, write_eo_csv
+from photogrammetry.orientation.exposure import read_eo_csv
 
 AS = 180 / np.pi * 3600
-
-
-def _write_pair(p, folder):
-    """EO (the priors), tie points (mm) and camera files of a pair; their paths."""
-    write_camera(folder / "c.toml", FrameCamera(p["f_mm"], p["pixel_mm"], p["width_px"],
-                                                p["height_px"], ((p["width_px"] - 1) / 2,
-                                                                 (p["height_px"] - 1) / 2)))
-    write_eo_csv(folder / "eo.csv", ExposureOrientation(
-        ["a", "b"], [0.0, 1.0], p["positions"], p["prior"], p["system"], "enu"))
-    rows = [f"# sigma_px = {p['sigma_mm'] / p['pixel_mm']:g}", "image_id,point_id,x_mm,y_mm"]
-    for iid, xy in (("a", p["xy1"]), ("b", p["xy2"])):
-        rows += [f"{iid},{k},{x:.7f},{y:.7f}" for k, (x, y) in enumerate(xy)]
-    (folder / "tp.csv").write_text("\n".join(rows) + "\n")
-    return [str(folder / n) for n in ("eo.csv", "tp.csv", "c.toml")]
 
 
 @pytest.mark.parametrize("n_points,n_mismatches,seed", [(22, 1, 4), (46, 2, 0)])
@@ -48,7 +33,7 @@ def test_ngi_like_cross_strip_pair_exit_flag_and_sigma(tmp_path, capsys, n_point
     of image 2 (949-1178 arcsec in omega) within 2.6 of its stated sigma (369-484
     arcsec; before the max(sigma0, 1) scaling: 349 arcsec, 3.4 sigma, for the first)."""
     p = sc.make_cross_strip_pair(n_points, n_mismatches, seed)
-    eo, tp, cam = _write_pair(p, tmp_path)
+    eo, tp, cam = sc.write_pair_files(p, tmp_path)
     out, rep = tmp_path / "r.csv", tmp_path / "r.md"
     code = main(["refine", eo, tp, "--camera", cam, "-o", str(out), "--report", str(rep),
                  "-q"])
