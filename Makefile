@@ -10,26 +10,30 @@ PIP     = $(PY) -m pip --disable-pip-version-check -q
 
 .PHONY: demo demo-lidar test bench docs clean
 
+# What an install builds: the package's metadata and its compiled kernels (setup.py:
+# every .pyx is built in place by `pip install -e .`), so an edited kernel is rebuilt.
+BUILD_INPUTS = pyproject.toml setup.py $(shell find ins photogrammetry -name '*.pyx' -o -name '*.pxd')
+
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 
-$(VENV)/.run-deps: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.run-deps: $(BUILD_INPUTS) | $(VENV)/bin/python
 	$(PIP) install -e .
 	touch $@
 
-$(VENV)/.test-deps: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.test-deps: $(BUILD_INPUTS) | $(VENV)/bin/python
 	$(PIP) install -e '.[test]'
 	touch $(VENV)/.run-deps $@
 
-$(VENV)/.bench-deps: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.bench-deps: $(BUILD_INPUTS) | $(VENV)/bin/python
 	$(PIP) install -e '.[bench]'
 	touch $(VENV)/.run-deps $@
 
-$(VENV)/.lidar-deps: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.lidar-deps: $(BUILD_INPUTS) | $(VENV)/bin/python
 	$(PIP) install -e '.[lidar]'
 	touch $(VENV)/.run-deps $@
 
-$(VENV)/.docs-deps: pyproject.toml | $(VENV)/bin/python
+$(VENV)/.docs-deps: $(BUILD_INPUTS) | $(VENV)/bin/python
 	$(PIP) install -e '.[docs]'
 	touch $(VENV)/.run-deps $@
 
@@ -57,3 +61,4 @@ docs: $(VENV)/.docs-deps
 clean:
 	rm -rf $(VENV) .cache demo-output demo-lidar-output .pytest_cache docs/_build docs/api/generated
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
+	find ins photogrammetry \( -name '*.so' -o -name '*.c' \) -delete
