@@ -68,9 +68,8 @@ depend on the attitude.
 from dataclasses import dataclass
 
 import numpy as np
-from numba.extending import register_jitable
 
-from ins.nav import earth
+from ins.estimation._kalman_kernels import fill_interval, fill_navigation
 
 N_STATES = 21
 POS, VEL, ATT = slice(0, 3), slice(3, 6), slice(6, 9)
@@ -323,58 +322,8 @@ def navigation_matrix(lat, h, v_n, f_n):
     return F
 
 
-@register_jitable
-def fill_navigation(F, lat, h, vn, ve, vd, fn, fe, fd, dt):
-    """Write the navigation block of F (:func:`navigation_matrix`) times ``dt`` into
-    ``F[0:9, 0:9]`` (the other elements of that block are left as they are: zeros).
-    Plain Python from Python, compiled into the kernels of
-    :mod:`ins.estimation._kalman_kernels`: one source for the formulas."""
-    rm, rn = earth.radii_kernel(lat)
-    rmh, rnh = rm + h, rn + h
-    w = earth.OMEGA_IE
-    s, c = np.sin(lat), np.cos(lat)
-    t = s / c
-    sec2 = 1.0 / (c * c)
-    g = earth.gravity_kernel(lat, h)
-    F[0, 0] = -vd / rmh * dt
-    F[0, 2] = vn / rmh * dt
-    F[1, 0] = ve * t / rnh * dt
-    F[1, 1] = -(vd + vn * t) / rnh * dt
-    F[1, 2] = ve / rnh * dt
-    for i in range(3):
-        F[i, 3 + i] = dt
-    F[3, 0] = (-2 * ve * w * c / rmh - ve * ve * sec2 / (rmh * rnh)) * dt
-    F[3, 2] = (vn * vd / rmh ** 2 - ve * ve * t / rnh ** 2) * dt
-    F[4, 0] = (2 * w * (vn * c - vd * s) / rmh + vn * ve * sec2 / (rmh * rnh)) * dt
-    F[4, 2] = ((ve * vd + vn * ve * t) / rnh ** 2) * dt
-    F[5, 0] = (2 * w * ve * s / rmh) * dt
-    F[5, 2] = (-ve * ve / rnh ** 2 - vn * vn / rmh ** 2
-               + 2 * g / (np.sqrt(rm * rn) + h)) * dt
-    F[3, 3] = vd / rmh * dt
-    F[3, 4] = -2 * (w * s + ve * t / rnh) * dt
-    F[3, 5] = vn / rmh * dt
-    F[4, 3] = (2 * w * s + ve * t / rnh) * dt
-    F[4, 4] = (vd + vn * t) / rnh * dt
-    F[4, 5] = (2 * w * c + ve / rnh) * dt
-    F[5, 3] = -2 * vn / rmh * dt
-    F[5, 4] = -2 * (w * c + ve / rnh) * dt
-    F[3, 7], F[3, 8] = -fd * dt, fe * dt                   # [f_n x]
-    F[4, 6], F[4, 8] = fd * dt, -fn * dt
-    F[5, 6], F[5, 7] = -fe * dt, fn * dt
-    F[6, 0] = -w * s / rmh * dt
-    F[6, 2] = ve / rnh ** 2 * dt
-    F[7, 2] = -vn / rmh ** 2 * dt
-    F[8, 0] = (-w * c / rmh - ve * sec2 / (rmh * rnh)) * dt
-    F[8, 2] = -ve * t / rnh ** 2 * dt
-    F[6, 4] = 1.0 / rnh * dt
-    F[7, 3] = -1.0 / rmh * dt
-    F[8, 4] = -t / rnh * dt
-    wn, we, wd = earth.earth_rate_kernel(lat)              # -[w_in_n x]
-    tn, te, td = earth.transport_rate_kernel(lat, h, vn, ve)
-    xn, xe, xd = wn + tn, we + te, wd + td
-    F[6, 7], F[6, 8] = xd * dt, -xe * dt
-    F[7, 6], F[7, 8] = -xd * dt, xn * dt
-    F[8, 6], F[8, 7] = xe * dt, -xn * dt
+# fill_navigation and fill_interval (imported above): the formulas' one source, compiled in
+# ins/estimation/_kalman_kernels.pyx and called from here and from the filter's kernels.
 
 
 def sym_matrix(v):
@@ -435,34 +384,6 @@ def interval_matrix(lat, h, v_n, f_n, integrals, dt, corr_time_s, layout=KFGINS)
 
 def _start(sl):
     return -1 if sl is None else sl.start
-
-
-@register_jitable
-def fill_interval(A, lat, h, vn, ve, vd, fn, fe, fd, S, dt, decay_s, gyro_mis, accel_mis,
-                  clock):
-    """Write ``A = int F dt`` (:func:`interval_matrix`) into the zeroed ``A`` (n x n).
-
-    ``S`` (16, 3): rows 0-2 ``S_C``, 3-5 ``S_Cw``, 6-8 ``S_Cf``, 10-12 ``S_CNw``, 13-15
-    ``S_CNf`` (row 9 unused here); ``gyro_mis``, ``accel_mis``, ``clock``: first index of
-    those groups or -1.  The one source of the transition of every state with dynamics: plain
-    Python from :func:`interval_matrix`, compiled into the run's kernel
-    (:func:`ins.estimation._kalman_kernels.interval`).
-    """
-    fill_navigation(A, lat, h, vn, ve, vd, fn, fe, fd, dt)
-    for i in range(3):
-        for j in range(3):
-            A[3 + i, 12 + j] = S[i, j]                 # v, b_a: S_C
-            A[3 + i, 18 + j] = S[6 + i, j]             # v, s_a: S_Cf
-            A[6 + i, 9 + j] = -S[i, j]                 # phi, b_g: -S_C
-            A[6 + i, 15 + j] = -S[3 + i, j]            # phi, s_g: -S_Cw
-            if gyro_mis >= 0:
-                A[6 + i, gyro_mis + j] = -S[10 + i, j]
-            if accel_mis >= 0:
-                A[3 + i, accel_mis + j] = S[13 + i, j]
-    for i in range(9, 21):
-        A[i, i] = -dt / decay_s
-    if clock >= 0:                                     # receiver clock: bias' = drift
-        A[clock, clock + 1] = dt
 
 
 #: A variance below ``-VARIANCE_RTOL`` times its scale (the same state's prior or forward
