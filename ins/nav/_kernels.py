@@ -15,7 +15,10 @@ import math
 import numba as nb
 import numpy as np
 
+from ins.common.jitable import register_pending
 from ins.nav import earth
+
+register_pending()     # the Earth formulas of ins.nav.earth, compiled into these kernels
 
 _radii = earth._radii
 

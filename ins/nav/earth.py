@@ -4,12 +4,15 @@ Geodetic position is ``(lat, lon, h)``: latitude and longitude in rad, ellipsoid
 height in m.  Velocities are NED in m/s.  Every function takes scalars or arrays that
 broadcast against each other; vector results have a trailing axis of length 3.
 
-The private ``_`` functions are ``register_jitable``: plain numpy when called from Python
-(scalars or arrays), compiled into the numba kernels of ``ins.nav._kernels`` when called from
-there, so each formula has one source.
+The private ``_`` functions are :func:`ins.common.jitable.jitable`: plain numpy when called
+from Python (scalars or arrays), compiled into the numba kernels of ``ins.simulate`` when
+called from there (registered with numba only by those kernels' modules, so that importing
+this module does not load numba).  The compiled kernels of ``ins process`` (Cython) use the
+same formulas in ``ins/nav/_earth.pxd``, held equal to these by tests/test_native_earth.py.
 """
 import numpy as np
-from numba.extending import register_jitable
+
+from ins.common.jitable import jitable
 
 #: Semi-major axis of WGS84, m.
 A = 6378137.0
@@ -27,7 +30,7 @@ GRAVITY_COEFFS = (9.7803267715, 0.0052790414, 0.0000232718,
 _A1, _A2, _A3, _A4, _A5, _A6 = GRAVITY_COEFFS
 
 
-@register_jitable
+@jitable
 def _radii(lat):
     s2 = np.sin(lat) ** 2
     w = 1.0 - E2 * s2
@@ -36,24 +39,24 @@ def _radii(lat):
     return rm, rn
 
 
-@register_jitable
+@jitable
 def _gravity(lat, h):
     s2 = np.sin(lat) ** 2
     return _A1 * (1.0 + _A2 * s2 + _A3 * s2 * s2) + (_A4 + _A5 * s2) * h + _A6 * h * h
 
 
-@register_jitable
+@jitable
 def _earth_rate(lat):
     return OMEGA_IE * np.cos(lat), 0.0 * lat, -OMEGA_IE * np.sin(lat)
 
 
-@register_jitable
+@jitable
 def _transport_rate(lat, h, v_north, v_east):
     rm, rn = _radii(lat)
     return (v_east / (rn + h), -v_north / (rm + h), -v_east * np.tan(lat) / (rn + h))
 
 
-@register_jitable
+@jitable
 def _lla_rate(lat, h, v_north, v_east, v_down):
     rm, rn = _radii(lat)
     return v_north / (rm + h), v_east / ((rn + h) * np.cos(lat)), -v_down

@@ -6,7 +6,10 @@ import numba as nb
 import numpy as np
 from numba.extending import register_jitable
 
+from ins.common.jitable import register_pending
 from ins.nav.earth import earth_rate_kernel, gravity_kernel, transport_rate_kernel
+
+register_pending()     # the Earth formulas of ins.nav.earth, compiled into these kernels
 
 
 @nb.njit(cache=True)
