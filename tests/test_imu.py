@@ -48,11 +48,11 @@ GOOD = ("300000.000 1e-6 2e-6 3e-6 1e-3 2e-3 -0.049\n"
 ROW = "1e-6 2e-6 3e-6 1e-3 2e-3 -0.049"
 
 
-@pytest.fixture(params=["numba", "python"])
+@pytest.fixture(params=["compiled", "python"])
 def engine(request, monkeypatch):
-    """Run a test with the numba parser and with the pure-Python fallback."""
+    """Run a test with the compiled parser and with the pure-Python fallback."""
     if request.param == "python":
-        monkeypatch.setattr(textparse, "_use_numba", lambda: False)
+        monkeypatch.setattr(textparse, "_use_compiled", lambda: False)
     return request.param
 
 

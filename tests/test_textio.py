@@ -11,7 +11,7 @@ from hypothesis.extra import numpy as hnp
 from ins.common import exactdecimal, textfiles, textformat, textparse
 from ins.common.errors import InputError
 
-ENGINES = ["numba", "python"]
+ENGINES = ["compiled", "python"]
 
 
 def as_buf(text):
@@ -36,7 +36,7 @@ def savetxt_bytes(table, fmt, delimiter=" ", newline="\n"):
 @pytest.mark.parametrize("fmt", ["%.17e", "%.6f", "%.9g", "%r"])
 def test_parse_random_tables_bit_identical_to_loadtxt(engine, fmt):
     rng = np.random.default_rng(7)
-    n, m = (3000 if engine == "numba" else 400), 7
+    n, m = (3000 if engine == "compiled" else 400), 7
     table = rng.standard_normal((n, m)) * 10.0 ** rng.integers(-12, 12, (n, m))
     if fmt == "%.6f":
         table = np.clip(table, -1e9, 1e9)
@@ -103,6 +103,14 @@ def test_fast_conversion_defers_exact_ties_to_strtod():
     assert ok and v == 6.63487338564133501e-05
     v, ok = textparse._fast_decimal(np.int64(300000005), -3, hi, lo)       # Clinger's exact path
     assert ok and v == 300000.005
+
+
+def test_two_prod_is_exact():
+    from fractions import Fraction
+    rng = np.random.default_rng(11)
+    for a, b in (rng.standard_normal((2000, 2)) * 10.0 ** rng.integers(-100, 100, (2000, 2))):
+        p, e = exactdecimal.two_prod(a, b)
+        assert p == a * b and Fraction(p) + Fraction(e) == Fraction(a) * Fraction(b)
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -172,7 +180,7 @@ def test_parse_errors(engine, text, nmin, nmax, status, line, col):
 
 @pytest.mark.parametrize("text,nmin,nmax,status,line,col", BAD_CASES)
 def test_engines_agree_on_errors(text, nmin, nmax, status, line, col):
-    a = textparse.parse_table(as_buf(text), nmin, nmax, engine="numba")
+    a = textparse.parse_table(as_buf(text), nmin, nmax, engine="compiled")
     b = textparse.parse_table(as_buf(text), nmin, nmax, engine="python")
     assert a[1:4] == b[1:4] and a[5:] == b[5:]
 
@@ -192,7 +200,7 @@ def test_engines_agree_on_a_messy_file():
             lines.append(sep.join("%.*g" % (int(rng.integers(1, 18)), v) for v in vals)
                          + rng.choice(["", "\r", " # x"]))
     text = "\n".join(lines)
-    a = textparse.parse_table(as_buf(text), 4, 4, engine="numba")
+    a = textparse.parse_table(as_buf(text), 4, 4, engine="compiled")
     b = textparse.parse_table(as_buf(text), 4, 4, engine="python")
     assert a.status == b.status == textparse.OK
     np.testing.assert_array_equal(bits(a.values), bits(b.values))
@@ -260,6 +268,55 @@ def test_format_fixed_matches_percent_f_on_random_data():
     # measured: 100 % identical (exact products, ties to even as Python does)
     assert same / total >= 0.9999, same / total
     assert same == total
+
+
+def test_format_fixed_19_to_22_decimals_match_percent_f():
+    """Decimals 19..22 (10**d beyond int64): the numba kernel read 10**d past the end of
+    its integer table there and wrote e.g. '1.1229999999999997613' for 0.123."""
+    rng = np.random.default_rng(7)
+    for d in range(17, 23):
+        x = rng.standard_normal(3000) * 10.0 ** rng.integers(-d, 0, 3000)
+        x = np.where(np.abs(x) * 10.0 ** d < 8.9e18, x, 0.5 * 10.0 ** -d)
+        x[:4] = np.array([0.123, -0.5, 3.25e-5, -0.0]) * 10.0 ** min(0, 18 - d)
+        out = textformat.format_fixed(x[:, None], [d]).tobytes().decode().split("\n")[:-1]
+        assert out == ["%.*f" % (d, v) for v in x], d
+
+
+def test_kernels_release_the_gil():
+    """Parsing and formatting run without the GIL (the reader thread of ins process runs
+    beside the filter): a Python thread counts on while the kernels run.
+
+    With a switch interval of 0.5 s the main thread keeps the GIL through its own Python
+    code, so the counting thread can run during ``work()`` only if a kernel releases it.
+    """
+    import sys
+    import threading
+    import time
+    rng = np.random.default_rng(3)
+    table = rng.standard_normal((200000, 4))
+    buf = np.append(textformat.format_table(table, [9, 9, 9, 9]), np.uint8(0))
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(0.5)
+    try:
+        for work in (lambda: textparse.parse_table(buf, 4, 4),
+                     lambda: textformat.format_table(table, [9, 9, 9, 9])):
+            count = [0]
+            stop = threading.Event()
+
+            def spin():
+                while not stop.is_set():
+                    count[0] += 1
+            th = threading.Thread(target=spin)
+            th.start()
+            time.sleep(0.01)              # the main thread takes the GIL back after this
+            before = count[0]
+            work()                        # tens of ms, well within the interval
+            during = count[0] - before
+            stop.set()
+            th.join()
+            assert during > 100, during
+    finally:
+        sys.setswitchinterval(interval)
 
 
 def test_format_fixed_table_and_ties():

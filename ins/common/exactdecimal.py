@@ -1,13 +1,14 @@
 """Exact decimal arithmetic shared by the text parser and the fixed-point formatter.
 
 Powers of ten as double-double numbers (:func:`pow10_table`), Dekker's exact product
-(:func:`two_prod`, a numba function callable from other kernels) and read-only views
-(:func:`readonly`: the kernels of :mod:`ins.common.textparse` and :mod:`ins.common.textformat` then see
-one array type and compile once).
+(:func:`two_prod`) and read-only views (:func:`readonly`).  The compiled kernels of
+:mod:`ins.common.textparse` and :mod:`ins.common.textformat` use the C twin of
+:func:`two_prod` and of ``P10_MIN``/``P10_MAX`` in ``ins/common/_exactdecimal.pxd`` (the
+same operations in the same order, built without fused multiply-add) and take the table
+of :func:`pow10_table` as arguments.
 """
 import functools
 
-import numba
 import numpy as np
 
 __all__ = ["P10_MIN", "P10_MAX", "pow10_table", "two_prod", "readonly"]
@@ -41,9 +42,21 @@ def pow10_table():
     return hi, lo
 
 
-@numba.njit(cache=True)
 def two_prod(a, b):
-    """p, e with p = fl(a*b) and p + e = a*b exactly (Dekker, no FMA needed)."""
+    """p, e with p = fl(a*b) and p + e = a*b exactly (Dekker, no FMA needed).
+
+    Parameters
+    ----------
+    a, b : float
+        Factors (their product and the partial products must not overflow).
+
+    Returns
+    -------
+    p, e : float
+        The rounded product and its exact rounding error.
+    """
+    a = float(a)
+    b = float(b)
     p = a * b
     c = 134217729.0 * a
     ah = c - (c - a)
@@ -56,7 +69,8 @@ def two_prod(a, b):
 
 
 def readonly(a):
-    """A read-only view of ``a``: the kernels then see one array type (one compilation)."""
+    """A read-only view of ``a`` (the kernels declare their inputs ``const``: they never
+    write to them)."""
     v = a.view()
     v.flags.writeable = False
     return v

@@ -1,4 +1,4 @@
-"""Exact parsing of numeric text tables into float64 (numba kernels inside).
+"""Exact parsing of numeric text tables into float64 (compiled kernel inside).
 
 :func:`parse_table` turns the bytes of a text file into a float64 table.  Lines end with
 ``\\n`` (``\\r\\n`` works: ``\\r`` counts as blank space); fields are separated by blanks
@@ -13,25 +13,26 @@ decides about them, naming the line through the row-to-line map
 (:func:`ins.common.textrows.check_rows`).  :func:`table_error_message` describes a failed parse.
 
 Numbers are converted exactly (bit-identical to ``float()``, ``np.loadtxt`` and glibc's
-correctly rounded ``strtod``) inside a numba kernel: decimals of at most 18 significant
-digits by Clinger's exact fast path or a double-double product with a certified
-rounding; everything else (more digits, inf, nan, and the rare roundings the
+correctly rounded ``strtod``) inside a compiled kernel (Cython,
+``ins/common/_textparse_kernels.pyx``, without the GIL): decimals of at most 18
+significant digits by Clinger's exact fast path or a double-double product with a
+certified rounding; everything else (more digits, inf, nan, and the rare roundings the
 double-double product cannot decide, such as exact ties) by the C library's ``strtod``
-called from the kernel.  About 0.10 s for the 302 k-line, 7-column, 48 MB benchmark log
-(glibc ``strtod`` alone: 0.23 s; ``np.loadtxt``: 0.65 s; the comparison with pandas and
-pyarrow is in ``bench/bench_textio.py``).  Where ``strtod`` cannot be linked, or the
-process's numeric locale does not use ``.`` as the decimal point, a pure-Python fallback
-with the same outputs (about 20x slower) is used.  Files: :mod:`ins.common.textfiles`.
+called from the kernel.  About 0.09 s for the 302 k-line, 7-column, 48 MB benchmark log
+(the numba kernel it replaced: 0.10 s; glibc ``strtod`` alone: 0.23 s; ``np.loadtxt``: 0.65 s; the comparison with pandas and
+pyarrow is in ``bench/bench_textio.py``).  Where the process's numeric locale does not
+use ``.`` as the decimal point (``strtod`` follows it), a pure-Python fallback with the
+same outputs (about 20x slower) is used.  Files: :mod:`ins.common.textfiles`.
 """
 import locale
 import re
 from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba import types
 
-from ins.common.exactdecimal import P10_MAX, P10_MIN, pow10_table, readonly, two_prod
+# _fast_decimal: the kernel's exact conversion, callable from Python (tests/test_textio.py)
+from ins.common._textparse_kernels import _fast_decimal, _parse_kernel  # noqa: F401
+from ins.common.exactdecimal import pow10_table, readonly
 
 __all__ = [
     "ParsedTable", "parse_table", "table_error_message", "is_number",
@@ -51,283 +52,6 @@ EMPTY_FIELD = 6        #: an empty field between commas or after a trailing comm
 
 _NL, _CR, _SP, _TAB, _COMMA, _HASH, _PCT = 10, 13, 32, 9, 44, 35, 37
 
-_strtod = types.ExternalFunction("strtod", types.float64(types.voidptr, types.voidptr))
-
-
-def _strtod_available():
-    """True when numba can link the C library's ``strtod`` in this process."""
-    try:
-        import llvmlite.binding as llvm
-        if llvm.address_of_symbol("strtod"):
-            return True
-        import ctypes.util
-        name = ctypes.util.find_library("c")
-        if name:
-            llvm.load_library_permanently(name)
-        return bool(llvm.address_of_symbol("strtod"))
-    except Exception:   # pragma: no cover - exotic platform
-        return False
-
-
-_HAVE_STRTOD = _strtod_available()
-
-
-# ---------------------------------------------------------------------------------------
-# numba parser
-
-@numba.njit(cache=True, inline="always")
-def _is_blank(c):
-    return c == _SP or c == _TAB or c == _CR
-
-
-@numba.njit(cache=True, inline="always")
-def _is_number_start(c):
-    # digits, sign, point, and the first letters of inf / infinity / nan
-    return ((48 <= c <= 57) or c == 43 or c == 45 or c == 46
-            or c == 105 or c == 73 or c == 110 or c == 78)
-
-
-@numba.njit(cache=True, inline="always")
-def _fast_decimal(w, q, p10hi, p10lo):
-    """Correctly rounded float64 of w * 10**q (0 < w < 1e18), or ok=False when unsure.
-
-    Exact (Clinger) when w < 2**53 and |q| <= 22.  Otherwise w * 10**q is formed in
-    double-double arithmetic (relative error < 2**-102.8) and its rounding to float64 is
-    accepted only when the whole interval of +- 2**-100 relative around it rounds to the
-    same float64; the rare other cases (and results outside 1e-270..1e290) return
-    ok=False for strtod to decide.
-    """
-    if w < 9007199254740992 and -22 <= q <= 22:
-        if q >= 0:
-            return np.float64(w) * p10hi[q - P10_MIN], True
-        return np.float64(w) / p10hi[-q - P10_MIN], True
-    if q < P10_MIN or q > P10_MAX:
-        return 0.0, False
-    wh = np.float64(w)
-    wl = np.float64(w - np.int64(wh))
-    H = p10hi[q - P10_MIN]
-    L = p10lo[q - P10_MIN]
-    p, e = two_prod(wh, H)
-    t = e + (wh * L + wl * H)
-    r = p + t
-    bb = r - p
-    s = (p - (r - bb)) + (t - bb)          # r + s == p + t exactly
-    if not (1e-270 < r < 1e290):
-        return 0.0, False
-    # the exact value lies within r + s +- bnd; accept r when both ends round to r
-    bnd = r * 7.888609052210118e-31        # r * 2**-100 (exact scaling)
-    if r + (s + bnd) == r and r + (s - bnd) == r:
-        return r, True
-    return 0.0, False
-
-
-@numba.njit(cache=True)
-def _scan_number(buf, i, n, end, base, p10hi, p10lo):
-    """Value of the number at buf[i] and the offset just after it (== i: none).
-
-    Decimal numbers of at most 18 significant digits are converted here; the others
-    (more digits, inf, nan, unsure roundings) by strtod.
-    """
-    k = i
-    c = buf[k]
-    neg = False
-    if c == 45 or c == 43:
-        neg = c == 45
-        k += 1
-    w = np.int64(0)
-    nd = 0
-    dexp = 0
-    many = False
-    anyd = False
-    c = buf[k]
-    while 48 <= c <= 57:
-        anyd = True
-        if w > 0 or c != 48:
-            if nd < 18:
-                w = w * 10 + (c - 48)
-                nd += 1
-            else:
-                many = True
-                dexp += 1
-        k += 1
-        c = buf[k]
-    if c == 46:
-        k += 1
-        c = buf[k]
-        while 48 <= c <= 57:
-            anyd = True
-            if w > 0 or c != 48:
-                if nd < 18:
-                    w = w * 10 + (c - 48)
-                    nd += 1
-                    dexp -= 1
-                else:
-                    many = True
-            else:
-                dexp -= 1
-            k += 1
-            c = buf[k]
-    if not anyd:
-        # inf, nan, or no number at all
-        v = _strtod(buf[i:].ctypes, end.ctypes)
-        return v, end[0] - base
-    if c == 101 or c == 69:
-        k2 = k + 1
-        eneg = False
-        c2 = buf[k2]
-        if c2 == 45 or c2 == 43:
-            eneg = c2 == 45
-            k2 += 1
-            c2 = buf[k2]
-        if 48 <= c2 <= 57:
-            e10 = 0
-            while 48 <= c2 <= 57:
-                if e10 < 100000:
-                    e10 = e10 * 10 + (c2 - 48)
-                k2 += 1
-                c2 = buf[k2]
-            dexp += -e10 if eneg else e10
-            k = k2
-    if many:
-        v = _strtod(buf[i:].ctypes, end.ctypes)
-        return v, end[0] - base
-    if w == 0:
-        return -0.0 if neg else 0.0, k
-    v, ok = _fast_decimal(w, dexp, p10hi, p10lo)
-    if not ok:
-        v = _strtod(buf[i:].ctypes, end.ctypes)
-        return v, end[0] - base
-    return -v if neg else v, k
-
-
-@numba.njit(cache=True)
-def _parse_line(buf, i, n, out, off, cap, end, base, p10hi, p10lo):
-    """Parse the data line starting at ``buf[i]`` (a non-blank, non-comment character).
-
-    Stores up to ``cap`` values in ``out[off:off + cap]`` and keeps counting beyond.
-    Returns (status, position after the line's ``\\n``, field count, bad field index
-    (1-based), byte offset of the bad field).
-    """
-    col = 0
-    while True:
-        c = buf[i]
-        if c == _COMMA or c == _NL or i >= n:
-            # an empty field: after a comma or at the start of the line
-            return EMPTY_FIELD, i, col, col + 1, i
-        if not _is_number_start(c):
-            return BAD_NUMBER, i, col, col + 1, i
-        v, j = _scan_number(buf, i, n, end, base, p10hi, p10lo)
-        if j <= i:
-            return BAD_NUMBER, i, col, col + 1, i
-        d = buf[j]
-        if not (d == _SP or d == _TAB or d == _CR or d == _COMMA or d == _NL or j >= n):
-            return BAD_NUMBER, i, col, col + 1, i
-        # refuse what strtod accepts beyond decimal numbers: hexadecimal, nan(...)
-        k = i + 1 if (c == 43 or c == 45) else i
-        if buf[k] == 48 and k + 1 < j and (buf[k + 1] == 120 or buf[k + 1] == 88):
-            return BAD_NUMBER, i, col, col + 1, i
-        if buf[j - 1] == 41:
-            return BAD_NUMBER, i, col, col + 1, i
-        if col < cap:
-            out[off + col] = v
-        col += 1
-        i = j
-        while _is_blank(buf[i]) and i < n:
-            i += 1
-        c = buf[i]
-        if c == _COMMA:
-            i += 1
-            while _is_blank(buf[i]) and i < n:
-                i += 1
-            c = buf[i]
-            if c == _NL or i >= n or c == _HASH or c == _PCT or c == _COMMA:
-                return EMPTY_FIELD, i, col, col + 1, i
-            continue
-        if c == _NL or i >= n:
-            return OK, i + 1, col, 0, 0
-        if c == _HASH or c == _PCT:
-            while i < n and buf[i] != _NL:
-                i += 1
-            return OK, i + 1, col, 0, 0
-        # otherwise blanks were skipped and a new field starts at i
-
-
-@numba.njit(cache=True, nogil=True)   # releases the GIL: reader/writer threads
-def _parse_kernel(buf, ncols_min, ncols_max, skip_header_lines, p10hi, p10lo):
-    """numba kernel of :func:`parse_table`; ``buf`` ends with a NUL byte."""
-    n = buf.size - 1
-    end = np.zeros(1, np.int64)
-    base = buf.ctypes.data
-    nlines = 1
-    for i in range(n):
-        if buf[i] == _NL:
-            nlines += 1
-    pos = 0
-    line = 0
-    # header lines, skipped whatever they hold
-    while line < skip_header_lines and pos < n:
-        while pos < n and buf[pos] != _NL:
-            pos += 1
-        pos += 1
-        line += 1
-    width = -1
-    first_line = 0
-    nrows = 0
-    values = np.empty((0, 1), np.float64)
-    flat = values.reshape(-1)
-    row_line = np.empty(0, np.int64)
-    while pos < n:
-        line += 1
-        i = pos
-        while _is_blank(buf[i]) and i < n:
-            i += 1
-        c = buf[i]
-        if c == _NL or i >= n:
-            pos = i + 1
-            continue
-        if c == _HASH or c == _PCT:
-            while i < n and buf[i] != _NL:
-                i += 1
-            pos = i + 1
-            continue
-        if width < 0:
-            # first data line: count its fields into a scratch row
-            j = i
-            while j < n and buf[j] != _NL:
-                j += 1
-            cap = (j - i + 2) // 2 + 1
-            tmp = np.empty(cap, np.float64)
-            status, pos, ncol, ecol, epos = _parse_line(buf, i, n, tmp, 0, cap, end, base,
-                                                        p10hi, p10lo)
-            if status != OK:
-                return values[:0], row_line[:0], status, line, ecol, epos, ncol, line
-            if ncol < ncols_min:
-                return values[:0], row_line[:0], TOO_FEW_COLUMNS, line, ncol, i, ncol, line
-            if ncol > ncols_max:
-                return values[:0], row_line[:0], TOO_MANY_COLUMNS, line, ncol, i, ncol, line
-            width = ncol
-            first_line = line
-            maxrows = nlines - line + 1
-            values = np.empty((maxrows, width), np.float64)
-            row_line = np.empty(maxrows, np.int64)
-            flat = values.reshape(-1)
-            for k in range(width):
-                values[0, k] = tmp[k]
-            row_line[0] = line
-            nrows = 1
-            continue
-        status, pos, ncol, ecol, epos = _parse_line(buf, i, n, flat, nrows * width, width,
-                                                    end, base, p10hi, p10lo)
-        if status != OK:
-            return values[:0], row_line[:0], status, line, ecol, epos, width, first_line
-        if ncol != width:
-            return values[:0], row_line[:0], COLUMN_COUNT, line, ncol, i, width, first_line
-        row_line[nrows] = line
-        nrows += 1
-    if width < 0:
-        return values[:0], row_line[:0], NO_DATA, 0, 0, 0, 0, 0
-    return values[:nrows], row_line[:nrows], OK, 0, 0, 0, width, first_line
-
 
 # ---------------------------------------------------------------------------------------
 # pure-Python fallback (same outputs)
@@ -346,7 +70,8 @@ def is_number(text):
 
 
 def _parse_py(buf, ncols_min, ncols_max, skip_header_lines):
-    """Pure-Python twin of :func:`_parse_kernel` (used where strtod is unavailable).
+    """Pure-Python twin of :func:`_parse_kernel` (used where the numeric locale's decimal
+    point is not ``.``).
 
     A tokenizer with the kernel's rules and ``float()`` (correctly rounded, like the
     kernel) for the conversion; ``np.loadtxt`` cannot mix blank and comma separators
@@ -457,8 +182,9 @@ class ParsedTable(NamedTuple):
     first_line: int
 
 
-def _use_numba():
-    return _HAVE_STRTOD and locale.localeconv().get("decimal_point", ".") == "."
+def _use_compiled():
+    """True when the compiled kernel applies: ``strtod`` reads ``.`` as the decimal point."""
+    return locale.localeconv().get("decimal_point", ".") == "."
 
 
 def parse_table(buf, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, engine=None):
@@ -472,8 +198,10 @@ def parse_table(buf, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, engine
         Accepted width of the table (fields of the first data line).
     skip_header_lines : int
         Number of physical lines skipped before parsing, whatever they hold.
-    engine : {None, "numba", "python"}
-        Force a parser (for tests); ``None`` picks numba when ``strtod`` is available.
+    engine : {None, "compiled", "python"}
+        Force a parser (for tests); ``None`` picks the compiled kernel unless the numeric
+        locale's decimal point is not ``.``.  ``"numba"`` (the kernel's former
+        implementation) is accepted as another name of ``"compiled"``.
 
     Returns
     -------
@@ -484,14 +212,14 @@ def parse_table(buf, ncols_min=1, ncols_max=1 << 30, skip_header_lines=0, engine
     if buf.size == 0 or buf[-1] != 0:
         raise ValueError("buf must end with a NUL byte (use file_buffer or append 0)")
     if engine is None:
-        engine = "numba" if _use_numba() else "python"
-    if engine == "numba":
+        engine = "compiled" if _use_compiled() else "python"
+    if engine in ("compiled", "numba"):
         hi, lo = pow10_table()
         res = _parse_kernel(buf, int(ncols_min), int(ncols_max), int(skip_header_lines), hi, lo)
     elif engine == "python":
         res = _parse_py(buf, int(ncols_min), int(ncols_max), int(skip_header_lines))
     else:
-        raise ValueError(f"engine must be None, 'numba' or 'python', got {engine!r}")
+        raise ValueError(f"engine must be None, 'compiled' or 'python', got {engine!r}")
     values, row_line, status, eline, ecol, epos, width, first = res
     values = values.reshape(-1, max(int(width), 1)) if status == OK else values[:0]
     if values.base is not None and values.size and values.base.size > 1.25 * values.size:
