@@ -1,4 +1,4 @@
-"""Text I/O: our numba table reader/formatter against the well-kept libraries (issue 13).
+"""Text I/O: our compiled (Cython) table reader/formatter against the well-kept libraries (issue 13).
 
 Reads the shared benchmark's IMU log (302 001 lines x 7 columns, 48 MB of text, 18-digit
 numbers) and GNSS log with:
@@ -271,7 +271,7 @@ import numpy as np
 reader = sys.argv.pop(1)
 if reader == "pandas":
     import pandas as pd
-    from ins import textfiles
+    from ins.common import textfiles
     def iter_table(path, ncols_min=1, ncols_max=1 << 30, column_names=None, hint=None,
                    block_bytes=0, skip_header_lines=0):
         line = 1
@@ -294,7 +294,7 @@ def bench_process(data, repeat):
     """Whole ``ins process`` (no plots) on the shared dataset with each reader."""
     import subprocess
     cfg = ROOT / "data" / "configs" / "kfgins_like.toml"
-    print("\nins process --no-plots on the shared dataset (fresh process, numba cache warm)")
+    print("\nins process --no-plots on the shared dataset (fresh process)")
     print(f"{'IMU reader':<32}{'wall s':>8}  (median of {repeat}; min)")
     with tempfile.TemporaryDirectory() as tmp:
         for reader in ("ours", "pandas"):
