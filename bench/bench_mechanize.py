@@ -83,8 +83,8 @@ def pyins_speed(log, init_deg, repeat):
 
 _CHILD = """
 import sys
-from ins import cli
-code = cli.main(sys.argv[1:])
+from ins.cli.main import main
+code = main(sys.argv[1:])
 with open('/proc/self/status') as f:      # VmHWM: this process's own peak (reset at exec)
     hwm = [line.split()[1] for line in f if line.startswith('VmHWM')][0]
 sys.stderr.write('VMHWM_KB ' + hwm + chr(10))

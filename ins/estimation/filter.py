@@ -4,7 +4,7 @@ How it runs
 -----------
 The filter works on *nodes*: every GNSS epoch, plus extra nodes so that no two nodes are
 more than ``node_interval_s`` apart (GNSS outages).  Between two nodes the IMU rows are
-mechanized at the full IMU rate in a numba loop (:mod:`ins.estimation._filter_kernels`), with the
+mechanized at the full IMU rate in a compiled loop (:mod:`ins.estimation._filter_kernels`), with the
 current bias and scale estimates removed, while the integrals that the covariance step
 needs are accumulated; the covariance (21 states, or the layout's
 :class:`ins.estimation.error_model.StateLayout`) is then propagated once per node interval

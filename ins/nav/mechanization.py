@@ -19,7 +19,7 @@ The step is the two-sample algorithm on increments (previous and current row):
    rotation of the n frame over the interval, evaluated at mid-interval; then
    normalisation.
 
-The loop runs in :mod:`ins.nav._kernels` (numba).  Sensor errors are removed beforehand with
+The loop runs in :mod:`ins.nav._kernels` (compiled, Cython).  Sensor errors are removed beforehand with
 :func:`ins.nav.imu.compensate`.
 """
 import warnings
