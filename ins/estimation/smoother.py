@@ -21,9 +21,9 @@ the error just before it.
 
 Between two nodes the forward trajectory is one continuous mechanization, so its error
 varies smoothly: every IMU epoch gets the linear interpolation in time of ``xs+_j`` and
-``xs-_{j+1}`` (:func:`ins.estimation._filter_kernels.correct_rows`).  The recursion needs only
-the node matrices (read backwards from :class:`ins.estimation.filter_stores.NodeStore`, in memory or a
-temporary file); the corrections are then applied in a forward sweep over the stored
+``xs-_{j+1}`` (:func:`ins.estimation._filter_kernels.correct_rows`).  The recursion needs
+only the node matrices (read backwards from :class:`ins.estimation.filter_stores.NodeStore`,
+in memory or a temporary file); the corrections are then applied in a forward sweep over the stored
 forward trajectory, piece by piece (:func:`iter_smoothed`), so that the smoothed
 solution is written in time order with bounded memory.  Over a 1 s node
 interval the error departs from a straight line by about ``a dt^2 / 8`` with ``a`` the
@@ -42,7 +42,7 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import STATE_NAMES, checked_std
-from ins.estimation.filter_stores import Table, read_rows
+from ins.estimation.filter_stores import PIECE_ROWS, Table, read_rows
 
 
 def _backward_nodes(fwd):
@@ -185,7 +185,7 @@ class SmoothedResult:
     sensors: np.ndarray
 
 
-def iter_smoothed(fwd, xs, rows=1 << 16):
+def iter_smoothed(fwd, xs, rows=PIECE_ROWS):
     """The smoothed trajectory in time order, ``(time, states)`` pieces: the forward
     pieces (read back from ``fwd.trajectory``) corrected by the smoothed errors ``xs``
     of :func:`rts_errors` (an array or a :class:`ins.estimation.filter_stores.Table`;
