@@ -57,13 +57,15 @@ def _versions(*modules):
 
 @functools.lru_cache(maxsize=1)
 def source_hash():
-    """sha256 (hex) of every ``.py`` under ``ins/`` and ``photogrammetry/`` (relative path
-    and bytes, sorted) and the numpy / scipy / numba versions."""
+    """sha256 (hex) of every ``.py``, ``.pyx`` and ``.pxd`` under ``ins/`` and
+    ``photogrammetry/`` (relative path and bytes, sorted) and the numpy / scipy / numba
+    versions."""
     h = hashlib.sha256()
     for line in _versions("numpy", "scipy", "numba"):
         h.update(line.encode() + b"\n")
     for pkg in PACKAGES:
-        for path in sorted((ROOT / pkg).rglob("*.py")):
+        for path in sorted(p for suffix in ("*.py", "*.pyx", "*.pxd")
+                           for p in (ROOT / pkg).rglob(suffix)):
             h.update(path.relative_to(ROOT).as_posix().encode() + b"\0")
             h.update(path.read_bytes() + b"\0")
     return h.hexdigest()

@@ -62,10 +62,15 @@ GRAPH = {
 }
 
 #: Private modules of one subpackage that others may import, with the reason.
-#: (The filter's compiled propagation cimports the mechanization step from
-#: ``ins/nav/_strapdown.pxd``, a Cython declaration file that this scanner of ``.py``
-#: files does not read.)
 ALLOWED_PRIVATE = set()
+
+#: Cython declaration files (``.pxd``, C inline functions) of one subpackage that the
+#: compiled kernels of another may ``cimport``, with the reason (the ``.pyx``/``.pxd``
+#: scan of :func:`test_compiled_sources_follow_the_graph`).
+ALLOWED_PRIVATE_PXD = {
+    "ins.nav._strapdown": "the filter's propagation inlines the mechanization step",
+    "ins.nav._earth": "the filter's covariance kernels inline the WGS84 formulas",
+}
 
 
 # ---------------------------------------------------------------------------------------
@@ -252,6 +257,50 @@ def test_no_private_name_of_another_subpackage(modules):
     assert not bad, "private names used across subpackages:\n" + "\n".join(bad)
     assert allowed_used == ALLOWED_PRIVATE, \
         f"no longer used (remove from ALLOWED_PRIVATE): {ALLOWED_PRIVATE - allowed_used}"
+
+
+def _compiled_refs():
+    """(path, line, importer package, target module) of every ``import`` / ``cimport`` of
+    the Cython sources (``.pyx``, ``.pxd``) of :data:`PACKAGES`."""
+    import re
+    pattern = re.compile(r"^\s*(?:from\s+([\w.]+)\s+c?import\s+(\w+)|c?import\s+([\w.]+))")
+    for top in PACKAGES:
+        for path in sorted(p for suffix in ("*.pyx", "*.pxd")
+                           for p in (ROOT / top).rglob(suffix)):
+            package = ".".join(path.relative_to(ROOT).parts[:-1])
+            for k, text in enumerate(path.read_text().splitlines(), 1):
+                m = pattern.match(text)
+                if m and m.group(1):          # from X cimport Y: the module X.Y or X's name Y
+                    both = f"{m.group(1)}.{m.group(2)}"
+                    yield path, k, package, both if _is_compiled(both) else m.group(1)
+                elif m:
+                    yield path, k, package, m.group(3)
+
+
+def _is_compiled(dotted):
+    base = ROOT.joinpath(*dotted.split("."))
+    return _is_module(dotted) or any(base.with_suffix(s).is_file() for s in (".pyx", ".pxd"))
+
+
+def test_compiled_sources_follow_the_graph():
+    """The Cython kernels import only downwards (:data:`GRAPH`), and reach into another
+    subpackage's private modules only through the listed declaration files."""
+    bad, used = [], set()
+    for path, line, package, target in _compiled_refs():
+        if target.split(".")[0] not in PACKAGES:
+            continue                                  # numpy, libc, cython
+        other = ".".join(target.split(".")[:-1])
+        where = f"{path.relative_to(ROOT)}:{line}: {target}"
+        if other != package and other not in GRAPH.get(package, set()):
+            bad.append(f"{where} ({package} -> {other} is not in GRAPH)")
+        if other != package and target.split(".")[-1].startswith("_"):
+            if target in ALLOWED_PRIVATE_PXD:
+                used.add(target)
+            else:
+                bad.append(f"{where} (private to {other})")
+    assert not bad, "compiled sources against the layering:\n" + "\n".join(bad)
+    assert used == set(ALLOWED_PRIVATE_PXD), \
+        f"no longer used (remove from ALLOWED_PRIVATE_PXD): {set(ALLOWED_PRIVATE_PXD) - used}"
 
 
 def module_graph(modules):
