@@ -16,12 +16,29 @@ from Cython.Build import cythonize
 from setuptools import Extension, setup
 
 ROOT = Path(__file__).resolve().parent
-SOURCES = sorted(p.relative_to(ROOT).as_posix()
-                 for pkg in ("ins", "photogrammetry") for p in (ROOT / pkg).rglob("*.pyx"))
 FLAGS = ["-O3", "-ffp-contract=off"]
-EXTENSIONS = [Extension(src[:-len(".pyx")].replace("/", "."), [src], extra_compile_args=FLAGS)
-              for src in SOURCES]
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False,
               "cdivision": True, "initializedcheck": False, "embedsignature": True}
 
-setup(ext_modules=cythonize(EXTENSIONS, compiler_directives=DIRECTIVES, quiet=True))
+
+def extensions():
+    """The extension modules, Cython-translated (paths relative to this folder)."""
+    sources = sorted(p.relative_to(ROOT).as_posix()
+                     for pkg in ("ins", "photogrammetry") for p in (ROOT / pkg).rglob("*.pyx"))
+    exts = [Extension(src[:-len(".pyx")].replace("/", "."), [src], extra_compile_args=FLAGS)
+            for src in sources]
+    return cythonize(exts, compiler_directives=DIRECTIVES, quiet=True)
+
+
+def build_inplace():
+    """Build the extensions in place without the package's metadata (tools/mutate.py's
+    scratch copies, with whatever setuptools the environment has)."""
+    from setuptools import Distribution
+    dist = Distribution({"name": "kernels", "ext_modules": extensions()})
+    dist.script_args = ["-q", "build_ext", "--inplace"]
+    dist.parse_command_line()
+    dist.run_commands()
+
+
+if __name__ == "__main__":        # also how setuptools' build backend runs this file
+    setup(ext_modules=extensions())

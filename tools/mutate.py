@@ -57,10 +57,17 @@ def _tree_files(root):
     return [p for p in out.decode().split("\0") if p]
 
 
+#: Sources compiled at install (setup.py): a mutation of one is rebuilt in the scratch copy.
+COMPILED_SUFFIXES = (".pyx", ".pxd")
+
+
 def make_scratch(root):
-    """A copy of the working tree's source files (mtimes kept) in a new temporary folder."""
+    """A copy of the working tree's source files (mtimes kept) and of its built extension
+    modules (the compiled kernels, ``*.so``) in a new temporary folder."""
     scratch = Path(tempfile.mkdtemp(prefix="mutate-"))
-    for rel in _tree_files(root):
+    built = [p.relative_to(root).as_posix() for top in ("ins", "photogrammetry")
+             for p in (root / top).rglob("*.so")]
+    for rel in _tree_files(root) + built:
         src = root / rel
         if not src.is_file():
             continue
@@ -101,6 +108,21 @@ def _env(tree, scratch_caches):
         env.setdefault("INS_TEST_FLIGHTS", str(ROOT / ".cache" / "ins-test-flights"))
     env.pop("INS_TEST_NUMBA_CACHE", None)            # always the source-keyed cache
     return env
+
+
+def build_compiled(tree):
+    """Rebuild the compiled kernels of ``tree`` in place (``setup.py build_ext``; needs
+    Cython, in the ``test`` extra).  Raises :class:`Usage` with the compiler's output."""
+    try:
+        import Cython  # noqa: F401
+    except ImportError:
+        raise Usage("a mutated .pyx/.pxd must be recompiled and Cython is not installed "
+                    "(pip install -e '.[test]')") from None
+    proc = subprocess.run([sys.executable, "-c", "import setup; setup.build_inplace()"],
+                          cwd=tree, capture_output=True, text=True)
+    if proc.returncode:
+        tail = (proc.stdout + proc.stderr).strip().splitlines()[-8:]
+        raise Usage("the mutated kernels do not compile:\n" + "\n".join(tail))
 
 
 def run_pytest(tree, tests, scratch_caches, timeout, first=False):
@@ -164,6 +186,10 @@ def run_one(m, tree, in_place, baseline_cache, timeout, first=False, verbose=Tru
     path = tree / m["file"]
     text = path.read_text()
     new_text, line = mutated_text(text, m["old"], m["new"], m.get("occurrence"))
+    compiled = path.suffix in COMPILED_SUFFIXES
+    if compiled and in_place:
+        raise Usage(f"{m['file']}: a compiled source is mutated in a scratch copy only "
+                    f"(drop --in-place)")
     if in_place:
         with _Restore(path):
             path.write_text(new_text)
@@ -172,10 +198,14 @@ def run_one(m, tree, in_place, baseline_cache, timeout, first=False, verbose=Tru
     else:
         try:
             path.write_text(new_text)
+            if compiled:
+                build_compiled(tree)
             code, failed, secs = run_pytest(tree, tests, scratch_caches=True,
                                             timeout=timeout, first=first)
         finally:
             path.write_text(text)
+            if compiled:
+                build_compiled(tree)
     if code == 0:
         status = "SURVIVED"
     elif code in (1, "timeout"):
