@@ -270,3 +270,11 @@ def _roundtrip_kernel(const double[::1] x, Py_ssize_t min_decimals, Py_ssize_t m
         if ok:
             return d
     return -1
+
+
+def two_prod_checked(double a, double b):
+    """``(p, e)`` of :func:`two_prod` of ``_exactdecimal.pxd`` (the kernels' exact product),
+    for :func:`ins.common.exactdecimal.two_prod` and its test."""
+    cdef double p, e
+    two_prod(a, b, &p, &e)
+    return p, e

@@ -194,6 +194,31 @@ cdef double _scan_number(const unsigned char *buf, Py_ssize_t i, const double *p
     return -v if neg else v
 
 
+cdef inline Py_ssize_t _data_line(const unsigned char *b, Py_ssize_t *pos, Py_ssize_t n,
+                                  Py_ssize_t *line) noexcept nogil:
+    """Index of the first character of the next line holding data, from ``pos[0]`` on:
+    blank and comment (``#``, ``%``) lines are skipped, every line visited counted in
+    ``line[0]``; -1 at the end of the buffer (``pos[0]`` then at or past ``n``)."""
+    cdef Py_ssize_t i
+    cdef unsigned char c
+    while pos[0] < n:
+        line[0] += 1
+        i = pos[0]
+        while _is_blank(b[i]) and i < n:
+            i += 1
+        c = b[i]
+        if c == _NL or i >= n:
+            pos[0] = i + 1
+            continue
+        if c == _HASH or c == _PCT:
+            while i < n and b[i] != _NL:
+                i += 1
+            pos[0] = i + 1
+            continue
+        return i
+    return -1
+
+
 cdef int _parse_line(const unsigned char *buf, Py_ssize_t i, Py_ssize_t n, double *out,
                      Py_ssize_t cap, const double *p10hi, const double *p10lo,
                      Py_ssize_t *pos, Py_ssize_t *ncol, Py_ssize_t *ecol,
@@ -320,20 +345,10 @@ def _parse_kernel(const unsigned char[::1] buf, Py_ssize_t ncols_min, Py_ssize_t
             pos += 1
             line += 1
         # the first data line: count its fields into a scratch row
-        while pos < n:
-            line += 1
-            i = pos
-            while _is_blank(b[i]) and i < n:
-                i += 1
-            c = b[i]
-            if c == _NL or i >= n:
-                pos = i + 1
-                continue
-            if c == _HASH or c == _PCT:
-                while i < n and b[i] != _NL:
-                    i += 1
-                pos = i + 1
-                continue
+        while True:
+            i = _data_line(b, &pos, n, &line)
+            if i < 0:
+                break
             j = i
             while j < n and b[j] != _NL:
                 j += 1
@@ -376,20 +391,10 @@ def _parse_kernel(const unsigned char[::1] buf, Py_ssize_t ncols_min, Py_ssize_t
         free(tmp)
         rows[0] = first_line
         nrows = 1
-        while pos < n:
-            line += 1
-            i = pos
-            while _is_blank(b[i]) and i < n:
-                i += 1
-            c = b[i]
-            if c == _NL or i >= n:
-                pos = i + 1
-                continue
-            if c == _HASH or c == _PCT:
-                while i < n and b[i] != _NL:
-                    i += 1
-                pos = i + 1
-                continue
+        while True:
+            i = _data_line(b, &pos, n, &line)
+            if i < 0:
+                break
             status = _parse_line(b, i, n, flat + nrows * width, width, hi, lo,
                                  &pos, &ncol, &ecol, &epos)
             if status != OK:

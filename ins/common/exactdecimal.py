@@ -2,10 +2,9 @@
 
 Powers of ten as double-double numbers (:func:`pow10_table`), Dekker's exact product
 (:func:`two_prod`) and read-only views (:func:`readonly`).  The compiled kernels of
-:mod:`ins.common.textparse` and :mod:`ins.common.textformat` use the C twin of
-:func:`two_prod` and of ``P10_MIN``/``P10_MAX`` in ``ins/common/_exactdecimal.pxd`` (the
-same operations in the same order, built without fused multiply-add) and take the table
-of :func:`pow10_table` as arguments.
+:mod:`ins.common.textparse` and :mod:`ins.common.textformat` use :func:`two_prod` and
+``P10_MIN``/``P10_MAX`` from ``ins/common/_exactdecimal.pxd`` (C, built without fused
+multiply-add) and take the table of :func:`pow10_table` as arguments.
 """
 import functools
 
@@ -43,29 +42,20 @@ def pow10_table():
 
 
 def two_prod(a, b):
-    """p, e with p = fl(a*b) and p + e = a*b exactly (Dekker, no FMA needed).
+    """p, e with p = fl(a*b) and p + e = a*b exactly (Dekker, no FMA needed): the
+    kernels' own C function (``_exactdecimal.pxd``), so that its test tests them.
 
     Parameters
     ----------
     a, b : float
-        Factors (their product and the partial products must not overflow).
 
     Returns
     -------
     p, e : float
         The rounded product and its exact rounding error.
     """
-    a = float(a)
-    b = float(b)
-    p = a * b
-    c = 134217729.0 * a
-    ah = c - (c - a)
-    al = a - ah
-    c = 134217729.0 * b
-    bh = c - (c - b)
-    bl = b - bh
-    e = ((ah * bh - p) + ah * bl + al * bh) + al * bl
-    return p, e
+    from ins.common._textformat_kernels import two_prod_checked
+    return two_prod_checked(float(a), float(b))
 
 
 def readonly(a):
