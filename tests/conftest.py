@@ -1,7 +1,10 @@
-"""Shared test set-up: numba's cache keyed on the package sources, and the common
-benchmark dataset (built once, cached; see ``benchdata.py``)."""
+"""Shared test set-up: numba's cache keyed on the package sources, a check that the compiled
+kernels are built from the current sources, and the common benchmark dataset (built once,
+cached; see ``benchdata.py``)."""
 import os
+import re
 import sys
+from pathlib import Path
 
 import benchdata
 
@@ -20,6 +23,43 @@ if os.environ.get("INS_TEST_NUMBA_CACHE") != "keep":
 
 import pytest  # noqa: E402
 from benchdata import SHARED, ensure_bench_data  # noqa: E402
+
+_ROOT = Path(__file__).resolve().parents[1]
+_CIMPORT = re.compile(r"^\s*(?:from\s+([\w.]+)\s+cimport\s+(\w+)|cimport\s+([\w.]+))", re.M)
+
+
+def _pxd_deps(path, seen):
+    """The ``.pxd`` files that ``path`` cimports from the packages, recursively."""
+    for m in _CIMPORT.finditer(path.read_text()):
+        for dotted in ((f"{m.group(1)}.{m.group(2)}", m.group(1)) if m.group(1)
+                       else (m.group(3),)):
+            pxd = _ROOT.joinpath(*dotted.split(".")).with_suffix(".pxd")
+            if pxd.is_file() and pxd not in seen:
+                seen.add(pxd)
+                _pxd_deps(pxd, seen)
+                break
+    return seen
+
+
+def stale_kernels():
+    """Compiled kernels (``.pyx``) whose built module is missing or older than the
+    ``.pyx`` or a ``.pxd`` it cimports: the tests would run old code."""
+    stale = []
+    for top in ("ins", "photogrammetry"):
+        for pyx in sorted((_ROOT / top).rglob("*.pyx")):
+            built = sorted(pyx.parent.glob(pyx.stem + ".*.so"))
+            newest = max(p.stat().st_mtime for p in _pxd_deps(pyx, {pyx}))
+            if not built or built[-1].stat().st_mtime < newest:
+                stale.append(pyx.relative_to(_ROOT).as_posix())
+    return stale
+
+
+def pytest_sessionstart(session):
+    stale = stale_kernels()
+    if stale:
+        pytest.exit(f"compiled kernels not built from their current sources: "
+                    f"{', '.join(stale)}; rebuild them (make .venv/.test-deps, or "
+                    f"pip install -e .)", returncode=2)
 
 
 def pytest_report_header(config):
