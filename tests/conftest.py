@@ -2,9 +2,7 @@
 kernels are built from the current sources, and the common benchmark dataset (built once,
 cached; see ``benchdata.py``)."""
 import os
-import re
 import sys
-from pathlib import Path
 
 import benchdata
 
@@ -24,38 +22,11 @@ if os.environ.get("INS_TEST_NUMBA_CACHE") != "keep":
 import pytest  # noqa: E402
 from benchdata import SHARED, ensure_bench_data  # noqa: E402
 
-_ROOT = Path(__file__).resolve().parents[1]
-_CIMPORT = re.compile(r"^\s*(?:from\s+([\w.]+)\s+cimport\s+(\w+)|cimport\s+([\w.]+))", re.M)
-
-
-def _pxd_deps(path, seen):
-    """The ``.pxd`` files that ``path`` cimports from the packages, recursively."""
-    for m in _CIMPORT.finditer(path.read_text()):
-        for dotted in ((f"{m.group(1)}.{m.group(2)}", m.group(1)) if m.group(1)
-                       else (m.group(3),)):
-            pxd = _ROOT.joinpath(*dotted.split(".")).with_suffix(".pxd")
-            if pxd.is_file() and pxd not in seen:
-                seen.add(pxd)
-                _pxd_deps(pxd, seen)
-                break
-    return seen
-
-
-def stale_kernels():
-    """Compiled kernels (``.pyx``) whose built module is missing or older than the
-    ``.pyx`` or a ``.pxd`` it cimports: the tests would run old code."""
-    stale = []
-    for top in ("ins", "photogrammetry"):
-        for pyx in sorted((_ROOT / top).rglob("*.pyx")):
-            built = sorted(pyx.parent.glob(pyx.stem + ".*.so"))
-            newest = max(p.stat().st_mtime for p in _pxd_deps(pyx, {pyx}))
-            if not built or built[-1].stat().st_mtime < newest:
-                stale.append(pyx.relative_to(_ROOT).as_posix())
-    return stale
-
 
 def pytest_sessionstart(session):
-    stale = stale_kernels()
+    import photogrammetry
+    from ins.common.native_build import stale_kernels
+    stale = stale_kernels() + stale_kernels(os.path.dirname(photogrammetry.__file__))
     if stale:
         pytest.exit(f"compiled kernels not built from their current sources: "
                     f"{', '.join(stale)}; rebuild them (make .venv/.test-deps, or "

@@ -41,7 +41,7 @@ from ins.cli.util import (
     positive_int,
     triplet,
 )
-from ins.common import interrupts
+from ins.common import interrupts, native_build
 from ins.common.errors import InputError, InputWarning, QualityError
 
 EXIT_QUALITY = 3
@@ -450,6 +450,10 @@ def run_command(args, prog):
     of background threads and unraisable exceptions (finalizers of half-built objects)
     are silenced.
     """
+    stale = native_build.stale_kernels()
+    if stale:
+        _say(f"{prog}: warning: compiled kernels older than their sources ({', '.join(stale)}): "
+             f"the run uses the old ones; rebuild with `make` or `pip install -e .`")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InputWarning)
         try:
