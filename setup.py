@@ -14,9 +14,11 @@ from pathlib import Path
 
 from Cython.Build import cythonize
 from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
 
 ROOT = Path(__file__).resolve().parent
-FLAGS = ["-O3", "-ffp-contract=off"]
+#: Compiler flags by compiler family: optimized, every product and sum rounded as written.
+FLAGS = {"msvc": ["/O2", "/fp:precise"], "other": ["-O3", "-ffp-contract=off"]}
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False,
               "cdivision": True, "initializedcheck": False, "embedsignature": True}
 
@@ -25,20 +27,30 @@ def extensions():
     """The extension modules, Cython-translated (paths relative to this folder)."""
     sources = sorted(p.relative_to(ROOT).as_posix()
                      for pkg in ("ins", "photogrammetry") for p in (ROOT / pkg).rglob("*.pyx"))
-    exts = [Extension(src[:-len(".pyx")].replace("/", "."), [src], extra_compile_args=FLAGS)
-            for src in sources]
+    exts = [Extension(src[:-len(".pyx")].replace("/", "."), [src]) for src in sources]
     return cythonize(exts, compiler_directives=DIRECTIVES, quiet=True)
+
+
+class BuildKernels(build_ext):
+    """build_ext with :data:`FLAGS` for the compiler in use (gcc/clang or MSVC)."""
+
+    def build_extensions(self):
+        flags = FLAGS.get(self.compiler.compiler_type, FLAGS["other"])
+        for ext in self.extensions:
+            ext.extra_compile_args = list(flags)
+        super().build_extensions()
 
 
 def build_inplace():
     """Build the extensions in place without the package's metadata (tools/mutate.py's
     scratch copies, with whatever setuptools the environment has)."""
     from setuptools import Distribution
-    dist = Distribution({"name": "kernels", "ext_modules": extensions()})
+    dist = Distribution({"name": "kernels", "ext_modules": extensions(),
+                         "cmdclass": {"build_ext": BuildKernels}})
     dist.script_args = ["-q", "build_ext", "--inplace"]
     dist.parse_command_line()
     dist.run_commands()
 
 
 if __name__ == "__main__":        # also how setuptools' build backend runs this file
-    setup(ext_modules=extensions())
+    setup(ext_modules=extensions(), cmdclass={"build_ext": BuildKernels})

@@ -53,7 +53,7 @@ def stale_kernels(package=None):
     root = package.parent
     stale = []
     for pyx in sorted(package.rglob("*.pyx")):
-        built = sorted(pyx.parent.glob(pyx.stem + ".*.so"))
+        built = [p for p in pyx.parent.glob(pyx.stem + ".*") if p.suffix in (".so", ".pyd")]
         newest = max(p.stat().st_mtime for p in _pxd_deps(pyx, {pyx}, root))
         if not built or max(p.stat().st_mtime for p in built) < newest:
             stale.append(pyx.relative_to(root).as_posix())
