@@ -38,8 +38,20 @@ def _decimate(time, values, limit=20000):
     return time[::step], values[::step]
 
 
+def _transient_s(t_end):
+    """The start left out of the y-limits (:func:`ins.common.plotstyle.robust_limits`):
+    the first minute, or the first third of a shorter record, s."""
+    return min(TRANSIENT_S, t_end / 3.0)
+
+
 def _shade_transient(ax, t_end):
-    ax.axvspan(0.0, min(TRANSIENT_S, t_end / 3.0), color="0.92", zorder=0, lw=0)
+    ax.axvspan(0.0, _transient_s(t_end), color="0.92", zorder=0, lw=0)
+
+
+def _transient_note(t_end):
+    s = _transient_s(t_end)
+    first = "first minute" if s >= TRANSIENT_S else f"first {s:.3g} s"
+    return f"  (grey: {first}, left out of the y-limits)"
 
 
 def plot_errors(result, path):
@@ -87,7 +99,7 @@ def plot_errors(result, path):
         ax.set_ylabel(f"{name} error, {unit}")
         ax.axhline(0, color="k", lw=0.4)
         ax.grid(alpha=0.3)
-    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    axes[-1].set_xlabel(xlabel + _transient_note(tn[-1]))
     fig.suptitle(f"Trajectory errors against the truth (position {pos_unit}, attitude arcsec)"
                  f"\n{origin}")
     fig.tight_layout()
@@ -121,7 +133,7 @@ def plot_sigma(result, path):
         ax.set_ylabel(label)
         ax.grid(alpha=0.3, which="both")
         legend_right(ax, fontsize=7)
-    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    axes[-1].set_xlabel(xlabel + _transient_note(t[-1]))
     fig.suptitle(f"Standard deviations of the solution, forward filter and smoother\n{origin}")
     fig.tight_layout()
     return save_png(fig, path)
@@ -172,7 +184,7 @@ def plot_biases(result, path, injected=None):
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         legend_right(ax, fontsize=7)
-    axes[-1].set_xlabel(xlabel + "  (grey: first minute, left out of the y-limits)")
+    axes[-1].set_xlabel(xlabel + _transient_note(t[-1]))
     truth = ("; dotted: the constant biases the simulator injected (its bias "
              "instability comes on top)" if injected is not None else "")
     fig.suptitle(f"Sensor bias estimates (body axes x, y, z){truth}\n{origin}", fontsize=10)
