@@ -235,6 +235,11 @@ def measurement_stores(workdir=None):
             Rows((), np.int64, workdir=workdir), Rows((3,), workdir=workdir))
 
 
+#: Bytes of node matrices a :class:`NodeStore` on disk buffers between writes (the
+#: file is the same as with a write per node; 45 000 small writes cost 0.4 s).
+NODE_BUFFER_BYTES = 1 << 20
+
+
 class NodeStore:
     """``P_prior``, ``P_post`` and ``Phi`` (n x n each, n the number of error states) of
     every node, kept for the RTS pass.
@@ -252,6 +257,7 @@ class NodeStore:
         self._post_std = Rows(workdir=workdir)   # sqrt(diag(P_post)) of every node
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
+        self._buf, self._n_buf = None, 0         # nodes not yet written to the file
 
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
@@ -268,10 +274,21 @@ class NodeStore:
                                               what="forward filter's posterior covariance"))
         if self._mem is not None:
             self._mem.append(np.stack([P_prior, P_post, Phi]))
-        else:
-            for a in (P_prior, P_post, Phi):
-                self._file.write(np.ascontiguousarray(a, dtype=np.float64).data)
+        else:                          # buffered: one write per NODE_BUFFER_BYTES
+            if self._buf is None:
+                self._buf = np.empty((max(NODE_BUFFER_BYTES // (24 * n * n), 1), 3, n, n))
+            b = self._buf[self._n_buf]
+            b[0], b[1], b[2] = P_prior, P_post, Phi
+            self._n_buf += 1
+            if self._n_buf == len(self._buf):
+                self._flush()
         self.count += 1
+
+    def _flush(self):
+        """Write the buffered nodes to the file (the same bytes as one write a node)."""
+        if self._n_buf:
+            self._file.write(self._buf[:self._n_buf].data)
+            self._n_buf = 0
 
     @property
     def post_std(self):
@@ -289,6 +306,7 @@ class NodeStore:
         if self._mem is not None:
             return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, n, n)
         rec = 3 * n * n
+        self._flush()
         self._file.flush()
         self._file.seek(j0 * rec * 8)
         data = np.fromfile(self._file, dtype=np.float64, count=(j1 - j0) * rec)

@@ -36,7 +36,7 @@ Implementations: :class:`GnssPosition` (full 3 x 3 covariance when given),
 time-offset states enter the GNSS measurements when the layout has them.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -86,10 +86,17 @@ class NavPoint:
     l_b: np.ndarray = None
     dl_b: np.ndarray = None
     a_n: np.ndarray = None
+    _C: tuple = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def C_nb(self):
-        return quat_to_dcm(self.state[6:10])
+        """``C_nb`` of ``state`` (computed once per value of its quaternion: the filter
+        corrects ``state`` in place after each accepted update)."""
+        q = self.state[6:10]
+        key = q.tobytes()
+        if self._C is None or self._C[0] != key:
+            self._C = (key, quat_to_dcm(q))
+        return self._C[1]
 
     @property
     def w_ib_b(self):
@@ -124,17 +131,20 @@ def corrected(point, dx):
                     point.layout, point.w_meas_b, point.l_b, point.dl_b, point.a_n)
 
 
-def node_acceleration(state, f_meas_b):
+def node_acceleration(state, f_meas_b, C_nb=None):
     """The IMU's acceleration ``dv_n/dt`` (m/s^2, NED) at a node from its state
     (:data:`ins.estimation.error_model.NAV`) and the raw specific force of its last IMU interval
     (m/s^2, b): ``C_nb f_b + g_n - (2 w_ie + w_en) x v_n`` (sensor errors not removed:
-    a 5 mg bias moves the prediction by 0.05 mm/s over 1 ms)."""
+    a 5 mg bias moves the prediction by 0.05 mm/s over 1 ms).  ``C_nb``: the state's
+    attitude matrix when the caller has it (else computed from the quaternion)."""
     s = np.asarray(state, dtype=float)
+    if C_nb is None:
+        C_nb = quat_to_dcm(s[6:10])
     v = s[3:6]
     w = 2.0 * earth.earth_rate_n(s[0]) + earth.transport_rate_n(s[0], s[2], v)
     w_x_v = np.array([w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2],
                       w[0] * v[1] - w[1] * v[0]])              # np.cross, without its cost
-    return (quat_to_dcm(s[6:10]) @ np.asarray(f_meas_b, dtype=float)
+    return (C_nb @ np.asarray(f_meas_b, dtype=float)
             + earth.gravity_n(s[0], s[2]) - w_x_v)
 
 
