@@ -34,6 +34,11 @@ class Rows:
         return np.empty((n,) + row_shape, self._dtype)
 
     def append(self, row):
+        a = self._a
+        if a is not None and self.count - self._on_disk < len(a):   # room in the buffer
+            a[self.count - self._on_disk] = row
+            self.count += 1
+            return
         row = np.asarray(row, dtype=self._dtype)
         if self._a is None:
             if self._shape is None:
@@ -168,6 +173,7 @@ class RecordStore:
 
     def __init__(self, workdir=None):
         self._rows = Rows((6 + 2 * RECORD_AXES,), workdir=workdir)
+        self._row = np.empty(6 + 2 * RECORD_AXES)           # scratch of append
         self._codes = {}
         self._strings = []
         self._n = 0
@@ -183,6 +189,14 @@ class RecordStore:
         axes = tuple(rec.axes)
         z = np.ravel(rec.innovation)
         s = np.ravel(rec.sigma)
+        if len(axes) == RECORD_AXES == len(z) == len(s):       # the usual case: one row
+            self._row[:6] = (rec.time, self._code(rec.name), self._code(axes),
+                             self._code(rec.unit), rec.nis, bool(rec.accepted))
+            self._row[6:6 + RECORD_AXES] = z
+            self._row[6 + RECORD_AXES:] = s
+            self._rows.append(self._row)
+            self._n += 1
+            return
         head = True
         for a in range(0, max(len(axes), 1), RECORD_AXES):
             row = np.full(6 + 2 * RECORD_AXES, np.nan)
@@ -263,12 +277,13 @@ class NodeStore:
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.common.errors.QualityError` naming ``time`` (s) and the state."""
         self.n = n = len(P_prior)
-        d_prior, d_post = P_prior.ravel()[::n + 1], P_post.ravel()[::n + 1]
-        scale = np.maximum(np.abs(d_prior), np.abs(d_post))
-        floor = -VARIANCE_RTOL * scale
+        d_prior, d_post = P_prior.diagonal(), P_post.diagonal()
+        floor = np.maximum(np.abs(d_prior), np.abs(d_post))
+        floor *= -VARIANCE_RTOL
         if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
             self._post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
         else:
+            scale = np.maximum(np.abs(d_prior), np.abs(d_post))
             checked_std(d_prior, scale, time, what="forward filter's prior covariance")
             self._post_std.append(checked_std(d_post, scale, time,
                                               what="forward filter's posterior covariance"))

@@ -53,6 +53,10 @@ __all__ = ["NavPoint", "node_acceleration", "GnssPosition", "GnssVelocity",
            "INNOVATION_COLUMNS"]
 
 
+_EYE3, _ZERO3 = np.eye(3), np.zeros(3)
+_EYE3.flags.writeable = _ZERO3.flags.writeable = False
+
+
 @dataclass
 class NavPoint:
     """The filter's state at one epoch, as the measurements see it.
@@ -113,13 +117,16 @@ class NavPoint:
 
     def arm(self):
         """``(l_b, dl_b)``: the arm with the estimated correction, m and m/s."""
-        l_b = np.zeros(3) if self.l_b is None else np.asarray(self.l_b, float)
+        l_b = _ZERO3 if self.l_b is None else np.asarray(self.l_b, float)
         dl_b = np.zeros(3) if self.dl_b is None else np.asarray(self.dl_b, float)
-        return l_b + self.layout.estimate(self.sensors, "lever_arm"), dl_b
+        sl = self.layout.lever_arm               # (layout.estimate, without its cost)
+        est = _ZERO3 if sl is None else np.asarray(self.sensors)[sl.start - 9:sl.stop - 9]
+        return l_b + est, dl_b
 
     @property
     def time_offset(self):
-        return float(self.layout.estimate(self.sensors, "time_offset")[0])
+        sl = self.layout.time_offset
+        return 0.0 if sl is None else float(np.asarray(self.sensors)[sl.start - 9])
 
 
 def corrected(point, dx):
@@ -146,6 +153,13 @@ def node_acceleration(state, f_meas_b, C_nb=None):
                       w[0] * v[1] - w[1] * v[0]])              # np.cross, without its cost
     return (C_nb @ np.asarray(f_meas_b, dtype=float)
             + earth.gravity_n(s[0], s[2]) - w_x_v)
+
+
+
+
+def _skew3(x, y, z):
+    """:func:`ins.nav.rotation.skew` of one vector given as three floats (no stacking)."""
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def _check_cov(cov, m, what):
@@ -188,9 +202,9 @@ class GnssPosition:
         L, C = p.layout, p.C_nb
         l_b, dl_b = p.arm()
         H = np.zeros((3, L.n))
-        H[:, L.pos] = np.eye(3)
-        H[:, L.vel] = self._dt(p) * np.eye(3)
-        H[:, L.att] = skew(C @ l_b)
+        H[:, L.pos] = _EYE3
+        H[:, L.vel] = self._dt(p) * _EYE3
+        H[:, L.att] = _skew3(*(C @ l_b).tolist())
         if L.lever_arm is not None:
             H[:, L.lever_arm] = -C
         if L.time_offset is not None:
@@ -396,10 +410,11 @@ def kalman_update(P, H, R, z, threshold, meas=None):
         ``S`` not positive definite: names the measurement and its epoch.
     """
     f8 = np.float64
-    status, dx, P_post, nis, S = _kalman_kernels.joseph_update(
-        np.ascontiguousarray(P, f8), np.ascontiguousarray(np.atleast_2d(H), f8),
-        np.ascontiguousarray(np.atleast_2d(R), f8), np.ascontiguousarray(z, f8).ravel(),
-        float(threshold))
+    if not all(type(a) is np.ndarray and a.dtype == f8 and a.flags.c_contiguous
+               and a.ndim == d for a, d in ((P, 2), (H, 2), (R, 2), (z, 1))):
+        P, H, R = (np.ascontiguousarray(np.atleast_2d(a), f8) for a in (P, H, R))
+        z = np.ascontiguousarray(z, f8).ravel()
+    status, dx, P_post, nis, S = _kalman_kernels.joseph_update(P, H, R, z, float(threshold))
     if status == 2:
         name = getattr(meas, "name", "measurement")
         t = getattr(meas, "time", None)
@@ -408,7 +423,7 @@ def kalman_update(P, H, R, z, threshold, meas=None):
                            f"not positive definite (diagonal {np.diag(S)!r}; its Cholesky "
                            f"factorization failed); check the measurement's sigmas and the "
                            f"filter's noise settings")
-    sigma = np.sqrt(np.diag(S))
+    sigma = np.sqrt(S.diagonal())
     if status == 1:
         return None, P, float(nis), sigma
     return dx, P_post, float(nis), sigma
