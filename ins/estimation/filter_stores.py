@@ -6,6 +6,7 @@ import tempfile
 
 import numpy as np
 
+from ins.estimation import _kalman_kernels
 from ins.estimation.error_model import VARIANCE_RTOL, checked_std
 from ins.estimation.measurements import UpdateRecord
 
@@ -272,17 +273,20 @@ class NodeStore:
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
         self._buf, self._n_buf = None, 0         # nodes not yet written to the file
+        self._std = np.empty(0)                  # scratch of append
 
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.common.errors.QualityError` naming ``time`` (s) and the state."""
         self.n = n = len(P_prior)
-        d_prior, d_post = P_prior.diagonal(), P_post.diagonal()
-        floor = np.maximum(np.abs(d_prior), np.abs(d_post))
-        floor *= -VARIANCE_RTOL
-        if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
-            self._post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
+        if len(self._std) != n:
+            self._std = np.empty(n)
+        P_prior = np.ascontiguousarray(P_prior, dtype=np.float64)
+        P_post = np.ascontiguousarray(P_post, dtype=np.float64)
+        if _kalman_kernels.diag_std(P_prior, P_post, VARIANCE_RTOL, self._std):  # usual
+            self._post_std.append(self._std)
         else:
+            d_prior, d_post = P_prior.diagonal(), P_post.diagonal()
             scale = np.maximum(np.abs(d_prior), np.abs(d_post))
             checked_std(d_prior, scale, time, what="forward filter's prior covariance")
             self._post_std.append(checked_std(d_post, scale, time,
