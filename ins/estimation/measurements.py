@@ -43,7 +43,7 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import KFGINS, SENSORS, StateLayout, sym_matrix
-from ins.estimation.lever_arm import antenna_lla, antenna_velocity
+from ins.estimation.lever_arm import antenna_velocity
 from ins.nav import earth
 from ins.nav.rotation import quat_to_dcm, skew
 
@@ -147,12 +147,13 @@ def node_acceleration(state, f_meas_b, C_nb=None):
     s = np.asarray(state, dtype=float)
     if C_nb is None:
         C_nb = quat_to_dcm(s[6:10])
-    v = s[3:6]
-    w = 2.0 * earth.earth_rate_n(s[0]) + earth.transport_rate_n(s[0], s[2], v)
-    w_x_v = np.array([w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2],
-                      w[0] * v[1] - w[1] * v[0]])              # np.cross, without its cost
+    lat, _, h, v0, v1, v2 = s[:6].tolist()       # the scalar formulas of ins.nav.earth
+    ie, tr = earth.earth_rate_kernel(lat), earth.transport_rate_kernel(lat, h, v0, v1)
+    w0, w1, w2 = 2.0 * ie[0] + tr[0], 2.0 * ie[1] + tr[1], 2.0 * ie[2] + tr[2]
+    w_x_v = np.array([w1 * v2 - w2 * v1, w2 * v0 - w0 * v2,
+                      w0 * v1 - w1 * v0])                      # np.cross, without its cost
     return (C_nb @ np.asarray(f_meas_b, dtype=float)
-            + earth.gravity_n(s[0], s[2]) - w_x_v)
+            + np.array([0.0, 0.0, earth.gravity_kernel(lat, h)]) - w_x_v)
 
 
 
@@ -166,7 +167,7 @@ def _check_cov(cov, m, what):
     cov = np.asarray(cov, dtype=float)
     if cov.shape == (m,):
         cov = np.diag(cov)
-    if cov.shape != (m, m) or not np.all(np.isfinite(cov)):
+    if cov.shape != (m, m) or not np.isfinite(cov).all():
         raise ValueError(f"{what}: expected a ({m}, {m}) covariance, got shape {cov.shape}")
     return cov
 
@@ -191,9 +192,11 @@ class GnssPosition:
 
     def predict(self, p):
         s, dt = p.state, self._dt(p)
-        a_n = np.zeros(3) if p.a_n is None else np.asarray(p.a_n, dtype=float)
-        lla = s[0:3] + earth.lla_rate(s[0], s[2], s[3:6] + 0.5 * a_n * dt) * dt
-        return antenna_lla(lla, p.C_nb, p.arm()[0])
+        a_n = _ZERO3 if p.a_n is None else np.asarray(p.a_n, dtype=float)
+        v = (s[3:6] + 0.5 * a_n * dt).tolist()          # earth.lla_rate of one point
+        lla = s[0:3] + np.array(earth.lla_rate_kernel(s[0], s[2], *v)) * dt
+        arm_n = (p.C_nb @ p.arm()[0]).tolist()          # lever_arm.antenna_lla
+        return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n))
 
     def residual(self, a, b):
         return earth.ned_offset(b, a)
