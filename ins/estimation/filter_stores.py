@@ -217,8 +217,11 @@ class RecordStore:
         r0 = parts[0]
         axes = self._strings[int(r0[2])]
         m = len(axes)
-        z = np.concatenate([p[6:6 + RECORD_AXES] for p in parts])[:m]
-        s = np.concatenate([p[6 + RECORD_AXES:] for p in parts])[:m]
+        if len(parts) == 1:
+            z, s = r0[6:6 + m].copy(), r0[6 + RECORD_AXES:6 + RECORD_AXES + m].copy()
+        else:
+            z = np.concatenate([p[6:6 + RECORD_AXES] for p in parts])[:m]
+            s = np.concatenate([p[6 + RECORD_AXES:] for p in parts])[:m]
         return UpdateRecord(self._strings[int(r0[1])], axes, self._strings[int(r0[3])],
                             float(r0[0]), z, s, float(r0[4]), bool(r0[5]))
 

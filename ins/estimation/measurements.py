@@ -494,7 +494,9 @@ def write_innovations(path, records):
                 "accepted = 1 when it passed the innovation test\n")
         for r in records:
             k = _UNIT_SCALE.get(r.unit, 1.0)
-            for a, z, s in zip(r.axes, r.innovation, r.sigma):
+            zs = np.asarray(r.innovation, dtype=float).tolist()      # floats: faster
+            ss = np.asarray(r.sigma, dtype=float).tolist()
+            for a, z, s in zip(r.axes, zs, ss):
                 f.write(f"{r.time:.3f} {r.name} {a} {z * k:.6e} {s * k:.6e} {z / s:.4f} "
                         f"{r.nis:.4f} {int(r.accepted)} {r.unit}\n")
 
