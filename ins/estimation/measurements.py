@@ -25,6 +25,10 @@ A measurement is an object with
     error state ``dx`` (:mod:`ins.estimation.error_model`: navigation errors estimate minus truth,
     sensor errors truth minus estimate; :func:`corrected` applies ``dx``).
 
+``innovation(point)`` (optional)
+    ``(z, H)`` at once, the terms shared by the two computed once (:class:`GnssPosition`:
+    the filter's per-epoch path); the same values as the three calls.
+
 The innovation is ``z = residual(predict(point), observed)`` (predicted minus measured);
 :func:`kalman_update` gives the standardized innovation of each axis
 ``z_i / sqrt(S_ii)`` and the normalized innovation squared ``z^T S^-1 z`` (NIS) from one
@@ -190,30 +194,42 @@ class GnssPosition:
     def _dt(self, p):
         return self.time + p.time_offset - p.time
 
-    def predict(self, p):
-        s, dt = p.state, self._dt(p)
+    def _terms(self, p):
+        """What :meth:`predict` and :meth:`jacobian` share: ``dt`` (s), ``a_n``, ``C_nb``
+        and the arm in n, ``C_nb l_b`` (m)."""
         a_n = _ZERO3 if p.a_n is None else np.asarray(p.a_n, dtype=float)
+        C = p.C_nb
+        return self._dt(p), a_n, C, C @ p.arm()[0]
+
+    def predict(self, p, terms=None):
+        dt, a_n, _, arm_n = self._terms(p) if terms is None else terms
+        s = p.state
         v = (s[3:6] + 0.5 * a_n * dt).tolist()          # earth.lla_rate of one point
         lla = s[0:3] + np.array(earth.lla_rate_kernel(s[0], s[2], *v)) * dt
-        arm_n = (p.C_nb @ p.arm()[0]).tolist()          # lever_arm.antenna_lla
-        return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n))
+        # lever_arm.antenna_lla
+        return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n.tolist()))
 
     def residual(self, a, b):
         return earth.ned_offset(b, a)
 
-    def jacobian(self, p):
-        L, C = p.layout, p.C_nb
-        l_b, dl_b = p.arm()
+    def jacobian(self, p, terms=None):
+        dt, a_n, C, arm_n = self._terms(p) if terms is None else terms
+        L = p.layout
         H = np.zeros((3, L.n))
         H[:, L.pos] = _EYE3
-        H[:, L.vel] = self._dt(p) * _EYE3
-        H[:, L.att] = _skew3(*(C @ l_b).tolist())
+        H[:, L.vel] = dt * _EYE3
+        H[:, L.att] = _skew3(*arm_n.tolist())
         if L.lever_arm is not None:
             H[:, L.lever_arm] = -C
         if L.time_offset is not None:
-            a_n = np.zeros(3) if p.a_n is None else np.asarray(p.a_n, dtype=float)
-            H[:, L.time_offset] = -(p.state[3:6] + a_n * self._dt(p))[:, None]
+            H[:, L.time_offset] = -(p.state[3:6] + a_n * dt)[:, None]
         return H
+
+    def innovation(self, p):
+        """``(z, H)``: :meth:`residual` of :meth:`predict` and the observation, and
+        :meth:`jacobian`, with their shared terms computed once (the filter's path)."""
+        terms = self._terms(p)
+        return self.residual(self.predict(p, terms), self.observed), self.jacobian(p, terms)
 
 
 class GnssVelocity:

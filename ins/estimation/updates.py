@@ -68,8 +68,11 @@ class Updater:
     def apply(self, meas, point, P):
         """Test and apply one measurement at ``point`` (updated in place); returns
         ``(P, dx or None, nis, z)``."""
-        z = meas.residual(meas.predict(point), meas.observed)
-        H = meas.jacobian(point)
+        if hasattr(meas, "innovation"):            # predict, residual, jacobian at once
+            z, H = meas.innovation(point)
+        else:
+            z = meas.residual(meas.predict(point), meas.observed)
+            H = meas.jacobian(point)
         x, P, nis, sigma = kalman_update(P, H, meas.R, z, self._threshold(len(z)), meas)
         self.records.append(UpdateRecord(meas.name, meas.axes, meas.unit, meas.time, z,
                                          sigma, nis, x is not None))
