@@ -13,13 +13,15 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - speed: whole ``ins process`` runs (a fresh process each, numba cache warm, no plots)
   with 21, 27 (the default layout) and 31 error states beside KF-GINS in the same run
   (``--kfgins BIN``, else its README figure): wall and CPU seconds, peak resident
-  memory (GNU time's %M); then the cost per IMU epoch and per node against the number
-  of states (whole runs in-process, and the compiled node kernels alone up to 45),
+  memory (GNU time's %M); with ``--gnss-hz 4,10`` also with GNSS at those rates (files
+  built from truth.nav) and the cost per GNSS epoch; then the cost per IMU epoch and
+  per node against the number of states (whole runs in-process, and the compiled node
+  kernels alone up to 45),
 - with ``--with-pyins``, pyins's ``run_feedback_filter`` (1 s step) in the same run.
 
 Usage: python bench/bench_process.py [--data DIR] [--repeat N] [--with-pyins] [--quick]
 [--layout kfgins|survey] [--kfgins BIN] [--speed-only] [--speed-layouts kfgins,survey]
-[--no-cost]
+[--gnss-hz 4,10] [--no-cost]
 
 KF-GINS (GPL-3, not vendored): clone i2Nav-WHU/KF-GINS and build it against Debian's
 Eigen, yaml-cpp and abseil with ``tools/build_kfgins.sh SRC_DIR BUILD_DIR``; then
@@ -243,6 +245,37 @@ def _medians(runs):
             max(r[2] for r in runs), min(r[0] for r in runs))
 
 
+#: Lever arm of the GNSS files built at other rates (``--gnss-hz``), IMU to antenna, b
+#: frame, m, and their noise (N, E, D sigmas, m): those of the dataset's gnss.txt.
+RATE_LEVER_B_M = (0.8, 0.2, -1.5)
+RATE_SIGMA_NED_M = (0.02, 0.02, 0.05)
+
+
+def gnss_at_rate(data, hz, path, seed=1):
+    """A GNSS position file at ``hz`` from the dataset's truth.nav (every truth epoch
+    on the grid of ``1/hz`` s from the first whole second after its start): antenna =
+    IMU position + ``C_nb`` :data:`RATE_LEVER_B_M` (through ``D^-1``) plus white noise of
+    :data:`RATE_SIGMA_NED_M`; the columns of gnss.txt (time, lat, lon deg, h m, sigmas)."""
+    from ins.estimation.lever_arm import antenna_lla
+    from ins.nav import earth
+    from ins.nav.rotation import euler_to_dcm
+    nav = np.loadtxt(data / "truth.nav", usecols=range(1, 11))
+    t = nav[:, 0]
+    step = int(round(1.0 / hz / np.median(np.diff(t))))
+    k0 = int(np.searchsorted(t, np.floor(t[0]) + 1.0 - 1e-6))
+    nav = nav[k0::step]
+    lla = np.column_stack([np.deg2rad(nav[:, 1:3]), nav[:, 3]])
+    C_nb = euler_to_dcm(nav[:, 7:10], degrees=True)
+    ant = np.array([antenna_lla(p, C, np.array(RATE_LEVER_B_M)) for p, C in zip(lla, C_nb)])
+    noise = np.random.default_rng(seed).normal(size=(len(ant), 3)) * RATE_SIGMA_NED_M
+    ant += earth.lla_rate(ant[:, 0], ant[:, 2], noise)
+    sig = " ".join(f"{v:.3f}" for v in RATE_SIGMA_NED_M)
+    with open(path, "w") as f:
+        for ti, (lat, lon, h) in zip(nav[:, 0], ant):
+            f.write(f"{ti:.3f} {np.rad2deg(lat):.12f} {np.rad2deg(lon):.12f} {h:.5f} {sig}\n")
+    return path
+
+
 def speed(args, data):
     """Whole ``ins process`` runs (fresh process each, numba cache warm, no plots)
     beside KF-GINS in the same run (``--kfgins BIN``; else its README figure), then the
@@ -257,12 +290,19 @@ def speed(args, data):
         commands = []
         if args.kfgins:
             commands.append((PEER, _kfgins_command(args.kfgins, data, tmp)))
+        gnss = {1: data / "gnss.txt"}
+        for hz in args.gnss_hz:                      # GNSS at other rates (--gnss-hz)
+            gnss[hz] = gnss_at_rate(data, hz, Path(tmp) / f"gnss_{hz:g}hz.txt")
+        epochs = {hz: sum(1 for _ in open(gfile)) for hz, gfile in gnss.items()}
         for name, states, _ in layouts:
             cfg = _layout_config(tmp, name, states)
-            commands.append((name, [sys.executable, "-m", "ins.cli.main", "process", "--imu",
-                                    str(data / "imu_noisy.txt"), "--gnss",
-                                    str(data / "gnss.txt"), "--config", str(cfg), "-q", "-o",
-                                    str(Path(tmp) / f"out_{name}"), "--force", "--no-plots"]))
+            for hz, gfile in gnss.items():
+                key = name if hz == 1 else f"{name}@{hz:g}"
+                commands.append((key, [sys.executable, "-m", "ins.cli.main", "process",
+                                       "--imu", str(data / "imu_noisy.txt"), "--gnss",
+                                       str(gfile), "--config", str(cfg), "-q", "-o",
+                                       str(Path(tmp) / f"out_{key}"), "--force",
+                                       "--no-plots"]))
         for _, cmd in commands:                      # warm: numba cache, page cache
             _run_child(cmd)
         runs = {name: [] for name, _ in commands}
@@ -288,9 +328,22 @@ def speed(args, data):
         print(f"| KF-GINS (README figure, not run: --kfgins BIN) | 21 | {kw:.2f} | - | "
               f"{krss:.1f} | 1.00 | - |")
     for name, _, label in layouts:
-        w, c, rss, wmin = _medians(runs[name])
-        print(f"| ins process (forward + smoother, no plots) | {label} | {w:.2f} "
-              f"({wmin:.2f}) | {c:.2f} | {rss:.1f} | {w / kw:.2f} | {c / kc:.2f} |")
+        for hz in [1] + list(args.gnss_hz):
+            key = name if hz == 1 else f"{name}@{hz:g}"
+            w, c, rss, wmin = _medians(runs[key])
+            print(f"| ins process (forward + smoother, no plots), GNSS {hz:g} Hz | {label} | "
+                  f"{w:.2f} ({wmin:.2f}) | {c:.2f} | {rss:.1f} | {w / kw:.2f} | "
+                  f"{c / kc:.2f} |")
+    if args.gnss_hz:
+        base = {name: _medians(runs[name])[1] for name, _, _ in layouts}
+        print("\nCost per GNSS epoch (a filter node and a position update), from the CPU "
+              "seconds above: (CPU at the rate - CPU at 1 Hz) / (epochs at the rate - "
+              "epochs at 1 Hz), microseconds")
+        for name, _, label in layouts:
+            for hz in args.gnss_hz:
+                c = _medians(runs[f"{name}@{hz:g}"])[1]
+                print(f"  {label}, {hz:g} Hz: "
+                      f"{1e6 * (c - base[name]) / max(epochs[hz] - epochs[1], 1):.0f} us")
     if not args.no_cost:
         per_state_cost(args, data)
 
@@ -444,6 +497,11 @@ def main():
                     type=lambda text: text.split(","),
                     help="error-state layouts of the whole-process timings, comma-separated "
                          "(default: %(default)s)")
+    ap.add_argument("--gnss-hz", default=[], type=lambda text: [float(x) for x in
+                                                                 text.split(",") if x],
+                    help="also time the speed table's runs with GNSS positions at these "
+                         "rates, comma-separated (e.g. 4,10; files built from truth.nav "
+                         "beside the 1 Hz gnss.txt)")
     ap.add_argument("--no-cost", action="store_true",
                     help="skip the cost-per-state tables after the speed table")
     ap.add_argument("--layout", default="kfgins", choices=["kfgins", "survey"],

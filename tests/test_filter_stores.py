@@ -72,6 +72,35 @@ def test_table_written_backwards(tmp_path):
         assert np.array_equal(t.array(), data) and np.array_equal(t.read(4, 9), data[4:9])
 
 
+def test_node_store_on_disk_buffers_and_reads_back_exactly(tmp_path, monkeypatch):
+    """The node matrices are written in blocks (NODE_BUFFER_BYTES); the file holds
+    P_prior, P_post, Phi node after node, and every read (also of nodes still in the
+    buffer) gives back what was appended."""
+    n = 4
+    monkeypatch.setattr(filter_stores, "NODE_BUFFER_BYTES", 5 * 3 * n * n * 8)  # 5 nodes
+    rng = np.random.default_rng(2)
+    mats = []
+    for _ in range(23):
+        a = rng.normal(size=(3, n, n))
+        a[:2] = a[:2] @ a[:2].transpose(0, 2, 1)            # covariances: positive
+        mats.append(a)
+    disk, mem = filter_stores.NodeStore(tmp_path), filter_stores.NodeStore()
+    for k, a in enumerate(mats):
+        disk.append(*a, time=float(k))
+        mem.append(*a, time=float(k))
+        if k == 11:                                          # 10 written, 2 buffered
+            assert disk._n_buf == 2
+            assert np.array_equal(disk.block(8, 12), np.array(mats[8:12]))
+    assert disk._n_buf == 1 and disk.count == 23        # the read flushed 12
+    assert np.array_equal(disk.block(0, 23), np.array(mats))
+    back = [(j0, b) for j0, b in disk.blocks_reversed(size=7)]
+    assert [j0 for j0, _ in back] == [16, 9, 2, 0]
+    assert np.array_equal(np.concatenate([b for _, b in back[::-1]]), np.array(mats))
+    assert np.array_equal(disk.post_std, mem.post_std)
+    disk._file.seek(0)
+    assert disk._file.read() == np.array(mats).tobytes()     # the per-node layout
+
+
 def test_process_with_a_work_folder_is_bit_identical(tmp_path, monkeypatch):
     """Spilled to disk with tiny buffers and smoother blocks (every boundary crossed
     many times), the results equal the in-memory run's exactly."""
@@ -84,6 +113,7 @@ def test_process_with_a_work_folder_is_bit_identical(tmp_path, monkeypatch):
     d[-1] = 50
     monkeypatch.setattr(Rows.__init__, "__defaults__", tuple(d))
     monkeypatch.setattr(smoother, "_BLOCK", 23)
+    monkeypatch.setattr(filter_stores, "NODE_BUFFER_BYTES", 40_000)     # 7 nodes (n = 27)
     work = tmp_path / "work"
     work.mkdir()
     res = process(cfg, workdir=str(work))

@@ -163,3 +163,32 @@ def test_one_point_fast_paths_equal_stacked_forms():
         rotation.quat_to_dcm(np.zeros(4))
     with pytest.raises(ValueError, match="finite"):
         rotation.quat_to_dcm([np.nan, 0, 0, 1])
+
+
+def test_diag_std_is_the_numpy_check_and_sqrt():
+    """The node store's compiled check: True and ``sqrt(max(diag(P_post), 0))``, bit for
+    bit, exactly when numpy's rule (every variance of both at least -rtol times the
+    larger magnitude of the two) holds; False for a variance below it or a NaN."""
+    from ins.estimation.error_model import VARIANCE_RTOL as rtol
+    rng = np.random.default_rng(5)
+    n = 27
+    for trial in range(400):
+        a, b = rng.normal(size=(2, n, n))
+        P1, P2 = a @ a.T, b @ b.T
+        k = rng.integers(n)
+        if trial % 4 == 1:        # rounding-size negative: accepted, std 0
+            P2[k, k] = -0.5 * rtol * P1[k, k]
+        elif trial % 4 == 2:      # beyond rounding (in one or the other): refused
+            (P1 if trial % 8 == 2 else P2)[k, k] = -3.0 * rtol * max(P1[k, k], P2[k, k], 1.0)
+        elif trial % 4 == 3:
+            (P1 if trial % 8 == 3 else P2)[k, k] = np.nan
+        d1, d2 = np.diag(P1), np.diag(P2)
+        floor = -rtol * np.maximum(np.abs(d1), np.abs(d2))
+        expect = bool((d1 >= floor).all() and (d2 >= floor).all())
+        std = np.full(n, 7.0)
+        assert kk.diag_std(P1, P2, rtol, std) is expect
+        if expect:
+            assert np.array_equal(std, np.sqrt(np.maximum(d2, 0.0)))
+        assert expect == (trial % 4 in (0, 1))
+    with pytest.raises(ValueError, match="shape"):
+        kk.diag_std(np.eye(3), np.eye(3), rtol, np.empty(2))

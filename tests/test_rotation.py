@@ -466,3 +466,21 @@ def test_nan_quaternion_never_becomes_a_rotation():
     with pytest.raises(ValueError, match=r"q must have nonzero norm, got \[0\., 0\., 0\., 0\.\] "
                                           r"\(row 1 of 2; 1 such\)"):
         rot.quat_normalize(np.array([[0, 0, 0, 1.0], [0, 0, 0, 0]]))
+
+
+def test_quat_to_dcm_one_is_the_numpy_form_to_the_bit():
+    """The filter's fast path (four floats, no checks) sums the norm in numpy's order:
+    the same matrix, bit for bit, as the vectorized arithmetic it replaced, for unit and
+    unnormalized quaternions; and the rotation scipy gives."""
+    rng = np.random.default_rng(7)
+    Q = rng.normal(size=(20000, 4))
+    Q[:10000] /= np.linalg.norm(Q[:10000], axis=1)[:, None]
+    Q[10000:] *= rng.uniform(1e-3, 1e3, size=(10000, 1))
+    for a in Q:
+        x, y, z, w = a / np.sqrt(np.add.reduce(a * a))
+        ref = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        assert_array_equal(rot.quat_to_dcm_one(*a.tolist()), ref)
+    assert_allclose(rot.quat_to_dcm_one(*Q[3].tolist()), Rotation.from_quat(Q[3]).as_matrix(),
+                    atol=1e-15)

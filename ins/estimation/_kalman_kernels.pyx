@@ -514,3 +514,34 @@ def rts_step(const double[:, ::1] P_prior_next not None, const double[:, ::1] Ph
     if not ok:
         return False, xs_arr, np.array(P_post)
     return True, xs_arr, Pj_arr
+
+
+# ---------------------------------------------------------------------------------------
+# the forward filter's per-node check of its covariances
+
+def diag_std(const double[:, ::1] P_prior not None, const double[:, ::1] P_post not None,
+             double rtol, double[::1] std not None):
+    """``std = sqrt(max(diag(P_post), 0))`` when every variance of both covariances is
+    at least ``-rtol * max(|prior variance|, |posterior variance|)`` of its state
+    (rounding, :data:`ins.estimation.error_model.VARIANCE_RTOL`), as numpy computes it
+    in :class:`ins.estimation.filter_stores.NodeStore`; returns False (``std`` left
+    unspecified) when one is below or not finite: the caller then names it
+    (:func:`ins.estimation.error_model.checked_std`)."""
+    cdef Py_ssize_t n = P_post.shape[0], i
+    cdef double a, b, floor
+    if (P_post.shape[1] != n or P_prior.shape[0] != n or P_prior.shape[1] != n
+            or std.shape[0] != n):
+        raise ValueError(f"P_prior, P_post must have shape ({n}, {n}) and std ({n},)")
+    for i in range(n):
+        a = P_prior[i, i]
+        b = P_post[i, i]
+        floor = (a if a >= 0.0 else -a)
+        if not floor >= (b if b >= 0.0 else -b):
+            floor = (b if b >= 0.0 else -b)
+        floor = floor * -rtol
+        if not (a >= floor and b >= floor):
+            return False
+    for i in range(n):
+        b = P_post[i, i]
+        std[i] = sqrt(b if b >= 0.0 else 0.0)
+    return True

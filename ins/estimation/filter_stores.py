@@ -6,6 +6,7 @@ import tempfile
 
 import numpy as np
 
+from ins.estimation import _kalman_kernels
 from ins.estimation.error_model import VARIANCE_RTOL, checked_std
 from ins.estimation.measurements import UpdateRecord
 
@@ -34,6 +35,11 @@ class Rows:
         return np.empty((n,) + row_shape, self._dtype)
 
     def append(self, row):
+        a = self._a
+        if a is not None and self.count - self._on_disk < len(a):   # room in the buffer
+            a[self.count - self._on_disk] = row
+            self.count += 1
+            return
         row = np.asarray(row, dtype=self._dtype)
         if self._a is None:
             if self._shape is None:
@@ -168,6 +174,7 @@ class RecordStore:
 
     def __init__(self, workdir=None):
         self._rows = Rows((6 + 2 * RECORD_AXES,), workdir=workdir)
+        self._row = np.empty(6 + 2 * RECORD_AXES)           # scratch of append
         self._codes = {}
         self._strings = []
         self._n = 0
@@ -183,6 +190,14 @@ class RecordStore:
         axes = tuple(rec.axes)
         z = np.ravel(rec.innovation)
         s = np.ravel(rec.sigma)
+        if len(axes) == RECORD_AXES == len(z) == len(s):       # the usual case: one row
+            self._row[:6] = (rec.time, self._code(rec.name), self._code(axes),
+                             self._code(rec.unit), rec.nis, bool(rec.accepted))
+            self._row[6:6 + RECORD_AXES] = z
+            self._row[6 + RECORD_AXES:] = s
+            self._rows.append(self._row)
+            self._n += 1
+            return
         head = True
         for a in range(0, max(len(axes), 1), RECORD_AXES):
             row = np.full(6 + 2 * RECORD_AXES, np.nan)
@@ -202,8 +217,11 @@ class RecordStore:
         r0 = parts[0]
         axes = self._strings[int(r0[2])]
         m = len(axes)
-        z = np.concatenate([p[6:6 + RECORD_AXES] for p in parts])[:m]
-        s = np.concatenate([p[6 + RECORD_AXES:] for p in parts])[:m]
+        if len(parts) == 1:
+            z, s = r0[6:6 + m].copy(), r0[6 + RECORD_AXES:6 + RECORD_AXES + m].copy()
+        else:
+            z = np.concatenate([p[6:6 + RECORD_AXES] for p in parts])[:m]
+            s = np.concatenate([p[6 + RECORD_AXES:] for p in parts])[:m]
         return UpdateRecord(self._strings[int(r0[1])], axes, self._strings[int(r0[3])],
                             float(r0[0]), z, s, float(r0[4]), bool(r0[5]))
 
@@ -235,6 +253,11 @@ def measurement_stores(workdir=None):
             Rows((), np.int64, workdir=workdir), Rows((3,), workdir=workdir))
 
 
+#: Bytes of node matrices a :class:`NodeStore` on disk buffers between writes (the
+#: file is the same as with a write per node; 45 000 small writes cost 0.4 s).
+NODE_BUFFER_BYTES = 1 << 20
+
+
 class NodeStore:
     """``P_prior``, ``P_post`` and ``Phi`` (n x n each, n the number of error states) of
     every node, kept for the RTS pass.
@@ -252,26 +275,42 @@ class NodeStore:
         self._post_std = Rows(workdir=workdir)   # sqrt(diag(P_post)) of every node
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
+        self._buf, self._n_buf = None, 0         # nodes not yet written to the file
+        self._std = np.empty(0)                  # scratch of append
 
     def append(self, P_prior, P_post, Phi, time=None):
         """Store one node; a negative variance (beyond rounding) in either covariance
         raises :class:`~ins.common.errors.QualityError` naming ``time`` (s) and the state."""
         self.n = n = len(P_prior)
-        d_prior, d_post = P_prior.ravel()[::n + 1], P_post.ravel()[::n + 1]
-        scale = np.maximum(np.abs(d_prior), np.abs(d_post))
-        floor = -VARIANCE_RTOL * scale
-        if (d_prior >= floor).all() and (d_post >= floor).all():   # the usual case: fast
-            self._post_std.append(np.sqrt(np.maximum(d_post, 0.0)))
+        if len(self._std) != n:
+            self._std = np.empty(n)
+        P_prior = np.ascontiguousarray(P_prior, dtype=np.float64)
+        P_post = np.ascontiguousarray(P_post, dtype=np.float64)
+        if _kalman_kernels.diag_std(P_prior, P_post, VARIANCE_RTOL, self._std):  # usual
+            self._post_std.append(self._std)
         else:
+            d_prior, d_post = P_prior.diagonal(), P_post.diagonal()
+            scale = np.maximum(np.abs(d_prior), np.abs(d_post))
             checked_std(d_prior, scale, time, what="forward filter's prior covariance")
             self._post_std.append(checked_std(d_post, scale, time,
                                               what="forward filter's posterior covariance"))
         if self._mem is not None:
             self._mem.append(np.stack([P_prior, P_post, Phi]))
-        else:
-            for a in (P_prior, P_post, Phi):
-                self._file.write(np.ascontiguousarray(a, dtype=np.float64).data)
+        else:                          # buffered: one write per NODE_BUFFER_BYTES
+            if self._buf is None:
+                self._buf = np.empty((max(NODE_BUFFER_BYTES // (24 * n * n), 1), 3, n, n))
+            b = self._buf[self._n_buf]
+            b[0], b[1], b[2] = P_prior, P_post, Phi
+            self._n_buf += 1
+            if self._n_buf == len(self._buf):
+                self._flush()
         self.count += 1
+
+    def _flush(self):
+        """Write the buffered nodes to the file (the same bytes as one write a node)."""
+        if self._n_buf:
+            self._file.write(self._buf[:self._n_buf].data)
+            self._n_buf = 0
 
     @property
     def post_std(self):
@@ -289,6 +328,7 @@ class NodeStore:
         if self._mem is not None:
             return np.array(self._mem[j0:j1]).reshape(j1 - j0, 3, n, n)
         rec = 3 * n * n
+        self._flush()
         self._file.flush()
         self._file.seek(j0 * rec * 8)
         data = np.fromfile(self._file, dtype=np.float64, count=(j1 - j0) * rec)

@@ -89,6 +89,15 @@ class LeverArm:
         return l_b, dl_b, valid
 
 
+    def at_one(self, t):
+        """:meth:`at` of one epoch ``t`` (s): ``(l_b, dl_b, valid)``, shapes (3,), (3,)
+        and a bool (without a mount: the static arm, no stacking)."""
+        if self.mount is None:
+            return self.l_bp + self.l_ap, np.zeros(3), True
+        l_b, dl_b, valid = self.at(t)
+        return l_b[0], dl_b[0], bool(valid[0])
+
+
 def antenna_lla(lla, C_nb, l_b):
     """Antenna position (lat, lon rad, h m) from the IMU's ``lla``, ``C_nb`` and ``l_b``.
 

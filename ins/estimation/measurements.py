@@ -25,6 +25,10 @@ A measurement is an object with
     error state ``dx`` (:mod:`ins.estimation.error_model`: navigation errors estimate minus truth,
     sensor errors truth minus estimate; :func:`corrected` applies ``dx``).
 
+``innovation(point)`` (optional)
+    ``(z, H)`` at once, the terms shared by the two computed once (:class:`GnssPosition`:
+    the filter's per-epoch path); the same values as the three calls.
+
 The innovation is ``z = residual(predict(point), observed)`` (predicted minus measured);
 :func:`kalman_update` gives the standardized innovation of each axis
 ``z_i / sqrt(S_ii)`` and the normalized innovation squared ``z^T S^-1 z`` (NIS) from one
@@ -36,14 +40,14 @@ Implementations: :class:`GnssPosition` (full 3 x 3 covariance when given),
 time-offset states enter the GNSS measurements when the layout has them.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import KFGINS, SENSORS, StateLayout, sym_matrix
-from ins.estimation.lever_arm import antenna_lla, antenna_velocity
+from ins.estimation.lever_arm import antenna_velocity
 from ins.nav import earth
 from ins.nav.rotation import quat_to_dcm, skew
 
@@ -51,6 +55,10 @@ __all__ = ["NavPoint", "node_acceleration", "GnssPosition", "GnssVelocity",
            "DualAntennaHeading", "ZeroVelocity", "NonHolonomic", "UpdateRecord",
            "kalman_update", "chi2_upper_quantile", "corrected", "write_innovations",
            "INNOVATION_COLUMNS"]
+
+
+_EYE3, _ZERO3 = np.eye(3), np.zeros(3)
+_EYE3.flags.writeable = _ZERO3.flags.writeable = False
 
 
 @dataclass
@@ -86,10 +94,17 @@ class NavPoint:
     l_b: np.ndarray = None
     dl_b: np.ndarray = None
     a_n: np.ndarray = None
+    _C: tuple = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def C_nb(self):
-        return quat_to_dcm(self.state[6:10])
+        """``C_nb`` of ``state`` (computed once per value of its quaternion: the filter
+        corrects ``state`` in place after each accepted update)."""
+        q = self.state[6:10]
+        key = q.tobytes()
+        if self._C is None or self._C[0] != key:
+            self._C = (key, quat_to_dcm(q))
+        return self._C[1]
 
     @property
     def w_ib_b(self):
@@ -106,13 +121,16 @@ class NavPoint:
 
     def arm(self):
         """``(l_b, dl_b)``: the arm with the estimated correction, m and m/s."""
-        l_b = np.zeros(3) if self.l_b is None else np.asarray(self.l_b, float)
+        l_b = _ZERO3 if self.l_b is None else np.asarray(self.l_b, float)
         dl_b = np.zeros(3) if self.dl_b is None else np.asarray(self.dl_b, float)
-        return l_b + self.layout.estimate(self.sensors, "lever_arm"), dl_b
+        sl = self.layout.lever_arm               # (layout.estimate, without its cost)
+        est = _ZERO3 if sl is None else np.asarray(self.sensors)[sl.start - 9:sl.stop - 9]
+        return l_b + est, dl_b
 
     @property
     def time_offset(self):
-        return float(self.layout.estimate(self.sensors, "time_offset")[0])
+        sl = self.layout.time_offset
+        return 0.0 if sl is None else float(np.asarray(self.sensors)[sl.start - 9])
 
 
 def corrected(point, dx):
@@ -124,25 +142,36 @@ def corrected(point, dx):
                     point.layout, point.w_meas_b, point.l_b, point.dl_b, point.a_n)
 
 
-def node_acceleration(state, f_meas_b):
+def node_acceleration(state, f_meas_b, C_nb=None):
     """The IMU's acceleration ``dv_n/dt`` (m/s^2, NED) at a node from its state
     (:data:`ins.estimation.error_model.NAV`) and the raw specific force of its last IMU interval
     (m/s^2, b): ``C_nb f_b + g_n - (2 w_ie + w_en) x v_n`` (sensor errors not removed:
-    a 5 mg bias moves the prediction by 0.05 mm/s over 1 ms)."""
+    a 5 mg bias moves the prediction by 0.05 mm/s over 1 ms).  ``C_nb``: the state's
+    attitude matrix when the caller has it (else computed from the quaternion)."""
     s = np.asarray(state, dtype=float)
-    v = s[3:6]
-    w = 2.0 * earth.earth_rate_n(s[0]) + earth.transport_rate_n(s[0], s[2], v)
-    w_x_v = np.array([w[1] * v[2] - w[2] * v[1], w[2] * v[0] - w[0] * v[2],
-                      w[0] * v[1] - w[1] * v[0]])              # np.cross, without its cost
-    return (quat_to_dcm(s[6:10]) @ np.asarray(f_meas_b, dtype=float)
-            + earth.gravity_n(s[0], s[2]) - w_x_v)
+    if C_nb is None:
+        C_nb = quat_to_dcm(s[6:10])
+    lat, _, h, v0, v1, v2 = s[:6].tolist()       # the scalar formulas of ins.nav.earth
+    ie, tr = earth.earth_rate_kernel(lat), earth.transport_rate_kernel(lat, h, v0, v1)
+    w0, w1, w2 = 2.0 * ie[0] + tr[0], 2.0 * ie[1] + tr[1], 2.0 * ie[2] + tr[2]
+    w_x_v = np.array([w1 * v2 - w2 * v1, w2 * v0 - w0 * v2,
+                      w0 * v1 - w1 * v0])                      # np.cross, without its cost
+    return (C_nb @ np.asarray(f_meas_b, dtype=float)
+            + np.array([0.0, 0.0, earth.gravity_kernel(lat, h)]) - w_x_v)
+
+
+
+
+def _skew3(x, y, z):
+    """:func:`ins.nav.rotation.skew` of one vector given as three floats (no stacking)."""
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def _check_cov(cov, m, what):
     cov = np.asarray(cov, dtype=float)
     if cov.shape == (m,):
         cov = np.diag(cov)
-    if cov.shape != (m, m) or not np.all(np.isfinite(cov)):
+    if cov.shape != (m, m) or not np.isfinite(cov).all():
         raise ValueError(f"{what}: expected a ({m}, {m}) covariance, got shape {cov.shape}")
     return cov
 
@@ -165,28 +194,42 @@ class GnssPosition:
     def _dt(self, p):
         return self.time + p.time_offset - p.time
 
-    def predict(self, p):
-        s, dt = p.state, self._dt(p)
-        a_n = np.zeros(3) if p.a_n is None else np.asarray(p.a_n, dtype=float)
-        lla = s[0:3] + earth.lla_rate(s[0], s[2], s[3:6] + 0.5 * a_n * dt) * dt
-        return antenna_lla(lla, p.C_nb, p.arm()[0])
+    def _terms(self, p):
+        """What :meth:`predict` and :meth:`jacobian` share: ``dt`` (s), ``a_n``, ``C_nb``
+        and the arm in n, ``C_nb l_b`` (m)."""
+        a_n = _ZERO3 if p.a_n is None else np.asarray(p.a_n, dtype=float)
+        C = p.C_nb
+        return self._dt(p), a_n, C, C @ p.arm()[0]
+
+    def predict(self, p, terms=None):
+        dt, a_n, _, arm_n = self._terms(p) if terms is None else terms
+        s = p.state
+        v = (s[3:6] + 0.5 * a_n * dt).tolist()          # earth.lla_rate of one point
+        lla = s[0:3] + np.array(earth.lla_rate_kernel(s[0], s[2], *v)) * dt
+        # lever_arm.antenna_lla
+        return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n.tolist()))
 
     def residual(self, a, b):
         return earth.ned_offset(b, a)
 
-    def jacobian(self, p):
-        L, C = p.layout, p.C_nb
-        l_b, dl_b = p.arm()
+    def jacobian(self, p, terms=None):
+        dt, a_n, C, arm_n = self._terms(p) if terms is None else terms
+        L = p.layout
         H = np.zeros((3, L.n))
-        H[:, L.pos] = np.eye(3)
-        H[:, L.vel] = self._dt(p) * np.eye(3)
-        H[:, L.att] = skew(C @ l_b)
+        H[:, L.pos] = _EYE3
+        H[:, L.vel] = dt * _EYE3
+        H[:, L.att] = _skew3(*arm_n.tolist())
         if L.lever_arm is not None:
             H[:, L.lever_arm] = -C
         if L.time_offset is not None:
-            a_n = np.zeros(3) if p.a_n is None else np.asarray(p.a_n, dtype=float)
-            H[:, L.time_offset] = -(p.state[3:6] + a_n * self._dt(p))[:, None]
+            H[:, L.time_offset] = -(p.state[3:6] + a_n * dt)[:, None]
         return H
+
+    def innovation(self, p):
+        """``(z, H)``: :meth:`residual` of :meth:`predict` and the observation, and
+        :meth:`jacobian`, with their shared terms computed once (the filter's path)."""
+        terms = self._terms(p)
+        return self.residual(self.predict(p, terms), self.observed), self.jacobian(p, terms)
 
 
 class GnssVelocity:
@@ -386,10 +429,11 @@ def kalman_update(P, H, R, z, threshold, meas=None):
         ``S`` not positive definite: names the measurement and its epoch.
     """
     f8 = np.float64
-    status, dx, P_post, nis, S = _kalman_kernels.joseph_update(
-        np.ascontiguousarray(P, f8), np.ascontiguousarray(np.atleast_2d(H), f8),
-        np.ascontiguousarray(np.atleast_2d(R), f8), np.ascontiguousarray(z, f8).ravel(),
-        float(threshold))
+    if not all(type(a) is np.ndarray and a.dtype == f8 and a.flags.c_contiguous
+               and a.ndim == d for a, d in ((P, 2), (H, 2), (R, 2), (z, 1))):
+        P, H, R = (np.ascontiguousarray(np.atleast_2d(a), f8) for a in (P, H, R))
+        z = np.ascontiguousarray(z, f8).ravel()
+    status, dx, P_post, nis, S = _kalman_kernels.joseph_update(P, H, R, z, float(threshold))
     if status == 2:
         name = getattr(meas, "name", "measurement")
         t = getattr(meas, "time", None)
@@ -398,7 +442,7 @@ def kalman_update(P, H, R, z, threshold, meas=None):
                            f"not positive definite (diagonal {np.diag(S)!r}; its Cholesky "
                            f"factorization failed); check the measurement's sigmas and the "
                            f"filter's noise settings")
-    sigma = np.sqrt(np.diag(S))
+    sigma = np.sqrt(S.diagonal())
     if status == 1:
         return None, P, float(nis), sigma
     return dx, P_post, float(nis), sigma
@@ -466,7 +510,9 @@ def write_innovations(path, records):
                 "accepted = 1 when it passed the innovation test\n")
         for r in records:
             k = _UNIT_SCALE.get(r.unit, 1.0)
-            for a, z, s in zip(r.axes, r.innovation, r.sigma):
+            zs = np.asarray(r.innovation, dtype=float).tolist()      # floats: faster
+            ss = np.asarray(r.sigma, dtype=float).tolist()
+            for a, z, s in zip(r.axes, zs, ss):
                 f.write(f"{r.time:.3f} {r.name} {a} {z * k:.6e} {s * k:.6e} {z / s:.4f} "
                         f"{r.nis:.4f} {int(r.accepted)} {r.unit}\n")
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
-from ins.estimation.error_model import STATE_NAMES, checked_std
+from ins.estimation.error_model import STATE_NAMES, VARIANCE_RTOL, checked_std
 from ins.estimation.filter_stores import PIECE_ROWS, Table, read_rows
 
 
@@ -116,9 +116,12 @@ def rts_errors(fwd, full=True, workdir=None):
                                                  "its Cholesky factorization failed"))
         if full:
             Ps[j] = Pj
-        std_blk[i] = checked_std(np.diag(Pj), np.diag(P_post),
-                                 None if t_blk is None else t_blk[i], names=names,
-                                 what="smoothed covariance")
+        var, scale = Pj.diagonal(), P_post.diagonal()
+        if (var >= -VARIANCE_RTOL * np.abs(scale)).all():      # the usual case: fast
+            np.sqrt(np.maximum(var, 0.0), out=std_blk[i])
+        else:                                                   # NaN, or negative
+            std_blk[i] = checked_std(var, scale, None if t_blk is None else t_blk[i],
+                                     names=names, what="smoothed covariance")
         x_next = xs_blk[i].copy()
         nxt = (np.ascontiguousarray(P_prior, dtype=float),
                np.ascontiguousarray(Phi, dtype=float), Pj)

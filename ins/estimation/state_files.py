@@ -6,6 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ins.common.textformat import format_table
 from ins.estimation.error_model import OPTIONAL_GROUPS
 from ins.estimation.measurements import write_innovations
 
@@ -56,7 +57,10 @@ def write_optional_states(path, result):
         for c in chunks:                     # block by block over the nodes
             est = c.smoothed_sensors[:, 12:] / scale
             std = c.smoothed_std[:, 21:] / scale
-            for t, e, s in zip(c.time, est, std):
-                f.write(f"{t:.6f} " + " ".join(f"{v:.6f}" for v in np.concatenate([e, s]))
-                        + "\n")
+            table = np.column_stack([c.time, est, std])
+            try:                             # compiled, digit for digit as '%.6f'
+                f.write(format_table(table, 6).tobytes().decode("ascii"))
+            except ValueError:               # a non-finite value: Python's nan / inf
+                f.write("".join(" ".join(f"{v:.6f}" for v in row) + "\n"
+                                for row in table.tolist()))
     return path

@@ -68,8 +68,11 @@ class Updater:
     def apply(self, meas, point, P):
         """Test and apply one measurement at ``point`` (updated in place); returns
         ``(P, dx or None, nis, z)``."""
-        z = meas.residual(meas.predict(point), meas.observed)
-        H = meas.jacobian(point)
+        if hasattr(meas, "innovation"):            # predict, residual, jacobian at once
+            z, H = meas.innovation(point)
+        else:
+            z = meas.residual(meas.predict(point), meas.observed)
+            H = meas.jacobian(point)
         x, P, nis, sigma = kalman_update(P, H, meas.R, z, self._threshold(len(z)), meas)
         self.records.append(UpdateRecord(meas.name, meas.axes, meas.unit, meas.time, z,
                                          sigma, nis, x is not None))
@@ -88,12 +91,13 @@ class Updater:
         g = self.gnss
         k, kind = self.ev_record[e], self.ev_kind[e]
         dx = np.zeros(self.layout.n)
-        a_n = None if f_meas_b is None else node_acceleration(state, f_meas_b)
         tg = g.time[k] if kind & 1 else g.velocity_time[k]
-        l_b, dl_b, valid = self.s.lever.at(tg)
-        if not valid[0]:
+        l_b, dl_b, valid = self.s.lever.at_one(tg)
+        if not valid:
             self.n_fallback += 1
-        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b[0], dl_b[0], a_n)
+        point = NavPoint(t_row, state, sensors, self.layout, w_meas_b, l_b, dl_b)
+        if f_meas_b is not None:
+            point.a_n = node_acceleration(state, f_meas_b, point.C_nb)
         if kind & 1:
             cov = (np.diag(g.sigma_ned_m[k] ** 2) if self.cov is None else self.cov[k])
             meas = GnssPosition(tg, g.lla[k], cov)

@@ -64,11 +64,13 @@ def _lla_rate(lat, h, v_north, v_east, v_down):
 
 #: Public names of the jitable scalar formulas above, for the numba kernels of other
 #: subpackages (``ins.simulate._kernels``): normal gravity (m/s^2), radii of curvature
-#: (M, N, m), Earth rate and transport rate as their north, east, down components (rad/s).
+#: (M, N, m), Earth rate and transport rate as their north, east, down components (rad/s),
+#: rate of the geodetic position (rad/s, rad/s, m/s; also the filter's one-point paths).
 gravity_kernel = _gravity
 radii_kernel = _radii
 earth_rate_kernel = _earth_rate
 transport_rate_kernel = _transport_rate
+lla_rate_kernel = _lla_rate
 
 
 def _as_vector(v, name):

@@ -238,7 +238,7 @@ def check_finite(state, rows, time, causes):
     ``time``, s) is not finite, naming the epoch of the first non-finite row as a plain
     float and keeping it as the attribute ``time_s``, so that a caller who knows the file
     can name its line (:func:`ins.io.imu_blocks.locate_epoch`)."""
-    if np.all(np.isfinite(state)):
+    if np.isfinite(state).all():
         return
     bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=1))
     time_s = float(time[int(bad[0]) if bad.size else len(time) - 1])

@@ -28,6 +28,8 @@ canonical sign ``w >= 0``; the algebraic functions (``quat_multiply``,
 ``quat_conjugate``, ``quat_normalize``) do not change the sign.
 """
 
+import math
+
 import numpy as np
 
 from ins.nav.stacks import _canonical, _check_pair, _normalized, _out, _pm_pi, as_stack
@@ -36,7 +38,7 @@ __all__ = [
     "skew",
     "rot_x", "rot_y", "rot_z",
     "quat_multiply", "quat_conjugate", "quat_normalize", "quat_rotate",
-    "quat_to_dcm", "dcm_to_quat",
+    "quat_to_dcm", "quat_to_dcm_one", "dcm_to_quat",
     "euler_to_dcm", "dcm_to_euler", "euler_to_quat", "quat_to_euler",
     "rotvec_to_quat", "quat_to_rotvec", "rotvec_to_dcm", "dcm_to_rotvec",
     "wrap_to_pi", "wrap_to_2pi",
@@ -338,14 +340,22 @@ def quat_to_dcm(q):
     """
     a = np.asarray(q, dtype=float)
     if a.shape == (4,) and np.isfinite(a).all():     # one quaternion: scalar arithmetic
-        norm = np.sqrt(np.add.reduce(a * a))
-        if norm > 0:
-            x, y, z, w = a / norm
-            return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        x, y, z, w = a.tolist()
+        if ((x * x + y * y) + z * z) + w * w > 0:
+            return quat_to_dcm_one(x, y, z, w)
     q, single = as_stack(a, "q", (4,), finite=True)
     return _out(_q2c(_normalized(q)), single)
+
+
+def quat_to_dcm_one(x, y, z, w):
+    """:func:`quat_to_dcm` of one quaternion given as four floats (finite, not all
+    zero), without its checks: the filter's per-node fast path.  The norm is summed in
+    numpy's order for four elements, so the matrix is the same to the bit."""
+    norm = math.sqrt(((x * x + y * y) + z * z) + w * w)
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def dcm_to_quat(C):
