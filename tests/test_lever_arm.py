@@ -265,3 +265,15 @@ def test_velocity_jacobian_by_central_differences_column_by_column():
                                    err_msg=f"velocity column {j}")
     term = np.abs(skew(w_in_n) @ skew(C_nb @ l_b)).max()
     assert term > 1e4 * 1e-9
+
+
+def test_one_epoch_antenna_position_equals_the_stacked_form():
+    """antenna_lla_one (the filter's path, arm given in n) gives antenna_lla's bits."""
+    from ins.estimation.lever_arm import antenna_lla, antenna_lla_one
+    from ins.nav.rotation import euler_to_dcm
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        lla = np.array([rng.uniform(-1.4, 1.4), rng.uniform(-3.1, 3.1), rng.uniform(-100, 9000)])
+        C = euler_to_dcm(rng.uniform(-3, 3, 3))
+        l_b = rng.normal(0.0, 2.0, 3)
+        assert np.array_equal(antenna_lla_one(lla, C @ l_b), antenna_lla(lla, C, l_b))

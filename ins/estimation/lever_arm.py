@@ -107,6 +107,12 @@ def antenna_lla(lla, C_nb, l_b):
     return lla + earth.lla_rate(lla[0], lla[2], C_nb @ l_b)
 
 
+def antenna_lla_one(lla, arm_n):
+    """:func:`antenna_lla` of one epoch with the arm already in n (``C_nb l_b``, m NED):
+    the filter's per-epoch path, through the scalar formula of ``earth.lla_rate``."""
+    return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n.tolist()))
+
+
 def antenna_velocity(v_n, C_nb, w_ib_b, w_in_n, l_b, dl_b):
     """Antenna velocity NED (m/s) (module notes); rates in rad/s, arms in m.
 

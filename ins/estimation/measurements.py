@@ -47,7 +47,7 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation import _filter_kernels, _kalman_kernels
 from ins.estimation.error_model import KFGINS, SENSORS, StateLayout, sym_matrix
-from ins.estimation.lever_arm import antenna_velocity
+from ins.estimation.lever_arm import antenna_lla_one, antenna_velocity
 from ins.nav import earth
 from ins.nav.rotation import quat_to_dcm, skew
 
@@ -160,8 +160,6 @@ def node_acceleration(state, f_meas_b, C_nb=None):
             + np.array([0.0, 0.0, earth.gravity_kernel(lat, h)]) - w_x_v)
 
 
-
-
 def _skew3(x, y, z):
     """:func:`ins.nav.rotation.skew` of one vector given as three floats (no stacking)."""
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -206,8 +204,7 @@ class GnssPosition:
         s = p.state
         v = (s[3:6] + 0.5 * a_n * dt).tolist()          # earth.lla_rate of one point
         lla = s[0:3] + np.array(earth.lla_rate_kernel(s[0], s[2], *v)) * dt
-        # lever_arm.antenna_lla
-        return lla + np.array(earth.lla_rate_kernel(lla[0], lla[2], *arm_n.tolist()))
+        return antenna_lla_one(lla, arm_n)
 
     def residual(self, a, b):
         return earth.ned_offset(b, a)
