@@ -228,6 +228,8 @@ def test_quality_policy(tmp_path):
     (ROWS_LLH[1].rsplit(" ", 1)[0], r"rover.pos:10: .*fields|rover.pos:10: .*columns"),
     (ROWS_LLH[1].replace("0.0300", "-0.0300", 1), r"rover.pos:10: negative standard"),
     (ROWS_LLH[1].replace("2086 259200.200", "2086 -5.0"), r"rover.pos:10: GPS week"),
+    # a corrupted week would overflow the integer seconds (a cast warning, garbage times)
+    (ROWS_LLH[1].replace("2086 259200.200", "2e30 259200.200"), r"rover.pos:10: GPS week 2e\+30"),
 ])
 def test_bad_lines_named(tmp_path, bad, pattern):
     text = HEAD_LLH + "\n".join([ROWS_LLH[0], bad, ROWS_LLH[2]]) + "\n"
@@ -239,6 +241,9 @@ def test_bad_date_named(tmp_path):
     rows = [ROWS_LLH[0].replace("2086 259200.000", "2020/01/01 00:00:00.000"),
             ROWS_LLH[1].replace("2086 259200.200", "2020/13/01 00:00:00.200")]
     with pytest.raises(InputError, match=r"rover.pos:10: month 13"):
+        read_pos(write(tmp_path, HEAD_LLH + "\n".join(rows) + "\n"))
+    rows[1] = ROWS_LLH[1].replace("2086 259200.200", "9e20/01/01 00:00:00.200")
+    with pytest.raises(InputError, match=r"rover.pos:10: year 9e\+20"):
         read_pos(write(tmp_path, HEAD_LLH + "\n".join(rows) + "\n"))
 
 

@@ -280,10 +280,15 @@ def _gps_time(time_fields, date_format, system):
     return whole, frac
 
 
+#: First GPS week not accepted (the year 2171): a larger week is a corrupted field, whose
+#: conversion to integer seconds would overflow.
+MAX_GPS_WEEK = 10000
+
+
 def _check_time_fields(tf, date_format, row_line, path):
     if date_format:
-        checks = ((1, 1, 12, "month"), (2, 1, 31, "day"), (3, 0, 23, "hour"),
-                  (4, 0, 59, "minute"), (5, 0, 61, "second"))
+        checks = ((0, 1980, 2199, "year"), (1, 1, 12, "month"), (2, 1, 31, "day"),
+                  (3, 0, 23, "hour"), (4, 0, 59, "minute"), (5, 0, 61, "second"))
         for col, lo, hi, what in checks:
             bad = np.flatnonzero(~((tf[:, col] >= lo) & (tf[:, col] < hi + 1)))
             if bad.size:
@@ -291,11 +296,12 @@ def _check_time_fields(tf, date_format, row_line, path):
                 raise InputError(f"{what} {float(tf[k, col]):g} is not a valid time (expected "
                                  f"yyyy/mm/dd hh:mm:ss.sss)", path=path, line=int(row_line[k]))
     else:
-        bad = np.flatnonzero(~((tf[:, 1] >= 0) & (tf[:, 1] < _WEEK_S + 1) & (tf[:, 0] >= 0)))
+        bad = np.flatnonzero(~((tf[:, 1] >= 0) & (tf[:, 1] < _WEEK_S + 1) & (tf[:, 0] >= 0)
+                               & (tf[:, 0] < MAX_GPS_WEEK)))
         if bad.size:
             k = bad[0]
             raise InputError(f"GPS week {float(tf[k, 0]):g}, seconds of week {float(tf[k, 1])!r}: expected "
-                             f"week >= 0 and 0 <= tow < 604800 s", path=path,
+                             f"0 <= week < {MAX_GPS_WEEK} and 0 <= tow < 604800 s", path=path,
                              line=int(row_line[k]))
 
 
