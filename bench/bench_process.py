@@ -10,7 +10,7 @@ of that README (errors from its own peerlib over [t0 + 60 s, end]):
 - the smoothed heading RMS over the whole flight,
 - the horizontal error at the end of each 60 s outage (gnss_outage.txt),
 - the covariance step: 1 s against 0.1 s (the accuracy it costs),
-- speed: whole ``ins process`` runs (a fresh process each, numba cache warm, no plots)
+- speed: whole ``ins process`` runs (a fresh process each, no plots)
   with 21, 27 (the default layout) and 31 error states beside KF-GINS in the same run
   (``--kfgins BIN``, else its README figure): wall and CPU seconds, peak resident
   memory (GNU time's %M); with ``--gnss-hz 4,10`` also with GNSS at those rates (files
@@ -282,12 +282,12 @@ def gnss_at_rate(data, hz, path, seed=1):
 
 
 def speed(args, data):
-    """Whole ``ins process`` runs (fresh process each, numba cache warm, no plots)
+    """Whole ``ins process`` runs (fresh process each, no plots)
     beside KF-GINS in the same run (``--kfgins BIN``; else its README figure), then the
     cost per epoch and per node against the number of error states.
 
     The runs are interleaved (KF-GINS, then each layout, ``--repeat`` times, after one
-    unmeasured run of each: numba's cache and the page cache warm), so a change of the
+    unmeasured run of each: the page cache warm), so a change of the
     shared machine's load falls on both sides of the ratio."""
     layouts = [entry for entry in SPEED_LAYOUTS if entry[0] in args.speed_layouts]
     load0 = os.getloadavg()
@@ -310,7 +310,7 @@ def speed(args, data):
                                        str(gfile), "--config", str(cfg), "-q", "-o",
                                        str(Path(tmp) / f"out_{key}"), "--force",
                                        "--no-plots"]))
-        for _, cmd in commands:                      # warm: numba cache, page cache
+        for _, cmd in commands:                      # warm: page cache
             _run_child(cmd)
         runs = {name: [] for name, _ in commands}
         for _ in range(args.repeat):

@@ -63,7 +63,7 @@ def main(argv=None):
         timing.setdefault(("tight" if tight else "loose", smooth), []).append(
             time.perf_counter() - t)
         return fwd, st
-    go(epochs, True, t0 + 20, False)                    # numba warm-up
+    go(epochs, True, t0 + 20, False)                    # warm-up (imports, page cache)
     go(ts.spp(epochs, truth.lla[0]), False, t0 + 20, False)
     timing.clear()
     print("\n## All satellites: horizontal RMS after the first 30 s, m")

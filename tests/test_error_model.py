@@ -1,6 +1,6 @@
 """Error-state model: units of Q, Gauss-Markov steady state, discretization against
 scipy's expm, and F against the mechanization itself (a perturbed state propagated by
-the numba kernel, compared with Phi dx)."""
+the compiled mechanization kernel, compared with Phi dx)."""
 import numpy as np
 import pytest
 from scipy.linalg import expm

@@ -149,7 +149,7 @@ def with_location(exc, path, format=None, time_shift_s=0.0):
 def prefetch(blocks, depth=2):
     """Iterate ``blocks`` in a background thread, ``depth`` items ahead.
 
-    The reading (file I/O and the numba parser, both without the GIL) then overlaps the
+    The reading (file I/O and the compiled parser, both without the GIL) then overlaps the
     work of the consumer.  Exceptions of the reader are raised in the consumer.
     """
     q = queue.Queue(maxsize=depth)
