@@ -165,20 +165,27 @@ def test_start_a_little_off_is_widened_with_a_warning(flight, tmp_path):
 
 # --- rejections, departure, likely cause ---------------------------------------------
 
-def test_default_noise_on_a_tactical_imu_stops_with_exit_3(flight, tmp_path, capsys):
-    """The navigation-grade default noise on a tactical IMU once rejected 309 of 427
+#: The navigation-grade noise of ``ImuNoise()``'s defaults, given as the user's own.
+NAVIGATION = {"arw_deg_sqrth": 0.003, "vrw_mps_sqrth": 0.03, "gyro_bias_std_dph": 0.5,
+              "accel_bias_std_mgal": 50.0, "gyro_scale_std_ppm": 1.0,
+              "accel_scale_std_ppm": 1.0, "corr_time_h": 4.0}
+
+
+def test_navigation_grade_noise_on_a_tactical_imu_stops_with_exit_3(flight, tmp_path, capsys):
+    """Navigation-grade noise settings on a tactical IMU once rejected 309 of 427
     fixes, ended hundreds of metres off and exited 0.  The filter now recovers from the
     runs of rejected fixes (it stays near the fixes) but two recoveries say its model
     does not hold: exit 3 with the recoveries and the likely cause, nothing written;
     --accept-poor writes it with exit 0 and the warning.  Both layouts: the 21 KF-GINS
-    states and the default survey layout."""
+    states and the default survey layout.  The user's own [imu_noise] is used as it is
+    (no identification)."""
     survey = tmp_path / "survey"
     survey.mkdir()
-    assert _run(flight, _config(survey, flight), survey / "out") == 3
+    assert _run(flight, _config(survey, flight, noise=NAVIGATION), survey / "out") == 3
     err = capsys.readouterr().err
     assert "recoveries from runs of rejected position fixes" in err
     assert "Nothing written (--accept-poor" in err
-    cfg = _config(tmp_path, flight, layout="kfgins")
+    cfg = _config(tmp_path, flight, layout="kfgins", noise=NAVIGATION)
     out = tmp_path / "out"
     assert _run(flight, cfg, out) == 3
     err = capsys.readouterr().err
@@ -191,6 +198,22 @@ def test_default_noise_on_a_tactical_imu_stops_with_exit_3(flight, tmp_path, cap
     err = capsys.readouterr().err
     assert "warning: untrustworthy solution:" in err and "(written anyway" in err
     assert (out / "solution.nav").is_file()
+
+
+def test_no_noise_given_is_identified_from_the_log(flight, tmp_path, capsys):
+    """No [imu_noise] and no preset: the noise is identified from the log (the best of
+    the preset grades, refined by maximum likelihood over the GNSS innovations), the run
+    is trusted, and the identified white noise is near the simulator's (the manifest:
+    ARW 0.12 deg/sqrt(h), VRW 0.05 m/s/sqrt(h)) within a factor of 3."""
+    import re
+    out = tmp_path / "out"
+    assert _run(flight, _config(tmp_path, flight), out) == 0
+    text = capsys.readouterr().out
+    assert "identified from the log by maximum likelihood" in text
+    arw = float(re.search(r"ARW ([0-9.e+-]+) deg/sqrt\(h\)", text).group(1))
+    vrw = float(re.search(r"VRW ([0-9.e+-]+) m/s/sqrt\(h\)", text).group(1))
+    assert 0.12 / 3 < arw < 0.12 * 3, text
+    assert 0.05 / 3 < vrw < 0.05 * 3, text
 
 
 def test_the_right_noise_settings_are_trusted(flight, tmp_path, capsys):

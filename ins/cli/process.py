@@ -373,6 +373,13 @@ def _summary(result, cfg, paths, t_proc, t_write):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "
               f"taken", file=out)
+    for a, b, n, factor in getattr(result.fwd, "reanchors", []):
+        print(f"re-anchored: after a GNSS gap {n} mutually consistent fixes rejected from "
+              f"{a:.2f} to {b:.2f} s (the INS drifted); the navigation covariance inflated "
+              f"x{factor:.3g} and the fix at {b:.2f} s taken", file=out)
+    if c.get("gnss_steps"):
+        print(f"GNSS steps: {c['gnss_steps']} rejected fixes stepped away from the GNSS "
+              f"track itself (the GNSS was wrong there)", file=out)
     q = result.quality
     if q is not None and np.isfinite(q["residual_rms_m"]):
         print(f"solution vs GNSS fixes (antenna): residual RMS {q['residual_rms_m']:.3g} m, "
@@ -393,6 +400,9 @@ def _summary(result, cfg, paths, t_proc, t_write):
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
         if result.start_how:
             print(f"alignment: {result.start_how}", file=out)
+    ident = getattr(result, "identified", None)
+    if ident is not None:
+        print(f"IMU noise: {ident.describe()}", file=out)
     print(f"processed in {t_proc:.2f} s, wrote {len(paths)} files in {t_write:.2f} s", file=out)
     if result.errors_smoothed is not None:
         rows = []

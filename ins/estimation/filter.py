@@ -109,6 +109,10 @@ class ForwardResult:
         Recoveries from a run of rejected position fixes: time of the first rejected fix
         and of the fix that recovered (s), the fixes rejected in the run, the factor on
         the navigation states' covariance.
+    reanchors : list of (float, float, int, float)
+        Re-anchorings after a GNSS gap (:mod:`ins.estimation.updates`): the same fields.
+    n_gnss_steps : int
+        Rejected position fixes that stepped away from the GNSS track itself.
     records : ins.estimation.filter_stores.RecordStore
         Every tested measurement (GNSS position and velocity, heading, zero velocity,
         non-holonomic), in processing order: iterating yields
@@ -137,6 +141,8 @@ class ForwardResult:
         self.nis_threshold = np.inf
         self.records = []
         self.recoveries = []
+        self.reanchors = []
+        self.n_gnss_steps = 0
         self.layout = KFGINS
         self._whole = None
 
@@ -505,6 +511,8 @@ class _ForwardRun:
         out.nis_threshold = up.threshold
         out.records = up.records
         out.recoveries = list(up.recoveries)
+        out.reanchors = list(getattr(up, "reanchors", []))
+        out.n_gnss_steps = int(getattr(up, "n_steps", 0))
         out.layout = self.layout
         out.updater = up
         return out

@@ -393,7 +393,7 @@ class UpdateRecord:
         return self.innovation / self.sigma
 
 
-def kalman_update(P, H, R, z, threshold, meas=None):
+def kalman_update(P, H, R, z, threshold, meas=None, logdet=False):
     """One Kalman update by a single Cholesky factorization of ``S = H P H^T + R``
     (compiled: :func:`ins.estimation._kalman_kernels.joseph_update`; filterpy's
     ``update`` is the tests' reference).
@@ -419,6 +419,9 @@ def kalman_update(P, H, R, z, threshold, meas=None):
     nis : float
     sigma : ndarray (m,)
         ``sqrt(diag(S))``.
+    log_det_S : float
+        Only with ``logdet=True``: ``log det S`` (for the innovation likelihood,
+        :mod:`ins.estimation.noise_identification`).
 
     Raises
     ------
@@ -440,9 +443,27 @@ def kalman_update(P, H, R, z, threshold, meas=None):
                            f"factorization failed); check the measurement's sigmas and the "
                            f"filter's noise settings")
     sigma = np.sqrt(S.diagonal())
-    if status == 1:
-        return None, P, float(nis), sigma
-    return dx, P_post, float(nis), sigma
+    out = (None, P, float(nis), sigma) if status == 1 else (dx, P_post, float(nis), sigma)
+    if logdet:
+        return out + (float(np.linalg.slogdet(S)[1]),)
+    return out
+
+
+#: Beyond this NIS an innovation's contribution to :func:`innovation_nll` grows with the
+#: Mahalanobis distance, not its square (Huber's rule on ``sqrt(NIS)``): a few wrong
+#: fixes do not decide a likelihood search.  The chi-square 99 % point of 3 dof.
+NLL_HUBER_NIS = 11.345
+
+
+def innovation_nll(nis, log_det_S, m):
+    """Negative log-likelihood of one innovation of ``m`` axes with Mahalanobis square
+    ``nis`` and ``log det S``: ``(rho(nis) + log det S + m log 2 pi) / 2``, ``rho`` the
+    square up to :data:`NLL_HUBER_NIS` and linear in ``sqrt(nis)`` beyond (continuous
+    with its slope): Gaussian for the innovations the model explains, robust to the
+    few it does not."""
+    c = NLL_HUBER_NIS
+    rho = nis if nis <= c else c + 2.0 * np.sqrt(c) * (np.sqrt(nis) - np.sqrt(c))
+    return 0.5 * (rho + log_det_S + m * 1.8378770664093453)
 
 
 def chi2_upper_quantile(q, dof):

@@ -202,6 +202,7 @@ def plot_innovations(result, path):
     if not kinds:
         return None
     recoveries = getattr(result.fwd, "recoveries", [])
+    reanchors = getattr(result.fwd, "reanchors", [])
     t0 = float(result.node_time[0])
     fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
                              squeeze=False)
@@ -216,6 +217,9 @@ def plot_innovations(result, path):
         for a, b, _, _ in recoveries:        # runs of rejected fixes, then the recovery
             ax.axvspan(a - t0, b - t0, color="tab:red", alpha=0.15, lw=0)
             ax.axvline(b - t0, color="tab:red", lw=0.8)
+        for a, b, _, _ in reanchors:         # after a GNSS gap: the INS had drifted
+            ax.axvspan(a - t0, b - t0, color="tab:green", alpha=0.2, lw=0)
+            ax.axvline(b - t0, color="tab:green", lw=0.8)
         ax.set_ylim(-6, 6)
         ax.set_ylabel(f"{kind}\ninnovation / sigma")
         ax.grid(alpha=0.3)
@@ -224,6 +228,8 @@ def plot_innovations(result, path):
     axes[-1, 0].set_xlabel(xlabel)
     red = (f"; red: {len(recoveries)} recoveries from runs of rejected fixes"
            if recoveries else "")
+    if reanchors:
+        red += f"; green: {len(reanchors)} re-anchorings after GNSS gaps (the INS drifted)"
     fig.suptitle("Standardized innovations (predicted - measured) / sqrt(S_ii); dashed: "
                  f"+-3; crosses: rejected (clipped at +-10){red}\n{origin}", fontsize=10)
     fig.tight_layout()

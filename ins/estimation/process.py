@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from ins.common.errors import InputError, QualityError, QualityWarning
-from ins.estimation import _filter_kernels
+from ins.estimation import _filter_kernels, process_identify
 from ins.estimation.alignment import align_gnss_heading, align_static, check_static_heading
 from ins.estimation.error_model import NAV, STATE
 from ins.estimation.filter import run_forward
@@ -70,6 +70,7 @@ class ProcessResult:
     start_check: dict = None
     start_how: str = None
     gnss_source: dict = None
+    identified: object = None     # ins.estimation.noise_identification.Identified or None
 
     def iter_forward(self):
         for _, time, states in self.fwd.trajectory.chunks():
@@ -163,6 +164,7 @@ class _Start:
     gyro_bias_b: np.ndarray = None
     how: str = None
     noise: object = None          # IMU noise settings found at the start (none given)
+    rest_noise: object = None     # the noise measured over a rest at the start, if any
 
 
 def _lever(cfg, mount=None):
@@ -284,7 +286,10 @@ def _anywhere(cfg, gnss, lever, blocks):
                          for k_ in ("time", "dtheta_b", "dvel_b")))
     ms = align_anywhere(imu, gnss, t_start, cfg.noise)
     al = ms.alignment
-    noise, how = None, ms.how
+    noise, how, rest_noise = None, ms.how, None
+    if (cfg.noise_source is not None and ms.gyro_bias_b is not None
+            and process_identify.wanted(cfg)):     # a starting point beside the preset
+        rest_noise = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)[0]
     if cfg.noise_source is None and ms.gyro_bias_b is not None:
         noise, text = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)
         how += "; " + text
@@ -296,7 +301,8 @@ def _anywhere(cfg, gnss, lever, blocks):
     al = replace(al, state=NavState(lla, al.state.v_n, al.state.q_nb))
     return _Start(al.state, al.time, al, itertools.chain(head, rest), initial_time=al.time,
                   position_source="the start position from the GNSS (anywhere alignment)",
-                  gyro_bias_b=ms.gyro_bias_b, how=how, noise=noise)
+                  gyro_bias_b=ms.gyro_bias_b, how=how, noise=noise,
+                  rest_noise=noise if rest_noise is None else rest_noise)
 
 
 def _rest_length(gnss, t_start):
@@ -406,6 +412,12 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
                               heading=_headings(cfg, start), **filter_options(cfg))
+    ident = None
+    if process_identify.wanted(cfg):
+        ident, blocks, gnss = process_identify.run_identification(
+            cfg, blocks, gnss, state, settings, start, st.initial_time, st.rest_noise,
+            progress)
+        settings = replace(settings, noise=ident.noise, nhc=settings.nhc or ident.nhc)
     gnss_in = gnss
     if cfg.coupling == "tight":
         from ins.estimation.tight_pipeline import tight_inputs
@@ -424,17 +436,19 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
               "nodes": fwd.node_count, "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
-              "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries)}
+              "mount_fallback": fwd.n_mount_fallback, "recoveries": len(fwd.recoveries),
+              "reanchors": len(fwd.reanchors), "gnss_steps": fwd.n_gnss_steps}
     from ins.estimation.tight_pipeline import tight_counts
     counts.update(tight_counts(fwd))
     result = ProcessResult(fwd, xs, s_std, al, counts)
     result.start_check = start_check
     result.start_how = st.how
     result.gnss_source = gnss_source
-    if st.noise is not None:                  # judged against the settings it ran with
+    result.identified = ident
+    if st.noise is not None or ident is not None:   # judged against the settings it ran with
         from copy import copy
         cfg = copy(cfg)
-        cfg.noise = st.noise
+        cfg.noise = settings.noise
     result.quality = assess_quality(result, gnss, lever, cfg)
     q = result.quality
     for msg in q["warnings"]:

@@ -29,8 +29,11 @@ with the unit in the name::
                  [initial] has rpy_deg and vel_ned_mps, "static" with a static window,
                  else "anywhere" (ins.estimation.motion_alignment: level and gyro
                  biases from a rest at the start, heading by velocity matching)
-    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true, recover = true
-                 (a run of rejected position fixes ends in a recovery: the navigation
+    [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true, recover = true,
+                 identify = true (with no noise given, or a preset: the IMU noise, the
+                 land-vehicle constraint and the GNSS velocity lag are identified from
+                 the log, ins.estimation.process_identify)
+                 (recover: a run of rejected position fixes ends in a recovery: the navigation
                  covariance is inflated; ins.estimation.updates.RECOVER_AFTER_S)
     [states]     layout = "survey"|"kfgins"; gyro_misalignment, accel_misalignment,
                  lever_arm, time_offset (true/false: add or drop a group of the layout);
@@ -82,7 +85,7 @@ _SECTIONS = {
              "receiver_clock"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
-    "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover"},
+    "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover", "identify"},
     "states": {"layout", *OPTIONAL_GROUPS, "gyro_misalignment_std_arcsec",
                "accel_misalignment_std_arcsec", "lever_arm_std_m", "time_offset_std_ms"},
     "measurements": {"zupt", "zupt_sigma_mps", "zupt_accel_std_mps2", "zupt_gyro_dps",
@@ -135,6 +138,7 @@ class ProcessConfig:
     reject_probability: float = 1e-5
     smooth: bool = True
     recover: bool = True
+    identify: bool = True         # noise identified from the log when none is given
     noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
@@ -313,6 +317,8 @@ def _fill(cfg, data, where, path=None):
                                       True)
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
     cfg.recover = bool(filt.get("recover", cfg.recover))
+    if "identify" in filt:
+        cfg.identify = _flag(filt["identify"], where("filter", "identify"))
     _states(cfg, data.get("states", {}), where)
     _measurements(cfg, data.get("measurements", {}), where)
     _vehicle_and_heading(cfg, data, where)

@@ -22,7 +22,9 @@ for :data:`DEPART_SPAN_S` (30 s) or more, or from the last fixes of its span for
 (10 %) of all the fixes, is a :class:`~ins.common.errors.QualityError` naming
 the likely cause (start state, IMU noise settings, lever arm, time base), unless
 ``accept_poor`` (then a warning).  A recovery of the forward filter from a run of
-rejected fixes is a warning, :data:`RECOVERY_ERROR_COUNT` of them a QualityError.  A
+rejected fixes is a warning, :data:`RECOVERY_ERROR_COUNT` of them a QualityError; a
+re-anchoring after a GNSS gap (:mod:`ins.estimation.updates`: the fixes after the gap
+agree with each other, the INS drifted) is a warning whatever their number.  A
 negative variance beyond rounding, or a covariance
 the smoother cannot factor, is a ``QualityError`` naming the time and the state.
 """
@@ -280,6 +282,15 @@ def assess_quality(result, gnss, lever, cfg=None):
                                    f"hold and its sigmas cannot be trusted)")
         else:
             q["warnings"].append(text + "; " + _causes(result, q, cfg))
+    anchors = getattr(fwd, "reanchors", [])
+    if anchors:
+        spans = ", ".join(f"{a:.2f}-{b:.2f} s" for a, b, _, _ in anchors[:4]) + \
+            (" ..." if len(anchors) > 4 else "")
+        q["warnings"].append(
+            f"{len(anchors)} re-anchoring{'' if len(anchors) == 1 else 's'} after GNSS gaps "
+            f"({spans}): the fixes after the gap agreed with each other but not with the "
+            f"INS, whose drift over the gap exceeded its stated covariance (the forward "
+            f"solution's sigmas are too small in GNSS outages)")
     far = norm > DEPART_SIGMAS
     if len(far) and far.mean() > DEPART_ERROR_FRACTION:
         problems.append(

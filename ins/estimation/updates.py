@@ -1,7 +1,26 @@
 """The measurement updates at a node of the forward filter: GNSS position and velocity,
 dual-antenna heading, zero velocity and the non-holonomic constraint, each tested by its
-innovation (chi-square at ``reject_probability``) and fed back into the state; a run of
-rejected position fixes ends in a recovery (:meth:`Updater._recover`).
+innovation (chi-square at ``reject_probability``) and fed back into the state.
+
+Which sensor is wrong
+---------------------
+A position fix rejected by the innovation test disagrees with the INS; the GNSS track's
+agreement with itself (:mod:`ins.estimation.gnss_consistency`: each fix against its
+predecessor through the receiver's velocities) says which of the two is wrong:
+
+- a run of rejected fixes that begins after a gap in the GNSS (an outage) and whose
+  fixes agree with each other is the INS having drifted: after
+  :data:`REANCHOR_AFTER_FIXES` of them over :data:`REANCHOR_AFTER_S` the filter is
+  *re-anchored* (the navigation covariance inflated until the fix passes, then the
+  update; :attr:`Updater.reanchors`);
+- a rejected fix that steps away from its predecessor (the track jumped) is the GNSS
+  being wrong: it stays rejected, and a run that begins with such a step never
+  re-anchors or recovers (:attr:`Updater.n_steps` counts them);
+- a run that begins while tracking, without a step, is the filter running away
+  gradually: after :data:`RECOVER_AFTER_FIXES` over :data:`RECOVER_AFTER_S`, its first
+  fix only just outside the test (:data:`RECOVER_ENTRY_FACTOR`), a *recovery*
+  (:meth:`Updater._recover`; the trust checks count these against the run);
+- isolated outliers are left to the innovation test.
 """
 import numpy as np
 
@@ -15,12 +34,13 @@ from ins.estimation.measurements import (
     UpdateRecord,
     ZeroVelocity,
     chi2_upper_quantile,
+    innovation_nll,
     kalman_update,
     node_acceleration,
 )
 
 __all__ = ["Updater", "RECOVER_AFTER_FIXES", "RECOVER_AFTER_S", "RECOVER_ENTRY_FACTOR",
-           "RECOVER_MAX_FACTOR"]
+           "RECOVER_MAX_FACTOR", "REANCHOR_AFTER_FIXES", "REANCHOR_AFTER_S"]
 
 
 #: A run of rejected GNSS position fixes triggers a recovery (covariance inflation of the
@@ -38,6 +58,11 @@ RECOVER_ENTRY_FACTOR = 10.0
 #: multipath, another time base), the filter has not; they stay rejected and the trust
 #: checks judge the run.
 RECOVER_MAX_FACTOR = 1e4
+#: A run of rejected fixes after a GNSS gap, agreeing with each other, re-anchors the
+#: filter once it holds this many fixes ...
+REANCHOR_AFTER_FIXES = 3
+#: ... spanning at least this long, s.
+REANCHOR_AFTER_S = 0.5
 
 
 class Updater:
@@ -58,7 +83,19 @@ class Updater:
         self.ev_time, self.ev_record, self.ev_kind = gnss.update_events(settings.use_velocity)
         self.run = []                 # times of the current run of rejected position fixes
         self.run_entry_nis = np.inf   # NIS of the run's first fix
+        self.run_kind = None          # "gap", "step" or "tracking": how the run began
         self.recoveries = []          # (first rejected s, recovered at s, rejected, factor)
+        self.reanchors = []           # the same for re-anchorings after a GNSS gap
+        self.n_steps = 0              # rejected fixes that step away from the track
+        self.track = None
+        if getattr(gnss, "lla", None) is not None and len(gnss):
+            from ins.estimation.gnss_consistency import track_consistency
+            self.track = track_consistency(gnss)
+        self.last_k = -1              # the last position record processed
+        # robust negative log-likelihood of the GNSS innovations (positions, velocities)
+        # and their count: what ins.estimation.noise_identification minimizes
+        self.nll = {"gnss_position": 0.0, "gnss_velocity": 0.0}
+        self.n_nll = {"gnss_position": 0, "gnss_velocity": 0}
 
     def _threshold(self, m):
         if m not in self.thresholds:
@@ -73,7 +110,11 @@ class Updater:
         else:
             z = meas.residual(meas.predict(point), meas.observed)
             H = meas.jacobian(point)
-        x, P, nis, sigma = kalman_update(P, H, meas.R, z, self._threshold(len(z)), meas)
+        x, P, nis, sigma, log_det = kalman_update(P, H, meas.R, z, self._threshold(len(z)),
+                                                  meas, logdet=True)
+        if meas.name in self.nll:
+            self.nll[meas.name] += innovation_nll(nis, log_det, len(z))
+            self.n_nll[meas.name] += 1
         self.records.append(UpdateRecord(meas.name, meas.axes, meas.unit, meas.time, z,
                                          sigma, nis, x is not None))
         if x is None:
@@ -103,13 +144,21 @@ class Updater:
             meas = GnssPosition(tg, g.lla[k], cov)
             P, x, nis, z = self.apply(meas, point, P)
             if x is None:
+                step = self.track is not None and bool(self.track.step[k])
+                self.n_steps += step
                 if not self.run:
                     self.run_entry_nis = nis
+                    self.run_kind = self._kind(k, step)
+                elif step and self.run_kind == "gap":
+                    self.run_kind = "step"         # the fixes of the run disagree
                 self.run.append(tg)
-                if self._run_away():
+                if self.run_kind == "gap" and self._reanchor_due():
+                    P, x, nis, z = self._recover(meas, point, P, nis, self.reanchors)
+                elif self.run_kind == "tracking" and self._run_away():
                     P, x, nis, z = self._recover(meas, point, P, nis)
             else:
                 self.run = []
+            self.last_k = k
             self.nis.append(nis)
             self.nis_record.append(k)
             self.innovation.append(z)
@@ -122,6 +171,20 @@ class Updater:
                 dx += x
         return P, dx
 
+    def _kind(self, k, step):
+        """How a run of rejected fixes that begins at record ``k`` began: after a gap
+        in the GNSS (or the last processed fix was not its predecessor), with a step
+        of the track, or while tracking."""
+        if self.track is None:
+            return "tracking"
+        if self.track.gap_before[k] or self.last_k != k - 1:
+            return "gap"
+        return "step" if step else "tracking"
+
+    def _reanchor_due(self):
+        return (self.s.recover and len(self.run) >= REANCHOR_AFTER_FIXES
+                and self.run[-1] - self.run[0] >= REANCHOR_AFTER_S)
+
     def _run_away(self):
         """Whether the rejected fixes in a row say the filter, not the fixes, is wrong:
         at least :data:`RECOVER_AFTER_FIXES` of them over :data:`RECOVER_AFTER_S`, the
@@ -130,10 +193,11 @@ class Updater:
                 and self.run[-1] - self.run[0] >= RECOVER_AFTER_S
                 and self.run_entry_nis <= RECOVER_ENTRY_FACTOR * self._threshold(3))
 
-    def _recover(self, meas, point, P, nis):
+    def _recover(self, meas, point, P, nis, log=None):
         """Inflate the navigation states' covariance until ``meas`` passes the test with
         margin (``P' = D P D``, ``D`` = sqrt(factor) on position, velocity and attitude),
-        then update with it; the recovery is recorded.  Returns as :meth:`apply`."""
+        then update with it; recorded in ``log`` (default :attr:`recoveries`).  Returns
+        as :meth:`apply`."""
         L = self.layout
         nav = np.zeros(L.n, bool)
         nav[L.pos] = nav[L.vel] = nav[L.att] = True
@@ -154,7 +218,8 @@ class Updater:
             if float(z @ np.linalg.solve(S, z)) < 0.5 * thr:
                 break
             factor *= 4.0
-        self.recoveries.append((self.run[0], meas.time, len(self.run), factor))
+        (self.recoveries if log is None else log).append(
+            (self.run[0], meas.time, len(self.run), factor))
         self.run = []
         return self.apply(meas, point, Pi)
 
