@@ -159,7 +159,7 @@ def _line(obj, point, name, step, log, lo, hi):
     curv = (fm - 2.0 * f0 + fp) / step ** 2
     if not (np.isfinite(curv) and curv > 0):
         return point, np.inf, False
-    shift = float(np.clip(0.5 * (fm - fp) / (curv * step), -1.0, 1.0)) * step
+    shift = float(np.clip(0.5 * (fm - fp) / (fm - 2.0 * f0 + fp), -1.0, 1.0)) * step
     new = at(u + shift)
     value = new[name]
     if not (lo <= value <= hi):

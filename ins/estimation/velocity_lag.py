@@ -5,17 +5,24 @@ instant: a u-blox RTK receiver's velocities lag its positions by about 0.125 s. 
 face value, a lagged velocity in a turn or a brake is wrong by ``a * lag`` (0.4 m/s at
 3 m/s^2), and a filter that believes it at 6 cm/s rejects the positions that follow.
 
-Rule (:func:`velocity_lag`): between consecutive fixes ``k, k+1`` (no gap longer than
-:data:`MAX_GAP_FACTOR` times the median interval) the positions give the mean velocity
-``(p_k+1 - p_k) / dt``, an estimate of the velocity at the midpoint epoch.  The
-velocities, moved by a shift ``s`` (s, added to their epochs as ``[gnss]
-velocity_time_shift_s`` does), must equal that series interpolated at their shifted
-epochs.  ``s`` minimizes the sum of squared differences over a grid of
-:data:`GRID_STEP_S` within +-:data:`MAX_LAG_S`, refined by a parabola through the best
-three; its sigma is the Gauss-Newton one, ``sigma_r / sqrt(sum |dv/dt|^2)``, with
-``sigma_r`` the residuals' RMS per axis and ``dv/dt`` the acceleration of the
-differenced series.  Only records of fixes with both neighbours (positions and
-velocities finite) count; a log with too little acceleration says so (``None``).
+Rule (:func:`velocity_lag`): at each fix ``k`` with both neighbours (no gap longer than
+:data:`MAX_GAP_FACTOR` times the median interval) the positions give the velocity by
+the central difference ``(p_k+1 - p_k-1) / (t_k+1 - t_k-1)`` and the receiver's
+velocities the acceleration ``(v_k+1 - v_k-1) / (t_k+1 - t_k-1)``.  A velocity stamped
+``t`` that holds the state of ``t - lag`` is, to first order, ``v(t) - lag a(t)``: the
+shift ``s = -lag`` (added to the velocities' epochs, as ``[gnss]
+velocity_time_shift_s`` does) is the least-squares slope of ``v_reported - v_positions``
+on ``-a`` over the three axes and every such fix, iterated twice with the second-order
+term ``s^2 / 2 da/dt``.  Its sigma is ``sigma_r / sqrt(sum |a|^2)``, ``sigma_r`` the
+residuals' RMS per axis.
+
+Why not shift the velocities and interpolate the differenced positions: the
+differenced series' noise is anticorrelated from one interval to the next, so its
+interpolated value is least noisy half-way between two midpoints, and a search over
+the shift is drawn to the fix epochs (a 0.125 s lag of a 4 Hz receiver came out
+0.154 s on a simulated track).  Here the noise of each term does not depend on ``s``,
+and the acceleration from the velocities (not the positions' second difference) leaves
+the slope unattenuated.
 """
 from dataclasses import dataclass
 
@@ -23,10 +30,8 @@ import numpy as np
 
 from ins.nav import earth
 
-#: Largest lag searched, s.
+#: Largest lag reported, s (the first-order model holds well within it).
 MAX_LAG_S = 0.5
-#: Grid step of the search, s.
-GRID_STEP_S = 0.005
 #: Two fixes farther apart than this many median intervals are not differenced (a gap).
 MAX_GAP_FACTOR = 1.5
 #: Fewest velocity records in the fit.
@@ -61,29 +66,10 @@ class VelocityLag:
                 f"residual {self.rms_unshifted_mps:.3f} -> {self.rms_mps:.3f} m/s)")
 
 
-def _differenced(gnss):
-    """Midpoint epochs, mean velocities (NED m/s) between consecutive fixes without a gap,
-    and the interval's end index."""
-    t = np.asarray(gnss.time, float)
-    dt = np.diff(t)
-    if len(dt) < 2:
-        return None
-    ok = (dt > 0) & (dt <= MAX_GAP_FACTOR * np.median(dt[dt > 0]))
-    lla = np.asarray(gnss.lla, float)
-    ref = lla[0]
-    # local NED of every fix about the first (small area: the linear map is exact to
-    # well below the fixes' centimetres over tens of km for differences of neighbours)
-    rm, rn = earth.radii(ref[0])
-    ned = np.column_stack([(lla[:, 0] - ref[0]) * (rm + ref[2]),
-                           (lla[:, 1] - ref[1]) * (rn + ref[2]) * np.cos(lla[:, 0]),
-                           -(lla[:, 2] - ref[2])])
-    v = np.diff(ned, axis=0) / np.where(dt > 0, dt, 1.0)[:, None]
-    return 0.5 * (t[:-1] + t[1:]), v, ok
-
-
 def velocity_lag(gnss):
     """The shift of the GNSS velocities' epochs that makes them agree with the positions
-    (module notes), or ``None`` when the log has no velocities or too little motion.
+    (module notes), or ``None`` when the log has no velocities (or they have their own
+    epochs already) or too few fixes with both neighbours.
 
     Parameters
     ----------
@@ -93,55 +79,49 @@ def velocity_lag(gnss):
     -------
     VelocityLag or None
     """
-    if not gnss.has_velocity or len(gnss) < MIN_RECORDS + 2:
+    n = len(gnss)
+    if not gnss.has_velocity or gnss.vel_time is not None or n < MIN_RECORDS + 2:
         return None
-    d = _differenced(gnss)
-    if d is None:
+    t = np.asarray(gnss.time, float)
+    dt = np.diff(t)
+    pos = dt[dt > 0]
+    if not len(pos):
         return None
-    tm, vm, ok = d
-    t_v = np.asarray(gnss.velocity_time, float)
-    v_rep = np.asarray(gnss.v_n, float)
-    # a velocity record counts when the differenced series is continuous around it
-    # (both intervals beside its own epoch are gap-free), within the largest lag
-    seg = np.flatnonzero(ok)
-    if len(seg) < MIN_RECORDS:
+    ok = (dt > 0) & (dt <= MAX_GAP_FACTOR * float(np.median(pos)))
+    use = np.zeros(n, bool)
+    use[1:-1] = ok[:-1] & ok[1:]
+    v = np.asarray(gnss.v_n, float)
+    use &= np.all(np.isfinite(v), axis=1)
+    use[1:-1] &= np.all(np.isfinite(v[:-2]), axis=1) & np.all(np.isfinite(v[2:]), axis=1)
+    k = np.flatnonzero(use)
+    if len(k) < MIN_RECORDS:
         return None
-    good = np.zeros(len(tm), bool)
-    good[seg] = True
-    # continuous runs of good intervals: a velocity is used only well inside one
-    k = np.searchsorted(tm, t_v)
-    span = int(np.ceil(MAX_LAG_S / max(float(np.median(np.diff(tm))), 1e-3))) + 1
-    use = np.zeros(len(t_v), bool)
-    csum = np.concatenate([[0], np.cumsum(good)])
-    lo, hi = k - span - 1, k + span + 1
-    inside = (lo >= 0) & (hi <= len(tm))
-    use[inside] = (csum[hi[inside]] - csum[lo[inside]]) == (hi - lo)[inside]
-    use &= np.all(np.isfinite(v_rep), axis=1)
-    if np.count_nonzero(use) < MIN_RECORDS:
-        return None
-    tv, vr = t_v[use], v_rep[use]
-    shifts = np.arange(-MAX_LAG_S, MAX_LAG_S + 0.5 * GRID_STEP_S, GRID_STEP_S)
-    cost = np.array([_cost(tm, vm, tv + s, vr) for s in shifts])
-    j = int(np.clip(np.argmin(cost), 1, len(shifts) - 2))
-    c0, c1, c2 = cost[j - 1:j + 2]
-    curv = c0 - 2.0 * c1 + c2
-    step = 0.5 * (c0 - c2) / curv if curv > 0 else 0.0
-    s_best = float(shifts[j] + np.clip(step, -1.0, 1.0) * GRID_STEP_S)
-    r = vr - _interp(tm, vm, tv + s_best)
-    acc = np.gradient(vm, tm, axis=0)
-    a = _interp(tm, acc, tv + s_best)
-    sigma_r = float(np.sqrt(np.mean(r ** 2)))
+    p = _ned(np.asarray(gnss.lla, float))
+    span = (t[k + 1] - t[k - 1])[:, None]
+    v_pos = (p[k + 1] - p[k - 1]) / span
+    a = (v[k + 1] - v[k - 1]) / span
+    da = np.gradient(a, t[k], axis=0)
+    r0 = v[k] - v_pos
     info = float(np.sum(a ** 2))
-    sigma = sigma_r / np.sqrt(info) if info > 0 else np.inf
-    r0 = vr - _interp(tm, vm, tv)
-    return VelocityLag(s_best, float(sigma), int(len(tv)),
+    if not info > 0:
+        return None
+    s_est = 0.0
+    for _ in range(2):
+        model = s_est * a + 0.5 * s_est ** 2 * da       # v(t + s) - v(t), second order
+        s_est += float(np.sum(a * (r0 - model))) / info
+    r = r0 - (s_est * a + 0.5 * s_est ** 2 * da)
+    sigma_r = float(np.sqrt(np.mean(r ** 2)))
+    s_est = float(np.clip(s_est, -MAX_LAG_S, MAX_LAG_S))
+    return VelocityLag(s_est, sigma_r / np.sqrt(info), int(len(k)),
                        float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
                        float(np.sqrt(np.mean(np.sum(r0 ** 2, axis=1)))))
 
 
-def _interp(t, v, at):
-    return np.column_stack([np.interp(at, t, v[:, i]) for i in range(v.shape[1])])
-
-
-def _cost(tm, vm, at, v_rep):
-    return float(np.sum((v_rep - _interp(tm, vm, at)) ** 2))
+def _ned(lla):
+    """Local NED of every fix about the first, m (small area: for differences of
+    neighbours the linear map is exact far below the fixes' centimetres)."""
+    ref = lla[0]
+    rm, rn = earth.radii(ref[0])
+    return np.column_stack([(lla[:, 0] - ref[0]) * (rm + ref[2]),
+                            (lla[:, 1] - ref[1]) * (rn + ref[2]) * np.cos(lla[:, 0]),
+                            -(lla[:, 2] - ref[2])])
