@@ -30,8 +30,14 @@ frames and units:
 
 the log must be static (motion would be reported as noise); it is refused when
   - its mean specific force is not normal gravity (9.780..9.832 m/s^2) within 0.3 m/s^2,
-  - gravity's direction in the body (mean specific force over 60 s windows) turns by
-    more than 0.3 deg over the log: a rotation about a horizontal axis, or
+  - gravity's direction in the body (mean specific force over windows) turns faster or
+    farther than an accelerometer bias drifts with temperature: between two adjacent
+    windows of S = 1, 2, 4, ... s by more than 15 mg/h x S (0.014 deg/min) plus 7 sigma
+    of its noise at that scale (at least 0.1 deg), or by more than 20 mg (1.15 deg) over
+    the log; the specific force's magnitude likewise (at least 1.7 mg); a slow drift of
+    the level over hours (tenths of a degree) is the sensor's, not motion,
+  - the gyros integrate a rotation (rate less its 5 min running median) between two
+    adjacent windows of up to 75 s above 7 sigma of their own noise (at least 0.1 deg),
   - in 1 s windows the mean rate or specific force departs from its running median
     (5 min) by more than 7 sigma of a window mean and more than 0.01 deg/s or
     0.05 m/s^2: a turn about the vertical, a bump;
