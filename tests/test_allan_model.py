@@ -163,8 +163,11 @@ def test_cli_on_mems_log(tmp_path, capsys):
 
 
 def test_cli_exit_3_when_the_model_does_not_fit(tmp_path, capsys):
-    """A vibration the model lacks (a 2 Hz sinusoid of 0.05 deg/s on the gyro x axis):
-    the table and the plot, then exit 3; --accept-poor exits 0."""
+    """A vibration the model lacks (a 2 Hz sinusoid of 0.05 deg/s on the gyro x axis,
+    above the white noise at every tau but the first few): the table, the classic
+    reading of gyro x (its N not readable: no stretch of slope -1/2; B at the minimum)
+    and the plot, then exit 3; --accept-poor exits 0.  (A curve with a readable white
+    noise line exits 0: tests/test_allan_drift.py.)"""
     log = mems_static(600.0, seed=7)
     dth = log.dtheta_b.copy()
     dth[:, 0] += np.deg2rad(0.05) * np.sin(2 * np.pi * 2.0 * log.time) * DT
@@ -174,5 +177,9 @@ def test_cli_exit_3_when_the_model_does_not_fit(tmp_path, capsys):
     assert main(["allan", str(path), "--plot", str(png)]) == 3
     out, err = capsys.readouterr()
     assert "does not describe" in err and "gyro x" in err and "gyro y" not in err
-    assert out.count("\n") == 10 and png.exists()
+    assert "no stretch of slope -1/2" in err
+    lines = out.splitlines()
+    assert len(lines) == 13 and png.exists()
+    assert lines[9].startswith("the IEEE 952 model does not describe the curve of gyro x ")
+    assert lines[11].startswith("gyro x") and "not readable" in lines[11]
     assert main(["allan", str(path), "--accept-poor"]) == 0
