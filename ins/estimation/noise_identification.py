@@ -106,6 +106,7 @@ class Identified:
     nll: float = np.nan
     nhc_gain: float = None
     window_s: float = None
+    velocity_lag: object = None   # ins.estimation.velocity_lag.VelocityLag: the start
 
     def describe(self):
         """One paragraph for the summary."""
@@ -114,10 +115,12 @@ class Identified:
                + ("used" if self.nhc else "not used")
                + ("" if self.nhc_gain is None else
                   f" (it changes the NLL by {-self.nhc_gain:+.0f})"))
+        lag = ("" if self.velocity_lag is None else
+               f"; the lag's start: {self.velocity_lag.describe()}")
         return (f"identified from the log by maximum likelihood over the GNSS innovations "
                 f"({self.runs} filter runs over {self.window_s:.0f} s, from {self.start_name}; "
                 f"NLL {self.nll_start:.0f} -> {self.nll:.0f}): " + "; ".join(parts)
-                + "; " + nhc)
+                + "; " + nhc + lag)
 
 
 class _Objective:
