@@ -111,10 +111,11 @@ class Identified:
     def describe(self):
         """One paragraph for the summary."""
         parts = [p.describe() for p in self.parameters]
-        nhc = ("non-holonomic constraint of a land vehicle: "
+        nhc = ("non-holonomic constraint of a land vehicle: as configured"
+               if self.nhc_gain is None else
+               "non-holonomic constraint of a land vehicle: "
                + ("used" if self.nhc else "not used")
-               + ("" if self.nhc_gain is None else
-                  f" (it changes the NLL by {-self.nhc_gain:+.0f})"))
+               + f" (it changes the NLL by {-self.nhc_gain:+.0f})")
         lag = ("" if self.velocity_lag is None else
                f"; the lag's start: {self.velocity_lag.describe()}")
         return (f"identified from the log by maximum likelihood over the GNSS innovations "
