@@ -121,7 +121,7 @@ def test_search_finds_the_minimum_of_a_known_likelihood():
     it does not depend, are not separable; the NHC kept when it lowers the NLL by 50."""
     base = ImuNoise(arw_deg_sqrth=1.0, vrw_mps_sqrth=0.2)
 
-    def nll(noise, nhc, vshift):
+    def nll(noise, nhc, vshift, toff):
         u = np.log(noise.arw_deg_sqrth[0] / 3.2)
         w = np.log(noise.vrw_mps_sqrth[0] / (0.2 * 0.45))
         return 200.0 * u ** 2 + 50.0 * w ** 2 - (50.0 if nhc else 0.0)
@@ -140,7 +140,7 @@ def test_search_finds_the_minimum_of_a_known_likelihood():
 
 def test_search_starts_from_the_best_start_and_refines_the_lag():
     """Two starts (the second better); a lag with its minimum at -0.13 s."""
-    def nll(noise, nhc, vshift):
+    def nll(noise, nhc, vshift, toff):
         return (100.0 * np.log(noise.arw_deg_sqrth[0] / 0.5) ** 2
                 + 1e5 * (vshift + 0.13) ** 2 + (10.0 if nhc else 0.0))
 
@@ -152,6 +152,20 @@ def test_search_starts_from_the_best_start_and_refines_the_lag():
     assert out.velocity_shift_s == pytest.approx(-0.13, abs=0.002)
     assert out.noise.arw_deg_sqrth[0] == pytest.approx(0.5, rel=0.02)
     assert not out.nhc
+
+
+def test_search_finds_a_time_offset_when_asked():
+    """An NLL with its minimum at an IMU-GNSS offset of +0.213 s (curvature 2e4 / s^2):
+    found within 2 ms from 0 when the offset is searched; not touched otherwise."""
+    def nll(noise, nhc, vshift, toff):
+        return (100.0 * np.log(noise.arw_deg_sqrth[0] / 0.5) ** 2
+                + 1e4 * ((toff or 0.0) - 0.213) ** 2)
+    out = identify(nll, [("a", ImuNoise(arw_deg_sqrth=0.5))], test_nhc=False,
+                   time_offset=True)
+    assert out.time_offset_s == pytest.approx(0.213, abs=0.002)
+    p = {q.name: q for q in out.parameters}["IMU-GNSS time offset"]
+    assert p.resolved and p.sigma == pytest.approx(1 / np.sqrt(2e4), rel=0.05)
+    assert identify(nll, [("a", ImuNoise(arw_deg_sqrth=0.5))]).time_offset_s is None
 
 
 # --- the simulated twin of the real car ------------------------------------------------
@@ -183,7 +197,8 @@ def _outage_errors(truth, journey, nav):
 def test_twin_with_no_preset_identifies_the_lag_and_the_noise(twin):
     """The twin (vibration that the integration averages out, scale errors of 3 %, the
     velocities 0.125 s late and not stated) with no preset: exit 0; the lag found within
-    20 ms (14 ms seen: the likelihood trades it against the noise it cannot model); the ARW identified far below the rest's sample scatter (the vibration does
+    20 ms (14 ms seen: the likelihood trades it against the noise it cannot model), the
+    IMU-GNSS offset (none given, the twin's clocks agree) within 20 ms of 0; the ARW identified far below the rest's sample scatter (the vibration does
     not survive the integration); the outages within 10 cm smoothed against the truth."""
     import re
     folder, (truth, journey, cfg) = twin
@@ -194,6 +209,8 @@ def test_twin_with_no_preset_identifies_the_lag_and_the_noise(twin):
     line = next(ln for ln in p.stdout.splitlines() if ln.startswith("IMU noise:"))
     lag = float(re.search(r"GNSS velocity time shift ([-0-9.e]+)", line).group(1))
     assert abs(lag + 0.125) < 0.02, line
+    offset = float(re.search(r"IMU-GNSS time offset ([-0-9.e]+)", line).group(1))
+    assert abs(offset) < 0.02, line        # the twin's clocks agree; none was given
     arw = float(re.search(r"ARW ([0-9.e+-]+) deg/sqrt\(h\)", line).group(1))
     rest = float(re.search(r"ARW ([0-9.e+-]+) deg/sqrt\(h\) and VRW", p.stdout).group(1))
     assert arw < rest / 3, p.stdout

@@ -32,7 +32,9 @@ whose sigma exceeds a factor :data:`UNRESOLVED_FACTOR` is stated as not separabl
 data and keeps its starting value.  The innovations of a vibrating car at 4 Hz are not
 white, so the sigmas are the likelihood's own (optimistic by the correlation), a
 measure of how sharply the data decides, not a calibration.
-The order: the GNSS velocities' lag (starting from :func:`ins.estimation.velocity_lag
+The order: the IMU-GNSS time offset when the user gave none (from 0, steps of 50 then
+10 ms; IMU clock minus GNSS clock, the value of ``[gnss] time_shift_s``), the GNSS
+velocities' lag (starting from :func:`ins.estimation.velocity_lag
 .velocity_lag`, the GNSS log's own estimate), the non-holonomic constraint of a land
 vehicle (kept when it improves the likelihood by more than :data:`NHC_MIN_GAIN`: a
 likelihood-ratio test that an aircraft or a walker fails), ARW, VRW, the bias
@@ -107,6 +109,7 @@ class Identified:
     nhc_gain: float = None
     window_s: float = None
     velocity_lag: object = None   # ins.estimation.velocity_lag.VelocityLag: the start
+    time_offset_s: object = None  # the IMU-GNSS offset found (s), None: not searched
 
     def describe(self):
         """One paragraph for the summary."""
@@ -193,14 +196,16 @@ def noise_of(base, point):
 
 
 def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
-             progress=None):
+             progress=None, time_offset=False):
     """Maximum-likelihood noise settings (module notes).
 
     Parameters
     ----------
     run_nll : callable
-        ``run_nll(noise, nhc, velocity_shift_s)`` -> the NLL of the GNSS innovations of a
-        forward run with those settings (``velocity_shift_s`` None: the log's stamps).
+        ``run_nll(noise, nhc, velocity_shift_s, time_offset_s)`` -> the NLL of the GNSS
+        innovations of a forward run with those settings (``velocity_shift_s`` None: the
+        log's stamps; ``time_offset_s``: added to every GNSS stamp, the positions' and the
+        velocities', the IMU clock minus the GNSS clock; None: none).
     starts : list of (str, ImuNoise)
         Starting points (name, noise); the best is refined.
     velocity_lag : ins.estimation.velocity_lag.VelocityLag, optional
@@ -211,12 +216,15 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
         Span of the search runs (for the description).
     progress : callable, optional
         ``progress(done_runs, expected_runs)``.
+    time_offset : bool
+        Search the IMU-GNSS time offset too (from 0; the user gave none).
 
     Returns
     -------
     Identified
     """
-    expected = 2 * 8 + 2 * 3 + len(starts) + 2 + (2 if velocity_lag is not None else 0)
+    expected = (2 * 8 + 2 * 3 + len(starts) + 2 + (2 if velocity_lag is not None else 0)
+                + (6 if time_offset else 0))
     state = {"base": starts[0][1], "done": 0}
 
     def run(point):
@@ -224,7 +232,8 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
         if progress is not None:
             progress(state["done"], max(expected, state["done"]))
         noise = noise_of(state["base"], point)
-        return run_nll(noise, bool(point.get("nhc", 0)), point.get("vshift"))
+        return run_nll(noise, bool(point.get("nhc", 0)), point.get("vshift"),
+                       point.get("toff"))
 
     # the best starting point (each at its own values)
     best = None
@@ -233,6 +242,8 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
         p = {"arw": 1.0, "vrw": 1.0, "nhc": 0}
         if velocity_lag is not None:
             p["vshift"] = velocity_lag.shift_s
+        if time_offset:
+            p["toff"] = 0.0
         f = run(p)
         if best is None or f < best[0]:
             best = (f, name, noise)
@@ -245,8 +256,12 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
     point = dict(logs, nhc=0)
     if velocity_lag is not None:
         point["vshift"] = velocity_lag.shift_s
+    if time_offset:
+        point["toff"] = 0.0
     obj.cache[tuple(sorted((k, round(float(v), 9)) for k, v in point.items()))] = nll_start
     sig = {}
+    if time_offset:
+        point, sig["toff"], _ = _line(obj, point, "toff", 0.05, False, -1.0, 1.0)
     if velocity_lag is not None:
         point, sig["vshift"], _ = _line(obj, point, "vshift", 0.02, False, -1.0, 1.0)
     nhc_gain = None
@@ -263,20 +278,29 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
     order += [("arw", np.log(2.0) / 2), ("vrw", np.log(2.0) / 2)]
     for name, step in order:
         point, sig[name], _ = _line(obj, point, name, step, True, 1e-3, 1e3)
+    if time_offset:
+        point, sig["toff"], _ = _line(obj, point, "toff", 0.01, False, -1.0, 1.0)
     if velocity_lag is not None:
         point, sig["vshift"], _ = _line(obj, point, "vshift", 0.01, False, -1.0, 1.0)
     params = _parameters(base, noise_of(base, point), point, sig, velocity_lag)
+    if time_offset:
+        s_t = sig.get("toff", np.inf)
+        params.append(Parameter("IMU-GNSS time offset", float(point["toff"]), "s", float(s_t),
+                                0.0, bool(np.isfinite(s_t)), log=False))
     keys = {"ARW": "arw", "VRW": "vrw", "gyro bias instability": "gyro_bi",
             "gyro scale-factor sigma": "gyro_scale", "accel scale-factor sigma": "accel_scale",
-            "accel bias instability": "accel_bi", "GNSS velocity time shift": "vshift"}
+            "accel bias instability": "accel_bi", "GNSS velocity time shift": "vshift",
+            "IMU-GNSS time offset": "toff"}
     for p in params:                    # what the data did not decide stays at its start
         if not p.resolved:
-            point[keys[p.name]] = 1.0 if p.log else velocity_lag.shift_s
+            point[keys[p.name]] = 1.0 if p.log else p.start
     noise = noise_of(base, point)
-    return Identified(noise, bool(point["nhc"]),
-                      None if velocity_lag is None else float(point["vshift"]), params,
-                      start_name, obj.n + len(starts) - 1, float(nll_start),
-                      float(obj(point)), nhc_gain, window_s)
+    out = Identified(noise, bool(point["nhc"]),
+                     None if velocity_lag is None else float(point["vshift"]), params,
+                     start_name, obj.n + len(starts) - 1, float(nll_start),
+                     float(obj(point)), nhc_gain, window_s)
+    out.time_offset_s = float(point["toff"]) if time_offset else None
+    return out
 
 
 def _parameters(base, noise, point, sig, lag):

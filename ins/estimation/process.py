@@ -378,46 +378,24 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
         still raise).
     """
     import warnings
-    blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
-                                              rates=cfg.imu_rates, axes=cfg.imu_axes),
-                                     cfg.imu_time_shift_s))
     gnss, gnss_source = _gnss(cfg, gnss_dir if gnss_dir is not None else workdir)
     mount = read_mount(cfg.mount) if cfg.mount else None
     lever = _lever(cfg, mount)
-    st = _start(cfg, blocks, gnss, lever)
-    state, t0, al, blocks = st.state, st.time, st.alignment, st.blocks
-    std = {"pos_std_ned_m": (0.05, 0.05, 0.05), "vel_std_ned_mps": (0.02, 0.02, 0.02),
-           "att_std_deg": (0.01, 0.01, 0.1)}
-    if al is not None:
-        std = {"pos_std_ned_m": al.pos_std_ned_m, "vel_std_ned_mps": al.vel_std_ned_mps,
-               "att_std_deg": al.att_std_deg}
-    std.update(st.std)
-    std.update({k: cfg.initial[k] for k in std if k in cfg.initial})
-    start_check = check_start(state, t0, gnss, lever, std, st.position_source)
-    if start_check is not None and (start_check["distance_m"]
-                                    > START_SIGMAS * start_check["sigma_m"]):
-        d = start_check["distance_m"]
-        warnings.warn(f"{st.position_source}: the start is {d:.1f} m from the GNSS fix at "
-                      f"t = {start_check['time']:.3f} s, more than {START_SIGMAS:g} sigma "
-                      f"({START_SIGMAS * start_check['sigma_m']:.2f} m): its position "
-                      f"sigma is widened to {d:.1f} m", QualityWarning, stacklevel=2)
-        std["pos_std_ned_m"] = np.maximum(np.broadcast_to(
-            np.asarray(std["pos_std_ned_m"], float), 3), d)
-    start = t0 if t0 is not None else cfg.start_s
-    sensors0 = None if st.gyro_bias_b is None else np.concatenate([st.gyro_bias_b,
-                                                                    np.zeros(9)])
-    settings = FilterSettings(noise=cfg.noise if st.noise is None else st.noise, lever=lever,
-                              use_velocity=cfg.use_velocity,
-                              reject_probability=cfg.reject_probability,
-                              node_interval_s=cfg.node_interval_s, **std,
-                              initial_sensors=sensors0, recover=cfg.recover,
-                              heading=_headings(cfg, start), **filter_options(cfg))
+    st, start_check, settings, start = _prepare(cfg, gnss, lever)
     ident = None
     if process_identify.wanted(cfg):
         ident, blocks, gnss = process_identify.run_identification(
-            cfg, blocks, gnss, state, settings, start, st.initial_time, st.rest_noise,
+            cfg, st.blocks, gnss, st.state, settings, start, st.initial_time, st.rest_noise,
             progress)
+        if ident.time_offset_s:           # the IMU onto the GNSS's clock, and a new start
+            from copy import copy
+            cfg = copy(cfg)
+            cfg.imu_time_shift_s = -ident.time_offset_s
+            st, start_check, settings, start = _prepare(cfg, gnss, lever)
+            blocks = st.blocks
         settings = replace(settings, noise=ident.noise, nhc=settings.nhc or ident.nhc)
+        st = replace(st, blocks=blocks)
+    state, t0, al, blocks = st.state, st.time, st.alignment, st.blocks
     gnss_in = gnss
     if cfg.coupling == "tight":
         from ins.estimation.tight_pipeline import tight_inputs
@@ -461,6 +439,44 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     if cfg.truth:
         result = with_truth(result, cfg.truth)
     return result
+
+
+def _prepare(cfg, gnss, lever):
+    """The IMU blocks (read lazily, shifted by ``[imu] time_shift_s``), the start, its
+    check against the GNSS, the filter settings and the start time of a run."""
+    import warnings
+    blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
+                                              rates=cfg.imu_rates, axes=cfg.imu_axes),
+                                     cfg.imu_time_shift_s))
+    st = _start(cfg, blocks, gnss, lever)
+    state, t0, al = st.state, st.time, st.alignment
+    std = {"pos_std_ned_m": (0.05, 0.05, 0.05), "vel_std_ned_mps": (0.02, 0.02, 0.02),
+           "att_std_deg": (0.01, 0.01, 0.1)}
+    if al is not None:
+        std = {"pos_std_ned_m": al.pos_std_ned_m, "vel_std_ned_mps": al.vel_std_ned_mps,
+               "att_std_deg": al.att_std_deg}
+    std.update(st.std)
+    std.update({k: cfg.initial[k] for k in std if k in cfg.initial})
+    start_check = check_start(state, t0, gnss, lever, std, st.position_source)
+    if start_check is not None and (start_check["distance_m"]
+                                    > START_SIGMAS * start_check["sigma_m"]):
+        d = start_check["distance_m"]
+        warnings.warn(f"{st.position_source}: the start is {d:.1f} m from the GNSS fix at "
+                      f"t = {start_check['time']:.3f} s, more than {START_SIGMAS:g} sigma "
+                      f"({START_SIGMAS * start_check['sigma_m']:.2f} m): its position "
+                      f"sigma is widened to {d:.1f} m", QualityWarning, stacklevel=3)
+        std["pos_std_ned_m"] = np.maximum(np.broadcast_to(
+            np.asarray(std["pos_std_ned_m"], float), 3), d)
+    start = t0 if t0 is not None else cfg.start_s
+    sensors0 = None if st.gyro_bias_b is None else np.concatenate([st.gyro_bias_b,
+                                                                    np.zeros(9)])
+    settings = FilterSettings(noise=cfg.noise if st.noise is None else st.noise, lever=lever,
+                              use_velocity=cfg.use_velocity,
+                              reject_probability=cfg.reject_probability,
+                              node_interval_s=cfg.node_interval_s, **std,
+                              initial_sensors=sensors0, recover=cfg.recover,
+                              heading=_headings(cfg, start), **filter_options(cfg))
+    return st, start_check, settings, start
 
 
 def _gnss(cfg, folder):

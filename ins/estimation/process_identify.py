@@ -7,7 +7,10 @@ and no noise given by the user's config or a flight folder's manifest (a ``--pre
 is a starting point, not a requirement: the search starts from it).  The velocity lag
 is estimated when ``[gnss] velocity_time_shift_s`` is not given and the log has
 velocities; the non-holonomic constraint is tried when ``[measurements] nhc`` is not
-given (by the config or the preset).
+given (by the config or the preset).  The IMU-GNSS time offset is searched when neither
+``[imu] time_shift_s`` nor ``[gnss] time_shift_s`` (nor their options) is given (both 0)
+and the layout has no ``time_offset`` state; the IMU's stamps are then shifted by it
+(the solution stays on the GNSS's clock, GPS time) and the start found again.
 """
 import itertools
 from dataclasses import replace
@@ -56,7 +59,10 @@ def run_identification(cfg, blocks, gnss, state, settings, start, initial_time,
     -------
     (Identified or None, blocks, gnss)
         The identification, the IMU blocks (given back whole), and the GNSS log with the
-        identified velocity shift applied (as it was when none).
+        identified velocity shift applied (as it was when none); an identified IMU-GNSS
+        offset (``Identified.time_offset_s``) is NOT applied: the caller shifts the IMU's
+        stamps by ``-offset`` (``[imu] time_shift_s``) so that the solution stays on the
+        GNSS's clock.
     """
     blocks = iter(blocks)
     head = []
@@ -80,8 +86,17 @@ def run_identification(cfg, blocks, gnss, state, settings, start, initial_time,
     test_nhc = "nhc" not in cfg.measurements
     thin = thinned(gnss, SEARCH_RATE_HZ)
 
-    def run_nll(noise, nhc, vshift):
-        g = thin if vshift is None else thin.shifted(0.0, vshift)
+    search_offset = (cfg.imu_time_shift_s == 0.0 and cfg.gnss_time_shift_s == 0.0
+                     and "time_offset" not in settings.layout.groups)
+
+    def shifted(g, vshift, toff):
+        if vshift is None and not toff:
+            return g
+        t = toff or 0.0
+        return g.shifted(t, None if vshift is None else t + vshift)
+
+    def run_nll(noise, nhc, vshift, toff):
+        g = shifted(thin, vshift, toff)
         trial = replace(settings, noise=noise, nhc=nhc or settings.nhc, recover=False)
         try:
             fwd = run_forward(head, g, state, trial, start=start, end=t_end,
@@ -96,9 +111,10 @@ def run_identification(cfg, blocks, gnss, state, settings, start, initial_time,
             progress.note(f"identifying the IMU noise from the log: run {done} of ~{total} ...")
 
     ident = identify(run_nll, starts(cfg, rest_noise), velocity_lag=lag, test_nhc=test_nhc,
-                     window_s=t_end - t0, progress=note)
-    if ident.velocity_shift_s is not None:
-        gnss = gnss.shifted(0.0, ident.velocity_shift_s)
+                     window_s=t_end - t0, progress=note, time_offset=search_offset)
+    # the velocities' lag on the GNSS log; the offset goes to the IMU's stamps (the
+    # caller: the solution then stays on the GNSS's clock, GPS time)
+    gnss = shifted(gnss, ident.velocity_shift_s, None)
     ident.velocity_lag = lag
     return ident, blocks, gnss
 
