@@ -198,7 +198,7 @@ def test_twin_with_no_preset_identifies_the_lag_and_the_noise(twin):
     """The twin (vibration that the integration averages out, scale errors of 3 %, the
     velocities 0.125 s late and not stated) with no preset: exit 0; the lag found within
     20 ms (14 ms seen: the likelihood trades it against the noise it cannot model), the
-    IMU-GNSS offset (none given, the twin's clocks agree) within 20 ms of 0; the ARW identified far below the rest's sample scatter (the vibration does
+    IMU-GNSS offset (none given, the twin's clocks agree) below the 30 ms that is applied; the ARW identified far below the rest's sample scatter (the vibration does
     not survive the integration); the outages within 10 cm smoothed against the truth."""
     import re
     folder, (truth, journey, cfg) = twin
@@ -209,8 +209,10 @@ def test_twin_with_no_preset_identifies_the_lag_and_the_noise(twin):
     line = next(ln for ln in p.stdout.splitlines() if ln.startswith("IMU noise:"))
     lag = float(re.search(r"GNSS velocity time shift ([-0-9.e]+)", line).group(1))
     assert abs(lag + 0.125) < 0.02, line
-    offset = float(re.search(r"IMU-GNSS time offset ([-0-9.e]+)", line).group(1))
-    assert abs(offset) < 0.02, line        # the twin's clocks agree; none was given
+    # the twin's clocks agree and none was given: what the likelihood finds is below
+    # what it can tell, and not applied
+    found = re.search(r"IMU-GNSS time offset: ([-+0-9]+) ms found, below", line)
+    assert found is not None and abs(float(found.group(1))) < 30, line
     arw = float(re.search(r"ARW ([0-9.e+-]+) deg/sqrt\(h\)", line).group(1))
     rest = float(re.search(r"ARW ([0-9.e+-]+) deg/sqrt\(h\) and VRW", p.stdout).group(1))
     assert arw < rest / 3, p.stdout
