@@ -67,7 +67,7 @@ from ins.io.gnss_quality import QUALITY_NAME
 from ins.io.pos_screen import screen
 
 __all__ = ["read_pos", "write_pos", "looks_like_pos", "LEAP_SECONDS", "SIGMA_FLOOR_M",
-           "utc_to_gps_seconds"]
+           "utc_to_gps_seconds", "gps_to_utc_seconds"]
 
 
 #: Smallest standard deviation kept, m (RTKLIB prints 4 decimals: 0.0000 is below 0.05 mm).
@@ -261,6 +261,16 @@ def utc_to_gps_seconds(utc_s):
     (integer arrays): ``utc_s + (GPS - UTC)`` with the leap seconds of the date."""
     utc_s = np.asarray(utc_s, np.int64)
     return utc_s + _leap_seconds(utc_s)
+
+
+def gps_to_utc_seconds(gps_s):
+    """UTC seconds since the GPS epoch of GPS seconds since that epoch (integer arrays):
+    ``gps_s - (GPS - UTC)`` with the leap seconds of the date (the inverse of
+    :func:`utc_to_gps_seconds`; a GPS second inside an inserted leap second maps to the
+    UTC second before it)."""
+    gps_s = np.asarray(gps_s, np.int64)
+    utc = gps_s - _leap_seconds(gps_s)
+    return gps_s - _leap_seconds(utc)
 
 
 def _gps_time(time_fields, date_format, system):
