@@ -140,8 +140,11 @@ class _WindowGrid:
     (netCDF-4) file (rows from north to south or south to north, columns from 0 to 360
     deg east inclusive), reading only the rows and columns around the positions."""
 
+    _MARGIN = 48                # rows/columns read beyond the positions (2 deg at 2.5')
+
     def __init__(self, path, var, lat_var="lat", lon_var="lon"):
         import h5py
+        self._block = None
         self.path = path
         self.var = var
         with h5py.File(path, "r") as f:
@@ -169,12 +172,21 @@ class _WindowGrid:
         i0 = np.clip(np.floor(fi).astype(np.int64), 0, nlat - 2)
         j0 = np.clip(np.floor(fj).astype(np.int64), 0, nlon - 2)
         di, dj = fi - i0, fj - j0
-        r0, r1 = int(i0.min()), int(i0.max()) + 2
-        c0, c1 = int(j0.min()), int(j0.max()) + 2
-        with h5py.File(self.path, "r") as f:
-            block = np.asarray(f[self.var][r0:r1, c0:c1], dtype=float)
-        if self.fill is not None:
-            block[block == self.fill] = np.nan
+        lo_r, hi_r = int(i0.min()), int(i0.max()) + 2
+        lo_c, hi_c = int(j0.min()), int(j0.max()) + 2
+        cached = self._block
+        if cached is None or not (cached[0] <= lo_r and hi_r <= cached[1]
+                                  and cached[2] <= lo_c and hi_c <= cached[3]):
+            # read the window with a margin (one block of a trajectory covers the next)
+            m = self._MARGIN
+            r0, r1 = max(lo_r - m, 0), min(hi_r + m, nlat)
+            c0, c1 = max(lo_c - m, 0), min(hi_c + m, nlon)
+            with h5py.File(self.path, "r") as f:
+                block = np.asarray(f[self.var][r0:r1, c0:c1], dtype=float)
+            if self.fill is not None:
+                block[block == self.fill] = np.nan
+            self._block = cached = (r0, r1, c0, c1, block)
+        r0, _, c0, _, block = cached
         a, b = i0 - r0, j0 - c0
         return ((1 - di) * (1 - dj) * block[a, b] + (1 - di) * dj * block[a, b + 1]
                 + di * (1 - dj) * block[a + 1, b] + di * dj * block[a + 1, b + 1])

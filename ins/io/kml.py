@@ -71,10 +71,11 @@ def write_kml(path, track, color_by="quality", points=True, name=None):
           '<kml xmlns="http://www.opengis.net/kml/2.2">\n<Document>\n'
           f"<name>{title}</name>\n<description>{escape(desc)}</description>\n")
         for k, (colour, label) in styles.items():
-            w(f'<Style id="c{k}"><LineStyle><color>{colour}</color><width>3</width>'
-              f'</LineStyle><IconStyle><color>{colour}</color><scale>0.5</scale><Icon><href>'
-              'http://maps.google.com/mapfiles/kml/shapes/shaded_dot.png</href></Icon>'
-              f'</IconStyle><LabelStyle><scale>0</scale></LabelStyle></Style>\n')
+            # the order of the KML 2.2 schema: IconStyle, LabelStyle, LineStyle
+            w(f'<Style id="c{k}"><IconStyle><color>{colour}</color><scale>0.5</scale><Icon>'
+              '<href>http://maps.google.com/mapfiles/kml/shapes/shaded_dot.png</href></Icon>'
+              '</IconStyle><LabelStyle><scale>0</scale></LabelStyle><LineStyle><color>'
+              f'{colour}</color><width>3</width></LineStyle></Style>\n')
         w("<Folder><name>track</name>\n")
         # one LineString per run of epochs of one class, sharing the boundary epochs
         n = len(track)
@@ -85,9 +86,11 @@ def write_kml(path, track, color_by="quality", points=True, name=None):
                 end += 1
             stop = min(end + 1, n - 1)            # join to the next segment's first epoch
             k = int(cls[start])
-            w(f"<Placemark><name>{escape(styles[k][1])}</name><styleUrl>#c{k}</styleUrl>")
+            # the schema's order: name, time primitive, styleUrl, ..., geometry
+            w(f"<Placemark><name>{escape(styles[k][1])}</name>")
             if utc is not None:
                 w(f"<TimeSpan><begin>{utc[start]}</begin><end>{utc[stop]}</end></TimeSpan>")
+            w(f"<styleUrl>#c{k}</styleUrl>")
             w("<LineString><altitudeMode>absolute</altitudeMode><coordinates>"
               + " ".join(_coord(lon[i], lat[i], alt[i]) for i in range(start, stop + 1))
               + "</coordinates></LineString></Placemark>\n")
@@ -101,9 +104,10 @@ def write_kml(path, track, color_by="quality", points=True, name=None):
             hname = escape(track.height.column())
             for i in range(n):
                 k = int(cls[i])
-                w(f"<Placemark><styleUrl>#c{k}</styleUrl>")
+                w("<Placemark>")
                 if utc is not None:
                     w(f"<TimeStamp><when>{utc[i]}</when></TimeStamp>")
+                w(f"<styleUrl>#c{k}</styleUrl>")
                 data = [("gps_time_s", f"{track.time[i]:.4f}"),
                         (hname, f"{alt[i]:.4f}")]
                 if sig is not None:
