@@ -92,6 +92,12 @@ built aside and swapped in: never a mix of two runs):
   solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
                     roll pitch yaw [deg]
   imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
+  solution_orthometric.txt  with --height orthometric[:MODEL]: the smoothed
+                    trajectory's heights above the geoid MODEL (EGM2008, the default, or
+                    EGM96; a grid installed locally: pip install 'insphoto[geoid]'):
+                    week t lat lon[deg] h_ellipsoidal N H[m], H = h - N, the model named
+                    in the header; solution.nav and the SBET keep ellipsoidal heights (their
+                    formats define them so)
   *.png             plots (errors against the truth when there is one, sigma, biases)
 
 example:
@@ -148,6 +154,10 @@ def add_parser(sub):
     p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
                    help="trajectory output format(s): nav (solution.nav, default), sbet "
                         "(sbet_solution.out + smrmsg_solution.out), or both")
+    p.add_argument("--height", default="ellipsoidal",
+                   metavar="ellipsoidal|orthometric[:MODEL]",
+                   help="also write the orthometric heights H = h - N (m) of the geoid "
+                        "MODEL EGM2008 (default) or EGM96 to solution_orthometric.txt")
     p.add_argument("--preset", metavar="NAME",
                    help="defaults for the keys the config does not give: tactical, mems, "
                         "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
@@ -293,6 +303,8 @@ def _cmd_process(args):
     from ins.estimation.process_outputs import write_outputs
     t0 = wallclock.perf_counter()
     formats = output_formats(args.format)
+    from ins.io.geoid import parse_height
+    height = parse_height(args.height)          # before the run: a missing grid stops here
     cfg = _config(args)
     progress = Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
@@ -311,7 +323,7 @@ def _cmd_process(args):
                                    f"outputs anyway).") from None
             t1 = wallclock.perf_counter()
             names = write_outputs(result, stage, week=args.week, forward=args.forward,
-                                  formats=formats)
+                                  formats=formats, height=height)
             if not args.no_plots:
                 from ins.estimation.plots import write_plots
                 names += write_plots(result, stage, flight_dir=args.flight_dir)
