@@ -33,6 +33,10 @@ inputs:
   --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
                     dgps, single, ppp or numbers 1..6; default all)
   --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
+  --gnss-geoid      RTKLIB only: the geoid model (EGM96, EGM2008) of a .pos written with
+                    geodetic heights (height=WGS84/geodetic in its header): converted to
+                    ellipsoidal h = H + N (default EGM96, RTKLIB's own model, with a
+                    warning; needs a geoid grid: pip install 'insphoto[geoid]')
   --imu-time-shift-s / --gnss-time-shift-s  added to that log's stamps at read time (s):
                     the offset of its clock against the common time base (GPS seconds of
                     week), e.g. a GNSS stamped at reception 0.2 s late: -0.2; the offset
@@ -142,6 +146,10 @@ def add_parser(sub):
                    help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
     p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
                    help="RTKLIB: sigma factor per quality, e.g. float=3,single=10")
+    p.add_argument("--gnss-geoid", metavar="MODEL", type=str.upper,
+                   choices=["EGM96", "EGM2008"],
+                   help="RTKLIB: geoid model of geodetic heights, converted to ellipsoidal "
+                        "(EGM96 default, EGM2008)")
     p.add_argument("--imu-time-shift-s", type=number(-MAX_TIME_SHIFT_S, MAX_TIME_SHIFT_S, unit="s"), metavar="S",
                    help="added to the IMU stamps at read time, s (overrides [imu] "
                         "time_shift_s)")
@@ -256,6 +264,8 @@ def _input_options(cfg, args):
                              f"import-bag {path} -o DIR' (imu.txt, gnss.pos)")
     if args.gnss_format:
         cfg.gnss_format = args.gnss_format
+    if args.gnss_geoid:
+        cfg.gnss_geoid = args.gnss_geoid
     if args.gnss_quality:
         cfg.gnss_quality = parse_quality(args.gnss_quality, "--gnss-quality")
     if args.gnss_quality_scale:

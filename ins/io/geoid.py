@@ -31,13 +31,14 @@ the chosen system and back, and names itself in the header of every file written
 """
 import functools
 import os
+import warnings
 
 import numpy as np
 
-from ins.common.errors import InputError
+from ins.common.errors import InputError, InputWarning
 
 __all__ = ["GEOID_MODELS", "GEOID_EXTRA", "Geoid", "HeightSystem", "load_geoid",
-           "parse_height", "ELLIPSOIDAL"]
+           "parse_height", "ELLIPSOIDAL", "ellipsoidal_from_geodetic"]
 
 #: Names of the models :func:`load_geoid` knows (upper case), with their vertical CRS.
 GEOID_MODELS = {"EGM2008": 3855, "EGM96": 5773}
@@ -329,3 +330,30 @@ def parse_height(text, option="--height"):
 def proj_grid_dirs():
     """The folders searched for PROJ's geoid grids (for messages and tests)."""
     return _proj_dirs()
+
+
+def ellipsoidal_from_geodetic(lla, geoid, path, what):
+    """Ellipsoidal heights ``h = H + N`` of a file's heights above the geoid ``lla[:, 2]``
+    (lat, lon rad): N of the model ``geoid`` (a name); None: EGM96, the model receivers
+    and RTKLIB use by default, with an :class:`InputWarning` saying so (``what`` names
+    the heights, ``path`` the file); with no EGM96 grid installed the heights are
+    returned as they are, with a warning.  A named model that is not installed is an
+    :class:`InputError`."""
+    if geoid is None:
+        try:
+            model = load_geoid("EGM96")
+        except InputError as exc:
+            warnings.warn(f"{path}: {what}, not ellipsoidal, and no geoid grid to convert "
+                          f"them ({exc.reason}): the heights stay above the geoid",
+                          InputWarning, stacklevel=3)
+            return np.asarray(lla[:, 2], dtype=float)
+        warnings.warn(f"{path}: {what}: converted to ellipsoidal with EGM96 "
+                      f"({model.source}), the default model; name the model used with "
+                      "[gnss] geoid (--gnss-geoid) if it was another", InputWarning,
+                      stacklevel=3)
+    else:
+        try:
+            model = load_geoid(geoid)
+        except InputError as exc:
+            raise InputError(f"heights above the geoid: {exc.reason}", path=path) from None
+    return lla[:, 2] + model.undulation(lla[:, 0], lla[:, 1])

@@ -44,7 +44,7 @@ def sniff_format(path):
 
 
 def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=None,
-              velocity_time_shift_s=None):
+              velocity_time_shift_s=None, geoid=None):
     """Read a GNSS log of the antenna: KF-GINS text or an RTKLIB ``.pos`` solution.
 
     Parameters
@@ -66,6 +66,9 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
         Added to the epochs of the velocities instead (s), when they are stamped
         differently from the positions (:meth:`GnssLog.shifted`: the log then has its
         own ``vel_time``); ``None`` (default): ``time_shift_s`` for both.
+    geoid : str, optional
+        RTKLIB only: the geoid model of a solution written with geodetic heights, which
+        are converted to ellipsoidal (:func:`ins.io.rtklib.read_pos`).
 
     Returns
     -------
@@ -81,7 +84,7 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
     if fmt == "rtklib":
         from ins.io.gnss_quality import apply_quality
         from ins.io.rtklib import read_pos
-        log = apply_quality(read_pos(path), quality, quality_scale)
+        log = apply_quality(read_pos(path, geoid=geoid), quality, quality_scale)
     elif fmt == "kfgins":
         if quality is not None or quality_scale:
             raise InputError("a GNSS quality policy (quality, quality_scale) needs quality "
