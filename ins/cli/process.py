@@ -21,7 +21,11 @@ inputs:
                     optionally 'vn ve vd std_vn std_ve std_vd [m/s]'; or an RTKLIB .pos
                     solution of the antenna (detected from its header: lat/lon/height,
                     d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
-                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds);
+                    or a u-blox receiver's own solution: UBX NAV-PVT (its ellipsoidal
+                    height; hAcc, vAcc, sAcc as sigmas) or NMEA GGA + RMC (+ GST sigmas),
+                    the altitude above mean sea level plus the GGA geoid separation, or
+                    plus N of --gnss-geoid (EGM96 default) when the GGA has none
   --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
                     config's [files] rover, base, nav, sp3, clk; RINEX or u-blox .ubx):
                     RTKLIB runs first with the config's [rtklib] settings (ins gnss
@@ -140,8 +144,10 @@ def add_parser(sub):
                    help="raw GNSS: precise orbits (repeatable)")
     p.add_argument("--clk", action="append", metavar="F",
                    help="raw GNSS: precise clocks, RINEX CLK (repeatable)")
-    p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
-                   help="GNSS file format (default: detected from the extension and header)")
+    p.add_argument("--gnss-format", choices=["kfgins", "rtklib", "ubx", "nmea"],
+                   help="GNSS file format (default: detected from the extension and "
+                        "content): KF-GINS text, RTKLIB .pos, a u-blox receiver's own "
+                        "solution (UBX NAV-PVT; NMEA GGA + RMC + GST)")
     p.add_argument("--gnss-quality", metavar="Q,...",
                    help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
     p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
