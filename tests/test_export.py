@@ -274,3 +274,50 @@ def test_decimate_indices():
     assert list(idx) == list(range(0, 100, 3)) + [100]
     rest = Track(np.arange(5.0), np.zeros((5, 3)))
     assert list(decimate_indices(rest, min_spacing_m=1.0)) == [0, 4]
+
+
+def test_kml_default_height_falls_back_to_egm2008(run, monkeypatch, capsys):
+    """KML without --height: EGM96 (Google Earth's sea level); without an EGM96 grid
+    EGM2008 with a warning; with neither an error that names both ways out."""
+    from ins.io import geoid
+    real = geoid.load_geoid
+
+    def no96(name):
+        if str(name).upper() == "EGM96":
+            raise InputError("geoid model EGM96: no grid found")
+        return real(name)
+
+    from ins.common.errors import InputError
+    monkeypatch.setattr(geoid, "load_geoid", no96)
+    try:
+        real("EGM2008")
+    except InputError:
+        pytest.skip("no EGM2008 grid")
+    out = run["dir"] / "fallback.kml"
+    assert main(["export", str(run["dir"] / "solution.nav"), "-o", str(out), "-q",
+                 "--every", "500"]) == 0
+    assert "no EGM96 grid installed, EGM2008" in capsys.readouterr().err
+    assert "geoid EGM2008" in out.read_text()
+    monkeypatch.setattr(geoid, "load_geoid", lambda name: (_ for _ in ()).throw(
+        InputError(f"geoid model {name}: no grid found")))
+    assert main(["export", str(run["dir"] / "solution.nav"), "-o",
+                 str(run["dir"] / "none.kml"), "-q"]) == 2
+    assert "--height ellipsoidal" in capsys.readouterr().err
+
+
+def test_sbet_input_with_smrmsg(run, tmp_path):
+    """An SBET and its SMRMSG beside it (the sigmas found by name)."""
+    from ins.io.navfiles import read_nav
+    from ins.io.sbet import write_sbet, write_smrmsg
+    traj = read_nav(run["dir"] / "solution.nav")
+    write_sbet(tmp_path / "sbet_solution.out", traj)
+    t = traj.time[::10]
+    write_smrmsg(tmp_path / "smrmsg_solution.out", t, np.tile([0.1, 0.2, 0.3], (len(t), 1)),
+                 np.full((len(t), 3), 0.01), np.full((len(t), 3), 1e-4))
+    out = tmp_path / "s.csv"
+    assert main(["export", str(tmp_path / "sbet_solution.out"), "-o", str(out), "-q",
+                 "--week", str(WEEK), "--every", "100"]) == 0
+    _, rows = _read_csv(out)
+    np.testing.assert_allclose([float(r["sigma_h_m"]) for r in rows], np.hypot(0.1, 0.2),
+                               atol=1e-4)
+    assert rows[0]["utc"].startswith("2024-02-07T23:59:42")

@@ -119,6 +119,27 @@ def _format(args):
     return FORMATS[ext]
 
 
+def _height(text, fmt, parse_height):
+    """The --height system; for KML by default EGM96 (Google Earth's sea level), else
+    EGM2008 with a warning (the two differ by decimetres), else an error naming both
+    ways out."""
+    if text is not None or fmt != "kml":
+        return parse_height(text or "ellipsoidal")
+    try:
+        return parse_height("orthometric:EGM96")
+    except InputError as exc96:
+        try:
+            height = parse_height("orthometric:EGM2008")
+        except InputError:
+            raise InputError(f"KML altitudes are above mean sea level: {exc96.reason}; or "
+                             "write ellipsoidal heights with --height ellipsoidal") from None
+    import warnings
+    from ins.common.errors import InputWarning
+    warnings.warn("KML altitudes are above mean sea level (Google Earth: EGM96); no EGM96 "
+                  "grid installed, EGM2008 heights written (decimetres apart)", InputWarning)
+    return height
+
+
 def _week(args):
     if args.week is not None:
         return args.week
@@ -144,8 +165,7 @@ def _cmd_export(args):
     if fmt == "csv":
         from ins.io.trackcsv import parse_crs
         crs = parse_crs(args.crs)
-    height = parse_height(args.height or ("orthometric:EGM96" if fmt == "kml"
-                                          else "ellipsoidal"))
+    height = _height(args.height, fmt, parse_height)
     is_sbet = trajectory_format(args.solution) == "sbet"
     std_path = args.std or _beside(args.solution, ["smrmsg_solution.out"] if is_sbet
                                    else ["solution_std.txt"])
