@@ -188,7 +188,7 @@ def _cmd_export(args):
     idx = decimate_indices(track, every=args.every, min_spacing_m=args.min_spacing_m)
     track = track.take(idx)
     if std_path:
-        from ins.lidar.georeference import read_trajectory_std
+        from ins.io.trajectory_std import read_trajectory_std
         std = read_trajectory_std(std_path)
         track.sigma_ned_m = std.at(track.time)[:, :3]
     n_q = None

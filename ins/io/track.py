@@ -163,10 +163,9 @@ def decimate_indices(track, every=None, min_spacing_m=None):
     elif min_spacing_m is not None:
         if not (np.isfinite(min_spacing_m) and min_spacing_m > 0):
             raise ValueError(f"min_spacing_m must be > 0, got {min_spacing_m!r}")
-        import pymap3d
-        x, y, z = pymap3d.geodetic2ecef(track.lla[:, 0], track.lla[:, 1], track.lla[:, 2],
-                                        deg=False)
-        step = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
+        from ins.nav.earth import lla_to_ecef
+        xyz = lla_to_ecef(track.lla[:, 0], track.lla[:, 1], track.lla[:, 2])
+        step = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(step)])
         kept = [0]
         while True:
