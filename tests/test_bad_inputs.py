@@ -170,16 +170,25 @@ def _lunar(good, tmp, slot, bad, extra):
                               "--plot", tmp / "out" / "conv.png"]
 
 
+def _export(good, tmp, slot, bad, extra):
+    f = good / "flight"
+    if slot == "trajectory":
+        return "ins", ["export", bad, "-q", "--height", "ellipsoidal", "-o",
+                       tmp / "out" / "track.kml"]
+    return "ins", ["export", f / "truth.nav", "--std", bad, "-q", "-o",
+                   tmp / "out" / "track.kml", "--height", "ellipsoidal"]
+
+
 COMMANDS = {"mechanize": _mechanize, "allan": _allan, "compare": _compare,
             "simulate": _simulate, "process-dir": _process_dir,
             "process-files": _process_files, "eo": _eo, "refine": _refine,
-            "lunar-heading": _lunar}
+            "lunar-heading": _lunar, "export": _export}
 # the output each command would write (relative to tmp/out) and whether it is a folder
 OUTPUTS = {"mechanize": ("out.nav", False), "allan": ("allan.png", False),
            "compare": (None, False), "simulate": ("flight", True),
            "process-dir": ("res", True), "process-files": ("res", True),
            "eo": ("eo.csv", False), "refine": ("refined.csv", False),
-           "lunar-heading": ("conv.png", False)}
+           "lunar-heading": ("conv.png", False), "export": ("track.kml", False)}
 
 
 # ---------------------------------------------------------------------------------------
@@ -294,6 +303,10 @@ def _cases():
               Case("process-files", "config", "config_truncated.toml", None, ("toml",)),
               Case("process-files", "config", "garbage.bin", None, ())]
     cases += [Case("eo", "trajectory", f, ln, w) for f, ln, w in NAV_CASES]
+    cases += [Case("export", "trajectory", f, ln, w) for f, ln, w in NAV_CASES]
+    cases += [Case("export", "sigma", "std_negative.txt", 4, (">= 0",)),
+              Case("export", "sigma", "empty.txt", None, ("empty",)),
+              Case("export", "sigma", "garbage.bin", None, ())]
     cases += [Case("eo", "events", "events_no_header.csv", 1, ("image_id,time_s",)),
               Case("eo", "events", "events_text_time.csv", 3, ("number",)),
               Case("eo", "events", "events_nan.csv", 3, ("finite",)),

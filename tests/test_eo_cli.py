@@ -89,3 +89,33 @@ def test_errors(flight, tmp_path, capsys):
     assert main(["eo", str(tmp_path), "-o", str(out)]) == 2
     assert "no manifest.toml" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_orthometric_heights_of_a_geoid_model(flight, tmp_path, capsys):
+    """--height orthometric:MODEL: Z = h - N(lat, lon) at each perspective centre, the
+    header names the model; refused with --geoid-undulation and in the ENU frame."""
+    from ins.io.geoid import load_geoid
+    try:
+        g = load_geoid("EGM2008")
+    except Exception as exc:
+        pytest.skip(f"no EGM2008 grid: {exc}")
+    base = ["eo", str(flight), "--frame", "utm", "-q"]
+    assert main(base + ["-o", str(tmp_path / "e.csv")]) == 0
+    assert main(base + ["--height", "orthometric:EGM2008", "-o", str(tmp_path / "o.csv")]) == 0
+    e, o = read_eo_csv(tmp_path / "e.csv"), read_eo_csv(tmp_path / "o.csv")
+    assert "orthometric (geoid EGM2008, EPSG:3855" in o.frame
+    import pyproj
+    lon, lat = pyproj.Transformer.from_crs("EPSG:32650", "EPSG:4326", always_xy=True
+                                           ).transform(e.position[:, 0], e.position[:, 1])
+    N = g.undulation(np.deg2rad(lat), np.deg2rad(lon))
+    assert np.abs(e.position[:, 2] - o.position[:, 2] - N).max() < 2e-6   # 6 decimals
+    assert np.abs(e.position[:, :2] - o.position[:, :2]).max() == 0
+    assert np.abs(e.angles - o.angles).max() == 0
+    capsys.readouterr()
+    assert main(base + ["--height", "orthometric", "--geoid-undulation", "-10",
+                        "-o", str(tmp_path / "x.csv")]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert main(["eo", str(flight), "--height", "orthometric", "-o",
+                 str(tmp_path / "x.csv")]) == 2
+    assert "projected frames only" in capsys.readouterr().err
+    assert not (tmp_path / "x.csv").exists()

@@ -385,3 +385,34 @@ def test_cli_number_of_returns_per_pulse(static_flight, capsys):
                          tmp / "s.toml", tmp / "bad.csv", "-o", tmp / "b.las"], capsys)
     assert code == 2 and "bad.csv:2" in err and "above number_of_returns 2" in err
     assert not (tmp / "b.las").exists()
+
+
+def test_cli_orthometric_heights(static_flight, capsys):
+    """--height orthometric: z = h - N (N of the model at each point), the WKT the
+    compound CRS with the model's vertical CRS (EGM2008 height, EPSG:3855)."""
+    import laspy
+    from ins.io.geoid import load_geoid
+    try:
+        g = load_geoid("EGM2008")
+    except Exception as exc:
+        pytest.skip(f"no EGM2008 grid: {exc}")
+    tmp = static_flight[0]
+    base = ["georeference", "--trajectory", tmp / "t.nav", "--scanner", tmp / "s.toml",
+            tmp / "returns.csv", "-q"]
+    code, _, err = _run(base + ["-o", tmp / "e.las"], capsys)
+    assert code == 0, err
+    code, out, err = _run(base + ["-o", tmp / "o.las", "--height", "orthometric:EGM2008"],
+                          capsys)
+    assert code == 0, err
+    assert "orthometric EGM2008 (EPSG:3855)" in out
+    e, o = laspy.read(tmp / "e.las"), laspy.read(tmp / "o.las")
+    crs = o.header.parse_crs()
+    assert crs.is_compound and crs.sub_crs_list[1].to_epsg() == 3855
+    assert crs.sub_crs_list[0].to_epsg() == 32650
+    from pyproj import Transformer
+    lon, lat = Transformer.from_crs(32650, 4326, always_xy=True).transform(e.x, e.y)
+    N = g.undulation(np.deg2rad(lat), np.deg2rad(lon))
+    assert np.allclose(np.asarray(e.z) - np.asarray(o.z), N, atol=1.5e-3)
+    assert np.allclose(o.x, e.x) and np.allclose(o.y, e.y)
+    code, _, err = _run(base + ["-o", tmp / "x.las", "--height", "geoid"], capsys)
+    assert code == 2 and "--height" in err and not (tmp / "x.las").exists()

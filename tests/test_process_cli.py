@@ -181,3 +181,30 @@ def test_euler_sigmas_against_a_numerical_jacobian():
     bad = np.diag([1e-6, -1e-6, 1e-6])
     with pytest.raises(QualityError, match="attitude .* state pitch"):
         euler_std_deg(np.array([[0.0, 0.0, 0.0, 1.0]]), bad[None])
+
+
+def test_orthometric_heights_file(flight, tmp_path, capsys):
+    """--height orthometric:MODEL: solution_orthometric.txt beside the (ellipsoidal)
+    solution.nav, the model in its header, H = h - N at every epoch; a bad --height
+    stops before the run with nothing written."""
+    from ins.io.geoid import load_geoid
+    try:
+        g = load_geoid("EGM96")
+    except Exception as exc:
+        pytest.skip(f"no EGM96 grid: {exc}")
+    out = tmp_path / "out"
+    assert main(["process", str(flight), "-o", str(out), "-q", "--no-plots",
+                 "--height", "orthometric:EGM96"]) == 0
+    text = (out / "solution_orthometric.txt").read_text().splitlines()
+    assert "geoid EGM96 (EPSG:5773)" in text[0] and "H_egm96_m" in text[1]
+    rows = np.loadtxt(out / "solution_orthometric.txt")
+    sol = np.loadtxt(out / "solution.nav")
+    assert rows.shape == (len(sol), 7)
+    np.testing.assert_array_equal(rows[:, :5], sol[:, :5])        # same epochs and h
+    N = g.undulation(np.deg2rad(rows[:, 2]), np.deg2rad(rows[:, 3]))
+    np.testing.assert_allclose(rows[:, 5], N, atol=1e-5)
+    np.testing.assert_allclose(rows[:, 6], rows[:, 4] - rows[:, 5], atol=2e-5)
+    capsys.readouterr()
+    assert main(["process", str(flight), "-o", str(tmp_path / "o2"), "-q",
+                 "--height", "orthometric:XGM"]) == 2
+    assert "--height" in capsys.readouterr().err and not (tmp_path / "o2").exists()

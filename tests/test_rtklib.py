@@ -194,10 +194,40 @@ def test_velocity_columns(tmp_path):
     np.testing.assert_allclose(log.sigma_vel_ned_mps[0], [0.01, 0.02, 0.03])
 
 
-def test_geodetic_height_warns(tmp_path):
+def test_geodetic_height_converted(tmp_path):
+    """Geodetic heights (height=WGS84/geodetic) back to ellipsoidal, h = H + N, checked at
+    NGA's published test points: EGM96 (OUTINTPT.DAT) 38.6281550 N 269.7791550 E,
+    N = -31.628 m; EGM2008 (its 2.5' program's OUTPUT.DAT) 37 N 241 E, N = -26.151 m."""
+    from ins.io.geoid import load_geoid
     head = HEAD_LLH.replace("WGS84/ellipsoidal", "WGS84/geodetic")
-    with pytest.warns(InputWarning, match="geodetic"):
-        read_pos(write(tmp_path, head + ROWS_LLH[0] + "\n"))
+    row96 = ROWS_LLH[0].replace("35.000100000  139.000200000    50.1234",
+                                "38.628155000  -90.220845000   100.0000")
+    row08 = ROWS_LLH[0].replace("35.000100000  139.000200000    50.1234",
+                                "37.000000000 -119.000000000   100.0000")
+    try:
+        load_geoid("EGM96")
+    except InputError:
+        with pytest.warns(InputWarning, match="no geoid grid"):
+            log = read_pos(write(tmp_path, head + row96 + "\n"))
+        assert log.lla[0, 2] == 100.0
+    else:
+        with pytest.warns(InputWarning, match="converted to ellipsoidal with EGM96"):
+            log = read_pos(write(tmp_path, head + row96 + "\n"))
+        assert abs(log.lla[0, 2] - (100.0 - 31.628)) < 0.06
+    try:
+        load_geoid("EGM2008")
+    except InputError:
+        pass
+    else:
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")               # a named model: no warning
+            log = read_gnss(write(tmp_path, head + row08 + "\n", name="b.pos"),
+                            geoid="EGM2008")
+        assert abs(log.lla[0, 2] - (100.0 - 26.151)) < 0.003
+        # an ellipsoidal header is left alone whatever the model
+        log = read_pos(write(tmp_path, HEAD_LLH + row08 + "\n", name="c.pos"), geoid="EGM2008")
+        assert log.lla[0, 2] == 100.0
     with pytest.raises(InputError, match="Tokyo"):
         read_pos(write(tmp_path, HEAD_LLH.replace("WGS84/ellipsoidal", "Tokyo/ellipsoidal")
                        + ROWS_LLH[0] + "\n", name="t.pos"))

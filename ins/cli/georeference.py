@@ -31,7 +31,10 @@ returns:
 output (LAS 1.4, point format 6; LAZ by the .laz extension; written atomically):
   x, y in --crs (default: the WGS84 / UTM zone of the trajectory's centre, EPSG
   326zz/327zz; a geographic CRS gives lon, lat in deg), z the ellipsoidal height (WGS84,
-  m); GPS time (s), intensity, return number, scan angle (deg), point source id = strip;
+  m) or, with --height orthometric[:MODEL], H = h - N of the geoid model (EGM2008, the
+  default, or EGM96, from a grid installed locally: pip install 'insphoto[geoid]'; the
+  WKT is then the compound CRS with EGM2008 height EPSG:3855 / EGM96 height EPSG:5773);
+  GPS time (s), intensity, return number, scan angle (deg), point source id = strip;
   extra dimensions sigma_h_m = sqrt(var_N + var_E) and sigma_v_m (m), first-order from
   the trajectory sigmas (--trajectory-std: solution_std.txt of ins process or an SMRMSG
   file; without it only the scanner's sigmas), the boresight, lever-arm, range and
@@ -64,7 +67,11 @@ def add_parser(sub):
                         'a scanner on the aircraft ([mounting] on = "aircraft")')
     p.add_argument("--crs", metavar="EPSG:xxxx",
                    help="output CRS of x, y (default: UTM zone of the trajectory's centre); "
-                        "z is always the ellipsoidal height, m")
+                        "z: see --height")
+    p.add_argument("--height", default="ellipsoidal",
+                   metavar="ellipsoidal|orthometric[:MODEL]",
+                   help="z: ellipsoidal height (WGS84, m; default) or orthometric H = h - N "
+                        "with the geoid MODEL EGM2008 (default) or EGM96, m")
     from ins.cli.util import positive_int
     p.add_argument("--block-size", type=positive_int, default=250_000, metavar="N",
                    help="returns per block (memory: about 0.7 KiB a return), default 250000")
@@ -124,6 +131,8 @@ def _cmd_georeference(args):
         raise InputError("the trajectory needs at least 2 epochs", path=args.trajectory)
     std = read_trajectory_std(args.trajectory_std) if args.trajectory_std else None
     crs = _crs(args.crs, traj)
+    from ins.io.geoid import parse_height
+    height = parse_height(args.height)
     centre = np.mean(traj.lla, axis=0)
     import pymap3d
     xyz0 = pymap3d.geodetic2ecef(*np.rad2deg(centre[:2]), centre[2])
@@ -134,7 +143,8 @@ def _cmd_georeference(args):
     done = kept = 0
     t_min, t_max = np.inf, -np.inf
     with atomic_open(args.output, "wb") as f:
-        with LasPointWriter(f, crs, offset, args.output.lower().endswith(".laz")) as w:
+        with LasPointWriter(f, crs, offset, args.output.lower().endswith(".laz"),
+                            height=height) as w:
             for blk in iter_returns(args.returns, scanner.model, args.block_size):
                 r_s = returns_to_scanner(scanner, blk.range_m, blk.scan_angle_rad,
                                          blk.xyz_s_m)
@@ -156,8 +166,10 @@ def _cmd_georeference(args):
                     path=args.returns)
     progress(done, done)
     dropped = done - kept
+    zname = ("ellipsoidal" if not height.orthometric else
+             f"orthometric {height.geoid.name} (EPSG:{height.geoid.vertical_epsg})")
     print(f"{args.output}: {kept} points in {crs.name} (EPSG:{crs.to_epsg()}), z "
-          f"ellipsoidal" + (f"; {dropped} returns outside the trajectory"
+          f"{zname}" + (f"; {dropped} returns outside the trajectory"
                             + (" or the mount log" if mount is not None else "") + " "
                             f"{traj.time[0]:.3f} .. {traj.time[-1]:.3f} s dropped"
                             if dropped else "")

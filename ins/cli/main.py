@@ -232,6 +232,7 @@ COMMAND_MODULES = [
     "ins.cli.align",
     "ins.cli.allan",
     "ins.cli.bag",
+    "ins.cli.export",
     "ins.cli.georeference",
     "ins.cli.gnss",
     "ins.cli.process",

@@ -21,7 +21,11 @@ inputs:
                     optionally 'vn ve vd std_vn std_ve std_vd [m/s]'; or an RTKLIB .pos
                     solution of the antenna (detected from its header: lat/lon/height,
                     d'", x/y/z-ecef or e/n/u-baseline; GPST/UTC/JST, week/tow or date;
-                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds)
+                    the full covariance from sdn..sdun; UTC -> GPS with leap seconds);
+                    or a u-blox receiver's own solution: UBX NAV-PVT (its ellipsoidal
+                    height; hAcc, vAcc, sAcc as sigmas) or NMEA GGA + RMC (+ GST sigmas),
+                    the altitude above mean sea level plus the GGA geoid separation, or
+                    plus N of --gnss-geoid (EGM96 default) when the GGA has none
   --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
                     config's [files] rover, base, nav, sp3, clk; RINEX or u-blox .ubx):
                     RTKLIB runs first with the config's [rtklib] settings (ins gnss
@@ -33,6 +37,10 @@ inputs:
   --gnss-quality    RTKLIB only: Q values kept, e.g. fix,float (names fix, float, sbas,
                     dgps, single, ppp or numbers 1..6; default all)
   --gnss-quality-scale  RTKLIB only: sigma factors per Q, e.g. float=3,single=10
+  --gnss-geoid      RTKLIB only: the geoid model (EGM96, EGM2008) of a .pos written with
+                    geodetic heights (height=WGS84/geodetic in its header): converted to
+                    ellipsoidal h = H + N (default EGM96, RTKLIB's own model, with a
+                    warning; needs a geoid grid: pip install 'insphoto[geoid]')
   --imu-time-shift-s / --gnss-time-shift-s  added to that log's stamps at read time (s):
                     the offset of its clock against the common time base (GPS seconds of
                     week), e.g. a GNSS stamped at reception 0.2 s late: -0.2; the offset
@@ -92,6 +100,12 @@ built aside and swapped in: never a mix of two runs):
   solution_std.txt  smoothed sigma at the filter nodes: N E D [m], vN vE vD [m/s],
                     roll pitch yaw [deg]
   imu_errors.txt    smoothed gyro bias [deg/h], accel bias [mGal], scale factors [ppm]
+  solution_orthometric.txt  with --height orthometric[:MODEL]: the smoothed
+                    trajectory's heights above the geoid MODEL (EGM2008, the default, or
+                    EGM96; a grid installed locally: pip install 'insphoto[geoid]'):
+                    week t lat lon[deg] h_ellipsoidal N H[m], H = h - N, the model named
+                    in the header; solution.nav and the SBET keep ellipsoidal heights (their
+                    formats define them so)
   *.png             plots (errors against the truth when there is one, sigma, biases)
 
 example:
@@ -130,12 +144,18 @@ def add_parser(sub):
                    help="raw GNSS: precise orbits (repeatable)")
     p.add_argument("--clk", action="append", metavar="F",
                    help="raw GNSS: precise clocks, RINEX CLK (repeatable)")
-    p.add_argument("--gnss-format", choices=["kfgins", "rtklib"],
-                   help="GNSS file format (default: detected from the extension and header)")
+    p.add_argument("--gnss-format", choices=["kfgins", "rtklib", "ubx", "nmea"],
+                   help="GNSS file format (default: detected from the extension and "
+                        "content): KF-GINS text, RTKLIB .pos, a u-blox receiver's own "
+                        "solution (UBX NAV-PVT; NMEA GGA + RMC + GST)")
     p.add_argument("--gnss-quality", metavar="Q,...",
                    help="RTKLIB: solution qualities kept, e.g. fix,float (default all)")
     p.add_argument("--gnss-quality-scale", metavar="Q=F,...",
                    help="RTKLIB: sigma factor per quality, e.g. float=3,single=10")
+    p.add_argument("--gnss-geoid", metavar="MODEL", type=str.upper,
+                   choices=["EGM96", "EGM2008"],
+                   help="RTKLIB: geoid model of geodetic heights, converted to ellipsoidal "
+                        "(EGM96 default, EGM2008)")
     p.add_argument("--imu-time-shift-s", type=number(-MAX_TIME_SHIFT_S, MAX_TIME_SHIFT_S, unit="s"), metavar="S",
                    help="added to the IMU stamps at read time, s (overrides [imu] "
                         "time_shift_s)")
@@ -148,6 +168,10 @@ def add_parser(sub):
     p.add_argument("--format", default="nav", metavar="nav|sbet|nav,sbet",
                    help="trajectory output format(s): nav (solution.nav, default), sbet "
                         "(sbet_solution.out + smrmsg_solution.out), or both")
+    p.add_argument("--height", default="ellipsoidal",
+                   metavar="ellipsoidal|orthometric[:MODEL]",
+                   help="also write the orthometric heights H = h - N (m) of the geoid "
+                        "MODEL EGM2008 (default) or EGM96 to solution_orthometric.txt")
     p.add_argument("--preset", metavar="NAME",
                    help="defaults for the keys the config does not give: tactical, mems, "
                         "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
@@ -246,6 +270,8 @@ def _input_options(cfg, args):
                              f"import-bag {path} -o DIR' (imu.txt, gnss.pos)")
     if args.gnss_format:
         cfg.gnss_format = args.gnss_format
+    if args.gnss_geoid:
+        cfg.gnss_geoid = args.gnss_geoid
     if args.gnss_quality:
         cfg.gnss_quality = parse_quality(args.gnss_quality, "--gnss-quality")
     if args.gnss_quality_scale:
@@ -293,6 +319,8 @@ def _cmd_process(args):
     from ins.estimation.process_outputs import write_outputs
     t0 = wallclock.perf_counter()
     formats = output_formats(args.format)
+    from ins.io.geoid import parse_height
+    height = parse_height(args.height)          # before the run: a missing grid stops here
     cfg = _config(args)
     progress = Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
@@ -311,7 +339,7 @@ def _cmd_process(args):
                                    f"outputs anyway).") from None
             t1 = wallclock.perf_counter()
             names = write_outputs(result, stage, week=args.week, forward=args.forward,
-                                  formats=formats)
+                                  formats=formats, height=height)
             if not args.no_plots:
                 from ins.estimation.plots import write_plots
                 names += write_plots(result, stage, flight_dir=args.flight_dir)

@@ -484,7 +484,8 @@ def _gnss(cfg, folder):
     if cfg.gnss_raw is None:
         return read_gnss(cfg.gnss, format=cfg.gnss_format, time_shift_s=cfg.gnss_time_shift_s,
                          quality=cfg.gnss_quality, quality_scale=cfg.gnss_quality_scale,
-                         velocity_time_shift_s=cfg.gnss_velocity_time_shift_s), None
+                         velocity_time_shift_s=cfg.gnss_velocity_time_shift_s,
+                         geoid=cfg.gnss_geoid), None
     from ins.estimation.process_gnss import run_raw_gnss
     if folder is not None:
         return run_raw_gnss(cfg, folder)

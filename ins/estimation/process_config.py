@@ -22,7 +22,9 @@ with the unit in the name::
                  velocity_time_shift_s (default: time_shift_s; added to the epochs of
                  the velocities instead, when they are stamped differently from the
                  positions), quality = "fix,float" (RTKLIB Q kept),
-                 quality_scale = "float=3,single=10"
+                 quality_scale = "float=3,single=10", geoid = "EGM96"|"EGM2008" (the
+                 model of an RTKLIB solution written with geodetic heights, converted
+                 to ellipsoidal; default EGM96, with a warning)
     [mount]      imu_to_platform_centre_b_m, platform_centre_to_antenna_a_m
     [alignment]  method = "auto"|"given"|"static"|"gnss-heading"|"anywhere",
                  static_window_s = [t0, t1]; "auto" (the default) is "given" when
@@ -82,7 +84,7 @@ _SECTIONS = {
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
              "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
              "coupling", "elevation_mask_deg", "range_sigma_m", "range_rate_sigma_mps",
-             "receiver_clock"},
+             "receiver_clock", "geoid"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover", "identify"},
@@ -125,6 +127,7 @@ class ProcessConfig:
     gnss_velocity_time_shift_s: float = None
     gnss_quality: object = None
     gnss_quality_scale: object = None
+    gnss_geoid: str = None
     noise: ImuNoise = field(default_factory=ImuNoise)
     lever_bp: np.ndarray = field(default_factory=lambda: np.zeros(3))
     lever_ap: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -452,6 +455,12 @@ def _gnss_input(cfg, gnss, where):
     if "quality_scale" in gnss:
         cfg.gnss_quality_scale = parse_quality_scale(gnss["quality_scale"],
                                                      where("gnss", "quality_scale"))
+    if "geoid" in gnss:
+        from ins.io.geoid import GEOID_MODELS
+        if str(gnss["geoid"]).upper() not in GEOID_MODELS:
+            raise InputError(f"{where('gnss', 'geoid')}: expected one of "
+                             f"{', '.join(GEOID_MODELS)}, got {gnss['geoid']!r}")
+        cfg.gnss_geoid = str(gnss["geoid"]).upper()
 
 
 def config_from_manifest(flight_dir, overrides=None):

@@ -40,11 +40,14 @@ def euler_std_deg(q_nb, P_att):
 OUTPUT_FORMATS = ("nav", "sbet")
 
 
-def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
+def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",), height=None):
     """Write the smoothed trajectory in each of ``formats`` (``"nav"``: solution.nav;
     ``"sbet"``: sbet_solution.out and its accuracy file smrmsg_solution.out at the filter
     nodes), solution_std.txt, imu_errors.txt and, with ``forward=True``, the forward
-    filter's trajectory (forward.nav / sbet_forward.out, a diagnostic).
+    filter's trajectory (forward.nav / sbet_forward.out, a diagnostic).  With an
+    orthometric ``height`` (:class:`ins.io.geoid.HeightSystem`) also
+    solution_orthometric.txt (:func:`write_orthometric`); the trajectories keep their
+    ellipsoidal heights (the formats define them so).
 
     The trajectories are written piece by piece as they are streamed (bounded memory).
     Returns the list of written paths.  Every file is written atomically.
@@ -111,6 +114,9 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
         paths.append(os.path.join(out_dir, "smrmsg_solution.out"))
         write_smrmsg(paths[-1], rows[:, 0], rows[:, 1:4], rows[:, 4:7], rows[:, 7:10])
     paths.append(err_path)
+    if height is not None and height.orthometric:
+        paths.append(os.path.join(out_dir, ORTHOMETRIC_FILE))
+        write_orthometric(paths[-1], result.iter_smoothed(), height, week=week)
     from ins.estimation.measurements import write_innovations
     from ins.estimation.state_files import write_optional_states
     records = getattr(result.fwd, "records", None)
@@ -121,6 +127,33 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",)):
     if states:
         paths.append(states)
     return paths
+
+
+#: The file of the smoothed trajectory's orthometric heights.
+ORTHOMETRIC_FILE = "solution_orthometric.txt"
+
+
+def write_orthometric(path, pieces, height, week=0):
+    """Write the orthometric heights of trajectory ``pieces`` (Trajectory blocks) under a
+    header naming the height system and the geoid model: ``week time_s lat_deg lon_deg
+    h_ellipsoidal_m geoid_undulation_m H_<model>_m``, atomically.  Returns the epochs."""
+    from ins.common import textformat
+    from ins.common.fileio import atomic_open
+    dec = np.array([0, 6, 12, 12, 5, 5, 5], dtype=np.int64)
+    n = 0
+    with atomic_open(path, "wb") as f:
+        f.write((f"# heights: {height.description()}\n"
+                 f"# week time_s lat_deg lon_deg h_ellipsoidal_m geoid_undulation_m "
+                 f"{height.column()}  (smoothed trajectory of solution.nav, its epochs)\n"
+                 ).encode())
+        for piece in pieces:
+            lat, lon, h = piece.lla.T
+            N = height.undulation(lat, lon)
+            table = np.column_stack([np.full(len(piece), float(week)), piece.time,
+                                     np.rad2deg(lat), np.rad2deg(lon), h, N, h - N])
+            f.write(textformat.format_fixed(table, dec).tobytes())
+            n += len(piece)
+    return n
 
 
 def _node_chunks(result):

@@ -12,8 +12,11 @@ velocity NED (m/s) and its standard deviations (m/s).  Time in s on the IMU's ti
 scale (GPS seconds of week).
 
 Formats (``format`` of :func:`read_gnss`): ``"kfgins"`` (above), ``"rtklib"`` (an RTKLIB
-``.pos`` solution in any of its layouts, :mod:`ins.io.rtklib`), ``None`` (sniffed: a
-``.pos`` extension, or a ``%`` header naming a GPST/UTC/JST time column, means RTKLIB).
+``.pos`` solution in any of its layouts, :mod:`ins.io.rtklib`), ``"ubx"`` (a u-blox
+receiver's own NAV-PVT solutions in a UBX log) and ``"nmea"`` (GGA/RMC/GST sentences),
+:mod:`ins.io.ublox`; ``None`` (sniffed: a ``.pos`` extension, or a ``%`` header naming a
+GPST/UTC/JST time column, means RTKLIB; a ``.ubx`` extension or the UBX sync characters
+UBX; NMEA sentences in the first lines NMEA).
 """
 import os
 
@@ -30,27 +33,39 @@ _HINT = ("KF-GINS GNSS: time lat lon h std_n std_e std_d, optionally vn ve vd st
 
 
 #: Accepted ``format`` values of :func:`read_gnss` (``None``: sniffed).
-FORMATS = ("kfgins", "rtklib")
+FORMATS = ("kfgins", "rtklib", "ubx", "nmea")
 
 
 def sniff_format(path):
     """``"rtklib"`` for an RTKLIB ``.pos`` solution (the extension ``.pos``, or a ``%``
     comment header naming the GPST/UTC/JST time column in its first 64 lines), else
     ``"kfgins"``."""
-    if os.path.splitext(os.fspath(path))[1].lower() == ".pos":
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext == ".pos":
         return "rtklib"
+    if ext == ".ubx":
+        return "ubx"
+    try:
+        with open(path, "rb") as f:
+            if f.read(2) == b"\xb5\x62":
+                return "ubx"
+    except OSError:
+        pass
     from ins.io.rtklib import looks_like_pos
-    return "rtklib" if looks_like_pos(path) else "kfgins"
+    from ins.io.ublox import looks_like_nmea
+    if looks_like_pos(path):
+        return "rtklib"
+    return "nmea" if looks_like_nmea(path) else "kfgins"
 
 
 def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=None,
-              velocity_time_shift_s=None):
+              velocity_time_shift_s=None, geoid=None):
     """Read a GNSS log of the antenna: KF-GINS text or an RTKLIB ``.pos`` solution.
 
     Parameters
     ----------
     path : str or os.PathLike
-    format : {None, "kfgins", "rtklib"}
+    format : {None, "kfgins", "rtklib", "ubx", "nmea"}
         ``None`` sniffs it (:func:`sniff_format`).
     time_shift_s : float
         Added to every epoch (s) at read time: the offset of the GNSS clock against the
@@ -66,6 +81,10 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
         Added to the epochs of the velocities instead (s), when they are stamped
         differently from the positions (:meth:`GnssLog.shifted`: the log then has its
         own ``vel_time``); ``None`` (default): ``time_shift_s`` for both.
+    geoid : str, optional
+        RTKLIB, NMEA: the geoid model of heights above the geoid (RTKLIB's geodetic
+        heights, a GGA without the geoid separation), converted to ellipsoidal
+        (:func:`ins.io.rtklib.read_pos`, :func:`ins.io.ublox.read_nmea`).
 
     Returns
     -------
@@ -81,7 +100,12 @@ def read_gnss(path, format=None, time_shift_s=0.0, quality=None, quality_scale=N
     if fmt == "rtklib":
         from ins.io.gnss_quality import apply_quality
         from ins.io.rtklib import read_pos
-        log = apply_quality(read_pos(path), quality, quality_scale)
+        log = apply_quality(read_pos(path, geoid=geoid), quality, quality_scale)
+    elif fmt in ("ubx", "nmea"):
+        from ins.io.gnss_quality import apply_quality
+        from ins.io.ublox import read_nav_pvt, read_nmea
+        log = read_nav_pvt(path) if fmt == "ubx" else read_nmea(path, geoid=geoid)
+        log = apply_quality(log, quality, quality_scale)
     elif fmt == "kfgins":
         if quality is not None or quality_scale:
             raise InputError("a GNSS quality policy (quality, quality_scale) needs quality "

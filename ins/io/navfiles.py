@@ -66,6 +66,22 @@ def read_nav(path):
     return Trajectory.from_nav_rows(rows)
 
 
+def read_nav_week(path):
+    """The GPS week (first column) of the first epoch of a ``.nav`` file, or None when the
+    file has no epoch or the column is not an integer."""
+    with open(path, "rb") as f:
+        for raw in f:
+            fields = raw.split()
+            if not fields or fields[0].startswith(b"#"):
+                continue
+            try:
+                week = float(fields[0])
+            except ValueError:
+                return None
+            return int(week) if week.is_integer() and week >= 0 else None
+    return None
+
+
 #: Accepted ``format`` values of :func:`read_trajectory` (``None``: detected).
 TRAJECTORY_FORMATS = ("nav", "sbet")
 

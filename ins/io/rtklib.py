@@ -33,9 +33,14 @@ Conversions (into the conventions of :mod:`ins.io.gnss`):
   backwards (RTKLIB's backward solution) is read in time order; UTC is turned into GPS time with
   the leap seconds of its date (:data:`LEAP_SECONDS`, GPS - UTC = 18 s since 2017), JST
   is UTC + 9 h.  RTKLIB's headers do not state the leap seconds: the table does.
-- position: WGS84 latitude, longitude (rad) and height (m).  A header stating geodetic
-  (geoid) heights draws an :class:`~ins.common.errors.InputWarning` (the toolkit's heights are
-  ellipsoidal); the Tokyo datum is refused.
+- position: WGS84 latitude, longitude (rad) and ellipsoidal height (m).  A header stating
+  geodetic (geoid) heights, ``height=WGS84/geodetic``, has them converted back:
+  ``h = H + N`` with N of the geoid model named by ``geoid`` (EGM96, EGM2008:
+  :mod:`ins.io.geoid`).  RTKLIB's header does not say which model it used (its
+  ``out-geoid`` option: internal, EGM96, EGM2008 ...); unnamed, EGM96 is taken (the
+  model of RTKLIB's internal 1x1 deg table), with an
+  :class:`~ins.common.errors.InputWarning` saying so; with no EGM96 grid installed the
+  heights stay as they are, with a warning.  The Tokyo datum is refused.
 - covariance: first screened (:mod:`ins.io.pos_screen`: a matrix that no rounding of a
   covariance prints is repaired or the record dropped, a sigma out of all proportion to
   those of its quality drops the record; counted in ``GnssLog.screen`` and reported by
@@ -67,7 +72,7 @@ from ins.io.gnss_quality import QUALITY_NAME
 from ins.io.pos_screen import screen
 
 __all__ = ["read_pos", "write_pos", "looks_like_pos", "LEAP_SECONDS", "SIGMA_FLOOR_M",
-           "utc_to_gps_seconds"]
+           "utc_to_gps_seconds", "gps_to_utc_seconds"]
 
 
 #: Smallest standard deviation kept, m (RTKLIB prints 4 decimals: 0.0000 is below 0.05 mm).
@@ -263,6 +268,16 @@ def utc_to_gps_seconds(utc_s):
     return utc_s + _leap_seconds(utc_s)
 
 
+def gps_to_utc_seconds(gps_s):
+    """UTC seconds since the GPS epoch of GPS seconds since that epoch (integer arrays):
+    ``gps_s - (GPS - UTC)`` with the leap seconds of the date (the inverse of
+    :func:`utc_to_gps_seconds`; a GPS second inside an inserted leap second maps to the
+    UTC second before it)."""
+    gps_s = np.asarray(gps_s, np.int64)
+    utc = gps_s - _leap_seconds(gps_s)
+    return gps_s - _leap_seconds(utc)
+
+
 def _gps_time(time_fields, date_format, system):
     """(integer seconds since the GPS epoch, fractional seconds) in GPS time."""
     if date_format:
@@ -392,7 +407,7 @@ def _parse(path):
     return layout, res.values, res.row_line, date_format, ntime, index
 
 
-def read_pos(path, ref_lla_deg=None, screen_covariance=True):
+def read_pos(path, ref_lla_deg=None, screen_covariance=True, geoid=None):
     """Read an RTKLIB ``.pos`` solution (module notes) into a :class:`~ins.io.gnss_log.GnssLog`.
 
     Parameters
@@ -403,6 +418,10 @@ def read_pos(path, ref_lla_deg=None, screen_covariance=True):
         header has no ``% ref pos :`` line.
     screen_covariance : bool
         Screen the position covariances (module notes; :mod:`ins.io.pos_screen`).
+    geoid : str, optional
+        The geoid model of a solution written with geodetic heights (``"EGM96"``,
+        ``"EGM2008"``): they are converted to ellipsoidal, ``h = H + N``.  None: EGM96,
+        with a warning (module notes).  Ignored for ellipsoidal heights.
 
     Returns
     -------
@@ -447,7 +466,7 @@ def read_pos(path, ref_lla_deg=None, screen_covariance=True):
         k = bad_q[0]
         raise InputError(f"Q = {float(q[k]):g}: expected 1 (fix), 2 (float), 3 (sbas), 4 (dgps), "
                          f"5 (single) or 6 (ppp)", path=path_s, line=int(row_line[k]))
-    lla, C_n_layout = _position(layout, vals, index, path_s, row_line, ref_lla_deg)
+    lla, C_n_layout = _position(layout, vals, index, path_s, row_line, ref_lla_deg, geoid)
     cov = _covariance(vals, index, _SIGMA[layout.position], path_s, row_line)
     keep = report = None
     if screen_covariance:
@@ -496,7 +515,7 @@ def _check_plausible(lla, sigma, v_n, sigma_v, path, row_line):
         textrows.check_ranges(np.column_stack(cols), row_line, path, ranges)
 
 
-def _position(layout, vals, index, path, row_line, ref_lla_deg):
+def _position(layout, vals, index, path, row_line, ref_lla_deg, geoid=None):
     """(lla rad/m, C taking the sigma layout's axes into NED) per row."""
     if layout.position == "llh":
         if layout.dms:
@@ -514,11 +533,11 @@ def _position(layout, vals, index, path, row_line, ref_lla_deg):
             k = bad[0]
             raise InputError(f"latitude {float(lat[k])!r} deg outside +-90 deg", path=path,
                              line=int(row_line[k]))
-        if layout.height.lower() != "ellipsoidal":
-            warnings.warn(f"{path}: RTKLIB heights are {layout.height} (above the geoid), "
-                          f"not ellipsoidal: the solution's heights will be too", InputWarning,
-                          stacklevel=4)
         lla = np.column_stack([np.deg2rad(lat), np.deg2rad(lon), h])
+        if layout.height.lower() != "ellipsoidal":
+            from ins.io.geoid import ellipsoidal_from_geodetic
+            lla[:, 2] = ellipsoidal_from_geodetic(lla, geoid, path, f"RTKLIB heights are "
+                                                  f"{layout.height} (above the geoid)")
         return lla, _C_NED_ENU
     if layout.position == "xyz":
         import pymap3d

@@ -274,6 +274,14 @@ def utm_crs(lat_deg, lon_deg):
     return CRS.from_epsg((32600 if lat_deg >= 0 else 32700) + zone)
 
 
+def compound_crs(crs, height):
+    """``crs`` (horizontal) with the vertical CRS of ``height``'s geoid model."""
+    from pyproj import CRS
+    from pyproj.crs import CompoundCRS
+    vertical = CRS.from_epsg(height.geoid.vertical_epsg)
+    return CompoundCRS(f"{crs.name} + {vertical.name}", [crs, vertical])
+
+
 class LasPointWriter:
     """Write georeferenced points to LAS/LAZ in blocks (LAZ by the ``.laz`` extension).
 
@@ -284,16 +292,21 @@ class LasPointWriter:
     ----------
     f : binary file object (seekable)
     crs : pyproj.CRS
-        Horizontal CRS of x, y (geographic: degrees, else metres); z ellipsoidal.
+        Horizontal CRS of x, y (geographic: degrees, else metres).
     offset : (float, float, float)
         LAS offsets in the CRS units (near the data).
     compress : bool
         LAZ.
+    height : ins.io.geoid.HeightSystem, optional
+        z: ellipsoidal (default) or orthometric ``H = h - N`` of a geoid model; the CRS
+        written is then the compound of ``crs`` and the model's vertical CRS (EGM2008
+        height EPSG:3855, EGM96 height EPSG:5773).
     """
 
-    def __init__(self, f, crs, offset, compress):
+    def __init__(self, f, crs, offset, compress, height=None):
         from pyproj import Transformer
         laspy = import_laspy()
+        self.height = height if height is not None and height.orthometric else None
         header = laspy.LasHeader(point_format=6, version="1.4")
         header.add_extra_dims([laspy.ExtraBytesParams("sigma_h_m", np.float32,
                                                       description="horizontal sigma m"),
@@ -302,7 +315,7 @@ class LasPointWriter:
         geographic = crs.is_geographic
         header.scales = np.array([1e-8, 1e-8, 1e-3] if geographic else [1e-3] * 3)
         header.offsets = np.asarray(offset, dtype=float)
-        header.add_crs(crs)
+        header.add_crs(crs if self.height is None else compound_crs(crs, self.height))
         self.header = header
         self.transformer = Transformer.from_crs("EPSG:4978", crs, always_xy=True)
         self._laspy = laspy
@@ -326,6 +339,9 @@ class LasPointWriter:
             return
         x, y, z = self.transformer.transform(points.xyz_ecef_m[:, 0], points.xyz_ecef_m[:, 1],
                                              points.xyz_ecef_m[:, 2])
+        if self.height is not None:
+            lla = points.lla()
+            z = np.asarray(z) - self.height.undulation(lla[:, 0], lla[:, 1])
         rec = self._laspy.ScaleAwarePointRecord.zeros(n, header=self.header)
         rec.x, rec.y, rec.z = x, y, z
         rec.gps_time = points.time

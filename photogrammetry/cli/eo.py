@@ -32,7 +32,10 @@ frames and units:
   Mapping frame: enu = east, north, up (m) at the block origin (--origin, or the
   flight folder's, or the first exposure's lat/lon at h = 0); utm or EPSG:<code> =
   easting, northing (m) of the projection with the meridian convergence applied to
-  the attitude, heights ellipsoidal or orthometric with --geoid-undulation N (m).
+  the attitude, heights ellipsoidal (default) or orthometric H = h - N: with --height
+  orthometric[:MODEL] N of a geoid model (EGM2008, the default, or EGM96; a grid
+  installed locally: pip install 'insphoto[geoid]') at each perspective centre, or one
+  constant N with --geoid-undulation N (m); the EO header names the model.
 
 inputs:
   FLIGHT_DIR with manifest.toml (ins simulate) supplies truth.nav, events.csv,
@@ -86,6 +89,10 @@ def add_parser(sub):
     p.add_argument("--geoid-undulation", type=float, metavar="N_M",
                    help="constant geoid undulation (m): orthometric heights H = h - N "
                         "(projected frames)")
+    p.add_argument("--height", metavar="ellipsoidal|orthometric[:MODEL]",
+                   help="heights of projected frames: ellipsoidal (default) or "
+                        "orthometric H = h - N with the geoid MODEL EGM2008 (default) or "
+                        "EGM96 (not with --geoid-undulation)")
     p.add_argument("--attitude-interp", choices=["cubic", "slerp"], default="cubic",
                    help="attitude interpolation (default cubic)")
     p.add_argument("--format", choices=["csv", "applanix", "patb"], default="csv",
@@ -173,7 +180,8 @@ def run(args):
         origin_rad = np.array([first.lla[0, 0], first.lla[0, 1], 0.0])
     else:
         origin_rad = np.array([np.deg2rad(origin[0]), np.deg2rad(origin[1]), origin[2]])
-    frame = parse_frame(args.frame, origin_rad, args.geoid_undulation)
+    frame = parse_frame(args.frame, origin_rad, args.geoid_undulation,
+                        cli_eo_exif.height_system(args))
     eo = compute_eo(traj, ids, times, mounting, frame, args.system, sigma=sigma,
                     method=args.attitude_interp, path=traj_path)
     progress.note("")

@@ -43,6 +43,18 @@ def add_options(p):
                         "(pixel size 0.01 mm; fx, fy averaged)")
 
 
+def height_system(args):
+    """The ``--height`` of ``args`` (None when not given); refused beside
+    ``--geoid-undulation``."""
+    text = getattr(args, "height", None)
+    if text is None:
+        return None
+    if args.geoid_undulation is not None:
+        raise InputError("give --height orthometric[:MODEL] or --geoid-undulation N, not both")
+    from ins.io.geoid import parse_height
+    return parse_height(text)
+
+
 def run(args):
     """The ``eo --from-exif`` path (exit code)."""
     from photogrammetry.orientation.camera import read_camera
@@ -81,7 +93,7 @@ def run(args):
                            args.origin[2]])
     else:
         origin = np.array([np.deg2rad(shots[0].lat_deg), np.deg2rad(shots[0].lon_deg), 0.0])
-    frame = parse_frame(args.frame, origin, args.geoid_undulation)
+    frame = parse_frame(args.frame, origin, args.geoid_undulation, height_system(args))
     eo = eo_from_drone(shots, frame, args.system, np.deg2rad(args.gimbal_sigma_deg),
                        args.position_sigma_m, boresight)
     if args.camera_out:

@@ -5,8 +5,10 @@
   (:func:`photogrammetry.orientation.rotation.dcm_mn_enu`), so the frame is rigid and the
   photogrammetric collinearity holds in it without corrections.
 - :class:`ProjectedFrame`: ``X = easting``, ``Y = northing`` (m) of a projected CRS
-  (UTM or any EPSG code, through pyproj), ``Z`` the ellipsoidal height or, with a
-  stated constant geoid undulation N, the orthometric height ``H = h - N``.  The
+  (UTM or any EPSG code, through pyproj), ``Z`` the ellipsoidal height or the
+  orthometric height ``H = h - N``: N from a geoid model (EGM2008, EGM96:
+  :mod:`ins.io.geoid`, a grid installed locally, never downloaded) at each perspective
+  centre, or one stated constant undulation for the block.  The
   camera attitude is referred to the grid axes: ``C_mn = Rz(gamma) @ P`` with ``gamma``
   the meridian convergence at the camera (pyproj ``Proj.get_factors``; positive east
   of the central meridian in the northern hemisphere, where true north points
@@ -14,7 +16,8 @@
   central meridian at 45 deg latitude turns kappa by ~7600 arcsec.  A projection is
   not a Cartesian frame (scale factor, Earth curvature): use ENU for adjustments.
 
-No geoid model is downloaded: orthometric heights need the undulation of the block.
+No geoid model is downloaded: orthometric heights need an installed geoid grid
+(``pip install 'insphoto[geoid]'``) or the undulation of the block.
 """
 import numpy as np
 import pymap3d
@@ -104,11 +107,14 @@ class ProjectedFrame:
     geoid_undulation_m : float, optional
         Constant geoid undulation N of the block, m: heights become orthometric
         ``H = h - N``.  Default: ellipsoidal heights.
+    height : ins.io.geoid.HeightSystem, optional
+        Orthometric heights of a geoid model, N at each position (not with
+        ``geoid_undulation_m``).
     """
 
     kind = "projected"
 
-    def __init__(self, crs, geoid_undulation_m=None):
+    def __init__(self, crs, geoid_undulation_m=None, height=None):
         try:
             self.crs = pyproj.CRS.from_user_input(crs)
         except pyproj.exceptions.CRSError as exc:
@@ -125,21 +131,30 @@ class ProjectedFrame:
         self._proj = pyproj.Proj(self.crs)
         self.geoid_undulation_m = None if geoid_undulation_m is None else float(
             geoid_undulation_m)
+        if height is not None and not height.orthometric:
+            height = None
+        if height is not None and geoid_undulation_m is not None:
+            raise InputError("give a geoid model or a constant geoid undulation, not both")
+        self.height = height
 
-    def _h_offset(self):
+    def _h_offset(self, lat, lon):
+        """N (m) at lat, lon (rad): the model's, the constant, or 0 (ellipsoidal)."""
+        if self.height is not None:
+            return self.height.undulation(lat, lon)
         return 0.0 if self.geoid_undulation_m is None else self.geoid_undulation_m
 
     def position(self, lla):
         """Geodetic positions (n, 3) to (easting, northing, height) (n, 3), m."""
         lla = _lla(lla)
         e, n = self._to_map.transform(np.rad2deg(lla[:, 1]), np.rad2deg(lla[:, 0]))
-        return np.column_stack([e, n, lla[:, 2] - self._h_offset()])
+        return np.column_stack([e, n, lla[:, 2] - self._h_offset(lla[:, 0], lla[:, 1])])
 
     def to_lla(self, xyz):
         """(easting, northing, height) (n, 3) to geodetic (n, 3) (rad, rad, m ellipsoidal)."""
         xyz = np.asarray(xyz, dtype=float)
         lon, lat = self._to_geo.transform(xyz[:, 0], xyz[:, 1])
-        return np.column_stack([np.deg2rad(lat), np.deg2rad(lon), xyz[:, 2] + self._h_offset()])
+        lat, lon = np.deg2rad(lat), np.deg2rad(lon)
+        return np.column_stack([lat, lon, xyz[:, 2] + self._h_offset(lat, lon)])
 
     def convergence(self, lla):
         """Meridian convergence gamma (rad) at each position: the grid azimuth of true
@@ -153,7 +168,11 @@ class ProjectedFrame:
         return rot_z(self.convergence(lla)) @ P_NED_ENU
 
     def header(self):
-        if self.geoid_undulation_m is None:
+        if self.height is not None:
+            g = self.height.geoid
+            heights = (f"orthometric (geoid {g.name}, EPSG:{g.vertical_epsg}, H = h - N; N "
+                       f"from {g.source})")
+        elif self.geoid_undulation_m is None:
             heights = "ellipsoidal"
         else:
             heights = f"orthometric (constant geoid undulation N = {self.geoid_undulation_m!r} m)"
@@ -163,7 +182,7 @@ class ProjectedFrame:
         return f"ProjectedFrame({self.header()})"
 
 
-def parse_frame(text, origin_lla=None, geoid_undulation_m=None):
+def parse_frame(text, origin_lla=None, geoid_undulation_m=None, height=None):
     """Mapping frame from a command-line or header value.
 
     Parameters
@@ -174,12 +193,15 @@ def parse_frame(text, origin_lla=None, geoid_undulation_m=None):
         Block origin (rad, rad, m) for ``enu`` and ``utm``.
     geoid_undulation_m : float, optional
         For projected frames: orthometric heights with this constant undulation.
+    height : ins.io.geoid.HeightSystem, optional
+        For projected frames: orthometric heights of this geoid model.
     """
+    ortho = height is not None and height.orthometric
     t = str(text).strip()
     if t.lower() == "enu":
         if origin_lla is None:
             raise InputError("the enu mapping frame needs an origin (lat, lon, h)")
-        if geoid_undulation_m is not None:
+        if geoid_undulation_m is not None or ortho:
             raise InputError("a geoid undulation applies to projected frames only "
                              "(ENU heights are along the origin's normal)")
         return EnuFrame(*origin_lla)
@@ -187,7 +209,7 @@ def parse_frame(text, origin_lla=None, geoid_undulation_m=None):
         if origin_lla is None:
             raise InputError("the utm mapping frame needs a position to choose the zone")
         return ProjectedFrame(f"EPSG:{utm_epsg(origin_lla[0], origin_lla[1])}",
-                              geoid_undulation_m)
+                              geoid_undulation_m, height)
     if t.upper().startswith("EPSG:"):
-        return ProjectedFrame(t.upper(), geoid_undulation_m)
+        return ProjectedFrame(t.upper(), geoid_undulation_m, height)
     raise InputError(f"unknown mapping frame {text!r}; expected enu, utm or EPSG:<code>")
