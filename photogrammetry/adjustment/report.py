@@ -277,5 +277,10 @@ def write_html_report(path, result, boresight_sigma=None, boresight_note=None):
     text = report_text(result, [(t, n) for t, n, _ in plots], boresight_sigma,
                        boresight_note)
     page = HtmlReport(None, "photogrammetry refine")
+    q = result.block.quality
+    if q is not None and q.poor:                 # the verdict first, as in ins process's
+        page.verdict("poor", "Poor: written with --accept-poor", q.reasons)
+    elif q is not None:
+        page.verdict("ok", f"No trust flag (block sigma0 limit {q.sigma0_limit:.2f})")
     page.markdown(text, images={n: png for _, n, png in plots})
     return page.write(path)
