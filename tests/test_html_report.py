@@ -169,3 +169,63 @@ def test_process_report_option_refused_before_the_work(tmp_path, capsys, name, m
     err = capsys.readouterr().err
     assert message in err and "report" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_process_report_sections_of_a_raw_gnss_run(tmp_path):
+    """The sections a simulated flight does not reach, on a stand-in result: RTKLIB as
+    the source (its 'poor' reason makes the verdict amber), the forward/backward
+    separation (RMS and max computed here from the differences), a re-anchoring, the
+    identified noise, and a PNG no section claims."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ins.estimation.process_report import process_report
+    from ins.gnss.separation import Separation
+    from ins.io.gnss_log import GnssLog
+
+    rng = np.random.default_rng(5)
+    n = 50
+    d = rng.normal(0.0, [0.004, 0.006, 0.01], (n, 3))
+    qf = np.where(np.arange(n) < 40, 1, 2)
+    sep = Separation(time=100.0 + np.arange(n), d_neu_m=d, q_forward=qf,
+                     q_backward=np.ones(n, int))
+    t = 100.0 + np.arange(n, dtype=float)
+    log = GnssLog(time=t, lla=np.zeros((n, 3)), sigma_ned_m=np.full((n, 3), 0.02),
+                  quality=qf)
+    m = 5
+    result = SimpleNamespace(
+        counts={"imu_epochs": 5000, "nodes": m, "gnss_records": n, "updates": n,
+                "rejected": 0, "outside_imu_span": 0, "mount_fallback": 0,
+                "recoveries": 0, "reanchors": 1, "gnss_steps": 0},
+        quality={"tested": n, "rejected": 0, "rejected_fraction": 0.0,
+                 "residual_rms_m": 0.01, "residual_max_m": 0.03, "warnings": [],
+                 "error": None, "sensor_ratio": {}},
+        gnss_source={"path": "/x/gnss.pos", "mode": "kinematic", "direction": "combined",
+                     "ephemeris": "broadcast", "counts": {1: 40, 2: 10},
+                     "rover_epochs": n, "repaired": 0, "dropped": 0,
+                     "poor": "few fixes <test>", "separation": sep},
+        fwd=SimpleNamespace(recoveries=[], reanchors=[(120.0, 125.0, 6, 40.0)]),
+        start_check=None, alignment=None, gnss=log, errors_smoothed=None,
+        errors_forward=None, smoothed_sensors=np.zeros((m, 12)),
+        smoothed_std=np.ones((m, 21)) * 1e-6,
+        identified=SimpleNamespace(describe=lambda: "ARW 0.1 deg/sqrt(h) & <more>"))
+    extra = tmp_path / "extra.png"
+    extra.write_bytes(_png(7, 3))
+    text = process_report(result, plots=[str(extra)]).html()
+    tree = _parse(text)
+    assert not tree.errors and not tree.stack
+    body = "".join(tree.text)
+    assert "Trusted, with warnings" in body and "RTKLIB's solution: few fixes <test>" in body
+    assert "verdict warn" in text
+    rms, mx = 1e3 * np.sqrt(np.mean(d ** 2, axis=0)), 1e3 * np.max(np.abs(d), axis=0)
+    rms3 = 1e3 * np.max(np.linalg.norm(d, axis=1))
+    row = [f"{v:.1f}" for v in (*rms, *mx, rms3)]
+    assert f"<td>all epochs both solved</td><td class=\"num\">{n}</td>" in text
+    assert "".join(f'<td class="num">{v}</td>' for v in row) in text
+    assert "re-anchoring" in body and "120.00" in body and "x40" in body
+    assert "ARW 0.1 deg/sqrt(h) & <more>" in body
+    assert "Other figures" in body and text.count("data:image/png;base64,") == 1
+    # the quality flags: 40 fix then 10 float, no gap
+    assert "<td>fix</td><td class=\"num\">40</td>" in text
+    assert "<td>float</td><td class=\"num\">10</td>" in text
