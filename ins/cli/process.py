@@ -107,6 +107,16 @@ built aside and swapped in: never a mix of two runs):
                     in the header; solution.nav and the SBET keep ellipsoidal heights (their
                     formats define them so)
   *.png             plots (errors against the truth when there is one, sigma, biases)
+  --report F.html   one self-contained HTML page (the QC view; opens offline: CSS inline,
+                    figures embedded, no script, nothing fetched): the trust verdict and
+                    its reasons, the summary table with the processing time, the GNSS
+                    source and its quality flags over time, recoveries and
+                    re-anchorings, RTKLIB's forward/backward separation (raw GNSS), the
+                    smoothed IMU errors against their stated sigmas, the identified IMU
+                    noise, the errors against a truth and every PNG above.  F inside
+                    OUT_DIR is built with the folder; elsewhere it is written atomically
+                    once the folder is in place (same name as photogrammetry refine
+                    --report F.html)
 
 example:
   ins process --imu imu.txt --gnss gnss.txt --config data/configs/kfgins_like.toml -o out
@@ -195,6 +205,9 @@ def add_parser(sub):
     p.add_argument("--accept-poor", action="store_true",
                    help="write the outputs even when the solution is not to be trusted "
                         "(exit 0 with the warning; default: exit 3, nothing written)")
+    p.add_argument("--report", metavar="F.html",
+                   help="also write the run's QC report as one self-contained HTML file "
+                        "(in OUT_DIR or elsewhere; see 'outputs' below)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     p.add_argument("-o", "--output", required=True, metavar="OUT_DIR",
                    help="output folder (new or empty; see --force)")
@@ -312,46 +325,103 @@ def _from_args(args, load_config, path):
     return load_config(path, files={"imu": args.imu, "gnss": args.gnss, **raw})
 
 
+def report_target(report, out_dir):
+    """Where ``--report`` goes: ``(name in OUT_DIR, None)`` or ``(None, path outside
+    it)``, or ``(None, None)`` without one.  An .html/.htm file; not in a subfolder of
+    OUT_DIR (the folder is built whole); its directory must exist (checked now)."""
+    from ins.common.fileio import check_output_file
+    if not report:
+        return None, None
+    if os.path.splitext(report)[1].lower() not in (".html", ".htm"):
+        raise InputError(f"--report {report}: expected an .html file (one self-contained "
+                         "HTML page)")
+    path, out = os.path.abspath(report), os.path.abspath(out_dir)
+    if os.path.dirname(path) == out:
+        return os.path.basename(path), None
+    if path.startswith(out + os.sep):
+        raise InputError(f"--report {report}: inside a subfolder of OUT_DIR {out_dir}; "
+                         "give a name in OUT_DIR itself or a path outside it")
+    check_output_file(report)
+    return None, report
+
+
 def _cmd_process(args):
+    import contextlib
+
     from ins.cli.util import Progress
-    from ins.common.fileio import output_folder
+    from ins.common.fileio import atomic_open, output_folder
     from ins.estimation.process import process
     from ins.estimation.process_outputs import write_outputs
     t0 = wallclock.perf_counter()
     formats = output_formats(args.format)
     from ins.io.geoid import parse_height
     height = parse_height(args.height)          # before the run: a missing grid stops here
+    report_inside, report_outside = report_target(args.report, args.output)
     cfg = _config(args)
     progress = Progress("process", not args.quiet)
     progress.note(f"reading {cfg.imu} ...")
-    # the run is built in a hidden sibling of OUT_DIR and swapped in whole at the end;
-    # on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is written
-    with output_folder(args.output, force=args.force) as stage:
-        # the forward trajectory and the node matrices are spilled to temporary files
-        # inside the staged folder (memory bounded whatever the length of the log),
-        # removed before the swap
-        with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
-            try:
-                result = process(cfg, progress=progress, workdir=work,
-                                 accept_poor=args.accept_poor, gnss_dir=stage)
-            except QualityError as exc:
-                raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
-                                   f"outputs anyway).") from None
-            t1 = wallclock.perf_counter()
-            names = write_outputs(result, stage, week=args.week, forward=args.forward,
-                                  formats=formats, height=height)
-            if not args.no_plots:
-                from ins.estimation.plots import write_plots
-                names += write_plots(result, stage, flight_dir=args.flight_dir)
-        t2 = wallclock.perf_counter()
-    if result.gnss_source is not None:
-        from ins.estimation.process_gnss import SEPARATION_PNG, SEPARATION_TXT
-        names += [os.path.join(stage, n) for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
-                  if os.path.isfile(os.path.join(args.output, n))]
-    paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
+    with contextlib.ExitStack() as outside:
+        # a report outside OUT_DIR: a temporary file beside it, renamed after the
+        # folder's swap (this stack unwinds last); removed on any failure
+        report_file = (outside.enter_context(atomic_open(report_outside, "wb"))
+                       if report_outside else None)
+        # the run is built in a hidden sibling of OUT_DIR and swapped in whole at the
+        # end; on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is
+        # written
+        with output_folder(args.output, force=args.force) as stage:
+            # the forward trajectory and the node matrices are spilled to temporary files
+            # inside the staged folder (memory bounded whatever the length of the log),
+            # removed before the swap
+            with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
+                try:
+                    result = process(cfg, progress=progress, workdir=work,
+                                     accept_poor=args.accept_poor, gnss_dir=stage)
+                except QualityError as exc:
+                    raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
+                                       f"outputs anyway).") from None
+                t1 = wallclock.perf_counter()
+                names = write_outputs(result, stage, week=args.week, forward=args.forward,
+                                      formats=formats, height=height)
+                if not args.no_plots:
+                    from ins.estimation.plots import write_plots
+                    names += write_plots(result, stage, flight_dir=args.flight_dir)
+                t2 = wallclock.perf_counter()
+                if result.gnss_source is not None:
+                    from ins.estimation.process_gnss import SEPARATION_PNG, SEPARATION_TXT
+                    names += [os.path.join(stage, n)
+                              for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
+                              if os.path.isfile(os.path.join(stage, n))]
+                paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
+                if args.report:
+                    paths.append(os.path.join(args.output, report_inside) if report_inside
+                                 else report_outside)
+                    page = _report(args, cfg, result, stage, paths,
+                                   {"processing_s": t1 - t0, "writing_s": t2 - t1})
+                    if report_inside:
+                        page.write(os.path.join(stage, report_inside))
+                    else:
+                        report_file.write(page.html().encode("utf-8"))
     if not args.quiet:
         _summary(result, cfg, paths, t1 - t0, t2 - t1)
     return 0
+
+
+def _report(args, cfg, result, stage, paths, times):
+    """The HTML report of the run (:mod:`ins.estimation.process_report`): every PNG in
+    the staged folder embedded."""
+    from ins.estimation.plots import injected_biases
+    from ins.estimation.process_report import process_report
+    raw = cfg.gnss_raw
+    inputs = [("flight folder", args.flight_dir), ("config", args.config),
+              ("IMU", cfg.imu), ("GNSS", cfg.gnss),
+              ("rover (raw GNSS)", getattr(raw, "rover", None)),
+              ("base (raw GNSS)", getattr(raw, "base", None)),
+              ("mount", cfg.mount), ("truth", cfg.truth)]
+    pngs = sorted(os.path.join(stage, n) for n in os.listdir(stage) if n.endswith(".png"))
+    return process_report(result, cfg, plots=pngs, files=paths, times=times,
+                          inputs=[(r, str(p)) for r, p in inputs if p],
+                          injected=injected_biases(args.flight_dir) if args.flight_dir
+                          else None)
 
 
 def _cell(value, width=10, decimals=2):

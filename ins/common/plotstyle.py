@@ -18,7 +18,7 @@ import io
 
 import numpy as np
 
-__all__ = ["ARCSEC", "TRANSIENT_S", "pyplot", "save_png", "length_unit", "robust_limits",
+__all__ = ["ARCSEC", "TRANSIENT_S", "pyplot", "save_png", "png_bytes", "length_unit", "robust_limits",
            "legend_right", "plain_log_ticks", "time_label", "exposure_axis", "strip_starts",
            "mark_strips", "with_gaps"]
 
@@ -35,16 +35,23 @@ def pyplot():
     return plt
 
 
-def save_png(fig, path, dpi=110):
-    """Write ``fig`` as PNG to ``path`` atomically (tight box: outside legends kept) and
-    close it; returns ``path``."""
-    from ins.common.fileio import atomic_open
+def png_bytes(fig, dpi=110):
+    """``fig`` as PNG bytes (tight box: outside legends kept), the figure closed (a
+    figure embedded in a report, :mod:`ins.common.html_report`)."""
     plt = pyplot()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
+    return buf.getvalue()
+
+
+def save_png(fig, path, dpi=110):
+    """Write ``fig`` as PNG to ``path`` atomically (tight box: outside legends kept) and
+    close it; returns ``path``."""
+    from ins.common.fileio import atomic_open
+    data = png_bytes(fig, dpi)
     with atomic_open(path, "wb") as f:
-        f.write(buf.getvalue())
+        f.write(data)
     return path
 
 

@@ -56,7 +56,8 @@ class ProcessResult:
     :meth:`node_chunks` gives them block by block (bounded memory);
     ``errors_forward``/``errors_smoothed`` (:class:`ins.nav.accuracy.TrajectoryErrors`) when
     a truth file was given; ``quality`` the assessment of :func:`assess_quality` and
-    ``start_check`` that of :func:`check_start` (when the run made them).
+    ``start_check`` that of :func:`check_start` (when the run made them); ``gnss`` the
+    GNSS log the filter took (times, sigmas and quality flags: the report).
     """
 
     fwd: object
@@ -71,6 +72,7 @@ class ProcessResult:
     start_how: str = None
     gnss_source: dict = None
     identified: object = None     # ins.estimation.noise_identification.Identified or None
+    gnss: object = None           # the GNSS log the filter took (ins.io.gnss_log.GnssLog)
 
     def iter_forward(self):
         for _, time, states in self.fwd.trajectory.chunks():
@@ -423,6 +425,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     result.start_how = st.how
     result.gnss_source = gnss_source
     result.identified = ident
+    result.gnss = gnss
     if st.noise is not None or ident is not None:   # judged against the settings it ran with
         from copy import copy
         cfg = copy(cfg)

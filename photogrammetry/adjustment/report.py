@@ -1,4 +1,6 @@
-"""Markdown report of a refinement (tables) with PNG plots (matplotlib, Agg, lazy import).
+"""Report of a refinement: Markdown (tables) with PNG plots beside it (matplotlib, Agg,
+lazy import), or the same text as one self-contained HTML page with the plots embedded
+(:func:`write_html_report`, :mod:`ins.common.html_report`).
 
 Angles in the report are arcsec (differences, sigmas) or deg (values); photo residuals
 are the normalized coplanarity misclosures ``g / sigma_g`` (unitless, ~N(0, 1)).
@@ -11,13 +13,18 @@ from ins.common.fileio import atomic_open
 from ins.nav.rotation import wrap_to_pi
 from photogrammetry.adjustment.coplanarity import STATUS_TEXT
 
-__all__ = ["write_report", "report_text", "boresight_lines"]
+__all__ = ["write_report", "write_html_report", "report_text", "boresight_lines",
+           "HTML_SUFFIXES"]
+
+#: A report file with one of these suffixes is written as HTML, any other as Markdown.
+HTML_SUFFIXES = (".html", ".htm")
 
 _AS = 180.0 / np.pi * 3600.0
 
 
-def _plot_residuals(result, path):
-    from ins.common.plotstyle import pyplot, save_png
+def _plot_residuals(result, path=None):
+    """The residual plot into ``path`` (PNG), or its PNG bytes without a path."""
+    from ins.common.plotstyle import png_bytes, pyplot, save_png
     plt = pyplot()
     blk = result.block
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
@@ -41,14 +48,16 @@ def _plot_residuals(result, path):
     ax.set_title(f"Coplanarity residuals in the image\n{int(blk.mask.sum())} conditions used, "
                  f"{int(rej.sum())} rejected (red x); sigma0 {blk.sigma0:.2f} ({px:.3g} px)",
                  fontsize=10)
-    save_png(fig, path)
+    return png_bytes(fig) if path is None else save_png(fig, path)
 
 
-def _plot_corrections(result, path):
+def _plot_corrections(result, path=None):
+    """The angle corrections' plot into ``path`` (PNG), or its PNG bytes without a path."""
     from ins.common.plotstyle import (
         exposure_axis,
         legend_right,
         mark_strips,
+        png_bytes,
         pyplot,
         save_png,
         strip_starts,
@@ -73,7 +82,7 @@ def _plot_corrections(result, path):
                  + (f"\n{origin}" if origin else ""), pad=18, fontsize=10)
     ax.grid(alpha=0.3)
     legend_right(ax)
-    save_png(fig, path)
+    return png_bytes(fig) if path is None else save_png(fig, path)
 
 
 def _fmt3(v, scale=_AS, digits=1, nan_text="n/a"):
@@ -255,3 +264,23 @@ def write_report(path, result, boresight_sigma=None, boresight_note=None):
     with atomic_open(path, "w") as f:
         f.write(text)
     return [p for _, p in plots]
+
+
+def write_html_report(path, result, boresight_sigma=None, boresight_note=None):
+    """Write the report of :func:`report_text` as one self-contained HTML file
+    (atomically): the same text, its two plots embedded as PNG data URIs, nothing
+    written beside it.  Returns ``path``."""
+    from ins.common.html_report import HtmlReport
+    plots = [("residuals in the image", "residuals.png", _plot_residuals(result)),
+             ("angle corrections along the strips", "corrections.png",
+              _plot_corrections(result))]
+    text = report_text(result, [(t, n) for t, n, _ in plots], boresight_sigma,
+                       boresight_note)
+    page = HtmlReport(None, "photogrammetry refine")
+    q = result.block.quality
+    if q is not None and q.poor:                 # the verdict first, as in ins process's
+        page.verdict("poor", "Poor: written with --accept-poor", q.reasons)
+    elif q is not None:
+        page.verdict("ok", f"No trust flag (block sigma0 limit {q.sigma0_limit:.2f})")
+    page.markdown(text, images={n: png for _, n, png in plots})
+    return page.write(path)

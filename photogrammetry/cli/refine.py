@@ -81,6 +81,13 @@ trust (exit 3 unless --accept-poor):
   tasks (--workers N local processes, or --scheduler tcp://host:8786); each gets
   refined.csv and report.md unless -o/--report name a single output.
 
+report (--report F):
+  F.md (any name but .html/.htm): Markdown with F_residuals.png and F_corrections.png
+  beside it.  F.html or F.htm: the same text as one self-contained HTML page (CSS
+  inline, both plots embedded as PNG data URIs, no script, nothing fetched: it opens
+  offline and can be mailed alone), written atomically; nothing beside it.  The same
+  option as 'ins process --report F.html'.
+
 tiles (one large block, --tile-images N):
   the images are cut into tiles of at most N core images (recursive bisection of the EO
   positions x, y), each with a halo of the images within --tile-halo-hops pair-hops
@@ -97,6 +104,8 @@ tiles (one large block, --tile-images N):
 example:
   photogrammetry refine eo.csv tiepoints.csv --camera camera.toml --method base-free \\
       --datum first -o refined.csv --report report.md
+  photogrammetry refine eo.csv tiepoints.csv --camera camera.toml --method known-base \\
+      --datum none -o refined.csv --report report.html
 """
 
 
@@ -143,7 +152,11 @@ def add_parser(sub):
     p.add_argument("--tile-halo-hops", type=nonnegative_int, metavar="HOPS", default=None,
                    help="pair-hops of each tile's halo (default 3)")
     p.add_argument("-o", "--output", metavar="REFINED.csv")
-    p.add_argument("--report", metavar="REPORT.md")
+    p.add_argument("--report", metavar="REPORT.md|REPORT.html",
+                   help="the report: Markdown with its two PNG plots beside it "
+                        "(REPORT_residuals.png, REPORT_corrections.png), or, for a name "
+                        "ending in .html/.htm, one self-contained HTML page with the "
+                        "plots embedded (opens offline; as ins process --report)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=run)
 
@@ -253,7 +266,7 @@ def _tiled(args, task, bar):
 
 def run(args):
     from photogrammetry.adjustment.batch import check_quality, refine, refine_many
-    from photogrammetry.adjustment.report import write_report
+    from photogrammetry.adjustment.report import HTML_SUFFIXES, write_html_report, write_report
     from photogrammetry.orientation.exposure import write_eo_csv
     jobs = _jobs(args)
     # the INS attitude sigma common to each block's exposures (not an argument of refine)
@@ -303,7 +316,9 @@ def run(args):
             if q is not None and q.poor:
                 warnings.warn(f"{out}: refinement flagged as poor (written with "
                               f"--accept-poor): {q.reasons[0]}", QualityWarning)
-            if rep:
+            if rep and rep.lower().endswith(HTML_SUFFIXES):
+                write_html_report(rep, res, boresight_sigma=bs, boresight_note=why_not)
+            elif rep:
                 write_report(rep, res, boresight_sigma=bs, boresight_note=why_not)
             if not args.quiet:
                 s = res.settings
