@@ -314,12 +314,17 @@ def _anywhere(cfg, gnss, lever, blocks, t_start=None):
     imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
                          for k_ in ("time", "dtheta_b", "dvel_b")))
     skipped, delay, rest_windows = None, FIX_DELAY_S, ()
+    t_origin = max(t_log, t_start)
+    if late and imu.time[-1] < t_ref:
+        raise InputError(f"{cfg.imu}: the IMU log ends at {float(imu.time[-1]):.3f} s, before "
+                         f"the first GNSS fix ({fix_name(gnss, k_fix)}): nothing to process "
+                         f"(check the time scales of the two logs)")
     if late:
         t_rest = rest_before_fix(imu, gnss, k_fix, cfg.noise)
         t_run = t_ref if t_rest is None else max(t_rest, t_start)
         if t_run < t_ref:                 # no GNSS there: the filter is told it is at rest
             rest_windows = ((t_run, t_ref),)
-        skipped = (max(t_log, t_start), t_run)
+        skipped = (t_origin, t_run)
         delay += t_ref - t_run
         t_start = t_run
     ms = align_anywhere(imu, gnss, t_start, cfg.noise, fix_delay_s=delay)
@@ -327,7 +332,7 @@ def _anywhere(cfg, gnss, lever, blocks, t_start=None):
     noise, how = None, ms.how
     if skipped is not None:
         skipped = (skipped[0], al.time) if al.time - skipped[0] > 1e-6 else None
-        text = (f"the IMU log starts {t_ref - t_log:.1f} s before the first GNSS fix "
+        text = (f"the IMU log starts {t_ref - t_origin:.1f} s before the first GNSS fix "
                 f"({fix_name(gnss, k_fix)}): the run starts ")
         if t_start >= t_ref:
             text += "at the fix (the IMU is not at rest before it)"
