@@ -118,13 +118,21 @@ def test_moving_start(car):
     assert np.linalg.norm(ms.alignment.state.v_n - s.v_n[0]) < 0.1
 
 
-def test_a_log_that_never_moves_is_refused(car):
-    truth, imu, gnss = car
+def test_a_log_that_never_moves_starts_from_the_gyrocompass():
+    """No motion to match (it used to be refused): level exact from the error-free rest,
+    the gyrocompass heading exact too (the Earth rate is all the gyro sees), stated with
+    the filter's broad prior (at least 30 deg) and the at-rest bound (about 0 here);
+    the gyro biases nil."""
+    from ins.estimation.motion_alignment import STATIC_HEADING_PRIOR_DEG
     from ins.simulate.ground import Journey as J
-    still = J(duration_s=30.0, speed_steps=())
-    tr = GroundTruth(still)
-    with pytest.raises(InputError, match="heading cannot be found"):
-        align_anywhere(synthesize_imu(tr, 100.0), rtk_fixes(tr, seed=1))
+    tr = GroundTruth(J(duration_s=30.0, speed_steps=()))
+    ms = align_anywhere(synthesize_imu(tr, 100.0), rtk_fixes(tr, seed=1))
+    e, head = _errors_deg(tr, ms)
+    assert ms.heading_from == "gyrocompass" and "gyrocompassing" in ms.how
+    assert np.all(np.abs(e) < 1e-4) and abs(head) < 1e-4
+    assert ms.alignment.att_std_deg[2] == STATIC_HEADING_PRIOR_DEG
+    assert ms.heading_floor_deg < 0.1
+    assert np.linalg.norm(ms.gyro_bias_b) < np.deg2rad(1e-3 / 3600)
 
 
 def _process(tmp_path, journey_log, extra=""):

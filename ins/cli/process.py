@@ -443,6 +443,29 @@ def _table(title, columns, rows, width=10):
     return lines
 
 
+def _start_lines(result, out):
+    """What the start left open (``quality["start"]``): the IMU span skipped before the
+    first fix; the heading of a log that never moved, resolved or not, with its sigma."""
+    st = (result.quality or {}).get("start")
+    if not st:
+        return
+    if st["imu_skipped_s"] is not None:
+        a, b = st["imu_skipped_s"]
+        print(f"IMU skipped: {a:.3f} .. {b:.3f} s ({b - a:.1f} s before the run's start, "
+              f"with no GNSS fix to start from)", file=out)
+    if st["heading_from"] != "gyrocompass":
+        return
+    from ins.estimation.error_model import NAV
+    from ins.nav.rotation import quat_to_euler
+    last = result.node_solution()[-1]
+    yaw = np.mod(np.rad2deg(quat_to_euler(last[NAV.q_nb])[2]), 360)
+    state = "resolved by the gyrocompass" if st["heading_resolved"] else "NOT resolved"
+    print(f"heading: {state} (the log never moves): {yaw:.2f} deg, sigma "
+          f"{st['heading_std_deg']:.3g} deg (the filter's {st['heading_filter_std_deg']:.3g}); "
+          f"positions and level hold, the heading is what the Earth rate and the gyro "
+          f"biases allow", file=out)
+
+
 def _summary(result, cfg, paths, t_proc, t_write):
     c = result.counts
     out = sys.stdout
@@ -498,6 +521,7 @@ def _summary(result, cfg, paths, t_proc, t_write):
               f"{al.att_std_deg[1]:.4f}/{al.att_std_deg[2]:.4f} deg)", file=out)
         if result.start_how:
             print(f"alignment: {result.start_how}", file=out)
+    _start_lines(result, out)
     ident = getattr(result, "identified", None)
     if ident is not None:
         print(f"IMU noise: {ident.describe()}", file=out)

@@ -235,14 +235,17 @@ def align_static(imu, t_start, t_end, lla, noise=None):
 MAX_STATIC_HEADING_DEG = 2.0
 
 
-def check_static_heading(noise, lat, duration_s, gnss=None):
+def check_static_heading(noise, lat, duration_s, gnss=None, fallback="gnss-heading"):
     """Refuse gyrocompassing with gyros too poor to find north.
 
     The heading error of :func:`static_attitude` is ``b_g / (W_ie cos lat)``: 1 deg/h of
     gyro bias (a tactical-grade IMU) gives about 4.4 deg at 30 deg latitude.  When the
     stated gyro bias (``noise.gyro_bias_std_dph``) makes it worse than
     :data:`MAX_STATIC_HEADING_DEG`, an :class:`~ins.common.errors.InputWarning` names the grade
-    and the in-air GNSS-heading alignment is to be used instead; ``InputError`` when
+    and the start to be used instead (``fallback``: ``"gnss-heading"``, the GNSS track
+    once the vehicle moves at speed; ``"anywhere"``, velocity matching at the first
+    motion, or the gyrocompass heading carried by the filter with a broad prior when
+    the log never moves: :mod:`ins.estimation.motion_alignment`); ``InputError`` when
     there is no GNSS log to fall back on.
 
     Returns
@@ -265,9 +268,30 @@ def check_static_heading(noise, lat, duration_s, gnss=None):
            f"{MAX_STATIC_HEADING_DEG:g} deg)")
     if gnss is None:
         raise InputError(msg + "; give the initial heading ([alignment] method = 'given')")
-    warnings.warn(msg + "; the heading is taken from the GNSS track once the vehicle moves "
-                  "(method 'gnss-heading')", InputWarning, stacklevel=3)
+    if fallback == "gnss-heading":
+        tail = "the heading is taken from the GNSS track once the vehicle moves"
+    else:
+        tail = ("the vehicle never reaches the in-air start's speed: the heading is found "
+                "at the first start, stop or turn (velocity matching), or, if it never "
+                "moves, carried by the filter from the gyrocompass with a broad prior")
+    warnings.warn(f"{msg}; {tail} (method '{fallback}')", InputWarning, stacklevel=3)
     return False
+
+
+#: Ground speed from which the in-air start takes the heading from the track, m/s.
+GNSS_HEADING_MIN_SPEED_MPS = 5.0
+
+
+def gnss_heading_epoch(gnss, t_start=None, min_speed_mps=GNSS_HEADING_MIN_SPEED_MPS):
+    """Index of the first GNSS epoch at or after ``t_start`` (s) whose ground speed
+    reaches ``min_speed_mps`` (the in-air start's, :func:`align_gnss_heading`), or None."""
+    k = 0 if t_start is None else int(np.searchsorted(gnss.time, t_start - 1e-9))
+    while k + 1 < len(gnss):
+        v_n = _gnss_velocity(gnss, k)
+        if np.hypot(v_n[0], v_n[1]) >= min_speed_mps:
+            return k
+        k += 1
+    return None
 
 
 def _gnss_velocity(gnss, k):
@@ -301,7 +325,8 @@ def _track_std(gnss, k, speed):
     return sv / speed
 
 
-def align_gnss_heading(gnss, t_start=None, min_speed_mps=5.0, stabilized=False):
+def align_gnss_heading(gnss, t_start=None, min_speed_mps=GNSS_HEADING_MIN_SPEED_MPS,
+                       stabilized=False):
     """In-air start at the first GNSS epoch at or after ``t_start`` where the ground
     speed reaches ``min_speed_mps``.
 

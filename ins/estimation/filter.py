@@ -465,7 +465,7 @@ class _ForwardRun:
         while self.hj < len(self.headings) and self.headings[self.hj].time <= t[r] + 1e-9:
             heads.append(self.headings[self.hj])
             self.hj += 1
-        rest = self.settings.zupt and self._at_rest(t, th, dv, r)
+        rest = self._in_rest_window(t[r]) or (self.settings.zupt and self._at_rest(t, th, dv, r))
         if heads or rest or self.settings.nhc:
             P, d = up.others(t[r], self.state, self.sensors, P, w_meas_b, rest, heads)
             dx += d
@@ -474,11 +474,16 @@ class _ForwardRun:
         self.dxs.append(dx)
         return P
 
+    def _in_rest_window(self, t_r):
+        """Whether the node at ``t_r`` (s) is inside one of the zero-velocity windows
+        (used with or without the rest detector of ``zupt``)."""
+        return any(a <= t_r <= b for a, b in self.settings.zupt_windows_s)
+
     def _at_rest(self, t, th, dv, r):
         """Whether the IMU is at rest over the rows since the last node (in this block)
         or the node is inside one of the configured zero-velocity windows."""
         s = self.settings
-        if any(a <= t[r] <= b for a, b in s.zupt_windows_s):
+        if self._in_rest_window(t[r]):
             return True
         if np.linalg.norm(self.state[NAV.vel]) > ZUPT_MAX_SPEED_MPS:
             return False                   # smooth straight flight is not rest

@@ -86,7 +86,9 @@ class FilterSettings:
         the specific-force norm below ``zupt_accel_std_mps2`` and every angular rate
         below ``zupt_gyro_dps`` over the rows since the last node, with the filter's
         speed below ``ins.estimation.filter.ZUPT_MAX_SPEED_MPS``) or that fall in one of
-        ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.
+        ``zupt_windows_s`` (GPS s); sigma ``zupt_sigma_mps``.  The windows apply with
+        ``zupt`` false too (only the detector is off then): a rest known beforehand,
+        such as the IMU's rest before the first GNSS fix that a run starts with.
     nhc : bool
         Non-holonomic constraint at every node (lateral and vertical velocity 0 in the
         vehicle axes, sigma ``nhc_sigma_mps``): for land vehicles.

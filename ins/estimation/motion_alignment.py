@@ -26,6 +26,37 @@ assumption on how the IMU is mounted.
    the GNSS acceleration (iterated with the heading: the acceleration is known in NED,
    the level in the body).
 
+4. A log that never moves (at rest to the end of the GNSS or of the IMU given: a
+   surveyor's static test, a van waiting for the fix) has no velocity change to match:
+   level and gyro biases from the rest (at most :data:`MAX_STATIC_S` of it), the heading
+   by gyrocompassing (``static_attitude``), carried by the filter from a broad prior,
+   at least :data:`STATIC_HEADING_PRIOR_DEG` and at most the uniform circle's
+   :data:`UNKNOWN_HEADING_STD_DEG`.  At rest this is sound although the error-state
+   filter linearizes small angles: with the specific force vertical a heading error
+   does not enter the velocity, only the east tilt through the Earth rate
+   (``W_ie cos(lat) psi``), the same as an east gyro bias, so the filter's gyrocompassing
+   ends at ``sigma_bE / (W_ie cos lat)`` (``ins.estimation.alignment_fine.heading_budget``):
+   4.7 deg for 1 deg/h at 35 deg latitude, the honest sigma; a consumer gyro leaves the
+   prior.  The broad prior is what keeps it honest: the rest's data enter once, in the
+   filter (a prior equal to the budget would count them twice).  A horizontal lever arm
+   makes the IMU's position as uncertain as the heading turns it.  The filter's own
+   heading sigma at rest can fall below that bound: its linear model takes the
+   horizontal part of the computed specific force (accelerometer noise, the tilt
+   errors between fixes) as an excitation of the heading, a second-order effect that it
+   overstates (a tactical IMU over an hour: 2.6 deg against the bound's 4.7; a consumer
+   one: 4 deg where nothing is known).  The stated heading sigma of such a run is
+   therefore the larger of the two (``ins.estimation.process_trust.start_report``).
+   ``ins process`` turns the zero-velocity updates on for such a log (unless
+   ``[measurements] zupt`` says otherwise): between sparse fixes (a 30 s static
+   observation) the angle random walk of a tactical gyro tilts the platform enough to
+   move the position by 10 cm between them.
+5. An IMU log that starts more than :data:`FIX_DELAY_S` before the first GNSS fix
+   (:func:`rest_before_fix`): when the GNSS is at rest at the first fix and the IMU at
+   rest before it (no velocity change beyond :data:`REST_SPEED_MPS` and no rotation
+   beyond :data:`PRE_FIX_ROTATION_DEG`, integrated back from the fix, where the velocity
+   is zero), the run starts where that rest begins (at most :data:`MAX_PRE_FIX_REST_S`
+   before the fix); otherwise at the first fix.  The IMU before is not processed.
+
 The sigmas state what the data support: the heading's from the residual of the fit
 against the excitation (times :data:`HEADING_SIGMA_FACTOR` for what the model leaves
 out, at least :data:`MIN_HEADING_STD_DEG`); the level's from the accelerometer bias
@@ -41,8 +72,9 @@ from ins.nav import earth
 from ins.nav.mechanization import NavState
 from ins.nav.rotation import euler_to_dcm, euler_to_quat, quat_to_dcm, rotvec_to_quat
 
-__all__ = ["MotionStart", "align_anywhere", "gnss_velocities", "noise_from_rest", "REST_SPEED_MPS",
-           "EXCITATION_MPS", "MAX_WINDOW_S"]
+__all__ = ["MotionStart", "align_anywhere", "gnss_velocities", "noise_from_rest", "rest_before_fix",
+           "REST_SPEED_MPS", "EXCITATION_MPS", "MAX_WINDOW_S", "FIX_DELAY_S", "MAX_PRE_FIX_REST_S",
+           "MAX_STATIC_S"]
 
 #: GNSS horizontal speed below which the carrier counts as at rest, m/s (RTK velocity
 #: noise is a few cm/s; a walker's slowest steps are 0.5 m/s).
@@ -70,17 +102,38 @@ GROW_S = 5.0
 GOOD_HEADING_STD_DEG = 3.0
 #: Shortest rest that gives gyro biases, s.
 MIN_REST_S = 2.0
+#: A log that never moves: the rest's first MAX_STATIC_S (s) give the level, the gyro
+#: biases and the gyrocompass heading (the filter uses the whole log).
+MAX_STATIC_S = 600.0
+#: Smallest prior sigma of a gyrocompass heading given to the filter, deg (the filter's
+#: own gyrocompassing decides: module notes, 4.); the largest, that of a heading
+#: uniform on the circle, 180 / sqrt(3) deg.
+STATIC_HEADING_PRIOR_DEG = 30.0
+UNKNOWN_HEADING_STD_DEG = 180.0 / np.sqrt(3.0)
+#: The first GNSS fix must lie at most this long after the start (s); a later one
+#: moves the start (module notes, 5.).
+FIX_DELAY_S = 5.0
+#: Longest rest before the first fix that a run may start with, s.
+MAX_PRE_FIX_REST_S = 600.0
+#: Largest rotation of the IMU over a rest before the first fix, deg (beyond five times
+#: the angle random walk over it): a turn, a car driving and steering.
+PRE_FIX_ROTATION_DEG = 1.0
 
 
 @dataclass(frozen=True)
 class MotionStart:
     """Result of :func:`align_anywhere`: the alignment at the log's start, the gyro
-    biases found at rest (rad/s, b; None when the start moves) and what was done."""
+    biases found at rest (rad/s, b; None when the start moves), what was done and what
+    gave the heading (``"velocity matching"``, or ``"gyrocompass"`` for a log that never
+    moves: its ``att_std_deg[2]`` is then the filter's broad prior and
+    ``heading_floor_deg`` the heading sigma the rest allows at best, module notes 4.)."""
     alignment: Alignment
     gyro_bias_b: np.ndarray
     rest_s: float
     window_s: tuple
     how: str
+    heading_from: str = "velocity matching"      # or "gyrocompass" (a log that never moves)
+    heading_floor_deg: float = None              # gyrocompass: the bound at rest, deg
 
 
 def gnss_velocities(gnss):
@@ -166,7 +219,7 @@ def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g, order=1):
     return psi, sigma_v / np.sqrt(excite)
 
 
-def align_anywhere(imu, gnss, t_start=None, noise=None):
+def align_anywhere(imu, gnss, t_start=None, noise=None, fix_delay_s=FIX_DELAY_S):
     """Initial attitude, velocity and position at the first IMU epoch >= ``t_start``
     from the IMU and the GNSS alone (module notes).
 
@@ -178,17 +231,24 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
     t_start : float, optional
         s (default: the IMU's first epoch).
     noise : ins.estimation.error_model.ImuNoise, optional
-        For the level sigma (accelerometer bias prior); 30 mg without it.
+        For the level sigma (accelerometer bias prior; 30 mg without it) and, for a log
+        that never moves, the gyrocompass budget.
+    fix_delay_s : float
+        Largest delay of the first GNSS fix after the start, s (more for a start at the
+        IMU's rest before the first fix: :func:`rest_before_fix`).
 
     Returns
     -------
     MotionStart
         The alignment holds the antenna's position (the caller removes the lever arm).
+        A log at rest to the end of the IMU or of the GNSS given starts from the
+        gyrocompass (module notes, 4.).
 
     Raises
     ------
     InputError
-        No GNSS fix near the start; the log never moves enough to find the heading.
+        No GNSS fix near the start; a log that moves but never enough to find the
+        heading.
     """
     from ins.estimation.error_model import MGAL
     t0 = float(imu.time[0]) if t_start is None else float(t_start)
@@ -196,14 +256,19 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
     t0 = float(imu.time[i0])
     t_g = np.asarray(gnss.time, float)
     k0 = int(np.searchsorted(t_g, t0 - 1e-9))
-    if k0 >= len(t_g) or t_g[k0] - t0 > 5.0:
-        raise InputError(f"no GNSS fix within 5 s after the start {t0:.3f} s: the start "
-                         f"position and attitude come from the fixes", path=gnss.path)
+    if k0 >= len(t_g) or t_g[k0] - t0 > fix_delay_s:
+        raise InputError(f"no GNSS fix within {fix_delay_s:g} s after the start {t0:.3f} s: "
+                         f"the start position and attitude come from the fixes", path=gnss.path)
     v_n = gnss_velocities(gnss)
     speed = np.hypot(v_n[:, 0], v_n[:, 1])
     lat = float(gnss.lla[k0, 0])
     g = float(earth.normal_gravity(lat, gnss.lla[k0, 2]))
     t_rest = _rest_end(t_g, speed, t0)
+    if t_rest is not None and (not np.any(speed[k0:] >= REST_SPEED_MPS)
+                               or t_rest >= imu.time[-1]):
+        # never moves within the GNSS or the IMU given: the gyrocompass (module notes, 4.)
+        t_end = min(t_rest, float(imu.time[-1]), t0 + MAX_STATIC_S)
+        return _gyrocompass_start(imu, i0, t_end, gnss, k0, noise)
     rest_s = 0.0 if t_rest is None else t_rest - t0
     bias_b = None
     if rest_s >= MIN_REST_S:
@@ -287,6 +352,131 @@ def align_anywhere(imu, gnss, t_start=None, noise=None):
     how += (f"; heading by velocity matching over {t_a:.1f} .. {t_e:.1f} s: "
             f"{np.rad2deg(psi) % 360:.2f} +- {head_std:.2f} deg")
     return MotionStart(al, bias_b, rest_s, (t_a, t_e), how)
+
+
+def _gyrocompass_start(imu, i0, t_end, gnss, k0, noise):
+    """The start of a log at rest from ``imu.time[i0]`` to ``t_end`` (s) and beyond, with
+    no motion to find the heading by (module notes, 4.): level, gyro biases and the
+    gyrocompass heading over the rest, the heading's sigma the filter's broad prior."""
+    from ins.estimation.alignment_fine import heading_budget, white_noise
+    from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL
+    t0 = float(imu.time[i0])
+    i1 = int(np.searchsorted(imu.time, t_end, side="right")) - 1
+    if i1 - i0 < 10:
+        raise InputError(f"the IMU log holds {max(i1 - i0, 0)} epochs at rest after the start "
+                         f"{t0:.3f} s (at least 10 needed to level it)")
+    span = float(imu.time[i1] - imu.time[i0])
+    f_b = imu.dvel_b[i0 + 1:i1 + 1].sum(axis=0) / span
+    w_b = imu.dtheta_b[i0 + 1:i1 + 1].sum(axis=0) / span
+    lat, h = float(gnss.lla[k0, 0]), float(gnss.lla[k0, 2])
+    g = float(earth.normal_gravity(lat, h))
+    if abs(np.linalg.norm(f_b) - g) > 0.05 * g:
+        raise InputError(f"the GNSS shows the carrier at rest from {t0:.3f} s, but the IMU's "
+                         f"mean specific force over {t0:.1f} .. {t_end:.1f} s is "
+                         f"{np.linalg.norm(f_b):.3f} m/s^2, not gravity ({g:.3f} m/s^2): "
+                         f"check the IMU's units and rates", path=gnss.path)
+    rpy = static_attitude(f_b, w_b)
+    C_nb = euler_to_dcm(rpy)
+    w_ie = earth.earth_rate_n(lat)
+    bias_b = w_b - C_nb.T @ w_ie
+    arw_log = white_noise(imu.dtheta_b[i0 + 1:i1 + 1], float(np.median(np.diff(
+        imu.time[i0:i1 + 1]))))
+    if noise is None:          # the observable part of the rest's offset (north, down)
+        b_n = C_nb @ w_b - w_ie
+        var = 0.5 * (b_n[0] ** 2 + b_n[2] ** 2) - float(np.mean(arw_log ** 2)) / span
+        gyro_std, arw = np.full(3, np.sqrt(max(var, 0.0))), arw_log
+        b_a = 30.0 * 980.665 * MGAL
+    else:
+        inst = noise.gyro_bias_instability_dph
+        gyro_std = np.hypot(noise.gyro_bias_std_dph, 0.0 if inst is None else inst) * DPH
+        arw = np.maximum(np.asarray(noise.arw_deg_sqrth, float) * DEG_SQRTH, arw_log)
+        b_a = float(np.max(noise.accel_bias_std_mgal)) * MGAL
+    budget = np.rad2deg(np.hypot(*heading_budget(C_nb, lat, span, gyro_std, arw)))
+    prior = float(np.clip(budget, STATIC_HEADING_PRIOR_DEG, UNKNOWN_HEADING_STD_DEG))
+    level_std = np.rad2deg(b_a / g)
+    al = Alignment(NavState(gnss.lla[k0].copy(), np.zeros(3), euler_to_quat(rpy)), t0,
+                   np.array([level_std, level_std, prior]),
+                   np.maximum(np.asarray(gnss.sigma_ned_m[k0], float) * 2, 0.05),
+                   np.full(3, 0.01), "anywhere")
+    how = (f"at rest from {t0:.1f} s with no motion in the log to find the heading by: level "
+           f"and gyro biases from {span:.1f} s of the rest; heading "
+           f"{np.rad2deg(rpy[2]) % 360:.2f} deg by gyrocompassing, carried by the filter "
+           f"from a {prior:.0f} deg prior (the gyro's bias and noise allow "
+           f"{budget:.3g} deg at rest); zero-velocity updates where the IMU is at rest")
+    return MotionStart(al, bias_b, span, (t0, t0 + span), how, heading_from="gyrocompass",
+                       heading_floor_deg=float(min(budget, UNKNOWN_HEADING_STD_DEG)))
+
+
+def rest_before_fix(imu, gnss, k_fix, noise=None):
+    """Where the IMU's rest before the first GNSS fix begins (module notes, 5.).
+
+    Parameters
+    ----------
+    imu : ins.nav.imu.ImuLog
+        The log up to (at least) the fix.
+    gnss : ins.io.gnss_log.GnssLog
+    k_fix : int
+        Index of the first usable fix.
+    noise : ins.estimation.error_model.ImuNoise, optional
+        For the allowances (random walks); without it those of the log's own scatter.
+
+    Returns
+    -------
+    float or None
+        Start of the rest (s, an IMU epoch), at most :data:`MAX_PRE_FIX_REST_S` before
+        the fix; None when the GNSS moves at the fix or the IMU is not at rest for
+        :data:`MIN_REST_S` before it.
+    """
+    from ins.estimation.alignment_fine import white_noise
+    from ins.estimation.error_model import DEG_SQRTH
+    t_fix = float(gnss.time[k_fix])
+    v = gnss_velocities(gnss)[k_fix]
+    if np.hypot(v[0], v[1]) >= REST_SPEED_MPS:
+        return None
+    t = imu.time
+    ie = int(np.searchsorted(t, t_fix, side="right")) - 1
+    if ie < 2 or t[ie] < t_fix - 1.0:
+        return None
+    dt = float(np.median(np.diff(t[:ie + 1])))
+    lo = int(np.searchsorted(t, max(t[0], t_fix - MAX_PRE_FIX_REST_S) - 1e-9))
+    # whole seconds back from the fix, as rows; the sums of the increments after each
+    rows = np.unique(np.searchsorted(t, t[ie] - np.arange(0.0, t[ie] - t[lo] + 1e-9, 1.0)
+                                     - 1e-9))[::-1]
+    if len(rows) < 3:
+        return None
+    S_th = np.concatenate([[np.zeros(3)], np.cumsum(imu.dtheta_b[lo + 1:ie + 1], axis=0)])
+    S_dv = np.concatenate([[np.zeros(3)], np.cumsum(imu.dvel_b[lo + 1:ie + 1], axis=0)])
+    r = rows - lo
+    th_back = S_th[ie - lo] - S_th[r]          # increments over (t[row], t[ie]]
+    dv_back = S_dv[ie - lo] - S_dv[r]
+    T = t[ie] - t[rows]
+    if noise is None:
+        arw = float(np.max(white_noise(imu.dtheta_b[lo + 1:ie + 1], dt)))
+        vrw = float(np.max(white_noise(imu.dvel_b[lo + 1:ie + 1], dt)))
+    else:
+        arw = max(float(np.max(noise.arw_deg_sqrth)) * DEG_SQRTH,
+                  float(np.max(white_noise(imu.dtheta_b[lo + 1:ie + 1], dt))))
+        vrw = max(float(np.max(noise.vrw_mps_sqrth)) / 60.0,
+                  float(np.max(white_noise(imu.dvel_b[lo + 1:ie + 1], dt))))
+    g = float(earth.normal_gravity(gnss.lla[k_fix, 0], gnss.lla[k_fix, 2]))
+    start = None
+    for j in range(1, len(rows)):
+        # at rest over (t[rows[j]], t_fix]: the mean rate and specific force are the
+        # sensors' (Earth rate, gravity, biases); what departs from them integrated
+        # back from the fix (velocity zero there) is the velocity and the rotation
+        w_ref, f_ref = th_back[j] / T[j], dv_back[j] / T[j]
+        vel = np.linalg.norm(dv_back[:j + 1] - np.outer(T[:j + 1], f_ref), axis=1)
+        rot = np.linalg.norm(th_back[:j + 1] - np.outer(T[:j + 1], w_ref), axis=1)
+        still = (abs(np.linalg.norm(f_ref) - g) <= 0.05 * g
+                 and vel.max() <= REST_SPEED_MPS + 5.0 * vrw * np.sqrt(T[j])
+                 and rot.max() <= max(np.deg2rad(PRE_FIX_ROTATION_DEG),
+                                      5.0 * arw * np.sqrt(T[j])))
+        if not still:
+            break
+        start = float(t[rows[j]])
+    if start is None or t_fix - start < MIN_REST_S:
+        return None
+    return start
 
 
 def noise_from_rest(imu, t_start, t_end, gyro_bias_b):

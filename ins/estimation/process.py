@@ -16,7 +16,12 @@ import numpy as np
 
 from ins.common.errors import InputError, QualityError, QualityWarning
 from ins.estimation import _filter_kernels, process_identify
-from ins.estimation.alignment import align_gnss_heading, align_static, check_static_heading
+from ins.estimation.alignment import (
+    align_gnss_heading,
+    align_static,
+    check_static_heading,
+    gnss_heading_epoch,
+)
 from ins.estimation.error_model import NAV, STATE
 from ins.estimation.filter import run_forward
 from ins.estimation.filter_settings import FilterSettings
@@ -30,6 +35,7 @@ from ins.estimation.process_trust import (
     check_start,
     first_fix_at,
     fix_name,
+    start_report,
 )
 from ins.estimation.smoother import iter_smoothed, rts_errors
 from ins.io.gnss import read_gnss
@@ -167,6 +173,10 @@ class _Start:
     how: str = None
     noise: object = None          # IMU noise settings found at the start (none given)
     rest_noise: object = None     # the noise measured over a rest at the start, if any
+    heading_from: str = None      # "gyrocompass": a log that never moves (else None)
+    skipped: tuple = None         # IMU span (s) before the start, skipped: no GNSS there
+    heading_floor_deg: float = None   # gyrocompass: the heading sigma the rest allows
+    rest_windows: tuple = ()      # known rests (s): zero-velocity updates there
 
 
 def _lever(cfg, mount=None):
@@ -243,8 +253,12 @@ def _start(cfg, blocks, gnss, lever=None):
             raise InputError("[alignment] static_window_s: needed with method 'static'")
         t_a, t_b = cfg.static_window_s
         lla_w, k = _window_lla(cfg, gnss, t_a, t_b)
-        if not check_static_heading(cfg.noise, float(lla_w[0]), t_b - t_a, gnss):
-            return _in_air(cfg, gnss, t_b, lever, blocks)
+        moves = gnss_heading_epoch(gnss, t_b) is not None
+        if not check_static_heading(cfg.noise, float(lla_w[0]), t_b - t_a, gnss,
+                                    fallback="gnss-heading" if moves else "anywhere"):
+            if moves:
+                return _in_air(cfg, gnss, t_b, lever, blocks)
+            return _anywhere(cfg, gnss, lever, blocks, t_a)     # slow, or never moves
         head, blocks = _read_until(blocks, t_b)
         imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
                              for k_ in ("time", "dtheta_b", "dvel_b")))
@@ -273,25 +287,69 @@ def _method(cfg):
     return "static" if cfg.static_window_s is not None else "anywhere"
 
 
-def _anywhere(cfg, gnss, lever, blocks):
+def _anywhere(cfg, gnss, lever, blocks, t_start=None):
     """Start from the IMU and the GNSS alone (:func:`align_anywhere`): the IMU blocks up
-    to the end of the matching window are read ahead and given back."""
-    from ins.estimation.motion_alignment import MAX_WINDOW_S, align_anywhere, noise_from_rest
+    to the end of the matching window are read ahead and given back.  An IMU log that
+    starts long before the first GNSS fix starts at the fix, or at the IMU's rest before
+    it (:func:`~ins.estimation.motion_alignment.rest_before_fix`); the IMU before is
+    skipped (``_Start.skipped``)."""
+    from ins.estimation.motion_alignment import (
+        FIX_DELAY_S,
+        MAX_PRE_FIX_REST_S,
+        MAX_WINDOW_S,
+        align_anywhere,
+        noise_from_rest,
+        rest_before_fix,
+    )
     first, blocks = _peek(blocks)
-    t_start = cfg.start_s if cfg.start_s is not None else float(first.time[0])
-    head, rest = [], iter(blocks)
+    if t_start is None:
+        t_start = cfg.start_s if cfg.start_s is not None else float(first.time[0])
+    k_fix = first_fix_at(gnss, t_start)
+    late = k_fix is not None and gnss.time[k_fix] - t_start > FIX_DELAY_S
+    t_ref = float(gnss.time[k_fix]) if late else t_start
+    head, rest, t_log = [], iter(blocks), float(first.time[0])
     for b in rest:                                # enough IMU for any matching window
+        if late and b.time[-1] < t_ref - MAX_PRE_FIX_REST_S:
+            head = [b]                            # long before the fix: not kept
+            continue
         head.append(b)
-        if b.time[-1] >= t_start + MAX_WINDOW_S + 1.0 + _rest_length(gnss, t_start):
+        if b.time[-1] >= t_ref + MAX_WINDOW_S + 1.0 + _rest_length(gnss, t_ref):
             break
     imu = ImuLog.adopt(*(np.concatenate([getattr(b, k_) for b in head])
                          for k_ in ("time", "dtheta_b", "dvel_b")))
-    ms = align_anywhere(imu, gnss, t_start, cfg.noise)
+    skipped, delay, rest_windows = None, FIX_DELAY_S, ()
+    t_origin = max(t_log, t_start)
+    if late and imu.time[-1] < t_ref:
+        raise InputError(f"{cfg.imu}: the IMU log ends at {float(imu.time[-1]):.3f} s, before "
+                         f"the first GNSS fix ({fix_name(gnss, k_fix)}): nothing to process "
+                         f"(check the time scales of the two logs)")
+    if late:
+        t_rest = rest_before_fix(imu, gnss, k_fix, cfg.noise)
+        t_run = t_ref if t_rest is None else max(t_rest, t_start)
+        if t_run < t_ref:                 # no GNSS there: the filter is told it is at rest
+            rest_windows = ((t_run, t_ref),)
+        skipped = (t_origin, t_run)
+        delay += t_ref - t_run
+        t_start = t_run
+    ms = align_anywhere(imu, gnss, t_start, cfg.noise, fix_delay_s=delay)
     al = ms.alignment
     noise, how, rest_noise = None, ms.how, None
     if (cfg.noise_source is not None and ms.gyro_bias_b is not None
             and process_identify.wanted(cfg)):     # a starting point beside the preset
         rest_noise = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)[0]
+    if skipped is not None:
+        skipped = (skipped[0], al.time) if al.time - skipped[0] > 1e-6 else None
+        text = (f"the IMU log starts {t_ref - t_origin:.1f} s before the first GNSS fix "
+                f"({fix_name(gnss, k_fix)}): the run starts ")
+        if t_start >= t_ref:
+            text += "at the fix (the IMU is not at rest before it)"
+        else:
+            text += (f"with the IMU's rest {t_ref - al.time:.1f} s before it (zero-velocity "
+                     f"updates over it)")
+        if skipped is not None:
+            text += (f"; the IMU span {skipped[0]:.3f} .. {skipped[1]:.3f} s "
+                     f"({skipped[1] - skipped[0]:.1f} s) is skipped")
+        how = text + "; " + how
     if cfg.noise_source is None and ms.gyro_bias_b is not None:
         noise, text = noise_from_rest(imu, al.time, al.time + ms.rest_s, ms.gyro_bias_b)
         how += "; " + text
@@ -304,16 +362,21 @@ def _anywhere(cfg, gnss, lever, blocks):
     return _Start(al.state, al.time, al, itertools.chain(head, rest), initial_time=al.time,
                   position_source="the start position from the GNSS (anywhere alignment)",
                   gyro_bias_b=ms.gyro_bias_b, how=how, noise=noise,
-                  rest_noise=noise if rest_noise is None else rest_noise)
+                  rest_noise=noise if rest_noise is None else rest_noise,
+                  heading_from=ms.heading_from, skipped=skipped,
+                  heading_floor_deg=ms.heading_floor_deg, rest_windows=rest_windows)
 
 
 def _rest_length(gnss, t_start):
-    """Length of the rest at ``t_start`` seen by the GNSS, s (0 when moving)."""
-    from ins.estimation.motion_alignment import REST_SPEED_MPS, gnss_velocities
+    """Length of the rest at ``t_start`` seen by the GNSS, s (0 when moving; for a log
+    that never moves, what a gyrocompass start reads: at most ``MAX_STATIC_S``)."""
+    from ins.estimation.motion_alignment import MAX_STATIC_S, REST_SPEED_MPS, gnss_velocities
     v = gnss_velocities(gnss)
     k0 = int(np.searchsorted(gnss.time, t_start - 1e-9))
     moving = np.flatnonzero(np.hypot(v[k0:, 0], v[k0:, 1]) >= REST_SPEED_MPS)
-    return 0.0 if not len(moving) else float(gnss.time[k0 + moving[0]] - t_start)
+    if not len(moving):
+        return MAX_STATIC_S if k0 < len(gnss) else 0.0
+    return float(gnss.time[k0 + moving[0]] - t_start)
 
 
 def _in_air(cfg, gnss, t_start, lever, blocks):
@@ -432,6 +495,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
         cfg.noise = settings.noise
     result.quality = assess_quality(result, gnss, lever, cfg)
     q = result.quality
+    q["start"] = start_report(result, st.heading_from, st.skipped, st.heading_floor_deg)
     for msg in q["warnings"]:
         warnings.warn(msg, QualityWarning, stacklevel=2)
     if q["error"] is not None:
@@ -473,12 +537,17 @@ def _prepare(cfg, gnss, lever):
     start = t0 if t0 is not None else cfg.start_s
     sensors0 = None if st.gyro_bias_b is None else np.concatenate([st.gyro_bias_b,
                                                                     np.zeros(9)])
+    options = filter_options(cfg)
+    if st.rest_windows:                   # the rest before the first fix: known at rest
+        options["zupt_windows_s"] = tuple(options.get("zupt_windows_s", ())) + st.rest_windows
+    if st.heading_from == "gyrocompass":  # a log that never moves: unless the user said no,
+        options.setdefault("zupt", True)  # zero-velocity updates where the IMU is at rest
     settings = FilterSettings(noise=cfg.noise if st.noise is None else st.noise, lever=lever,
                               use_velocity=cfg.use_velocity,
                               reject_probability=cfg.reject_probability,
                               node_interval_s=cfg.node_interval_s, **std,
                               initial_sensors=sensors0, recover=cfg.recover,
-                              heading=_headings(cfg, start), **filter_options(cfg))
+                              heading=_headings(cfg, start), **options)
     return st, start_check, settings, start
 
 

@@ -30,7 +30,10 @@ with the unit in the name::
                  static_window_s = [t0, t1]; "auto" (the default) is "given" when
                  [initial] has rpy_deg and vel_ned_mps, "static" with a static window,
                  else "anywhere" (ins.estimation.motion_alignment: level and gyro
-                 biases from a rest at the start, heading by velocity matching)
+                 biases from a rest at the start, heading by velocity matching; a log
+                 that never moves: the gyrocompass heading with a broad prior; an IMU
+                 that starts before the first fix: the run starts at the fix or at
+                 the IMU's rest before it)
     [filter]     start_s, end_s, node_interval_s = 1.0, smooth = true, recover = true,
                  identify = true (with no noise given, or a preset: the IMU noise, the
                  land-vehicle constraint and the GNSS velocity lag are identified from

@@ -343,3 +343,31 @@ def _causes(result, q, cfg):
     if not causes:
         return f"Likely cause: one of {generic}."
     return "Likely cause: " + "; ".join(causes) + f". Also check: {generic}."
+
+
+def start_report(result, heading_from=None, skipped=None, heading_floor_deg=None):
+    """What the start left open, for the summary: ``{"imu_skipped_s": (t_a, t_b) or
+    None, "heading_from": str, "heading_std_deg": float, "heading_filter_std_deg":
+    float, "heading_resolved": bool}``.
+
+    ``heading_filter_std_deg`` is the largest sigma of the written solution's heading
+    (the attitude error about the vertical, smoothed, else forward) over the nodes;
+    ``heading_std_deg`` the same, but at least ``heading_floor_deg`` (deg) when given:
+    the bound of a log that never moved, which the filter's linear model can claim to
+    beat (:mod:`ins.estimation.motion_alignment`, module notes 4.).  Resolved when it
+    is at most :data:`ins.estimation.alignment.MAX_STATIC_HEADING_DEG` (2 deg).
+    ``heading_from``: ``"gyrocompass"`` for a log that never moved (the heading is then
+    what the Earth rate and the gyro biases allow), else the alignment's method
+    (``"given"`` without one).  ``skipped`` is the IMU span before the start (s) that
+    was not processed.
+    """
+    from ins.estimation.alignment import MAX_STATIC_HEADING_DEG
+    from ins.estimation.error_model import STATE
+    std = np.asarray(result.smoothed_std)
+    filt = np.rad2deg(float(np.max(std[:, STATE.att.start + 2]))) if len(std) else np.nan
+    head = filt if heading_floor_deg is None else max(filt, float(heading_floor_deg))
+    al = result.alignment
+    source = heading_from or (al.method if al is not None else "given")
+    return {"imu_skipped_s": None if skipped is None else tuple(float(t) for t in skipped),
+            "heading_from": source, "heading_std_deg": head, "heading_filter_std_deg": filt,
+            "heading_resolved": bool(head <= MAX_STATIC_HEADING_DEG)}
