@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ins.common.errors import InputError, QualityWarning
-from ins.nav.rotation import skew
+from ins.nav.rotation import skew, wrap_to_pi
 from photogrammetry.adjustment import _coplanarity_kernels as K
 from photogrammetry.adjustment import _msac_kernels as MK
 from photogrammetry.orientation.rotation import angles_to_matrix, check_system
@@ -135,7 +135,7 @@ def _normalized_residuals(out):
 def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-free",
                  base=None, mask=None, sigma_mm=0.005, snooping=True,
                  w_critical=W_CRITICAL, max_reject=0.3, max_iter=30, robust=True,
-                 msac_threshold=MSAC_THRESHOLD, seed=0, max_change=MAX_CHANGE):
+                 msac_threshold=MSAC_THRESHOLD, seed=0, max_change=MAX_CHANGE, essential=True):
     """Adjust image 2's angles of many pairs at once (vectorized).
 
     Parameters
@@ -170,6 +170,13 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         a known base).
     max_change : float
         Rad; a minimal-sample hypothesis farther than this from the prior is discarded.
+    essential : bool
+        With the robust start, also a start that does not depend on the prior: the
+        five-point essential matrix by RANSAC (USAC_MAGSAC) on the normalized image
+        coordinates and its pose (:mod:`photogrammetry.adjustment.essential`), which
+        replaces the MSAC winner when its MSAC cost is lower (or MSAC found nothing) and
+        it lies within `max_change` of the prior.  Pairs that have fewer inliers than
+        their unknowns are still refused (status "too few tie points").
 
     Returns
     -------
@@ -218,7 +225,7 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     if robust:
         angles2, base, mask, hypotheses = _robust_start(
             u1, u2, mask, R1, angles2, np.where(zero[:, None], 1.0, base), mode, system,
-            sigma_mm, msac_threshold, seed, max_change, max_iter)
+            sigma_mm, msac_threshold, seed, max_change, max_iter, essential)
         rejected = ~mask & _stack_mask(xy1_mm, mask_in)
     robust_rejected = rejected.copy()
     n_snooped = np.zeros(P, dtype=int)
@@ -256,9 +263,56 @@ def _stack_mask(xy, mask_in):
     return np.ones(shape, bool) if mask_in is None else np.asarray(mask_in, bool)
 
 
+def _msac_cost(u1, u2, mask, R1, angles2, base, system, sigma_mm, threshold):
+    """MSAC cost ``sum min(g^2 / var, t^2)`` over the masked points and the inliers
+    (``g^2 / var < t^2``) of the hypotheses ``angles2`` (P, 3), ``base`` (P, 3) unit."""
+    R2 = angles_to_matrix(angles2, system)
+    r1 = np.einsum("pij,pnj->pni", R1, u1)
+    r2 = np.einsum("pij,pnj->pni", R2, u2)
+    g, var = K.condition_terms(r1, r2, base, R1, R2, sigma_mm)[:2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.where(var > 0, g * g / np.where(var > 0, var, 1.0), np.inf)
+    t2 = float(threshold) ** 2
+    inl = mask & (e < t2)
+    return np.sum(np.where(mask, np.minimum(e, t2), 0.0), axis=1), inl
+
+
+def _essential_candidate(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, threshold,
+                         seed, max_change, ang, b, inl, st):
+    """The prior-free start (:func:`photogrammetry.adjustment.essential.essential_starts`)
+    against the MSAC winner from the prior, in place: per pair, the essential matrix's
+    pose replaces the winner (``ang``, ``b``, ``inl``, ``st``) when its MSAC cost on all
+    points is lower (or MSAC found no hypothesis) and it lies within `max_change` of the
+    prior (the farther of a near-planar scene's two poses, or a wrong one, does not).
+    With a known base only its rotation is used, scored with the given base."""
+    from photogrammetry.adjustment.essential import essential_starts
+    todo = np.flatnonzero(st != MK.MSAC_TOO_FEW)
+    if len(todo) == 0:
+        return
+    f = -u1[todo, 0, 2]
+    e_ang, e_b, e_ok = essential_starts(u1[todo, :, :2], u2[todo, :, :2], mask[todo], f,
+                                        R1[todo], system, threshold * sigma_mm, seed=seed)
+    near = e_ok & np.all(np.abs(wrap_to_pi(np.nan_to_num(e_ang) - prior2[todo]))
+                         < max_change, axis=1)
+    todo, e_ang, e_b = todo[near], e_ang[near], e_b[near]
+    if len(todo) == 0:
+        return
+    if mode == "known":
+        e_b = base[todo] / np.linalg.norm(base[todo], axis=1, keepdims=True)
+    u1t, u2t, mt, R1t = u1[todo], u2[todo], mask[todo], R1[todo]
+    cost_e, inl_e = _msac_cost(u1t, u2t, mt, R1t, e_ang, e_b, system, sigma_mm, threshold)
+    cost_m, _ = _msac_cost(u1t, u2t, mt, R1t, ang[todo], b[todo], system, sigma_mm,
+                           threshold)
+    take = (st[todo] != MK.MSAC_OK) | (cost_e < cost_m)
+    take &= inl_e.sum(axis=1) > 0
+    idx = todo[take]
+    ang[idx], b[idx], inl[idx], st[idx] = e_ang[take], e_b[take], inl_e[take], MK.MSAC_OK
+
+
 def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, threshold, seed,
-                  max_change, max_iter):
-    """MSAC on minimal samples, Gauss-Newton on the inliers, re-classification of all
+                  max_change, max_iter, essential=True):
+    """MSAC on minimal samples (and the essential matrix's pose, whichever scores better:
+    :func:`_essential_candidate`), Gauss-Newton on the inliers, re-classification of all
     points at that solution, Gauss-Newton again (no snooping).
 
     Returns the start angles (P, 3) and bases (P, 3), the points kept (P, n) and the
@@ -273,6 +327,9 @@ def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, thresh
                   f64(R1, dtype=float), f64(prior2, dtype=float), f64(base, dtype=float),
                   mode == "known", order, sign, s2, t2, 0.999, 10, 500, float(max_change),
                   int(seed), ang, b, inl, st, hyp)
+    if essential:
+        _essential_candidate(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm,
+                             threshold, seed, max_change, ang, b, inl, st)
     ok = st == MK.MSAC_OK
     keep = np.where(ok[:, None], inl, mask)
     if mode == "known":
