@@ -277,6 +277,10 @@ def _msac_cost(u1, u2, mask, R1, angles2, base, system, sigma_mm, threshold):
     return np.sum(np.where(mask, np.minimum(e, t2), 0.0), axis=1), inl
 
 
+def _unit(b):
+    return b / np.linalg.norm(b, axis=1, keepdims=True)
+
+
 def _essential_candidate(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, threshold,
                          seed, max_change, ang, b, inl, st):
     """The prior-free start (:func:`photogrammetry.adjustment.essential.essential_starts`)
@@ -315,8 +319,14 @@ def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, thresh
     :func:`_essential_candidate`), Gauss-Newton on the inliers, re-classification of all
     points at that solution, Gauss-Newton again (no snooping).
 
+    A re-classification keeps the points used whose studentized residual is below the
+    threshold and adds the others whose studentized prediction error AND plain
+    normalized misclosure are below it; a Gauss-Newton run that fails, or raises the
+    MSAC cost on all points, is undone (its set, angles and base back to the last
+    accepted ones) and the pair stops there.
+
     Returns the start angles (P, 3) and bases (P, 3), the points kept (P, n) and the
-    number of hypotheses per pair; pairs where a step fails keep the previous one's."""
+    number of hypotheses per pair."""
     P, n = mask.shape
     f64 = np.ascontiguousarray
     order, sign, s2 = K._ORDER[system], K._SIGN[system], float(sigma_mm) ** 2
@@ -334,6 +344,15 @@ def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, thresh
     keep = np.where(ok[:, None], inl, mask)
     if mode == "known":
         b = base
+    # the robust objective (the MSAC cost on all points) of the accepted solution: a
+    # Gauss-Newton run on a re-classified set that raises it, or that fails, is undone
+    # (set, angles and base back to the last accepted: a weak pair's wide prediction
+    # sigmas can let wrong matches in, which then pull the solution away)
+    cost = np.full(P, np.inf)
+    if ok.any():
+        cost[ok] = _msac_cost(u1[ok], u2[ok], mask[ok], R1[ok], ang[ok],
+                              _unit(b[ok]), system, sigma_mm, threshold)[0]
+    accepted = keep.copy()
     todo = ok.copy()
     for _ in range(5):      # GN on the kept points; re-classify all points there; repeat
         idx = np.flatnonzero(todo)          # until the set is stable
@@ -342,10 +361,21 @@ def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, thresh
         part = K.solve_pairs(u1[idx], u2[idx], keep[idx], R1[idx], ang[idx], b[idx], mode,
                              system, sigma_mm, max_iter)
         good = part["status"] == K.STATUS_OK
-        idx = idx[good]
+        new_b = b[idx] if mode == "known" else part["base"]
+        c_new = np.full(len(idx), np.inf)
+        if good.any():
+            c_new[good] = _msac_cost(u1[idx[good]], u2[idx[good]], mask[idx[good]],
+                                     R1[idx[good]], part["angles"][good],
+                                     _unit(new_b[good]), system, sigma_mm, threshold)[0]
+        good &= c_new <= cost[idx] * (1.0 + 1e-9)
+        back = idx[~good]
+        keep[back] = accepted[back]
+        idx, c_new = idx[good], c_new[good]
         ang[idx] = part["angles"][good]
         if mode != "known":
             b[idx] = part["base"][good]
+        cost[idx] = c_new
+        accepted[idx] = keep[idx]
         w = np.empty((len(idx), n))
         MK.studentized_misclosures(f64(u1[idx], dtype=float), f64(u2[idx], dtype=float),
                                    f64(mask[idx], dtype=np.bool_),
@@ -353,11 +383,19 @@ def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, thresh
                                    f64(ang[idx]), f64(b[idx]), f64(part["Q"][good]), order,
                                    sign, s2, w)
         again = mask[idx] & (np.abs(w) < threshold)         # inf (no redundancy): out
+        # a point not used enters only when its plain normalized misclosure is below
+        # the threshold too (the MSAC inlier test at this solution): the prediction
+        # sigma of a weak pair is wide enough to let wrong matches in, which the next
+        # Gauss-Newton run then fits by turning about the weak direction
+        _, plain = _msac_cost(u1[idx], u2[idx], mask[idx], R1[idx], ang[idx],
+                              _unit(b[idx]), system, sigma_mm, threshold)
+        again &= keep[idx] | plain
         enough = again.sum(axis=1) >= _MIN_MODE[mode] + 1
         changed = enough & np.any(again != keep[idx], axis=1)
         keep[idx[enough]] = again[enough]
         todo[:] = False
         todo[idx[changed]] = True
+    keep[todo] = accepted[todo]         # a re-classification never tried (5 rounds done)
     return ang, b, keep, hyp
 
 
