@@ -6,6 +6,7 @@ import errno
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -593,3 +594,99 @@ def test_an_interrupt_lost_in_a_finalizer_comes_back(handler_installed, capsys):
     assert ref() is None
     err = capsys.readouterr().err
     assert "Exception ignored" not in err and "Traceback" not in err
+
+
+# SIGTERM like Ctrl-C (issue 35 item 5; the subprocess checks are in tests/test_interrupt.py)
+
+def test_sigterm_inside_an_output_folder_exits_143_and_leaves_nothing(tmp_path, capsys,
+                                                                      handler_installed):
+    """A real SIGTERM (os.kill of this process) while an output folder is being built:
+    the handler turns it into the Ctrl-C path (KeyboardInterrupt), the staging folder is
+    removed, exit 143 and the one line; SIGINT still gives 130 and "interrupted"."""
+    import signal as signal_
+
+    from ins.common import fileio
+    out = tmp_path / "out"
+
+    def build(args):
+        with fileio.output_folder(out) as tmp:
+            Path(tmp, "half.txt").write_text("half")
+            os.kill(os.getpid(), args.signum)
+            time.sleep(5)                     # the handler raises before this ends
+        return 0
+
+    for signum, code, word in ((signal_.SIGTERM, 143, "terminated (SIGTERM)"),
+                               (signal_.SIGINT, 130, "interrupted")):
+        handler_installed.reset()
+        args = argparse.Namespace(command="process", func=build, output=str(out),
+                                  signum=signum)
+        t0 = time.perf_counter()
+        assert ins_cli.run_command(args, "ins") == code
+        assert time.perf_counter() - t0 < 4
+        assert capsys.readouterr().err == f"ins process: {word}; no output written\n"
+        assert os.listdir(tmp_path) == []
+        assert handler_installed.stop_signal() == signum
+
+
+def _fake_staging(parent, name, record):
+    from ins.common.fileio import OWNER_FILE
+    folder = parent / name
+    (folder / "sub").mkdir(parents=True)
+    (folder / "sub" / "big.bin").write_bytes(b"x" * 1000)
+    if record is not None:
+        (folder / OWNER_FILE).write_text("".join(f"{k}={v}\n" for k, v in record.items()))
+    return folder
+
+
+def test_stale_staging_removed_only_when_its_owner_is_gone(tmp_path):
+    """Fake staging folders beside ``out``: the one of a dead process (a child that has
+    exited), of a live one (this process), of this process id with another start time
+    (the id reused after the owner died), of another host, and without a record.
+    output_folder removes the dead and the reused ones (a warning each, naming the
+    folder and the process) and leaves the others (a warning each); another output's
+    staging folder is not touched; a ``.old`` of a dead owner goes once ``out`` exists.
+    The new staging folder holds this process's record during the work, not after."""
+    import socket
+
+    from ins.common import fileio
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    me = dict(pid=os.getpid(), host=socket.gethostname())
+    mine = dict(me, **{k: v for k, v in (("boot", fileio._boot_id()),
+                                         ("start", fileio._start_ticks(os.getpid())))
+                       if v is not None})
+    dead = _fake_staging(tmp_path, ".out.dead0001.part", dict(me, pid=child.pid))
+    alive = _fake_staging(tmp_path, ".out.alive001.part", mine)
+    reused = _fake_staging(tmp_path, ".out.reused01.part", dict(mine, start=1))
+    remote = _fake_staging(tmp_path, ".out.remote01.part", dict(me, host="elsewhere.example"))
+    unknown = _fake_staging(tmp_path, ".out.norec001.part", None)
+    other = _fake_staging(tmp_path, ".other.dead0001.part", dict(me, pid=child.pid))
+    out = tmp_path / "out"
+    with pytest.warns(fileio.StagingWarning) as caught:
+        with fileio.output_folder(out) as tmp:
+            record = Path(tmp, fileio.OWNER_FILE).read_text()
+            assert f"pid={os.getpid()}\n" in record
+            Path(tmp, "result.txt").write_text("ok")
+    text = [str(w.message) for w in caught]
+    assert not dead.exists() and not reused.exists()
+    assert alive.exists() and remote.exists() and unknown.exists() and other.exists()
+    assert sorted(os.listdir(out)) == ["result.txt"]
+    assert any(t.startswith(f"removed {out.parent / dead.name}, the staging folder of a run "
+                            f"that was killed (process {child.pid} on ") for t in text), text
+    assert any(t.startswith(f"removed {out.parent / reused.name}") for t in text), text
+    assert any(f"{alive.name}: staging folder of a run still in progress (process "
+               f"{os.getpid()}" in t for t in text), text
+    assert any(f"{remote.name}: staging folder of another run, left alone (its owner runs "
+               "on another host" in t for t in text), text
+    assert any(f"{unknown.name}: staging folder of another run, left alone (it has no "
+               "owner record" in t for t in text), text
+    assert len(text) == 5
+    old = _fake_staging(tmp_path, ".out.gone0001.old", dict(me, pid=child.pid))
+    import warnings
+    with warnings.catch_warnings(record=True) as again:
+        warnings.simplefilter("always")
+        assert fileio.clear_stale_staging(out) == [str(old)]
+    assert any("the replaced out that a killed run was deleting" in str(w.message)
+               for w in again) and len(again) == 4       # and the three left alone
+    assert fileio.owner_state(alive)[0] == "alive"
+    assert fileio.owner_state(tmp_path / "nothing-here")[0] == "unknown"

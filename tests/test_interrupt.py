@@ -222,3 +222,153 @@ def test_ctrl_c_in_a_dask_run_of_refine(tiled_block, tmp_path):
           f"{dict(outcomes)}")
     assert not problems, "\n".join(problems)
     assert outcomes["130"] + outcomes["130, output complete"] >= RUNS // 2
+
+
+# --- SIGTERM (issue 35 item 5): what batch schedulers, `timeout` and `kill` send -------
+
+TERMINATED = "terminated (SIGTERM); no output written"
+
+
+def _staging(folder):
+    """Hidden staging or moved-aside folders (``.NAME.XXXXXXXX.part`` / ``.old``)."""
+    return [p for p in _listing(folder) if p.endswith((".part", ".old"))]
+
+
+def _wait_for_staging(proc, work, timeout=300):
+    """Wait until the run has made its staging folder (it is then mid-run); False if it
+    ended first."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < timeout:
+        if any(p.endswith(".part") for p in os.listdir(work)):
+            return True
+        if proc.poll() is not None:
+            return False
+        time.sleep(0.02)
+    return False
+
+
+@pytest.mark.parametrize("name", ["simulate", "process"])
+def test_sigterm_mid_run_of_a_folder_command(name, flight, tmp_path):
+    """SIGTERM while ``ins simulate`` / ``ins process`` is building its output folder
+    (its hidden staging folder, tens of MB, exists): exit 143, one stderr line
+    ``... terminated (SIGTERM); no output written``, no traceback, and the folder exactly
+    as before: no staging folder left (before: exit 143 from Python's default action, no
+    message, the staging folder left behind)."""
+    argv, _, _, _ = _command(name, flight)
+    work = tmp_path / "run"
+    work.mkdir()
+    proc = _start(argv, work)
+    assert _wait_for_staging(proc, work), proc.communicate()
+    time.sleep(0.3)                          # into the work, past the staging's creation
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=600)
+    lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
+    assert proc.returncode == 143, err
+    assert lines == [f"ins {name}: {TERMINATED}"], err
+    assert "Traceback" not in err
+    assert _listing(work) == []
+
+
+def test_sigterm_mid_run_of_refine(flight, tmp_path):
+    """SIGTERM in the middle of ``photogrammetry refine`` (report and plots): exit 143,
+    the one line, nothing written (no output, no hidden temporary)."""
+    argv, _, _, _ = _command("refine", flight)
+    duration, _ = _reference(argv, tmp_path / "reference")
+    outcomes = []
+    for k, share in enumerate((0.5, 0.3, 0.15)):   # a busy machine may finish sooner
+        work = tmp_path / f"run{k}"
+        work.mkdir()
+        proc = _start(argv, work)
+        time.sleep(START_UP_S + share * duration)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=600)
+        lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
+        assert "Traceback" not in err, err
+        if proc.returncode == 0:
+            outcomes.append("finished first")
+            continue
+        assert proc.returncode == 143, err
+        assert lines == [f"photogrammetry refine: {TERMINATED}"], err
+        assert _listing(work) == []
+        outcomes.append("143")
+        break
+    assert "143" in outcomes, outcomes
+
+
+def test_sigterm_to_the_process_group_of_a_dask_run(tiled_block, tmp_path):
+    """SIGTERM to the whole process group (a batch scheduler's or ``timeout``'s way)
+    during ``refine --tile-images 8 --workers 2``: the main process exits 143 with the
+    one line, nothing written, nothing left in the temporary directory, and no worker
+    process survives."""
+    eo, tp, cam = tiled_block
+    argv = [sys.executable, "-m", "photogrammetry.cli.main", "refine", eo, tp, "--camera",
+            cam, "--datum", "ins", "--tile-images", "8", "--workers", "2", "-q", "-o",
+            "out.csv"]
+    work, tmp = tmp_path / "run", tmp_path / "tmp"
+    work.mkdir()
+    tmp.mkdir()
+    proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True,
+                            env=dict(os.environ, TMPDIR=str(tmp)))
+    t0 = time.perf_counter()                 # the cluster is up once its scratch is there
+    while not _listing(tmp) and proc.poll() is None and time.perf_counter() - t0 < 300:
+        time.sleep(0.05)
+    time.sleep(2.0)
+    os.killpg(proc.pid, signal.SIGTERM)
+    _, err = proc.communicate(timeout=600)
+    lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
+    assert proc.returncode == 143, err
+    assert lines == [f"photogrammetry refine: {TERMINATED}"], err
+    assert _listing(work) == [] and _listing(tmp) == []
+    t0 = time.perf_counter()        # the group empties: no worker left (the resource
+    while time.perf_counter() - t0 < 15:     # tracker exits after the main process and
+        try:                                 # is reaped by init: a second or two)
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.2)
+    else:
+        raise AssertionError(subprocess.run(["ps", "-o", "pid,stat,cmd", "-g",
+                                             str(proc.pid)], capture_output=True,
+                                            text=True).stdout)
+
+
+def test_a_killed_run_s_staging_folder_is_removed_by_the_next_run(flight, tmp_path):
+    """``ins process`` killed outright (SIGKILL) leaves its staging folder, with the
+    owner record (pid, host) of the dead process.  The next run into the same place
+    removes it (one warning line naming it) and writes the output; a staging folder
+    whose owner is alive (a sleeping process here) is left alone and named."""
+    from ins.common.fileio import OWNER_FILE
+    argv, _, _, _ = _command("process", flight)
+    work = tmp_path / "run"
+    work.mkdir()
+    proc = _start(argv, work)
+    assert _wait_for_staging(proc, work)
+    time.sleep(0.3)
+    proc.kill()
+    proc.communicate(timeout=60)
+    left = [p for p in os.listdir(work) if p.endswith(".part")]
+    assert len(left) == 1 and left[0].startswith(".out.")
+    record = (work / left[0] / OWNER_FILE).read_text()
+    assert f"pid={proc.pid}\n" in record
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    try:
+        alive = work / ".out.alive123.part"
+        alive.mkdir()
+        (alive / OWNER_FILE).write_text(record.replace(f"pid={proc.pid}\n",
+                                                       f"pid={sleeper.pid}\n")
+                                        .split("start=")[0])
+        again = _start(argv, work)
+        _, err = again.communicate(timeout=600)
+        assert again.returncode == 0, err
+        warns = [x for x in err.splitlines() if x.startswith("warning:")]
+        assert f"warning: removed {left[0]}, the staging folder of a run that was killed " \
+               f"(process {proc.pid} on " in err, err
+        assert any(".out.alive123.part: staging folder of a run still in progress "
+                   f"(process {sleeper.pid} on " in x for x in warns), err
+        assert sorted(os.listdir(work)) == [".out.alive123.part", "out"]
+        assert not (work / "out" / OWNER_FILE).exists()
+        assert (work / "out" / "solution.nav").is_file()
+    finally:
+        sleeper.kill()
+        sleeper.wait()

@@ -46,6 +46,20 @@ from ins.common.errors import InputError, InputWarning, QualityError
 
 EXIT_QUALITY = 3
 EXIT_INTERRUPTED = 130
+#: SIGTERM (batch schedulers, ``timeout``, ``kill``): 128 + 15, as the shell reports a
+#: process killed by it, but after the same clean-up as Ctrl-C and with one line.
+EXIT_TERMINATED = 143
+
+
+def _stop_code():
+    """Exit code of a run stopped by a signal: 143 for SIGTERM, 130 for Ctrl-C."""
+    return EXIT_TERMINATED if interrupts.stop_signal() == signal.SIGTERM else EXIT_INTERRUPTED
+
+
+def _stopped():
+    """The word of the one line: ``terminated (SIGTERM)`` or ``interrupted`` (Ctrl-C)."""
+    return ("terminated (SIGTERM)" if interrupts.stop_signal() == signal.SIGTERM
+            else "interrupted")
 
 
 MECHANIZE_EPILOG = """\
@@ -67,7 +81,7 @@ example:
       west: negative values as typed; --init-lla=-33.9,151.2,50 works too)
 
 exit codes: 0 success, 2 bad input or an unwritable output (one line naming the file),
-  130 Ctrl-C (no output written).
+  130 Ctrl-C, 143 SIGTERM (no output written).
 """
 
 
@@ -281,10 +295,10 @@ def run_main(build, argv, prog):
 
     Shared by ``ins`` and ``photogrammetry``.  Stdout and stderr are guarded against a
     reader that goes away (``| head``): further output is dropped, the command finishes
-    its files, the exit code is the command's own.  Ctrl-C exits 130 (see
-    :func:`run_command`); run as a program (``argv=None``) SIGINT is ignored once the
-    command has returned, so that an interrupt during the interpreter's shutdown cannot
-    turn a finished run into a killed one.
+    its files, the exit code is the command's own.  Ctrl-C exits 130, SIGTERM 143 (see
+    :func:`run_command`); run as a program (``argv=None``) SIGINT and SIGTERM are
+    ignored once the command has returned, so that a signal during the interpreter's
+    shutdown cannot turn a finished run into a killed one.
     """
     streams = sys.stdout, sys.stderr
     guards = _PipeGuard(sys.stdout), _PipeGuard(sys.stderr)
@@ -300,23 +314,24 @@ def run_main(build, argv, prog):
         except BaseException as exc:
             if not interrupts.caused_by_interrupt(exc):
                 raise
-            _say(f"{prog}: interrupted; no output written")
-            return EXIT_INTERRUPTED
+            _say(f"{prog}: {_stopped()}; no output written")
+            return _stop_code()
         return run_command(args, prog)
     except KeyboardInterrupt:       # between the command's end and here
         if args is not None and hasattr(args, "command"):
             return _interrupted(args, prog)
-        _say(f"{prog}: interrupted; no output written")
-        return EXIT_INTERRUPTED
+        _say(f"{prog}: {_stopped()}; no output written")
+        return _stop_code()
     finally:
-        interrupts.close()          # from here on SIGINT is ignored by the handler
+        interrupts.close()          # from here on the handler ignores SIGINT and SIGTERM
         for guard in guards:        # a pipe's buffered rest: EPIPE here, not at exit
             guard.flush()
         sys.stdout, sys.stderr = streams
         if argv is None and threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            for signum in interrupts.SIGNALS:
+                signal.signal(signum, signal.SIG_IGN)
             if interrupts.interrupted():
-                _exit_now(EXIT_INTERRUPTED)
+                _exit_now(_stop_code())
         else:
             restore()
 
@@ -443,6 +458,9 @@ def run_command(args, prog):
     :class:`~ins.common.errors.QualityError` (untrustworthy result) 3     ``PROG CMD: error: ...``
     Ctrl-C (also when it surfaced wrapped in another         130   ``PROG CMD: interrupted;
     exception, e.g. from a numba dispatcher or the JIT)             no output written``
+    SIGTERM (the same clean-up as Ctrl-C)                    143   ``PROG CMD: terminated
+                                                                   (SIGTERM); no output
+                                                                   written``
     ======================================================  ====  =======================
 
     An interrupt is held back while an output is renamed into place
@@ -491,11 +509,11 @@ def _failure(exc, args, prog, caught):
 def _interrupted(args, prog):
     written = interrupts.written_outputs()
     if written:
-        _say(f"{prog} {args.command}: interrupted after the output was complete: "
+        _say(f"{prog} {args.command}: {_stopped()} after the output was complete: "
              + ", ".join(user_path(p) for p in written))
     else:
-        _say(f"{prog} {args.command}: interrupted; no output written")
-    return EXIT_INTERRUPTED
+        _say(f"{prog} {args.command}: {_stopped()}; no output written")
+    return _stop_code()
 
 
 def _flush_warnings(caught):

@@ -82,7 +82,7 @@ trust (checked before anything is written):
 exit codes:
   0 success; 2 bad input (files, config, options, start far from the GNSS fixes, an
   output folder that is not empty without --force); 3 untrustworthy solution (nothing
-  written without --accept-poor); 130 interrupted (Ctrl-C; nothing written).
+  written without --accept-poor); 130 interrupted (Ctrl-C), 143 SIGTERM (nothing written).
 
 outputs (in -o OUT_DIR, a new or empty folder; --force replaces an existing one whole,
 built aside and swapped in: never a mix of two runs):

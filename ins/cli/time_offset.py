@@ -49,7 +49,7 @@ frames and units:
   RTKLIB .pos (positions: use --source position).
 
 exit codes: 0 success, 2 bad input (files, too few fixes at speed, no accelerations,
-  a minimum at the edge of the searched range), 130 Ctrl-C.
+  a minimum at the edge of the searched range), 130 Ctrl-C, 143 SIGTERM.
 
 example:
   ins time-offset --imu imu.txt --gnss gnss.txt

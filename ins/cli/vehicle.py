@@ -26,7 +26,7 @@ output:
   constraint (--preset land or [measurements] nhc = true).
 
 exit codes: 0 success, 2 bad input (file, fewer than two blocks of straight driving at
-  speed), 130 Ctrl-C.
+  speed), 130 Ctrl-C, 143 SIGTERM.
 
 example:
   ins process --config car.toml --preset mems -o first

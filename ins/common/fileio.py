@@ -1,11 +1,195 @@
-"""Atomic output files: written to a temporary file beside the target, renamed when complete."""
+"""Atomic output files: written to a temporary file beside the target, renamed when complete.
+
+Output folders are built in a hidden staging sibling (``.NAME.XXXXXXXX.part``) and
+swapped in whole (:func:`output_folder`).  A run stopped by Ctrl-C or SIGTERM removes its
+staging folder; one killed outright (SIGKILL, a power cut) cannot, so every staging
+folder holds a small owner record (:data:`OWNER_FILE`: process id, host, boot and
+process start time), removed just before the swap, and the next run into the same
+place removes the staging folders whose owner is gone (:func:`clear_stale_staging`);
+one whose owner is alive, runs on another host, or is unknown (no record) is left
+alone and named in a :class:`StagingWarning`.
+"""
 import contextlib
 import errno
 import os
+import re
 import shutil
+import socket
 import tempfile
+import warnings
 
 from ins.common import interrupts
+
+__all__ = ["atomic_open", "check_parent_directory", "check_output_file",
+           "check_output_folder", "output_folder", "clear_stale_staging", "owner_state",
+           "StagingWarning", "OWNER_FILE"]
+
+#: The owner record inside a staging folder (and inside a replaced output moved aside
+#: as ``.NAME.XXXXXXXX.old``): ``key=value`` lines ``pid``, ``host``, ``boot`` (the
+#: kernel's boot id, Linux) and ``start`` (the process start time in clock ticks since
+#: boot, Linux): a live process with the recorded id but another start time, or a boot
+#: id that changed, is not the owner (the id was reused).
+OWNER_FILE = ".insphoto-owner"
+
+
+class StagingWarning(UserWarning):
+    """A staging folder of an earlier run beside an output: removed (its process is
+    gone) or left alone (its process is alive, on another host, or unknown)."""
+
+
+def _read_text(path):
+    try:
+        with open(path) as fh:
+            return fh.read()
+    except OSError:
+        return None
+
+
+def _start_ticks(pid):
+    """The start time of process ``pid`` in clock ticks since boot (Linux), or None."""
+    text = _read_text(f"/proc/{pid}/stat")
+    if not text:
+        return None
+    try:        # the command name (field 2) is in parentheses and may hold spaces
+        return int(text[text.rindex(")") + 2:].split()[19])
+    except (ValueError, IndexError):
+        return None
+
+
+def _boot_id():
+    text = _read_text("/proc/sys/kernel/random/boot_id")
+    return text.strip() if text else None
+
+
+def _owner_record():
+    pid = os.getpid()
+    fields = {"pid": str(pid), "host": socket.gethostname(), "boot": _boot_id(),
+              "start": _start_ticks(pid)}
+    return "".join(f"{k}={v}\n" for k, v in fields.items() if v is not None)
+
+
+def _write_owner(folder):
+    with open(os.path.join(folder, OWNER_FILE), "w") as fh:
+        fh.write(_owner_record())
+
+
+def owner_state(folder):
+    """Whether the run that made the staging folder ``folder`` is still there.
+
+    Returns
+    -------
+    (state, owner) : (str, dict)
+        ``state`` is ``"gone"`` (no process with the recorded id on this host, or one
+        started at another time or before another boot: the id was reused),
+        ``"alive"`` (``os.kill(pid, 0)`` finds it, also when it belongs to another
+        user), ``"other-host"`` (recorded on another machine: cannot be checked) or
+        ``"unknown"`` (no readable owner record); ``owner`` the record's fields.
+    """
+    text = _read_text(os.path.join(folder, OWNER_FILE))
+    owner = {}
+    for line in (text or "").splitlines():
+        key, sep, value = line.partition("=")
+        if sep:
+            owner[key.strip()] = value.strip()
+    try:
+        pid = int(owner["pid"])
+    except (KeyError, ValueError):
+        return "unknown", owner
+    if pid <= 0:
+        return "unknown", owner
+    if owner.get("host") != socket.gethostname():
+        return "other-host", owner
+    boot = _boot_id()
+    if owner.get("boot") and boot and owner["boot"] != boot:
+        return "gone", owner
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return "gone", owner
+    except PermissionError:         # it exists, another user's
+        return "alive", owner
+    except OSError:
+        return "unknown", owner
+    start = _start_ticks(pid)
+    if owner.get("start") and start is not None and owner["start"] != str(start):
+        return "gone", owner
+    return "alive", owner
+
+
+def _staging_pattern(name):
+    return re.compile(r"^\." + re.escape(name) + r"\.[A-Za-z0-9_]{8}\.(?P<kind>part|old)$")
+
+
+def clear_stale_staging(path):
+    """Remove the staging folders that killed runs left beside the output folder
+    ``path`` (``.NAME.XXXXXXXX.part``, and ``.NAME.XXXXXXXX.old`` of a replaced output
+    once ``path`` exists again) when their process is gone; name the others.
+
+    Returns
+    -------
+    list of str
+        The folders removed.
+
+    Warns
+    -----
+    StagingWarning
+        For each folder removed (its owner's process id and host) and each one left
+        alone: its owner alive, on another host, or unknown (no owner record); and for
+        an ``.old`` folder of a gone owner while ``path`` is missing (the previous
+        output, moved aside by a run killed in the middle of its swap: not deleted).
+    """
+    path = os.fspath(path)
+    parent = os.path.dirname(os.path.abspath(path))
+    name = os.path.basename(os.path.abspath(path))
+    pattern = _staging_pattern(name)
+    removed = []
+    try:
+        entries = sorted(os.listdir(parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = pattern.match(entry)
+        folder = os.path.join(parent, entry)
+        if m is None or os.path.islink(folder) or not os.path.isdir(folder):
+            continue
+        shown = os.path.join(os.path.dirname(path), entry)
+        state, owner = owner_state(folder)
+        who = f"process {owner.get('pid', '?')} on {owner.get('host', '?')}"
+        if state == "gone" and (m.group("kind") == "part" or os.path.isdir(path)):
+            with interrupts.deferred():       # not half removed (the record last)
+                for sub in os.listdir(folder):
+                    if sub != OWNER_FILE:
+                        p = os.path.join(folder, sub)
+                        if os.path.isdir(p) and not os.path.islink(p):
+                            shutil.rmtree(p, ignore_errors=True)
+                        else:
+                            with contextlib.suppress(OSError):
+                                os.unlink(p)
+                shutil.rmtree(folder, ignore_errors=True)
+            if os.path.exists(folder):
+                warnings.warn(f"{shown}: could not remove the staging folder of a run that "
+                              f"was killed ({who}); remove it by hand", StagingWarning,
+                              stacklevel=3)
+            else:
+                removed.append(folder)
+                what = ("the staging folder of a run that was killed" if m.group("kind") ==
+                        "part" else f"the replaced {name} that a killed run was deleting")
+                warnings.warn(f"removed {shown}, {what} ({who})", StagingWarning,
+                              stacklevel=3)
+        elif state == "gone":
+            warnings.warn(f"{shown}: the previous {name}, moved aside by a run killed in "
+                          f"its swap ({who}); left alone (rename it back or remove it)",
+                          StagingWarning, stacklevel=3)
+        elif state == "alive":
+            warnings.warn(f"{shown}: staging folder of a run still in progress ({who}); "
+                          "left alone", StagingWarning, stacklevel=3)
+        else:
+            why = ("its owner runs on another host" if state == "other-host"
+                   else "it has no owner record")
+            warnings.warn(f"{shown}: staging folder of another run, left alone ({why}: "
+                          f"remove it by hand if no run is writing there)",
+                          StagingWarning, stacklevel=3)
+    return removed
 
 
 def _umask():
@@ -123,8 +307,13 @@ def output_folder(path, force=False):
     ``with`` block ends without an exception the sibling is renamed to ``path``; an
     existing folder (allowed only with ``force``, checked before and after the work) is
     moved aside first and deleted after the swap, so ``path`` is never a mix of an old
-    and a new run.  On any exception, KeyboardInterrupt included, the sibling is deleted
-    and ``path`` is left as it was.
+    and a new run.  On any exception, KeyboardInterrupt included (Ctrl-C and SIGTERM:
+    :mod:`ins.common.interrupts`), the sibling is deleted and ``path`` is left as it was.
+
+    The sibling holds an owner record (:data:`OWNER_FILE`) until just before the swap;
+    staging folders of earlier runs into ``path`` whose process is gone (killed outright)
+    are removed first (:func:`clear_stale_staging`, which warns about each one, removed
+    or left alone).
 
     Raises
     ------
@@ -135,17 +324,21 @@ def output_folder(path, force=False):
     check_output_folder(path, force)
     parent = os.path.dirname(os.path.abspath(path))
     name = os.path.basename(os.path.abspath(path))
+    clear_stale_staging(path)
     tmp = None
     try:
         with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
             try:
                 tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
+                _write_owner(tmp)
             except OSError as exc:
                 raise _fs_error(exc, path) from None
         yield tmp
         check_output_folder(path, force)
         os.chmod(tmp, 0o777 & ~_umask())
         with interrupts.deferred():       # Ctrl-C neither splits the swap nor the cleanup
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(os.path.join(tmp, OWNER_FILE))
             if not os.path.exists(path):
                 os.rename(tmp, path)
                 interrupts.record_output(path)
@@ -158,6 +351,8 @@ def output_folder(path, force=False):
                 os.rename(old, path)
                 raise
             interrupts.record_output(path)
+            with contextlib.suppress(OSError):  # a kill during the removal: the next
+                _write_owner(old)               # run removes the rest
             shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         if tmp is not None:

@@ -1,8 +1,12 @@
-"""Ctrl-C (SIGINT) for the command-line tools: exit 130, one line, nothing half-written.
+"""Ctrl-C (SIGINT) and SIGTERM for the command-line tools: exit 130 or 143, one line,
+nothing half-written.
 
-The command-line interface installs :func:`handler` for the duration of a command.
-It records that the user interrupted (:func:`interrupted`) and raises
-``KeyboardInterrupt`` in the main thread, as Python's default does, except inside a
+The command-line interface installs :func:`handler` for the duration of a command, for
+SIGINT (Ctrl-C) and SIGTERM (what batch schedulers, ``timeout`` and ``kill`` send) alike.
+It records that the run was stopped and by which signal (:func:`interrupted`,
+:func:`stop_signal`) and raises ``KeyboardInterrupt`` in the main thread, as Python's
+default does for SIGINT, so that every clean-up path of a Ctrl-C (temporaries and
+staging folders removed) serves SIGTERM too, except inside a
 :func:`deferred` block, where the interrupt is held back until the block ends.  The
 output writers of :mod:`ins.common.fileio` install a finished output (a rename) and remove
 their temporaries inside such blocks, and record what they installed
@@ -35,13 +39,17 @@ import signal
 import sys
 import threading
 
-__all__ = ["install", "close", "handler", "interrupted", "deferred", "record_output",
-           "written_outputs", "caused_by_interrupt", "reset"]
+__all__ = ["install", "close", "handler", "interrupted", "stop_signal", "deferred",
+           "record_output", "written_outputs", "caused_by_interrupt", "reset", "SIGNALS"]
+
+#: The signals handled like Ctrl-C: SIGINT and SIGTERM.
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class _State:
     def __init__(self):
         self.interrupted = False
+        self.signum = None
         self.pending = False
         self.depth = 0
         self.closed = False
@@ -56,6 +64,7 @@ def reset():
     """Forget earlier interrupts and outputs (at the start of a command)."""
     with _state.lock:
         _state.interrupted = False
+        _state.signum = None
         _state.pending = False
         _state.depth = 0
         _state.closed = False
@@ -63,7 +72,7 @@ def reset():
 
 
 def close():
-    """The command is over: from now on :func:`handler` ignores SIGINT."""
+    """The command is over: from now on :func:`handler` ignores SIGINT and SIGTERM."""
     _state.closed = True
 
 
@@ -96,12 +105,15 @@ def _retry_later(signum):
 
 
 def handler(signum, frame):
-    """SIGINT handler: record the interrupt; raise ``KeyboardInterrupt`` unless deferred
-    (or the command is over, :func:`close`); inside numba's compiler or llvmlite the
-    signal is sent again a moment later, until the code has left them."""
+    """SIGINT and SIGTERM handler: record the interrupt (the first signal's number);
+    raise ``KeyboardInterrupt`` unless deferred (or the command is over, :func:`close`);
+    inside numba's compiler or llvmlite the signal is sent again a moment later, until
+    the code has left them."""
     if _state.closed:
         return
     _state.interrupted = True
+    if _state.signum is None:
+        _state.signum = signum
     if _state.depth > 0:
         _state.pending = True
         return
@@ -112,16 +124,16 @@ def handler(signum, frame):
 
 
 def install():
-    """Install :func:`handler` for SIGINT (main thread only).
+    """Install :func:`handler` for SIGINT and SIGTERM (main thread only).
 
     Returns
     -------
     callable
-        ``restore()`` puts the previous handler back (a no-op outside the main thread).
+        ``restore()`` puts the previous handlers back (a no-op outside the main thread).
     """
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {s: signal.signal(s, handler) for s in SIGNALS}
     previous_unraisable, previous_thread_hook = sys.unraisablehook, threading.excepthook
 
     def unraisable(info):
@@ -129,7 +141,7 @@ def install():
         # callback, __del__, a ctypes callback) is lost: send the signal again
         if isinstance(info.exc_value, KeyboardInterrupt):
             if not _state.closed:
-                _retry_later(signal.SIGINT)
+                _retry_later(_state.signum or signal.SIGINT)
             return
         if not _state.interrupted:          # after an interrupt: its consequences
             previous_unraisable(info)
@@ -141,19 +153,28 @@ def install():
     sys.unraisablehook, threading.excepthook = unraisable, thread_hook
 
     def restore():
-        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
+        for s, old in previous.items():
+            signal.signal(s, old if old is not None else signal.SIG_DFL)
         sys.unraisablehook, threading.excepthook = previous_unraisable, previous_thread_hook
     return restore
 
 
 def interrupted():
-    """Whether SIGINT arrived since :func:`reset` (while :func:`handler` was installed)."""
+    """Whether SIGINT or SIGTERM arrived since :func:`reset` (while :func:`handler` was
+    installed)."""
     return _state.interrupted
+
+
+def stop_signal():
+    """The number of the first signal that stopped the run since :func:`reset`
+    (``signal.SIGINT`` or ``signal.SIGTERM``), or None."""
+    return _state.signum
 
 
 @contextlib.contextmanager
 def deferred():
-    """Hold Ctrl-C back inside the block; raise it when the (outermost) block ends.
+    """Hold Ctrl-C (and SIGTERM) back inside the block; raise it when the (outermost)
+    block ends.
 
     For short steps that must not be cut in the middle: installing a finished output
     (and recording it), removing temporaries.  Only the main thread is concerned
@@ -203,7 +224,7 @@ def written_outputs():
 
 
 def caused_by_interrupt(exc):
-    """Whether ``exc`` is, wraps, or follows a Ctrl-C.
+    """Whether ``exc`` is, wraps, or follows a Ctrl-C (or SIGTERM).
 
     True for ``KeyboardInterrupt`` itself, for an exception whose ``__cause__`` or
     ``__context__`` chain holds one, and for any exception once :func:`handler` has

@@ -46,7 +46,7 @@ import numpy as np
 from ins.common.errors import InputError, QualityWarning
 from ins.nav.rotation import skew
 from photogrammetry.adjustment import _coplanarity_kernels as K
-from photogrammetry.adjustment import _msac_kernels as MK
+from photogrammetry.adjustment.robust_start import robust_start
 from photogrammetry.orientation.rotation import angles_to_matrix, check_system
 
 __all__ = ["METHODS", "PairResult", "adjust_pair", "adjust_pairs", "paper_adjust",
@@ -68,7 +68,6 @@ MSAC_THRESHOLD = 5.0
 #: A minimal-sample hypothesis farther than this from the prior (rad, any angle) is
 #: discarded (5 deg: beyond any plausible INS error; the trust rule flags far less).
 MAX_CHANGE = np.deg2rad(5.0)
-_MIN_MODE = {"known": 3, "relative": 5, "free": 5}
 
 
 @dataclass
@@ -135,7 +134,7 @@ def _normalized_residuals(out):
 def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-free",
                  base=None, mask=None, sigma_mm=0.005, snooping=True,
                  w_critical=W_CRITICAL, max_reject=0.3, max_iter=30, robust=True,
-                 msac_threshold=MSAC_THRESHOLD, seed=0, max_change=MAX_CHANGE):
+                 msac_threshold=MSAC_THRESHOLD, seed=0, max_change=MAX_CHANGE, essential=True):
     """Adjust image 2's angles of many pairs at once (vectorized).
 
     Parameters
@@ -170,6 +169,15 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
         a known base).
     max_change : float
         Rad; a minimal-sample hypothesis farther than this from the prior is discarded.
+    essential : bool
+        With the robust start, also a start that does not depend on the prior: the
+        five-point essential matrix by RANSAC (USAC_MAGSAC) on the normalized image
+        coordinates and its pose (:mod:`photogrammetry.adjustment.essential`), tried
+        where the MSAC winner holds less than
+        :data:`photogrammetry.adjustment.robust_start.ESSENTIAL_BELOW` of the points (or
+        MSAC found nothing); it replaces the winner when its MSAC cost is lower and it
+        lies within `max_change` of the prior.  Pairs that have fewer inliers than
+        their unknowns are still refused (status "too few tie points").
 
     Returns
     -------
@@ -216,9 +224,9 @@ def adjust_pairs(xy1_mm, xy2_mm, f_mm, angles1, angles2, system, method="base-fr
     rejected = np.zeros((P, n), bool)
     hypotheses = np.zeros(P, dtype=int)
     if robust:
-        angles2, base, mask, hypotheses = _robust_start(
+        angles2, base, mask, hypotheses = robust_start(
             u1, u2, mask, R1, angles2, np.where(zero[:, None], 1.0, base), mode, system,
-            sigma_mm, msac_threshold, seed, max_change, max_iter)
+            sigma_mm, msac_threshold, seed, max_change, max_iter, essential)
         rejected = ~mask & _stack_mask(xy1_mm, mask_in)
     robust_rejected = rejected.copy()
     n_snooped = np.zeros(P, dtype=int)
@@ -254,54 +262,6 @@ def _stack_mask(xy, mask_in):
     """The caller's mask (all points when None) as a (P, n) bool array."""
     shape = np.shape(xy)[:2]
     return np.ones(shape, bool) if mask_in is None else np.asarray(mask_in, bool)
-
-
-def _robust_start(u1, u2, mask, R1, prior2, base, mode, system, sigma_mm, threshold, seed,
-                  max_change, max_iter):
-    """MSAC on minimal samples, Gauss-Newton on the inliers, re-classification of all
-    points at that solution, Gauss-Newton again (no snooping).
-
-    Returns the start angles (P, 3) and bases (P, 3), the points kept (P, n) and the
-    number of hypotheses per pair; pairs where a step fails keep the previous one's."""
-    P, n = mask.shape
-    f64 = np.ascontiguousarray
-    order, sign, s2 = K._ORDER[system], K._SIGN[system], float(sigma_mm) ** 2
-    ang, b = np.empty((P, 3)), np.empty((P, 3))
-    inl, st, hyp = np.empty((P, n), bool), np.empty(P, np.int64), np.empty(P, np.int64)
-    t2 = float(threshold) ** 2
-    MK.msac_pairs(f64(u1, dtype=float), f64(u2, dtype=float), f64(mask, dtype=np.bool_),
-                  f64(R1, dtype=float), f64(prior2, dtype=float), f64(base, dtype=float),
-                  mode == "known", order, sign, s2, t2, 0.999, 10, 500, float(max_change),
-                  int(seed), ang, b, inl, st, hyp)
-    ok = st == MK.MSAC_OK
-    keep = np.where(ok[:, None], inl, mask)
-    if mode == "known":
-        b = base
-    todo = ok.copy()
-    for _ in range(5):      # GN on the kept points; re-classify all points there; repeat
-        idx = np.flatnonzero(todo)          # until the set is stable
-        if len(idx) == 0:
-            break
-        part = K.solve_pairs(u1[idx], u2[idx], keep[idx], R1[idx], ang[idx], b[idx], mode,
-                             system, sigma_mm, max_iter)
-        good = part["status"] == K.STATUS_OK
-        idx = idx[good]
-        ang[idx] = part["angles"][good]
-        if mode != "known":
-            b[idx] = part["base"][good]
-        w = np.empty((len(idx), n))
-        MK.studentized_misclosures(f64(u1[idx], dtype=float), f64(u2[idx], dtype=float),
-                                   f64(mask[idx], dtype=np.bool_),
-                                   f64(keep[idx], dtype=np.bool_), f64(R1[idx], dtype=float),
-                                   f64(ang[idx]), f64(b[idx]), f64(part["Q"][good]), order,
-                                   sign, s2, w)
-        again = mask[idx] & (np.abs(w) < threshold)         # inf (no redundancy): out
-        enough = again.sum(axis=1) >= _MIN_MODE[mode] + 1
-        changed = enough & np.any(again != keep[idx], axis=1)
-        keep[idx[enough]] = again[enough]
-        todo[:] = False
-        todo[idx[changed]] = True
-    return ang, b, keep, hyp
 
 
 def _merge(out, part, idx):

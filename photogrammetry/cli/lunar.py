@@ -68,7 +68,7 @@ example:
   ... --station -33.9,-70.7,500 --temperature -5   (south/west: negative values as typed)
 
 output streams: the table goes to stdout (| head is fine: the rest is dropped, exit 0);
-  exit 2 on bad input, 130 on Ctrl-C (nothing half-written).
+  exit 2 on bad input, 130 on Ctrl-C, 143 on SIGTERM (nothing half-written).
 """
 
 OUTLIER = 3.5

@@ -39,7 +39,8 @@ def build_parser():
 
 def main(argv=None):
     """``photogrammetry`` on the command line (``argv=None``: ``sys.argv``); returns the
-    exit code (bad input 2, untrustworthy result 3, Ctrl-C 130: ``ins.cli.main.run_command``)."""
+    exit code (bad input 2, untrustworthy result 3, Ctrl-C 130, SIGTERM 143:
+    ``ins.cli.main.run_command``)."""
     return run_main(build_parser, argv, "photogrammetry")
 
 
