@@ -1,10 +1,12 @@
 """Build of the compiled kernels (Cython): every ``*.pyx`` under ``ins/`` and
 ``photogrammetry/`` becomes an extension module of the same dotted name.
 
-Why compiled ahead of time rather than numba for these: ``ins process`` must start
-and run in a small memory (numba and llvmlite alone hold about 90 MiB and take about
-a second to load their cached machine code), so the kernels on its path are C built
-at install time.  numba stays for the kernels of the other commands.
+Why compiled ahead of time (the kernels were numba until issues 26 and 35): every command
+must start and run in a small memory, and its first run must be as fast as the next
+(numba and llvmlite alone held about 90 MiB, took about a second to load their cached
+machine code, and the first run of the demo spent about 18 s compiling it).  The kernels
+of the coplanarity adjustment call scipy's BLAS and LAPACK through
+``scipy.linalg.cython_blas`` / ``cython_lapack`` (declarations only: no include path).
 
 Flags: ``-O3``; ``-ffp-contract=off`` keeps every product and sum rounded as written
 (no fused multiply-add), which the exact decimal parsing and formatting (Dekker's

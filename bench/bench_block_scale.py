@@ -9,7 +9,7 @@
 points CSV, camera TOML), then the command with its defaults (base-free, datum first)
 and ``--report`` (Markdown, residual and correction plots), each stage's CPU time
 (``getrusage``; inclusive, the indented ones within the stage above).  Measured
-(2-core VM shared with 6 other jobs, load 2-5, 2026-11-27; numba cache warm):
+(2-core VM shared with 6 other jobs, load 2-5, 2026-11-27; kernels then numba, cache warm):
 
     stage                                    470 images  1000 images   (before)
     start-up (imports, compiled kernels)           0.82         0.68     0.60
@@ -35,8 +35,9 @@ factor of V reused when asked for the same V (12 -> 9 factorizations), Gauss-New
 stopped when the next step is predicted below tol (12 -> 9 joint iterations), the joint
 weights compiled, the residual plot's markers without edges.  With a COLD numba cache
 (the first run after an install or a change of the kernels) the pair screening
-compiles its kernels: 23 s more at any size (470 images: 29.3 s total), which is what
-a first run measures as start-up.
+compiled its kernels: 23 s more at any size (470 images: 29.3 s total), which is what
+a first run measured as start-up.  Since issue 35 the kernels are Cython, built at
+install: the first run is the same as the next.
 
 Each size runs in a fresh process (its peak resident memory is its own): a simulated
 block (``tests/scenario.py``'s ``make_large_block``: strips of 50 images, 60 % forward and

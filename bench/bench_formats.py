@@ -206,7 +206,7 @@ def main():
         except ImportError as exc:
             print(f"(bags not run: {exc}; pip install 'insphoto[ros]')")
         for label, n, fn in cases:
-            fn()                                          # warm (numba, imports, cache)
+            fn()                                          # warm (imports, cache)
             t = best_of(fn, args.repeat)
             rows.append((label, n, t))
     ref = rows[0][1] / rows[0][2]

@@ -111,7 +111,7 @@ def pipeline(repeats=3):
             frame[lo[1]:lo[1] + win.shape[0], lo[0]:lo[0] + win.shape[1]] = win
             paths.append(os.path.join(tmp, f"m{k:03d}.png"))
             Image.fromarray(frame).save(paths[-1])
-        heading_from_images(CAM, paths[:2], utc[:2], LAT, LON, H)        # numba compile
+        heading_from_images(CAM, paths[:2], utc[:2], LAT, LON, H)        # warm (imports)
         wall, cpu = [], []
         for _ in range(repeats):
             t0, c0 = time.perf_counter(), time.process_time()

@@ -11,8 +11,8 @@ the README's promise:
   clean file's.
 
 Prints one line per case (``ok`` / ``BAD`` and the stderr line) and the counts per
-command.  Run: ``.venv/bin/python bench/sweep_bad_inputs_ins.py [--keep DIR]`` (about two
-minutes, most of it the numba compilation and three ``ins process`` runs).
+command.  Run: ``.venv/bin/python bench/sweep_bad_inputs_ins.py [--keep DIR]`` (about a
+minute, most of it three ``ins process`` runs).
 """
 import argparse
 import contextlib

@@ -14,7 +14,7 @@ from ins.common.errors import InputError, InputWarning, QualityError  # noqa: E4
 from ins.common.lazy import lazy_api  # noqa: E402
 
 # The public API, imported on first use (PEP 562): ``import ins.cli.main`` stays light, so
-# that the command-line tools install their Ctrl-C handler before numpy and numba load.
+# that the command-line tools install their Ctrl-C handler before numpy loads.
 _LAZY = {
     # nav: IMU model, mechanization, trajectories
     "ImuLog": "nav.imu", "compensate": "nav.imu",

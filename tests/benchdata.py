@@ -1,5 +1,5 @@
-"""Test caches keyed on the code they depend on: the shared GNSS/INS benchmark dataset,
-the simulated test flights and numba's compiled kernels.
+"""Test caches keyed on the code they depend on: the shared GNSS/INS benchmark dataset and
+the simulated test flights.
 
 - The shared dataset is made by ``../shared/bench/ins/make_dataset.py`` with pyins's
   simulator (an independent implementation; needs the ``test`` or ``bench`` extras) and
@@ -9,15 +9,11 @@ the simulated test flights and numba's compiled kernels.
   ``INS_SHARED_DIR`` and ``INS_BENCH_DATA`` override the two locations (a dataset given
   by ``INS_BENCH_DATA`` is used as it is when it carries no key).
 - A simulated test flight depends on the simulator and everything it imports:
-  :func:`source_hash` hashes every ``.py`` under ``ins/`` and ``photogrammetry/`` (path
-  and bytes) with the numpy/scipy versions, and :func:`flight_key` adds the plan text
-  and the seed, so any code change simulates the flight again.
-- numba's on-disk cache (``cache=True``) is invalidated only by the timestamp of the file
-  that defines a kernel, not by a change to a function or a constant it calls from
-  another module (a changed gravity coefficient in ``ins/nav/earth.py`` kept the old one
-  compiled into ``ins/nav/_kernels.py``).  :func:`numba_cache_dir` is a folder per
-  :func:`source_hash`; ``conftest.py`` points ``NUMBA_CACHE_DIR`` there before numba is
-  imported, so a changed formula anywhere recompiles and an unchanged tree stays warm.
+  :func:`source_hash` hashes every ``.py``, ``.pyx`` and ``.pxd`` under ``ins/`` and
+  ``photogrammetry/`` (path and bytes) with the numpy/scipy versions, and
+  :func:`flight_key` adds the plan text and the seed, so any code change simulates the
+  flight again.  (The compiled kernels themselves are checked against their sources by
+  ``conftest.py``: :func:`ins.common.native_build.stale_kernels`.)
 
 Old entries are pruned (:func:`prune`): the most recently used few are kept, and none
 used within the last hour (another test run may be reading it).
@@ -37,7 +33,6 @@ ROOT = Path(__file__).resolve().parents[1]
 CACHE = ROOT / ".cache"
 SHARED = Path(os.environ.get("INS_SHARED_DIR", ROOT.parent / "shared"))
 BENCH_DATA = Path(os.environ.get("INS_BENCH_DATA", CACHE / "ins-bench-data"))
-NUMBA_CACHE = CACHE / "numba"
 PACKAGES = ("ins", "photogrammetry")
 KEY_FILE = "cache-key.txt"
 #: Entries used within this many seconds are never pruned.
@@ -58,10 +53,9 @@ def _versions(*modules):
 @functools.lru_cache(maxsize=1)
 def source_hash():
     """sha256 (hex) of every ``.py``, ``.pyx`` and ``.pxd`` under ``ins/`` and
-    ``photogrammetry/`` (relative path and bytes, sorted) and the numpy / scipy / numba
-    versions."""
+    ``photogrammetry/`` (relative path and bytes, sorted) and the numpy / scipy versions."""
     h = hashlib.sha256()
-    for line in _versions("numpy", "scipy", "numba"):
+    for line in _versions("numpy", "scipy"):
         h.update(line.encode() + b"\n")
     for pkg in PACKAGES:
         for path in sorted(p for suffix in ("*.py", "*.pyx", "*.pxd")
@@ -122,15 +116,6 @@ def prune(folder, pattern, keep, exclude=()):
         if p.resolve() in exclude or now - p.stat().st_mtime < PRUNE_GRACE_S:
             continue
         shutil.rmtree(p, ignore_errors=True)
-
-
-def numba_cache_dir():
-    """numba's cache folder for the current sources, ``.cache/numba/<source hash>``."""
-    path = NUMBA_CACHE / source_hash()[:16]
-    path.mkdir(parents=True, exist_ok=True)
-    touch(path)
-    prune(NUMBA_CACHE, "*", keep=4, exclude=[path])
-    return path
 
 
 def ensure_bench_data():

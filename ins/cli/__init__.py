@@ -3,5 +3,5 @@ shared argument helpers (:mod:`ins.cli.util`).  Library code never prints or exi
 these modules do.
 
 Kept light: importing this package loads nothing but the standard library, so the
-Ctrl-C handler is in place before numpy and numba load.
+Ctrl-C handler is in place before numpy loads.
 """

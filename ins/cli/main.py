@@ -457,7 +457,7 @@ def run_command(args, prog):
     space, read-only, permission, not empty without --force)       a hidden temporary)
     :class:`~ins.common.errors.QualityError` (untrustworthy result) 3     ``PROG CMD: error: ...``
     Ctrl-C (also when it surfaced wrapped in another         130   ``PROG CMD: interrupted;
-    exception, e.g. from a numba dispatcher or the JIT)             no output written``
+    exception, e.g. from extension code)                            no output written``
     SIGTERM (the same clean-up as Ctrl-C)                    143   ``PROG CMD: terminated
                                                                    (SIGTERM); no output
                                                                    written``

@@ -13,16 +13,18 @@ their temporaries inside such blocks, and record what they installed
 (:func:`record_output`), so that an interrupt can only take effect before an output is
 installed (nothing is written) or after it is complete (and the command can say so).
 
-Why a flag as well as the exception: an interrupt that arrives inside a numba
-dispatcher or during JIT compilation surfaces as another exception (``SystemError:
-CPUDispatcher(...) returned a result with an exception set``, an ``AttributeError``
-from llvmlite) whose ``__cause__``/``__context__`` may or may not hold the
-``KeyboardInterrupt``; the flag tells the command-line interface that any exception
-after the interrupt is its consequence (:func:`caused_by_interrupt`).
+Why a flag as well as the exception: an interrupt that arrives inside extension code
+can surface as another exception (seen with numba, which the package's kernels used
+before they were all compiled ahead of time: ``SystemError: CPUDispatcher(...)
+returned a result with an exception set``, an ``AttributeError`` from llvmlite) whose
+``__cause__``/``__context__`` may or may not hold the ``KeyboardInterrupt``; the flag
+tells the command-line interface that any exception after the interrupt is its
+consequence (:func:`caused_by_interrupt`).
 
-An interrupt that arrives inside numba's compiler or llvmlite (a ctypes callback from
-C++ cannot take an exception: it crashed the process) is not raised there: the signal
-is sent again every 20 ms until the code has left them (:data:`UNSAFE_PACKAGES`).
+An interrupt that arrives inside code that cannot take an exception (the import
+machinery; numba's compiler or llvmlite, should a third-party module load them: a ctypes
+callback from C++ crashed the process) is not raised there: the signal is sent again
+every 20 ms until the code has left it (:data:`UNSAFE_PACKAGES`, :data:`UNSAFE_FILES`).
 
 An interrupt raised where Python cannot propagate it (a weakref callback, ``__del__``)
 is "ignored" by Python: the unraisable-exception hook installed with the handler sends
@@ -76,10 +78,11 @@ def close():
     _state.closed = True
 
 
-#: Packages whose Python code must not be cut by an exception: llvmlite calls back into
-#: Python from C++ (its object cache), where a KeyboardInterrupt is "ignored" by ctypes
-#: and the C++ side goes on with garbage (a segmentation fault was seen); numba's
-#: compiler drives llvmlite.  The import machinery is unsafe too: an interrupt raised in
+#: Packages whose Python code must not be cut by an exception (the package itself loads
+#: neither since its kernels are all Cython; a third-party module may): llvmlite calls
+#: back into Python from C++ (its object cache), where a KeyboardInterrupt is "ignored"
+#: by ctypes and the C++ side goes on with garbage (a segmentation fault was seen);
+#: numba's compiler drives llvmlite.  The import machinery is unsafe too: an interrupt raised in
 #: importlib's module-lock callback is "ignored" and leaves the global import lock held
 #: (a hang was seen with the IMU reader thread importing).  An interrupt there is retried
 #: every :data:`RETRY_S`.

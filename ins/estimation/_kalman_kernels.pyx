@@ -18,8 +18,8 @@ microseconds instead of the Python call overhead of a dozen small numpy operatio
   (:mod:`ins.estimation.error_model` calls them from Python).
 
 Every matrix argument is a C-contiguous float64 array (read-only ones are accepted);
-results are new arrays.  Compiled by Cython at install (``setup.py``), not numba: the
-``ins process`` path must not load numba (memory and start-up time, issue 26).
+results are new arrays.  Compiled by Cython at install (``setup.py``), as every kernel of the
+package: nothing is compiled at run time (memory and start-up time, issues 26 and 35).
 """
 import numpy as np
 

@@ -27,7 +27,7 @@ from ``solution_std.txt`` (``ins process``) or an Applanix SMRMSG file, interpol
 linearly, held constant beyond their first and last epochs.
 
 The work is done block by block (:func:`georeference_blocks`), the per-point algebra in
-a numba kernel (:mod:`ins.lidar._georeference_kernels`).
+a compiled kernel (Cython, :mod:`ins.lidar._georeference_kernels`).
 """
 from dataclasses import dataclass
 
@@ -112,7 +112,7 @@ def interpolate_pose(traj, t, method="cubic", path=None):
     ``"cubic"``: the EO interpolation (:func:`ins.nav.interpolation.interpolate_trajectory`,
     same formulas) with the per-interval work (Hermite slopes, the stencil's rotation
     vectors) done once per trajectory interval used and the per-return evaluation in a
-    numba kernel (equal to the library's to rounding, ``tests/test_georeference.py``);
+    compiled kernel (equal to the library's to rounding, ``tests/test_georeference.py``);
     ``"slerp"`` or fewer than 4 epochs: the library function itself.
     """
     n = len(traj.time)

@@ -1,7 +1,7 @@
 # WGS84 scalar formulas for the compiled kernels (C inline functions; private).
 #
 # The same formulas as ins/nav/earth.py (_radii, _gravity, _earth_rate, _transport_rate),
-# which stays the source for Python and for the numba kernels of the other commands;
+# which stays the source for Python; every compiled kernel cimports these;
 # tests/test_native_earth.py holds the two equal to the last bits.
 # Units: lat rad, h m, velocities m/s, rates rad/s (north, east, down), gravity m/s^2.
 from libc.math cimport cos, sin, sqrt, tan

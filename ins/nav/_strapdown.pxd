@@ -7,7 +7,7 @@
 # q_nb = qx, qy, qz, qw (scalar last).  Quaternions are scalar last; C_nb rows are stored
 # row by row in double[9] (c[3 i + j] = C[i, j]).
 #
-# Each expression keeps the operation order of the numba kernels it replaces (no FMA:
+# Each expression keeps the operation order of the numba kernels it replaced (no FMA:
 # setup.py compiles with -ffp-contract=off), so the results are the same to the bit.
 from libc.math cimport cos, sin, sqrt
 

@@ -4,15 +4,11 @@ Geodetic position is ``(lat, lon, h)``: latitude and longitude in rad, ellipsoid
 height in m.  Velocities are NED in m/s.  Every function takes scalars or arrays that
 broadcast against each other; vector results have a trailing axis of length 3.
 
-The private ``_`` functions are :func:`ins.common.jitable.jitable`: plain numpy when called
-from Python (scalars or arrays), compiled into the numba kernels of ``ins.simulate`` when
-called from there (registered with numba only by those kernels' modules, so that importing
-this module does not load numba).  The compiled kernels of ``ins process`` (Cython) use the
+The private ``_`` functions are the scalar formulas (numpy: scalars or arrays).  The
+compiled kernels (Cython: mechanization, filter, simulator, LiDAR georeferencing) use the
 same formulas in ``ins/nav/_earth.pxd``, held equal to these by tests/test_native_earth.py.
 """
 import numpy as np
-
-from ins.common.jitable import jitable
 
 #: Semi-major axis of WGS84, m.
 A = 6378137.0
@@ -30,7 +26,6 @@ GRAVITY_COEFFS = (9.7803267715, 0.0052790414, 0.0000232718,
 _A1, _A2, _A3, _A4, _A5, _A6 = GRAVITY_COEFFS
 
 
-@jitable
 def _radii(lat):
     s2 = np.sin(lat) ** 2
     w = 1.0 - E2 * s2
@@ -39,33 +34,29 @@ def _radii(lat):
     return rm, rn
 
 
-@jitable
 def _gravity(lat, h):
     s2 = np.sin(lat) ** 2
     return _A1 * (1.0 + _A2 * s2 + _A3 * s2 * s2) + (_A4 + _A5 * s2) * h + _A6 * h * h
 
 
-@jitable
 def _earth_rate(lat):
     return OMEGA_IE * np.cos(lat), 0.0 * lat, -OMEGA_IE * np.sin(lat)
 
 
-@jitable
 def _transport_rate(lat, h, v_north, v_east):
     rm, rn = _radii(lat)
     return (v_east / (rn + h), -v_north / (rm + h), -v_east * np.tan(lat) / (rn + h))
 
 
-@jitable
 def _lla_rate(lat, h, v_north, v_east, v_down):
     rm, rn = _radii(lat)
     return v_north / (rm + h), v_east / ((rn + h) * np.cos(lat)), -v_down
 
 
-#: Public names of the jitable scalar formulas above, for the numba kernels of other
-#: subpackages (``ins.simulate._kernels``): normal gravity (m/s^2), radii of curvature
+#: Public names of the scalar formulas above, for the one-point paths of other subpackages
+#: (the filter's measurements, the lever arm): normal gravity (m/s^2), radii of curvature
 #: (M, N, m), Earth rate and transport rate as their north, east, down components (rad/s),
-#: rate of the geodetic position (rad/s, rad/s, m/s; also the filter's one-point paths).
+#: rate of the geodetic position (rad/s, rad/s, m/s).
 gravity_kernel = _gravity
 radii_kernel = _radii
 earth_rate_kernel = _earth_rate

@@ -229,7 +229,7 @@ def apply_errors(log, model, seed, chunk_rows=CHUNK_ROWS):
         (log.dvel_b, out_dv, model.accel_scale, model.accel_misalignment, model.accel_bias,
          model.accel_bias_instability, model.vrw, model.accel_quantization, streams[2:4]),
     ]
-    # numba: loaded by the simulation, not by importers of the presets (the CLI's parsers)
+    # the compiled loops: loaded by the simulation, not by importers of the presets
     from ins.simulate import _kernels
     T = model.corr_time
     for x, out, scale, mis, bias, bi, rw, q, (rng_w, rng_g) in sensors:

@@ -37,7 +37,7 @@ climb ``v_climb``, airborne weight ``s``) and the turbulence:
   inside the knee.  The IMU body is the platform: ``C_nb = C_na C_ap``;
 * ``w_ib_b = w_nb_b + C_bn (w_ie_n + w_en_n)`` with ``w_nb_b`` from the Euler-angle
   rates, and ``f_b = C_bn (a_n - g_n + (2 w_ie_n + w_en_n) x v_n)`` (normal gravity of
-  :mod:`ins.nav.earth`), all analytic, evaluated per sample by a numba kernel
+  :mod:`ins.nav.earth`), all analytic, evaluated per sample by a compiled kernel
   (:func:`ins.simulate._kernels.platform_state`).
 """
 from dataclasses import dataclass

@@ -18,10 +18,11 @@ equations (identical to solving them and dropping the base step).  Q and J are t
 the full problem (angles first, then the two base-direction nuisances).
 """
 import numpy as np
-from numba import njit
 
 from ins.common.errors import InputError
 from ins.nav.rotation import rot_x, rot_y, rot_z
+from photogrammetry.adjustment._pair_kernels import (  # noqa: F401 (joint_weight_blocks: block_conditions)
+    joint_weight_blocks, solve_pairs_kernel)
 
 # axis index of the primary, secondary, tertiary rotation for each angle system, and the
 # sign of the angle in it: phi-omega-kappa is Ry(-phi) Rx(omega) Rz(kappa) (conventions.md)
@@ -29,7 +30,7 @@ _AXES = {"phi-omega-kappa": (1, 0, 2), "omega-phi-kappa": (0, 1, 2)}
 _SIGNS = {"phi-omega-kappa": (-1.0, 1.0, 1.0), "omega-phi-kappa": (1.0, 1.0, 1.0)}
 _ROT = (rot_x, rot_y, rot_z)
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_SINGULAR, STATUS_TOO_FEW = 0, 1, 2, 3
-#: Internal (numba kernel): a condition with zero or non-finite variance; never returned,
+#: Internal (compiled kernel): a condition with zero or non-finite variance; never returned,
 #: :func:`solve_pairs` raises InputError naming the observation.
 STATUS_ZERO_VARIANCE = 5
 
@@ -123,7 +124,7 @@ def _solve(H, rhs):
 
 
 def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
-                max_iter=30, tol=1e-11, engine="numba"):
+                max_iter=30, tol=1e-11, engine="compiled"):
     """Gauss-Newton on many pairs at once.
 
     Parameters
@@ -142,8 +143,9 @@ def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
     mode : {"known", "relative", "free"}
     sigma_xy : float
         A-priori sigma of one photo coordinate, mm.
-    engine : {"numba", "numpy"}
-        The compiled per-pair kernel (fast) or the vectorized numpy form (reference).
+    engine : {"compiled", "numpy"}
+        The compiled per-pair kernel (fast; ``"numba"``, its former name, is accepted)
+        or the vectorized numpy form (reference).
 
     Returns
     -------
@@ -164,8 +166,8 @@ def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
     b = np.array(base, dtype=float, copy=True)
     b_len = np.linalg.norm(b, axis=1)
     b = b / np.where(b_len > 0, b_len, 1.0)[:, None]
-    if engine == "numba":
-        return _solve_numba(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter,
+    if engine in ("compiled", "numba"):
+        return _solve_compiled(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter,
                             tol, status, n_used, k)
     r1 = np.einsum("pij,pnj->pni", R1, u1)
     if mode == "free":
@@ -219,19 +221,19 @@ def solve_pairs(u1, u2, mask, R1, angles2, base, mode, system, sigma_xy=1.0,
             "iterations": iterations, "status": status, "g": g, "var": var, "J": J, "w": w}
 
 
-def _solve_numba(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter, tol,
-                 status, n_used, k):
+def _solve_compiled(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter, tol,
+                    status, n_used, k):
     P, n = mask.shape
     out = {"Q": np.zeros((P, k, k)), "vtpv": np.zeros(P), "g": np.zeros((P, n)),
            "var": np.zeros((P, n)), "J": np.zeros((P, n, k)), "w": np.zeros((P, n)),
            "iterations": np.zeros(P, dtype=np.int64)}
     bad_point = np.full(P, -1, dtype=np.int64)
     f64 = np.ascontiguousarray
-    solve_pairs_numba(f64(u1, dtype=float), f64(u2, dtype=float), f64(mask, dtype=np.bool_),
-                      f64(R1, dtype=float), angles, b, _MODE_ID[mode], _ORDER[system],
-                      _SIGN[system], float(sigma_xy) ** 2, int(max_iter), float(tol), status,
-                      out["iterations"], out["Q"], out["vtpv"], out["g"], out["var"],
-                      out["J"], out["w"], bad_point)
+    solve_pairs_kernel(f64(u1, dtype=float), f64(u2, dtype=float), f64(mask, dtype=np.bool_),
+                       f64(R1, dtype=float), angles, b, _MODE_ID[mode], _ORDER[system],
+                       _SIGN[system], float(sigma_xy) ** 2, int(max_iter), float(tol), status,
+                       out["iterations"], out["Q"], out["vtpv"], out["g"], out["var"],
+                       out["J"], out["w"], bad_point)
     if np.any(status == STATUS_ZERO_VARIANCE):
         pp = int(np.flatnonzero(status == STATUS_ZERO_VARIANCE)[0])
         ii = int(bad_point[pp])
@@ -242,235 +244,8 @@ def _solve_numba(u1, u2, mask, R1, angles, b, mode, system, sigma_xy, max_iter, 
 
 
 # --------------------------------------------------------------------------
-# numba kernel: the same Gauss-Newton, one pair at a time (no temporaries)
+# the compiled kernel (photogrammetry.adjustment._pair_kernels): the same Gauss-Newton,
+# one pair at a time (no temporaries); axis order and signs of each system as arrays
 _ORDER = {s: np.array(a) for s, a in _AXES.items()}
 _SIGN = {s: np.array(a) for s, a in _SIGNS.items()}
 _MODE_ID = {"known": 0, "relative": 1, "free": 2}
-
-
-@njit(cache=True)
-def _nb_rotation(a, order, sign, R, M):
-    """``R`` (3, 3) and the axes ``M`` of one angle triplet, as :func:`rotation_and_axes`."""
-    for i in range(3):
-        for j in range(3):
-            R[i, j] = 1.0 if i == j else 0.0
-    T = np.empty((3, 3))
-    for k in range(3):
-        ax = order[k]
-        for i in range(3):
-            M[i, k] = sign[k] * R[i, ax]
-        c, s = np.cos(sign[k] * a[k]), np.sin(sign[k] * a[k])
-        i1, i2 = (ax + 1) % 3, (ax + 2) % 3
-        for i in range(3):                       # R <- R @ elementary(ax, a[k])
-            T[i, ax] = R[i, ax]
-            T[i, i1] = c * R[i, i1] + s * R[i, i2]
-            T[i, i2] = -s * R[i, i1] + c * R[i, i2]
-        R[:, :] = T
-
-
-@njit(cache=True)
-def _nb_cross(a, b, out):
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-
-
-@njit(cache=True)
-def _nb_terms(r1, u2, R1, R2, M2, b, E, s2, k, Ji, N, t):
-    """One point: fills Ji (k,) and N (3,) (t: (2, 3) scratch); returns (g, var)."""
-    r2x = R2[0, 0] * u2[0] + R2[0, 1] * u2[1] + R2[0, 2] * u2[2]
-    r2y = R2[1, 0] * u2[0] + R2[1, 1] * u2[1] + R2[1, 2] * u2[2]
-    r2z = R2[2, 0] * u2[0] + R2[2, 1] * u2[1] + R2[2, 2] * u2[2]
-    N[0] = r1[1] * r2z - r1[2] * r2y
-    N[1] = r1[2] * r2x - r1[0] * r2z
-    N[2] = r1[0] * r2y - r1[1] * r2x
-    g = N[0] * b[0] + N[1] * b[1] + N[2] * b[2]
-    t0, t1, t2 = r2y * b[2] - r2z * b[1], r2z * b[0] - r2x * b[2], r2x * b[1] - r2y * b[0]
-    d1x = R1[0, 0] * t0 + R1[1, 0] * t1 + R1[2, 0] * t2
-    d1y = R1[0, 1] * t0 + R1[1, 1] * t1 + R1[2, 1] * t2
-    c0 = b[1] * r1[2] - b[2] * r1[1]                # b x r1
-    c1 = b[2] * r1[0] - b[0] * r1[2]
-    c2 = b[0] * r1[1] - b[1] * r1[0]
-    d2x = R2[0, 0] * c0 + R2[1, 0] * c1 + R2[2, 0] * c2
-    d2y = R2[0, 1] * c0 + R2[1, 1] * c1 + R2[2, 1] * c2
-    var = s2 * (d1x * d1x + d1y * d1y + d2x * d2x + d2y * d2y)
-    a0, a1, a2 = r2y * c2 - r2z * c1, r2z * c0 - r2x * c2, r2x * c1 - r2y * c0   # dg/dtheta2
-    for j in range(3):
-        Ji[j] = a0 * M2[0, j] + a1 * M2[1, j] + a2 * M2[2, j]
-    if k == 5:
-        for j in range(2):
-            Ji[3 + j] = N[0] * E[0, j] + N[1] * E[1, j] + N[2] * E[2, j]
-    return g, var
-
-
-@njit(cache=True)
-def _nb_tangent(b, E):
-    h = np.array([1.0, 0.0, 0.0]) if abs(b[0]) < 0.8 else np.array([0.0, 1.0, 0.0])
-    e1, e2 = np.empty(3), np.empty(3)
-    _nb_cross(b, h, e1)
-    e1 /= np.sqrt(e1 @ e1)
-    _nb_cross(b, e1, e2)
-    E[:, 0] = e1
-    E[:, 1] = e2
-
-
-@njit(cache=True)
-def _nb_profile(r1, u2, mask, R1, R2, M2, b, s2, use_weights, N, Ji, scratch, E):
-    """Base direction minimizing sum w (b . N)^2 (weights from the current b)."""
-    S = np.zeros((3, 3))
-    for i in range(len(u2)):
-        if not mask[i]:
-            continue
-        g, var = _nb_terms(r1[i], u2[i], R1, R2, M2, b, E, s2, 3, Ji, N, scratch)
-        w = 1.0
-        if use_weights:
-            w = 1.0 / var if var > 0 else 0.0
-        for a in range(3):
-            for c in range(3):
-                S[a, c] += w * N[a] * N[c]
-    _, vecs = np.linalg.eigh(S)
-    return vecs[:, 0].copy()
-
-
-@njit(cache=True)
-def solve_pairs_numba(u1, u2, mask, R1, angles, base, mode, order, sign, s2, max_iter, tol,
-                      status, iterations, Q, vtpv, g_out, var_out, J_out, w_out, bad_point):
-    """In-place per-pair Gauss-Newton (see :func:`solve_pairs`); angles and base updated.
-
-    A condition whose variance is not > 0 stops its pair with status
-    :data:`STATUS_ZERO_VARIANCE` and its point index in ``bad_point`` (the caller
-    refuses it)."""
-    P, n = mask.shape
-    k = 3 if mode == 0 else 5
-    R2, M2, E = np.empty((3, 3)), np.empty((3, 3)), np.zeros((3, 2))
-    Ji, N, scratch = np.empty(k), np.empty(3), np.empty((2, 3))
-    H, grad, r1 = np.empty((k, k)), np.empty(k), np.empty((n, 3))
-    for p in range(P):
-        if status[p] != 1:
-            continue
-        for i in range(n):
-            for a in range(3):
-                r1[i, a] = R1[p, a, 0] * u1[p, i, 0] + R1[p, a, 1] * u1[p, i, 1] \
-                    + R1[p, a, 2] * u1[p, i, 2]
-        b = base[p] / np.sqrt(base[p] @ base[p])
-        ang = angles[p]
-        if mode == 2:
-            _nb_rotation(ang, order, sign, R2, M2)
-            b = _nb_profile(r1, u2[p], mask[p], R1[p], R2, M2, b, s2, False, N, Ji, scratch, E)
-        done = False
-        for it in range(max_iter + 1):
-            _nb_rotation(ang, order, sign, R2, M2)
-            if mode == 2:
-                b = _nb_profile(r1, u2[p], mask[p], R1[p], R2, M2, b, s2, True, N, Ji, scratch,
-                                E)
-            if k == 5:
-                _nb_tangent(b, E)
-            H[:, :] = 0.0
-            grad[:] = 0.0
-            v = 0.0
-            for i in range(n):
-                if not mask[p, i]:
-                    g_out[p, i] = 0.0
-                    w_out[p, i] = 0.0
-                    continue
-                g, var = _nb_terms(r1[i], u2[p, i], R1[p], R2, M2, b, E, s2, k, Ji, N,
-                                   scratch)
-                if not var > 0:
-                    status[p] = 5
-                    bad_point[p] = i
-                    var_out[p, i] = var
-                    break
-                w = 1.0 / var
-                for a in range(k):
-                    wa = w * Ji[a]
-                    grad[a] += wa * g
-                    for c in range(a, k):
-                        H[a, c] += wa * Ji[c]
-                v += w * g * g
-                g_out[p, i], var_out[p, i], w_out[p, i] = g, var, w
-                for a in range(k):
-                    J_out[p, i, a] = Ji[a]
-            if status[p] == 5:
-                break
-            for a in range(k):
-                for c in range(a):
-                    H[a, c] = H[c, a]
-            vtpv[p] = v
-            d = np.sqrt(np.abs(np.diag(H))) + 1e-300
-            Hs = H / np.outer(d, d)
-            if not np.all(np.isfinite(Hs)) or np.min(np.diag(H)) <= 0.0:
-                status[p] = 2
-                break
-            ev = np.linalg.eigvalsh(Hs)
-            if not (ev[0] > 1e-13 * ev[-1]):
-                status[p] = 2
-                break
-            if done:
-                status[p] = 0
-                break
-            if it == max_iter:
-                break
-            step = -np.linalg.solve(Hs, grad / d) / d
-            ang += step[:3]
-            if k == 5 and mode == 1:
-                b = b + E @ step[3:]
-                b /= np.sqrt(b @ b)
-            iterations[p] += 1
-            done = np.max(np.abs(step)) < tol
-        if status[p] <= 1:
-            Q[p] = np.linalg.inv(H)
-        base[p] = b
-
-
-@njit(cache=True)
-def joint_weight_blocks(idx, obs, d, s2, tol):
-    """Per tie point, the pseudo-inverse of the joint covariance of its conditions (see
-    :func:`photogrammetry.adjustment.block_conditions._joint_weights`), compiled.
-
-    Parameters
-    ----------
-    idx : ndarray of int (T, c)
-        Conditions of each of T tie points with c conditions.
-    obs : ndarray of int (C, 2); d : ndarray (C, 2, 2); s2 : float; tol : float
-
-    Returns
-    -------
-    vals : ndarray (T, c, c)
-        The weight blocks.
-    rank : int
-        Eigenvalues kept (independent conditions).
-    """
-    T, c = idx.shape
-    vals = np.zeros((T, c, c))
-    rank = 0
-    S = np.empty((c, c))
-    inv = np.empty(c)
-    for t in range(T):
-        for a in range(c):
-            ca = idx[t, a]
-            for b in range(c):
-                cb = idx[t, b]
-                acc = 0.0
-                for s in range(2):
-                    for r in range(2):
-                        if obs[ca, s] == obs[cb, r]:
-                            acc += d[ca, s, 0] * d[cb, r, 0] + d[ca, s, 1] * d[cb, r, 1]
-                S[a, b] = s2 * acc
-        for a in range(c):
-            inv[a] = 1.0 / np.sqrt(S[a, a]) if S[a, a] > 0 else 0.0
-        for a in range(c):
-            for b in range(c):
-                S[a, b] *= inv[a] * inv[b]
-        lam, U = np.linalg.eigh(S)
-        top = lam[c - 1]
-        for k in range(c):
-            if lam[k] > tol * top:
-                rank += 1
-                w = 1.0 / lam[k]
-                for a in range(c):
-                    for b in range(c):
-                        vals[t, a, b] += U[a, k] * w * U[b, k]
-        for a in range(c):
-            for b in range(c):
-                vals[t, a, b] *= inv[a] * inv[b]
-    return vals, rank

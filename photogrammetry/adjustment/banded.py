@@ -16,14 +16,14 @@ same recurrence run over the sparse pattern (selected inversion): cost the sum, 
 columns, of the rows of the columns they touch, instead of ``n b^2``.
 """
 import numpy as np
-from numba import njit
 from scipy import sparse
 from scipy.linalg import cho_solve_banded, cholesky_banded
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 from scipy.sparse.linalg import splu
 
 from ins.common.errors import InputError
-from photogrammetry.adjustment._sparse_kernels import pattern_is_closed, selected_inverse
+from photogrammetry.adjustment._sparse_kernels import (band_inverse, pattern_is_closed,
+                                                        selected_inverse)
 
 __all__ = ["BandedSPD", "SparseSPD", "rcm_order", "bordered_order"]
 
@@ -66,42 +66,6 @@ def bordered_order(A, n_first, k=3):
 def _bandwidth(A):
     coo = A.tocoo()
     return int(np.max(np.abs(coo.row - coo.col))) if coo.nnz else 0
-
-
-@njit(cache=True)
-def _band_inverse(cb, b):
-    """Entries of ``A^-1`` within the band from the banded Cholesky factor ``cb``
-    (lower form: ``cb[d, j] = L[j + d, j]``); returns ``zt`` with ``zt[i, d] = Z[i, i + d]``.
-
-    Takahashi: ``Z = A^-1`` satisfies ``L^T Z = L^-1`` (lower triangular with the
-    diagonal ``1 / L_ii``), so for ``j >= i``:
-    ``Z_ij = (delta_ij / L_ii - sum_{k > i} L_ki Z_kj) / L_ii`` with ``k <= i + b``.
-    Row by row from the last, each row's sums accumulated over the factor's non-zero
-    ``L_ki`` (a bordered normal matrix has many zeros inside its band), the stored row
-    ``zt[k]`` read contiguously."""
-    n = cb.shape[1]
-    zt = np.zeros((n, b + 1))
-    s = np.zeros(b + 1)
-    for i in range(n - 1, -1, -1):
-        lii = cb[0, i]
-        top = min(i + b, n - 1)
-        w = top - i
-        for t in range(w + 1):
-            s[t] = 0.0
-        for k in range(i + 1, top + 1):
-            lki = cb[k - i, i]
-            if lki == 0.0:
-                continue
-            for j in range(i + 1, k):            # Z_kj = Z_jk, j < k
-                s[j - i] += lki * zt[j, k - j]
-            for j in range(k, top + 1):          # Z_kj, j >= k: row k, contiguous
-                s[j - i] += lki * zt[k, j - k]
-        d = 1.0 / lii
-        for j in range(i + 1, top + 1):
-            zt[i, j - i] = -s[j - i] / lii
-            d -= cb[j - i, i] * zt[i, j - i]
-        zt[i, 0] = d / lii
-    return zt
 
 
 class BandedSPD:
@@ -151,7 +115,7 @@ class BandedSPD:
         """Entries ``(A^-1)[rows, cols]`` (original order); each pair must lie inside
         the band of the ordered matrix (e.g. unknowns coupled in ``A``)."""
         if self._zb is None:
-            self._zb = _band_inverse(self.cb, self.b)
+            self._zb = band_inverse(self.cb, self.b)
         r, c = self.iperm[np.asarray(rows)], self.iperm[np.asarray(cols)]
         lo, hi = np.minimum(r, c), np.maximum(r, c)
         d = hi - lo

@@ -169,7 +169,7 @@ def heading_from_images(camera, images, utc, lat, lon, h, load=None, progress=No
     centre along the Sun are nearly degenerate) and the disk flattened by refraction
     (`ephemeris.refraction_flattening`: an ellipse on the sky, 0.8 % flatter vertically
     at 10 deg altitude); final solution.  Images are processed in a
-    thread pool (the image decoding and the numba kernels release the GIL).
+    thread pool (the image decoding and the compiled kernels release the GIL).
 
     Parameters
     ----------

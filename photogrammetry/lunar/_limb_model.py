@@ -31,7 +31,7 @@ model is binned to pixels, with the Sun's direction and the phase angle known
 sky ``B`` unknown: separable least squares, the amplitudes by NNLS at each step and
 Gauss-Newton on the rest with their effect projected out (variable projection), from the
 best start of a scan along the Sun's direction and over the blur (a thin crescent's
-limb circle can be 1 px off); analytic Jacobian of the discretized model, numba kernels
+limb circle can be 1 px off); analytic Jacobian of the discretized model, compiled kernels
 in `_limb_kernels`.  The disk is computed on a ``SUPERSAMPLE``-times finer grid with an
 anti-aliased edge (linear coverage ramp one sub-pixel wide; 4 sub-pixels left a
 0.01 px bias on the Lommel-Seeliger limb's cusp, 8 do not), so the model is smooth in
