@@ -288,11 +288,17 @@ def test_sigterm_mid_run_of_refine(flight, tmp_path):
             outcomes.append("finished first")
             continue
         assert proc.returncode == 143, err
+        if lines and "after the output was complete" in lines[0]:   # the signal came late
+            assert len(lines) == 1, err
+            written = lines[0].split("complete: ", 1)[1].split(", ")
+            assert sorted(written) == _listing(work), err  # whole, nothing hidden left
+            outcomes.append("143 after the output")
+            continue
         assert lines == [f"photogrammetry refine: {TERMINATED}"], err
         assert _listing(work) == []
         outcomes.append("143")
         break
-    assert "143" in outcomes, outcomes
+    assert any(o.startswith("143") for o in outcomes), outcomes
 
 
 def test_sigterm_to_the_process_group_of_a_dask_run(tiled_block, tmp_path):
@@ -304,18 +310,24 @@ def test_sigterm_to_the_process_group_of_a_dask_run(tiled_block, tmp_path):
     argv = [sys.executable, "-m", "photogrammetry.cli.main", "refine", eo, tp, "--camera",
             cam, "--datum", "ins", "--tile-images", "8", "--workers", "2", "-q", "-o",
             "out.csv"]
-    work, tmp = tmp_path / "run", tmp_path / "tmp"
-    work.mkdir()
-    tmp.mkdir()
-    proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True,
-                            env=dict(os.environ, TMPDIR=str(tmp)))
-    t0 = time.perf_counter()                 # the cluster is up once its scratch is there
-    while not _listing(tmp) and proc.poll() is None and time.perf_counter() - t0 < 300:
-        time.sleep(0.05)
-    time.sleep(2.0)
-    os.killpg(proc.pid, signal.SIGTERM)
-    _, err = proc.communicate(timeout=600)
+    for k, delay in enumerate((1.0, 0.3, 0.05)):   # compiled kernels may finish first
+        work, tmp = tmp_path / f"run{k}", tmp_path / f"tmp{k}"
+        work.mkdir()
+        tmp.mkdir()
+        proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                env=dict(os.environ, TMPDIR=str(tmp)))
+        t0 = time.perf_counter()             # the cluster is up once its scratch is there
+        while not _listing(tmp) and proc.poll() is None and time.perf_counter() - t0 < 300:
+            time.sleep(0.05)
+        time.sleep(delay)
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+        except ProcessLookupError:           # the whole group had finished already
+            pass
+        _, err = proc.communicate(timeout=600)
+        if proc.returncode != 0:
+            break
     lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
     assert proc.returncode == 143, err
     assert lines == [f"photogrammetry refine: {TERMINATED}"], err

@@ -128,7 +128,7 @@ def run_drive(drive, name, extra="", preset="mems"):
     from ins.estimation.process_config import load_config
     car, d, base = drive
     path = d / f"{name}.toml"
-    path.write_text(base + extra)
+    path.write_text(base + "[filter]\nidentify = false\n" + extra)   # the NHC's mechanics
     cfg = apply_preset(load_config(path), preset)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

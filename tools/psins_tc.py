@@ -264,6 +264,7 @@ def run(folder, coupling, preset):
     path = str(Path(folder) / "config.toml")
     cfg = load_config(path)
     cfg.coupling = coupling
+    cfg.identify = False        # loose and tight with the same noise (tight identifies none)
     if preset != "none":
         cfg = apply_preset(cfg, preset, read_toml(path, "a processing config (TOML)"))
     tic = time.perf_counter()

@@ -504,6 +504,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
         warnings.warn(q["error"] + " (written anyway: accept_poor)", QualityWarning,
                       stacklevel=2)
     if cfg.truth:
+        from ins.estimation.process_truth import with_truth
         result = with_truth(result, cfg.truth)
     return result
 
@@ -574,32 +575,6 @@ def _headings(cfg, start):
     from ins.estimation.heading_files import read_headings, within
     return within(read_headings(cfg.heading, cfg.heading_baseline_b_m, cfg.heading_sigma_deg,
                                 cfg.gnss_time_shift_s), start, cfg.end_s)
-
-
-def with_truth(result, truth_path):
-    """``result`` with its errors against a truth ``.nav`` file (piece by piece)."""
-    from ins.io.navfiles import read_trajectory
-    from ins.nav.accuracy import TrajectoryErrors, compare
-    truth = read_trajectory(truth_path)
-
-    def errors(pieces):
-        parts = []
-        for piece in pieces:
-            lo, hi = np.searchsorted(truth.time, [piece.time[0] - 1e-6, piece.time[-1] + 1e-6])
-            if hi > lo:
-                ref = Trajectory(truth.time[lo:hi], truth.lla[lo:hi], truth.v_n[lo:hi],
-                                 truth.q_nb[lo:hi])
-                try:
-                    parts.append(compare(piece, ref))
-                except ValueError:
-                    continue
-        if not parts:
-            raise InputError(f"{truth_path}: the trajectories share no epoch (times must "
-                             f"match within 1 us)")
-        return TrajectoryErrors(*(np.concatenate([getattr(p, f) for p in parts])
-                                  for f in ("time", "pos_n", "v_n", "att_n")))
-    return replace(result, errors_forward=errors(result.iter_forward()),
-                   errors_smoothed=errors(result.iter_smoothed()))
 
 
 def _trajectory(time, states):
