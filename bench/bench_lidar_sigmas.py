@@ -30,7 +30,15 @@ seed; 6 seeds): 0.90/0.94/0.84, strip 1's mean north error +41..+87 mm in every 
 that one draw has a large roll-like error, and 6 seeds of it are not 6 independent
 samples.
 
-Usage: python bench/bench_lidar_sigmas.py [--seeds 16] [--fixed-errors]
+``--table``: the LiDAR table of issue 35 on plans other than the demo's (the demo plan
+``data/flights/lidar_demo.toml`` moved to another hemisphere and strip heading, another
+seed), the user's chain as command lines (``ins simulate``, ``ins process``, ``ins
+georeference --trajectory-std``, ``ins strip-check --scanner-out``, ``ins georeference``
+again with the calibrated file): RMS and mean z^2 per axis (east, north, up, from the
+LAZ's ``sigma_e_m``, ``sigma_n_m``, ``sigma_u_m``) against the simulator's true points,
+with the TRUE scanner file and after the calibration.
+
+Usage: python bench/bench_lidar_sigmas.py [--seeds 16] [--fixed-errors] [--table]
 """
 import argparse
 import importlib.util
@@ -105,13 +113,98 @@ def flight_errors(seed, fixed=False, workdir=CACHE):
     return d, p.var_ned_m2, ret.strip[p.index]
 
 
+#: Plans of the table: (name, origin lat, lon deg, strip azimuth deg, seed).
+TABLE_PLANS = (("south, heading 20, seed 5", -33.9, 18.5, 20.0, 5),
+               ("west, heading 135, seed 9", 45.5, -73.6, 135.0, 9))
+
+
+def _run(cmd):
+    import subprocess
+    subprocess.run([str(c) for c in cmd], check=True, stdout=subprocess.DEVNULL)
+
+
+def las_errors(laz, truth_csv):
+    """ENU errors (m) of the points of a LAZ of ``ins georeference`` against the true
+    points (matched by GPS time and strip) and their sigmas east, north, up (m)."""
+    import laspy
+
+    from ins.cli.strip_check import read_points_las
+    from ins.lidar.georeference import ecef_to_lla
+    from ins.nav.earth import dcm_en
+    t, xyz, strip = read_points_las(str(laz))
+    las = laspy.read(str(laz))
+    sig = np.column_stack([np.asarray(las[f"sigma_{a}_m"], float) for a in "enu"])
+    tru = np.loadtxt(truth_csv, delimiter=",", skiprows=1)
+    key_true = np.round(tru[:, 0] * 1e6).astype(np.int64) * 1000 + tru[:, 4].astype(np.int64)
+    key = np.round(t * 1e6).astype(np.int64) * 1000 + strip
+    order = np.argsort(key_true)
+    pos = order[np.searchsorted(key_true, key, sorter=order)]
+    assert np.array_equal(key_true[pos], key)
+    lla = ecef_to_lla(xyz)
+    d = np.einsum("nji,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), xyz - tru[pos, 1:4])
+    return d[:, [1, 0, 2]] * np.array([1.0, 1.0, -1.0]), sig
+
+
+def chain_table(name, lat, lon, azimuth, seed, workdir=CACHE):
+    """The user's chain on the demo plan moved to (lat, lon, azimuth) with ``seed``;
+    returns {"true": (rms (3,), z2 (3,)), "calibrated": (...)} per axis E, N, U."""
+    import re
+    ins = Path(sys.executable).parent / "ins"
+    out = Path(workdir) / f"table-{lat:+.1f}-{lon:+.1f}-{azimuth:.0f}-{seed}"
+    out.mkdir(parents=True, exist_ok=True)
+    text = (ROOT / "data" / "flights" / "lidar_demo.toml").read_text()
+    for key, v in (("origin_lat_deg", lat), ("origin_lon_deg", lon),
+                   ("strip_azimuth_deg", azimuth)):
+        text = re.sub(rf"^{key} = .*$", f"{key} = {v}", text, flags=re.M)
+    plan = out / "plan.toml"
+    if not plan.is_file() or plan.read_text() != text:
+        plan.write_text(text)
+    flight, proc = out / "flight", out / "process"
+    if not (proc / "solution_std.txt").is_file() or plan.stat().st_mtime > (
+            proc / "solution_std.txt").stat().st_mtime:
+        _run([ins, "simulate", plan, "-o", flight, "--seed", seed, "--force", "-q"])
+        _run([ins, "process", flight, "-o", proc, "--force", "--no-plots", "-q"])
+    traj = ["--trajectory", proc / "solution.nav", "--trajectory-std", proc / "solution_std.txt"]
+    _run([ins, "georeference", flight / "returns.csv", *traj, "--scanner",
+          flight / "scanner_true.toml", "-q", "-o", out / "points_true_scanner.laz"])
+    _run([ins, "georeference", flight / "returns.csv", *traj, "--scanner",
+          flight / "scanner.toml", "-q", "-o", out / "points.laz"])
+    _run([ins, "strip-check", out / "points.laz", *traj, "--scanner", flight / "scanner.toml",
+          "--scanner-out", out / "scanner_calibrated.toml"])
+    _run([ins, "georeference", flight / "returns.csv", *traj, "--scanner",
+          out / "scanner_calibrated.toml", "-q", "-o", out / "points_calibrated.laz"])
+    res = {}
+    for case, laz in (("true scanner", "points_true_scanner.laz"),
+                      ("calibrated", "points_calibrated.laz")):
+        d, sig = las_errors(out / laz, flight / "points_true.csv")
+        res[case] = (np.sqrt(np.mean(d ** 2, axis=0)), np.mean((d / sig) ** 2, axis=0))
+    return res
+
+
+def table(plans=TABLE_PLANS):
+    print("| plan | scanner file | RMS E / N / U (mm) | mean z^2 E / N / U |")
+    print("|---|---|---|---|")
+    for name, lat, lon, az, seed in plans:
+        t0 = time.perf_counter()
+        res = chain_table(name, lat, lon, az, seed)
+        for case, (rms, z2) in res.items():
+            print(f"| {name} | {case} | " + " / ".join(f"{v * 1e3:.1f}" for v in rms)
+                  + " | " + " / ".join(f"{v:.2f}" for v in z2) + " |", flush=True)
+        print(f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--fixed-errors", action="store_true",
                     help="the presets' fixed IMU errors in every seed (not drawn)")
+    ap.add_argument("--table", action="store_true",
+                    help="the LiDAR table (true scanner and calibrated) on other plans")
     args = ap.parse_args(argv)
+    if args.table:
+        table()
+        return
     z2 = []
     t0 = time.perf_counter()
     print("seed   mean z^2 N/E/D      strip mean error N/E/D (mm)")

@@ -85,7 +85,7 @@ def test_boresight_from_strips(lidar_flight, which):
     sim = f["sim"]
     std = f["std"] if which == "smoothed" else None
     r_s = returns_to_scanner(f["nominal"], sim.range_m, sim.scan_angle_rad)
-    b, est, first = boresight_from_strips(f[which], sim.time, r_s, sim.strip, f["nominal"],
+    b, est, first, _ = boresight_from_strips(f[which], sim.time, r_s, sim.strip, f["nominal"],
                                           std=std, radius_m=4.0, k=6)
     z = (b - B_TRUE) / est.sigma_rad
     assert np.all(np.abs(z) < 3.0), (np.rad2deg(b), np.rad2deg(est.sigma_rad), z)
