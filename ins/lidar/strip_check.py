@@ -18,6 +18,25 @@ boresight to use is ``b0 - delta``.  Opposite-direction strips see ``rx`` (the
 roll-like angle) on any terrain; ``ry`` and ``rz`` only through terrain slopes: on flat
 ground they are not estimable (flagged by a sigma above :data:`MAX_SIGMA_RAD`).
 Trajectory errors correlated in time make ``sigma0`` and the sigmas optimistic.
+
+What the estimate absorbs, and the split of the error it leaves.  The points move with
+a boresight error as with an attitude error fixed in the body frame (the same rotation
+of ``C_bs r_s``, but for the lever arm), so with the trajectory's attitude error
+``e(t) = c + v(t)`` (``c`` its part common to the strips in the body frame, ``v`` what
+differs between and within them) the estimate is ``b_hat = b - c - G v + n``: the
+common part whole, a weighted mean ``G v`` of the rest, and the adjustment's error
+``n`` (``sigma0^2 (A^T A)^-1``).  In the points of the same flight the error is then
+``J (e(t) + b_hat - b) = J (v(t) - G v + n)``: ``c`` is gone.  Its variance is in the
+total sigma (``cov_rad2``: the adjustment's plus ``H B_s Var_s B_s^T H^T``), which is
+the right one for the boresight on ANOTHER flight, but counting it and the
+trajectory's whole attitude sigma in this flight's points counts ``c`` twice (mean z^2
+0.03-0.08 horizontally on the simulated flights).  The right split for this flight's
+points is ``n`` (the adjustment's sigma) plus ``Var(v(t) - G v)``, the attitude error
+left, which the strips' height differences measure where they see it
+(:func:`strip_attitude`, per segment of each strip; written by ``ins strip-check
+--scanner-out`` as the scanner file's ``[calibration]``,
+:class:`ins.lidar.scanner.BoresightCalibration`, and used by
+:func:`ins.lidar.georeference.georeference`).
 """
 from dataclasses import dataclass
 
@@ -278,7 +297,7 @@ class StripAttitude:
 STRIP_AXES = (0, 2)
 
 
-def strip_attitude(est, attitude_var, axes=STRIP_AXES):
+def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None):
     """The trajectory's attitude error left in each strip's points after the boresight
     of ``est`` (its pairs' rows must hold the trajectory's roll, pitch, yaw columns
     3..5): the posterior given the strips' height differences.
@@ -314,6 +333,11 @@ def strip_attitude(est, attitude_var, axes=STRIP_AXES):
     attitude_var : dict {strip or segment: ndarray (3,)}
         Prior variance of each strip's (or, when the pairs carry segment labels, each
         segment's) roll, pitch, yaw error (rad^2).
+    height_var : dict {strip or segment: float}, optional
+        Prior variance of each one's vertical position error (m^2): a height offset
+        per strip or segment is then estimated beside the attitude (``+1`` for a, ``-1``
+        for b), so that a height difference between the strips is not taken for a roll
+        error.
 
     Returns
     -------
@@ -341,24 +365,34 @@ def strip_attitude(est, attitude_var, axes=STRIP_AXES):
             np.add.at(M, (r, cb + j), -p.rows_b[:, 3 + j])
         o += m
     keep = np.ones(len(dz), bool) if est.keep is None else est.keep
-    dz, X = dz[keep], np.hstack([A[keep], M[keep]])
     nk = M.shape[1]
-    prior = np.zeros(3 + nk)
+    H = np.zeros((len(dz), len(ids) if height_var is not None else 0))
+    if height_var is not None:
+        o = 0
+        for ga, gb in zip(la, lb):
+            r = np.arange(o, o + len(ga))
+            np.add.at(H, (r, np.array([col[int(v)] // 3 for v in ga])), 1.0)
+            np.add.at(H, (r, np.array([col[int(v)] // 3 for v in gb])), -1.0)
+            o += len(ga)
+    dz, X = dz[keep], np.hstack([A[keep], M[keep], H[keep]])
+    prior = np.zeros(X.shape[1])
     for s_id, c in col.items():
         v = np.asarray(attitude_var.get(s_id, np.zeros(3)), float)
         prior[3 + c:3 + c + 3] = 1.0 / np.maximum(v, 1e-30)
-    use = np.ones(3 + nk, bool)       # the strips' axes not estimated: held at zero
-    use[3:] = np.tile(np.isin(np.arange(3), axes), len(ids))
+        if height_var is not None:
+            prior[3 + nk + c // 3] = 1.0 / max(float(height_var.get(s_id, 0.0)), 1e-30)
+    use = np.ones(X.shape[1], bool)   # the strips' axes not estimated: held at zero
+    use[3:3 + nk] = np.tile(np.isin(np.arange(3), axes), len(ids))
     N0, b0 = X[:, use].T @ X[:, use], X[:, use].T @ dz
     sigma0 = est.sigma0_m
-    th, cov = np.zeros(3 + nk), np.zeros((3 + nk, 3 + nk))
+    th, cov = np.zeros(X.shape[1]), np.zeros((X.shape[1], X.shape[1]))
     for _ in range(2):
         Nn = N0 / sigma0 ** 2 + np.diag(prior[use])
         cov[np.ix_(use, use)] = np.linalg.pinv(Nn)
         th[use] = cov[np.ix_(use, use)] @ (b0 / sigma0 ** 2)
         r = dz - X @ th
         sigma0 = float(np.sqrt(r @ r / max(len(dz) - 3, 1)))
-    T = np.zeros((len(ids), 3, 3 + nk))
+    T = np.zeros((len(ids), 3, X.shape[1]))
     for i in range(len(ids)):
         T[i, :, :3] = np.eye(3)
         T[i, :, 3 + 3 * i:3 + 3 * i + 3] = np.eye(3)
@@ -412,7 +446,8 @@ def boresight_from_strips(traj, time, r_s, strip, scanner, std=None, origin_lla=
     calibration : ins.lidar.scanner.BoresightCalibration or None
         With ``std``: the split of the estimate's error for the points of this flight
         (the adjustment's sigma, and the attitude error left: :func:`strip_attitude`
-        weighted by the strips' points); None without ``std``.
+        per ``segment_s`` segment weighted by the points, pitch's taken at least as
+        roll's); None without ``std``.
     estimate : BoresightEstimate
         Of the last iteration (its pairs' differences are those left by the estimated
         boresight; ``sigma_rad`` the boresight's sigmas).
@@ -466,7 +501,12 @@ def boresight_from_strips(traj, time, r_s, strip, scanner, std=None, origin_lla=
         from ins.lidar.scanner import BoresightCalibration
         sa = strip_attitude(est, seg_var)
         w = [np.count_nonzero(label == s_id) for s_id in sa.strips]
+        left = sa.left_sigma_rad(w)
+        # pitch's strip-to-strip part is not seen (strip_attitude): taken as roll's, the
+        # tilt errors of a GNSS/INS sharing their causes (accelerometer bias and
+        # misalignment over g, the same in both axes)
+        left[1] = max(left[1], left[0])
         calibration = BoresightCalibration(
             [float(np.min(time)), float(np.max(time))],
-            np.sqrt(np.clip(np.diag(est.cov_adjustment_rad2), 0, None)), sa.left_sigma_rad(w))
+            np.sqrt(np.clip(np.diag(est.cov_adjustment_rad2), 0, None)), left)
     return b, est, first, calibration
