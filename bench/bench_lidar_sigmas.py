@@ -38,7 +38,20 @@ again with the calibrated file): RMS and mean z^2 per axis (east, north, up, fro
 LAZ's ``sigma_e_m``, ``sigma_n_m``, ``sigma_u_m``) against the simulator's true points,
 with the TRUE scanner file and after the calibration.
 
-Usage: python bench/bench_lidar_sigmas.py [--seeds 16] [--fixed-errors] [--table]
+Measured (2026-12-01, ``--table --table-seeds 2``, 6 flights, about 20 s each with the
+flights cached), mean z^2 E / N / U over 3 seeds:
+south (-33.9, 18.5), strips at 20 deg, seeds 5-7: true scanner 0.25 / 1.88 / 0.80,
+calibrated 0.49 / 0.80 / 0.85 (RMS after 19-22 / 34-36 / 21 mm);
+west (45.5, -73.6), strips at 135 deg, seeds 9-11: true scanner 1.68 / 0.43 / 0.83,
+calibrated 0.65 / 0.73 / 0.91 (seed 11: rz not estimable, strip-check exit 3; with
+--accept-poor RMS 157 / 157 / 22 mm, z^2 1.16 / 1.16 / 0.90).
+Counted twice (before the [calibration] split) the calibrated z^2 was 0.03-0.08
+horizontally.  The true-scanner rows are one draw of the INS's slow error per flight
+(the seeds share the tactical grade's injected IMU errors: the along-track axis is high
+in every seed, a pitch error of about 1.4 of its sigma).
+
+Usage: python bench/bench_lidar_sigmas.py [--seeds 16] [--fixed-errors] [--table
+[--table-seeds K]]
 """
 import argparse
 import importlib.util
@@ -118,9 +131,12 @@ TABLE_PLANS = (("south, heading 20, seed 5", -33.9, 18.5, 20.0, 5),
                ("west, heading 135, seed 9", 45.5, -73.6, 135.0, 9))
 
 
-def _run(cmd):
+def _run(cmd, ok=(0,)):
     import subprocess
-    subprocess.run([str(c) for c in cmd], check=True, stdout=subprocess.DEVNULL)
+    code = subprocess.run([str(c) for c in cmd], stdout=subprocess.DEVNULL).returncode
+    if code not in ok:
+        raise SystemExit(f"bench_lidar_sigmas: exit {code} from {' '.join(map(str, cmd))}")
+    return code
 
 
 def las_errors(laz, truth_csv):
@@ -169,28 +185,43 @@ def chain_table(name, lat, lon, azimuth, seed, workdir=CACHE):
           flight / "scanner_true.toml", "-q", "-o", out / "points_true_scanner.laz"])
     _run([ins, "georeference", flight / "returns.csv", *traj, "--scanner",
           flight / "scanner.toml", "-q", "-o", out / "points.laz"])
-    _run([ins, "strip-check", out / "points.laz", *traj, "--scanner", flight / "scanner.toml",
-          "--scanner-out", out / "scanner_calibrated.toml"])
+    check = [ins, "strip-check", out / "points.laz", *traj, "--scanner",
+             flight / "scanner.toml", "--scanner-out", out / "scanner_calibrated.toml"]
+    poor = _run(check, ok=(0, 3)) == 3       # an angle not estimable: nothing written
+    if poor:
+        _run(check + ["--accept-poor"])
     _run([ins, "georeference", flight / "returns.csv", *traj, "--scanner",
           out / "scanner_calibrated.toml", "-q", "-o", out / "points_calibrated.laz"])
     res = {}
     for case, laz in (("true scanner", "points_true_scanner.laz"),
-                      ("calibrated", "points_calibrated.laz")):
+                      ("calibrated (--accept-poor: exit 3 without)" if poor else "calibrated",
+                       "points_calibrated.laz")):
         d, sig = las_errors(out / laz, flight / "points_true.csv")
         res[case] = (np.sqrt(np.mean(d ** 2, axis=0)), np.mean((d / sig) ** 2, axis=0))
     return res
 
 
-def table(plans=TABLE_PLANS):
+def table(plans=TABLE_PLANS, extra_seeds=0):
+    """Print the table; with ``extra_seeds`` each plan also with that many more seeds,
+    and the mean z^2 over its seeds (one flight is one draw of the slow INS error)."""
     print("| plan | scanner file | RMS E / N / U (mm) | mean z^2 E / N / U |")
     print("|---|---|---|---|")
     for name, lat, lon, az, seed in plans:
-        t0 = time.perf_counter()
-        res = chain_table(name, lat, lon, az, seed)
-        for case, (rms, z2) in res.items():
-            print(f"| {name} | {case} | " + " / ".join(f"{v * 1e3:.1f}" for v in rms)
-                  + " | " + " / ".join(f"{v:.2f}" for v in z2) + " |", flush=True)
-        print(f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+        pooled = {}
+        for k in range(1 + extra_seeds):
+            t0 = time.perf_counter()
+            label = name if k == 0 else name.replace(f"seed {seed}", f"seed {seed + k}")
+            res = chain_table(label, lat, lon, az, seed + k)
+            for case, (rms, z2) in res.items():
+                pooled.setdefault(case.split(" (")[0], []).append(z2)
+                print(f"| {label} | {case} | " + " / ".join(f"{v * 1e3:.1f}" for v in rms)
+                      + " | " + " / ".join(f"{v:.2f}" for v in z2) + " |", flush=True)
+            print(f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+        if extra_seeds:
+            for case, v in pooled.items():
+                print(f"| {name.split(', seed')[0]}, {len(v)} seeds | {case} | | "
+                      + " / ".join(f"{x:.2f}" for x in np.mean(v, axis=0)) + " |",
+                      flush=True)
 
 
 def main(argv=None):
@@ -201,9 +232,11 @@ def main(argv=None):
                     help="the presets' fixed IMU errors in every seed (not drawn)")
     ap.add_argument("--table", action="store_true",
                     help="the LiDAR table (true scanner and calibrated) on other plans")
+    ap.add_argument("--table-seeds", type=int, default=0, metavar="K",
+                    help="with --table: K more seeds per plan and their mean z^2")
     args = ap.parse_args(argv)
     if args.table:
-        table()
+        table(extra_seeds=args.table_seeds)
         return
     z2 = []
     t0 = time.perf_counter()

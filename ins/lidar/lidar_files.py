@@ -302,9 +302,9 @@ class LasPointWriter:
                                                       description=f"{name} sigma m")
                                for a, name in (("e", "east"), ("n", "north"), ("u", "up"))]
                               + [laspy.ExtraBytesParams("sigma_h_m", np.float32,
-                                                      description="horizontal sigma m"),
-                               laspy.ExtraBytesParams("sigma_v_m", np.float32,
-                                                      description="vertical sigma m")])
+                                                        description="horizontal sigma m"),
+                                 laspy.ExtraBytesParams("sigma_v_m", np.float32,
+                                                        description="vertical sigma m")])
         geographic = crs.is_geographic
         header.scales = np.array([1e-8, 1e-8, 1e-3] if geographic else [1e-3] * 3)
         header.offsets = np.asarray(offset, dtype=float)

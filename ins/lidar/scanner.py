@@ -47,8 +47,8 @@ from ins.common.limits import MAX_LEVER_ARM_M
 from ins.common.tomlschema import REQUIRED, Table, check_keys
 from ins.nav.rotation import rot_x, rot_y, rot_z
 
-__all__ = ["Scanner", "BoresightCalibration", "read_scanner", "write_scanner", "SCANNER_KEYS", "SCAN_MODELS",
-           "scanner_rays", "boresight_dcm"]
+__all__ = ["Scanner", "BoresightCalibration", "read_scanner", "write_scanner", "SCANNER_KEYS",
+           "SCAN_MODELS", "scanner_rays", "boresight_dcm"]
 
 #: Scan models (see the module notes).
 SCAN_MODELS = ("polygon", "oscillating", "points")
