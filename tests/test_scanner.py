@@ -64,17 +64,28 @@ def test_round_trip(tmp_path):
                  scan_angle_sigma_rad=1e-5, lever_arm_m=[1, 2, 3],
                  boresight_rad=[1e-3, -2e-3, 3e-3], lever_arm_sigma_m=[0.01, 0.02, 0.03],
                  boresight_sigma_rad=[1e-4, 2e-4, 3e-4])
+    from ins.lidar.scanner import BoresightCalibration
+    cal = BoresightCalibration([100.0, 250.5], [1e-6, 2e-6, 3e-6], [4e-5, 0.0, 5e-4])
     for s in (sc, sc.__class__(**{**{n: getattr(sc, n) for n in sc.__dataclass_fields__},
                                    "on": "aircraft",
-                                   "imu_to_platform_centre_b_m": [0.1, -0.2, 0.3]})):
+                                   "imu_to_platform_centre_b_m": [0.1, -0.2, 0.3]}),
+              sc.replace(calibration=cal)):
         write_scanner(tmp_path / "s.toml", s)
         back = read_scanner(tmp_path / "s.toml")
         for name in s.__dataclass_fields__:
             a, b = getattr(s, name), getattr(back, name)
             if name in ("model", "on"):
                 assert a == b
+            elif name == "calibration":
+                assert (a is None) == (b is None)
+                if a is not None:
+                    for f in ("time_span_s", "boresight_sigma_rad", "attitude_sigma_rad"):
+                        assert np.allclose(getattr(a, f), getattr(b, f), rtol=1e-12,
+                                           atol=1e-15), f
             else:
                 assert np.allclose(a, b, rtol=1e-12, atol=1e-15), name
+    # a new boresight drops the record of the old one's calibration
+    assert sc.replace(calibration=cal).with_boresight([0, 0, 0]).calibration is None
 
 
 def test_platform_arm_only_on_aircraft(tmp_path):

@@ -85,7 +85,7 @@ def test_boresight_from_strips(lidar_flight, which):
     sim = f["sim"]
     std = f["std"] if which == "smoothed" else None
     r_s = returns_to_scanner(f["nominal"], sim.range_m, sim.scan_angle_rad)
-    b, est, first = boresight_from_strips(f[which], sim.time, r_s, sim.strip, f["nominal"],
+    b, est, first, _ = boresight_from_strips(f[which], sim.time, r_s, sim.strip, f["nominal"],
                                           std=std, radius_m=4.0, k=6)
     z = (b - B_TRUE) / est.sigma_rad
     assert np.all(np.abs(z) < 3.0), (np.rad2deg(b), np.rad2deg(est.sigma_rad), z)
@@ -187,3 +187,46 @@ def test_scanner_on_the_aircraft(lidar_flight):
     q = georeference(f["truth"], sim.time, r_s, rigid)
     err = np.linalg.norm(q.xyz_ecef_m - sim.true_xyz_ecef_m[q.index], axis=1)
     assert np.sqrt(np.mean(err ** 2)) > 1.0
+
+
+@pytest.fixture(scope="module")
+def calibrated_z2(lidar_flight):
+    """The user's workflow on the processed flight (boresight 0 -> strip check with the
+    trajectory's sigmas -> calibrated scanner with its [calibration] split): mean z^2
+    per axis (N, E, D) of the points against the simulator's true points, with the
+    split and with the error counted twice (the total boresight sigma and the
+    trajectory's whole attitude sigma)."""
+    from ins.lidar.strip_check import boresight_from_strips
+    f = lidar_flight
+    sim = f["sim"]
+    r_s = returns_to_scanner(f["nominal"], sim.range_m, sim.scan_angle_rad)
+    b, est, _, cal = boresight_from_strips(f["smoothed"], sim.time, r_s, sim.strip,
+                                           f["nominal"], std=f["std"], radius_m=4.0, k=6)
+    assert cal is not None and np.all(cal.covers(sim.time))
+    # (rz's total sigma is above 0.1 deg on these 2 strips: ins strip-check needs
+    # --accept-poor here; the split is computed all the same)
+    split = f["nominal"].replace(boresight_rad=b, boresight_sigma_rad=est.sigma_rad,
+                                 calibration=cal)
+    out = {}
+    for name, sc in (("split", split), ("twice", split.replace(calibration=None))):
+        d, var = _errors(f["smoothed"], sim, sc, f["std"])
+        out[name] = (d ** 2 / var).mean(axis=0)
+    return out
+
+
+@pytest.mark.slow
+def test_point_sigmas_after_the_strip_calibration_counted_once(calibrated_z2):
+    """Counting the calibration's common attitude error once brings the horizontal
+    z^2 from 0.11 / 0.23 (counted twice) to 0.40 / 0.43 (N, E; D 0.59 -> 0.93)."""
+    z2, twice = calibrated_z2["split"], calibrated_z2["twice"]
+    assert np.all(z2 > 0.3) and np.all(z2 < 1.5), (z2, twice)
+    assert np.all(twice[:2] < 0.6 * z2[:2]), (z2, twice)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 35 item 3 not reached on this 2-strip flight: "
+                   "after the calibration z^2 N/E 0.40/0.43 (conservative; the attitude "
+                   "error left is over-estimated where the strips see little of it)")
+def test_point_sigmas_after_the_strip_calibration_within_the_issue_band(calibrated_z2):
+    z2 = calibrated_z2["split"]
+    assert np.all(z2 > 0.7) and np.all(z2 < 1.5), z2

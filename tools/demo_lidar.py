@@ -37,9 +37,9 @@ def run(cmd, ok=(0,)):
 
 
 def point_errors(laz, truth_csv):
-    """NED errors (m) of the LAZ points against the true points, and the horizontal and
-    vertical sigmas written in the file (m), the strip and the scan angle (deg) of each
-    point; matched by GPS time and strip."""
+    """NED errors (m) of the LAZ points against the true points, the NED sigmas written
+    in the file (m, from its sigma_n_m, sigma_e_m, sigma_u_m), the strip and the scan
+    angle (deg) of each point; matched by GPS time and strip."""
     import laspy
 
     from ins.cli.strip_check import read_points_las
@@ -47,7 +47,7 @@ def point_errors(laz, truth_csv):
     from ins.nav.earth import dcm_en
     t, xyz, strip = read_points_las(str(laz))
     las = laspy.read(str(laz))
-    sig_h, sig_v = np.asarray(las["sigma_h_m"], float), np.asarray(las["sigma_v_m"], float)
+    sig = np.column_stack([np.asarray(las[f"sigma_{a}_m"], float) for a in "neu"])
     angle_deg = np.asarray(las.scan_angle, float) * 0.006
     tru = np.loadtxt(truth_csv, delimiter=",", skiprows=1)
     key_true = np.round(tru[:, 0] * 1e6).astype(np.int64) * 1000 + tru[:, 4].astype(np.int64)
@@ -58,29 +58,28 @@ def point_errors(laz, truth_csv):
         raise SystemExit("demo-lidar: points without a true point (time, strip)")
     lla = ecef_to_lla(xyz)
     d = np.einsum("nji,nj->ni", dcm_en(lla[:, 0], lla[:, 1]), xyz - tru[pos, 1:4])
-    return d, sig_h, sig_v, strip, angle_deg
+    return d, sig, strip, angle_deg
 
 
-def error_lines(name, d, sig_h, sig_v):
+def error_lines(name, d, sig):
     rms = np.sqrt(np.mean(d ** 2, axis=0)) * 1000
-    z2_h = np.mean((d[:, 0] ** 2 + d[:, 1] ** 2) / sig_h ** 2)
-    z2_v = np.mean(d[:, 2] ** 2 / sig_v ** 2)
+    z2 = np.mean((d / sig) ** 2, axis=0)
+    med = np.median(sig, axis=0) * 1000
     return (f"| {name} | {rms[0]:.1f} / {rms[1]:.1f} / {rms[2]:.1f} | "
-            f"{np.median(sig_h) * 1000:.1f} / {np.median(sig_v) * 1000:.1f} | "
-            f"{z2_h:.2f} / {z2_v:.2f} |")
+            + " / ".join(f"{v:.1f}" for v in med) + " | "
+            + " / ".join(f"{v:.2f}" for v in z2) + " |")
 
 
 def plot_errors(path, before, after, n_max=6000):
     """Point errors N, E, D (mm) against the scan angle, with the boresight as given and
-    calibrated; the stated 1-sigma (sigma_h / sqrt 2 for N and E, sigma_v for D) as a
-    band of the points' median per degree."""
+    calibrated; the stated 1-sigma of each axis as a band of the points' median per
+    degree."""
     from ins.common.plotstyle import pyplot, save_png
     plt = pyplot()
     fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-    for col, (name, (d, sig_h, sig_v, strip, angle)) in enumerate(
+    for col, (name, (d, sig, strip, angle)) in enumerate(
             (("boresight 0 (as given)", before), ("calibrated boresight", after))):
         k = np.random.default_rng(0).choice(len(d), min(n_max, len(d)), replace=False)
-        sig = np.column_stack([sig_h / np.sqrt(2), sig_h / np.sqrt(2), sig_v])
         bins = np.round(angle).astype(int)
         centres = np.unique(bins)
         for row, axis in enumerate("NED"):
@@ -150,10 +149,10 @@ def summarize(out, flight):
     truth_csv = flight / "points_true.csv"
     before = point_errors(out / "points.laz", truth_csv)
     after = point_errors(out / "points_calibrated.laz", truth_csv)
-    print("| points | RMS N / E / D (mm) | median sigma h / v (mm) | mean z^2 h / v |")
+    print("| points | RMS N / E / D (mm) | median sigma N / E / D (mm) | mean z^2 N / E / D |")
     print("|---|---|---|---|")
-    print(error_lines("boresight 0 (as given)", *before[:3]))
-    print(error_lines("calibrated boresight", *after[:3]))
+    print(error_lines("boresight 0 (as given)", *before[:2]))
+    print(error_lines("calibrated boresight", *after[:2]))
     true = read_scanner(flight / "scanner_true.toml")
     cal = read_scanner(out / "scanner_calibrated.toml")
     est, sig, tru = (cal.boresight_rad / ARCSEC, cal.boresight_sigma_rad / ARCSEC,

@@ -35,10 +35,16 @@ output (LAS 1.4, point format 6; LAZ by the .laz extension; written atomically):
   default, or EGM96, from a grid installed locally: pip install 'insphoto[geoid]'; the
   WKT is then the compound CRS with EGM2008 height EPSG:3855 / EGM96 height EPSG:5773);
   GPS time (s), intensity, return number, scan angle (deg), point source id = strip;
-  extra dimensions sigma_h_m = sqrt(var_N + var_E) and sigma_v_m (m), first-order from
-  the trajectory sigmas (--trajectory-std: solution_std.txt of ins process or an SMRMSG
+  extra dimensions sigma_e_m, sigma_n_m, sigma_u_m (each axis's own sigma, east, north,
+  up), sigma_h_m = sqrt(var_N + var_E) and sigma_v_m (m), first-order from the
+  trajectory sigmas (--trajectory-std: solution_std.txt of ins process or an SMRMSG
   file; without it only the scanner's sigmas), the boresight, lever-arm, range and
-  scan-angle sigmas.  The CRS is written as a WKT VLR.
+  scan-angle sigmas.  A scanner file calibrated by ins strip-check on this flight (its
+  [calibration] table, whose time span covers the returns) counts the trajectory's
+  attitude error once: its common part is in the calibrated boresight, so those points
+  get the boresight's adjustment sigma and the attitude error the strip check left
+  ([calibration] attitude_sigma_deg) instead of the trajectory's.  The CRS is written
+  as a WKT VLR.
 
 example:
   ins georeference --trajectory out/solution.nav --trajectory-std out/solution_std.txt \\

@@ -25,7 +25,13 @@ method:
 output:
   a table per strip pair: differences used, mean and RMS dz (m) before and after; the
   boresight (deg) with sigmas; --scanner-out writes the scanner file with the estimated
-  boresight and its sigmas (other keys unchanged).
+  boresight and its sigmas (other keys unchanged).  With --trajectory-std it adds a
+  [calibration] table: the flight's time span, the boresight's adjustment sigma alone
+  and the trajectory's attitude error left in this flight's points after the
+  calibration (roll, pitch, yaw deg; estimated per 6 s segment of each strip from the
+  height differences, pitch's strip-to-strip part held at zero), which ins georeference
+  uses for this flight's points instead of the total boresight sigma and the
+  trajectory's attitude sigma (they hold the same error).
 
 example:
   ins strip-check points.laz --trajectory out/solution.nav \\
@@ -126,7 +132,7 @@ def _cmd_strip_check(args):
         raise InputError("the points hold one strip (point source id) only; two or more "
                          "overlapping strips are needed", path=args.points)
     r_s = scanner_vectors(traj, time, xyz_e, scanner)
-    b, est, first = boresight_from_strips(traj, time, r_s, strip, scanner, std=std,
+    b, est, first, calibration = boresight_from_strips(traj, time, r_s, strip, scanner, std=std,
                                           radius_m=args.radius_m, k=args.neighbours)
     print(f"{'strips':<10}{'n':>9}{'mean dz m':>12}{'rms dz m':>11}{'after: mean':>13}"
           f"{'rms':>9}")
@@ -146,9 +152,13 @@ def _cmd_strip_check(args):
             + " not estimable (sigma above 0.1 deg: too little terrain slope or overlap); "
               "nothing written (--accept-poor writes anyway)")
     if args.scanner_out:
-        out = scanner.with_boresight(b)
-        kw = {n: getattr(out, n) for n in out.__dataclass_fields__}
-        kw["boresight_sigma_rad"] = est.sigma_rad
-        write_scanner(args.scanner_out, type(out)(**kw))
-        print(f"wrote {args.scanner_out}")
+        write_scanner(args.scanner_out, scanner.replace(
+            boresight_rad=b, boresight_sigma_rad=est.sigma_rad, calibration=calibration))
+        print(f"wrote {args.scanner_out}" + (
+            "" if calibration is None else
+            " (with [calibration]: for this flight's points the boresight's own sigma "
+            + ", ".join(f"{v:.5f}" for v in np.rad2deg(calibration.boresight_sigma_rad))
+            + " deg and the trajectory's attitude error left, roll/pitch/yaw "
+            + ", ".join(f"{v:.5f}" for v in np.rad2deg(calibration.attitude_sigma_rad))
+            + " deg)"))
     return 0

@@ -26,6 +26,32 @@ per axis, and only independent flights (or draws) average it to 1
 from ``solution_std.txt`` (``ins process``) or an Applanix SMRMSG file, interpolated
 linearly, held constant beyond their first and last epochs.
 
+Each axis has its own sigma (``Points.sigma_enu_m``, the LAZ's ``sigma_e_m``,
+``sigma_n_m``, ``sigma_u_m``): a roll error moves the points across the flight line, a
+pitch error along it, a yaw error along it in proportion to the distance from the
+track, so one horizontal sigma cannot serve both horizontal axes.
+
+A boresight calibrated on the strips of the same flight (a scanner with a
+``calibration``, :class:`ins.lidar.scanner.BoresightCalibration`, written by ``ins
+strip-check --scanner-out``) is not an independent source.  The strip check estimates
+``b_hat = b + a + n``: the true boresight, the trajectory's attitude error common to the
+strips (body frame; a boresight and a body-fixed attitude error move the points alike,
+so the strips cannot tell them apart) and the adjustment's error.  A point of that
+flight then carries ``J (e(t) + b_hat - b) = J (e(t) + a) + J n`` (first order, ``J``
+the Jacobian of the body-frame rotation): the common part of the trajectory's error
+``e(t)`` cancels against ``a`` and what is left is its strip-to-strip and faster
+part.  Counting the trajectory's whole attitude variance and the calibration's total
+sigma (which holds the variance of ``a``) counts the same error twice.  So for the
+points inside the calibration's time span the boresight's sigma is the adjustment's
+alone (``n``) and the trajectory's roll, pitch, yaw sigmas are replaced by the attitude
+error left after the calibration (``attitude_sigma_rad``, estimated by the strip check
+from the strips' height differences, :func:`ins.lidar.strip_check.strip_attitude`);
+points outside it (another flight) get the file's total boresight sigma and the
+trajectory's whole attitude sigma.  Limits (measured, ``bench/bench_lidar_sigmas.py
+--table``): the strips see the part of the left error that makes them disagree; a
+pitch error fixed in the navigation frame and the error faster than the strip
+check's segments they do not see, so the left sigma can be short of it.
+
 The work is done block by block (:func:`georeference_blocks`), the per-point algebra in
 a compiled kernel (Cython, :mod:`ins.lidar._georeference_kernels`).
 """
@@ -58,7 +84,8 @@ class Points:
     xyz_ecef_m : ndarray, shape (n, 3)
         ECEF (WGS84), m.
     var_ned_m2 : ndarray, shape (n, 3)
-        Propagated variances north, east, down, m^2 (zeros without sigmas).
+        Propagated variances north, east, down, m^2 (zeros without sigmas): each axis's
+        own (marginal) variance.
     index : ndarray, shape (n,)
         Position of each point among the block's returns (returns outside the
         trajectory are dropped).
@@ -68,6 +95,11 @@ class Points:
     xyz_ecef_m: np.ndarray
     var_ned_m2: np.ndarray
     index: np.ndarray
+
+    @property
+    def sigma_enu_m(self):
+        """Sigmas east, north, up (m), shape (n, 3): the marginal sigma of each axis."""
+        return np.sqrt(self.var_ned_m2[:, [1, 0, 2]])
 
     @property
     def sigma_h_m(self):
@@ -152,7 +184,10 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None, 
         Returns in the scanner frame, m (:func:`returns_to_scanner`).
     scanner : ins.lidar.scanner.Scanner
     std : TrajectoryStd, optional
-        Trajectory sigmas; without them only the scanner's own sigmas propagate.
+        Trajectory sigmas; without them only the scanner's own sigmas propagate.  With a
+        scanner calibrated on this flight (``scanner.calibration`` covering the return
+        times) the attitude sigmas are replaced by the calibration's attitude error left
+        and the boresight's sigma by the adjustment's alone (module notes).
     method : {"cubic", "slerp"}
         Attitude interpolation.
     path : str, optional
@@ -192,14 +227,30 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None, 
     rx, ry = rot_x(scanner.boresight_rad[0]), rot_y(scanner.boresight_rad[1])
     M_x = scanner.axes @ rx
     P = np.ascontiguousarray(np.swapaxes(C_ap[index], 1, 2)) if use_P else np.zeros((1, 3, 3))
-    georeference_kernel(np.ascontiguousarray(lla), np.ascontiguousarray(q_nb),
-                        np.ascontiguousarray(r_s[index]), np.ascontiguousarray(scanner.C_bs),
-                        np.ascontiguousarray(scanner.lever_arm_m), M_x, M_x @ ry,
-                        P, use_P, np.ascontiguousarray(scanner.imu_to_platform_centre_b_m),
-                        np.ascontiguousarray(s), np.ascontiguousarray(scanner.lever_arm_sigma_m),
-                        np.ascontiguousarray(scanner.boresight_sigma_rad),
-                        float(scanner.range_sigma_m), float(scanner.scan_angle_sigma_rad),
-                        scanner.model != "points", xyz, var)
+    r_k = r_s[index]
+    # a boresight calibrated on this flight: its own (adjustment) sigma, and of the
+    # trajectory's attitude error only the strip-to-strip part (module notes)
+    cal = scanner.calibration
+    same = cal.covers(t) if cal is not None else np.zeros(n, bool)
+    if std is not None and same.any():
+        s[same, 3:6] = cal.attitude_sigma_rad
+    for sel, bore_sig in ((~same, scanner.boresight_sigma_rad),
+                          (same, None if cal is None else cal.boresight_sigma_rad)):
+        if not sel.any():
+            continue
+        k = np.flatnonzero(sel)
+        xk, vk = np.empty((len(k), 3)), np.empty((len(k), 3))
+        georeference_kernel(np.ascontiguousarray(lla[k]), np.ascontiguousarray(q_nb[k]),
+                            np.ascontiguousarray(r_k[k]), np.ascontiguousarray(scanner.C_bs),
+                            np.ascontiguousarray(scanner.lever_arm_m), M_x, M_x @ ry,
+                            np.ascontiguousarray(P[k]) if use_P else P, use_P,
+                            np.ascontiguousarray(scanner.imu_to_platform_centre_b_m),
+                            np.ascontiguousarray(s[k]),
+                            np.ascontiguousarray(scanner.lever_arm_sigma_m),
+                            np.ascontiguousarray(bore_sig),
+                            float(scanner.range_sigma_m), float(scanner.scan_angle_sigma_rad),
+                            scanner.model != "points", xk, vk)
+        xyz[k], var[k] = xk, vk
     return Points(t, xyz, var, index)
 
 

@@ -16,9 +16,12 @@ trajectory's time scale, intensity, return number, number of returns and point s
 (the strip) kept.
 
 Points LAS/LAZ out: LAS 1.4, point format 6 (GPS time, intensity, return number and
-number of returns, scan angle in 0.006 deg, point source id = strip), extra dimensions ``sigma_h_m``
-(``sqrt(var_N + var_E)``) and ``sigma_v_m`` (float32), the CRS as a WKT VLR; z is the
-ellipsoidal height (WGS84) whatever the horizontal CRS.
+number of returns, scan angle in 0.006 deg, point source id = strip), extra dimensions
+``sigma_e_m``, ``sigma_n_m``, ``sigma_u_m`` (each axis's own sigma, east, north, up of
+the local level at the point), ``sigma_h_m`` (``sqrt(var_N + var_E)``) and ``sigma_v_m``
+(``= sigma_u_m``), float32; the CRS as a WKT VLR; z is the ellipsoidal height (WGS84)
+whatever the horizontal CRS.  One horizontal sigma cannot serve both axes: an attitude
+error moves the points along or across the flight line by very different amounts.
 """
 import os
 from dataclasses import dataclass
@@ -308,10 +311,13 @@ class LasPointWriter:
         laspy = import_laspy()
         self.height = height if height is not None and height.orthometric else None
         header = laspy.LasHeader(point_format=6, version="1.4")
-        header.add_extra_dims([laspy.ExtraBytesParams("sigma_h_m", np.float32,
-                                                      description="horizontal sigma m"),
-                               laspy.ExtraBytesParams("sigma_v_m", np.float32,
-                                                      description="vertical sigma m")])
+        header.add_extra_dims([laspy.ExtraBytesParams(f"sigma_{a}_m", np.float32,
+                                                      description=f"{name} sigma m")
+                               for a, name in (("e", "east"), ("n", "north"), ("u", "up"))]
+                              + [laspy.ExtraBytesParams("sigma_h_m", np.float32,
+                                                        description="horizontal sigma m"),
+                                 laspy.ExtraBytesParams("sigma_v_m", np.float32,
+                                                        description="vertical sigma m")])
         geographic = crs.is_geographic
         header.scales = np.array([1e-8, 1e-8, 1e-3] if geographic else [1e-3] * 3)
         header.offsets = np.asarray(offset, dtype=float)
@@ -352,6 +358,8 @@ class LasPointWriter:
         rec.scan_angle = np.clip(np.round(np.asarray(scan_angle_deg) / 0.006), -30000,
                                  30000).astype(np.int16)
         rec.point_source_id = np.clip(strip, 0, 65535).astype(np.uint16)
+        sig = points.sigma_enu_m.astype(np.float32)
+        rec.sigma_e_m, rec.sigma_n_m, rec.sigma_u_m = sig[:, 0], sig[:, 1], sig[:, 2]
         rec.sigma_h_m = points.sigma_h_m.astype(np.float32)
         rec.sigma_v_m = points.sigma_v_m.astype(np.float32)
         self._writer.write_points(rec)

@@ -28,6 +28,12 @@ origin in ``a`` and ``imu_to_platform_centre_b_m`` the IMU to the platform centr
     C_bs(t) = C_ap(t)^T C_as,     l_b(t) = l_bp + C_ap(t)^T l_a
 
 (the varying lever arm of the lever-arm paper, as for the GNSS antenna).
+
+A boresight calibrated from the strips of one flight (``ins strip-check
+--scanner-out``) holds that flight's attitude error common to its strips
+(:mod:`ins.lidar.strip_check`): its file then has a ``[calibration]`` table
+(:class:`BoresightCalibration`) that tells :func:`ins.lidar.georeference.georeference`
+how to count the two errors once for the points of that flight.
 """
 import math
 from dataclasses import dataclass, field
@@ -41,8 +47,8 @@ from ins.common.limits import MAX_LEVER_ARM_M
 from ins.common.tomlschema import REQUIRED, Table, check_keys
 from ins.nav.rotation import rot_x, rot_y, rot_z
 
-__all__ = ["Scanner", "read_scanner", "write_scanner", "SCANNER_KEYS", "SCAN_MODELS",
-           "scanner_rays", "boresight_dcm"]
+__all__ = ["Scanner", "BoresightCalibration", "read_scanner", "write_scanner", "SCANNER_KEYS",
+           "SCAN_MODELS", "scanner_rays", "boresight_dcm"]
 
 #: Scan models (see the module notes).
 SCAN_MODELS = ("polygon", "oscillating", "points")
@@ -55,6 +61,7 @@ SCANNER_KEYS = {
     "scanner": ("model", "forward_tilt_deg", "range_sigma_m", "scan_angle_sigma_deg"),
     "mounting": ("on", "axes", "lever_arm_m", "boresight_deg", "lever_arm_sigma_m",
                  "boresight_sigma_deg", "imu_to_platform_centre_b_m"),
+    "calibration": ("time_span_s", "boresight_sigma_deg", "attitude_sigma_deg"),
 }
 
 
@@ -77,6 +84,54 @@ def _vec3(v, name, unit, nonneg=False):
         raise InputError(f"{name} must be >= 0 ({unit}), got {v!r}")
     a.setflags(write=False)
     return a
+
+
+@dataclass(frozen=True, eq=False)
+class BoresightCalibration:
+    """How a boresight estimated from the strips of one flight splits its error.
+
+    The strip check's boresight ``b_hat = b + a + n``: ``b`` the scanner's true
+    boresight, ``a`` the trajectory's attitude error common to the strips of that flight
+    (in the body frame; absorbed: a boresight and a body-fixed attitude error move the
+    points alike), ``n`` the adjustment's own error (the strips' noise).  For the points
+    of THAT flight (times inside ``time_span_s``, the same trajectory) the absorbed part
+    cancels the trajectory's common error, so their sigmas count ``n``
+    (``boresight_sigma_rad``) and, of the trajectory's attitude error, only the part
+    that differs from strip to strip (``attitude_sigma_rad``, measured by the strip
+    check); for any other flight the scanner file's ``boresight_sigma_deg`` (``n`` and
+    ``a`` together) and the trajectory's whole attitude sigma hold
+    (:func:`ins.lidar.georeference.georeference`).
+
+    Attributes
+    ----------
+    time_span_s : ndarray (2,)
+        First and last time of the calibration flight's points, s (trajectory's scale).
+    boresight_sigma_rad : ndarray (3,)
+        Sigma of ``n`` (rx, ry, rz), rad.
+    attitude_sigma_rad : ndarray (3,)
+        Roll, pitch, yaw error of the trajectory left in that flight's points after
+        the calibration (the strip-to-strip part), rad.
+    """
+
+    time_span_s: np.ndarray
+    boresight_sigma_rad: np.ndarray
+    attitude_sigma_rad: np.ndarray
+
+    def __post_init__(self):
+        span = np.array(np.ravel(self.time_span_s), dtype=float)
+        if span.shape != (2,) or not np.all(np.isfinite(span)) or span[1] < span[0]:
+            raise InputError(f"time_span_s must be 2 increasing finite times (s), got "
+                             f"{self.time_span_s!r}")
+        span.setflags(write=False)
+        object.__setattr__(self, "time_span_s", span)
+        for name in ("boresight_sigma_rad", "attitude_sigma_rad"):
+            object.__setattr__(self, name, _vec3(getattr(self, name), name, "rad >= 0",
+                                                 True))
+
+    def covers(self, t):
+        """Which of the times ``t`` (s) lie in the calibration flight's span."""
+        t = np.asarray(t, dtype=float)
+        return (t >= self.time_span_s[0]) & (t <= self.time_span_s[1])
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,6 +160,9 @@ class Scanner:
         centre (module notes).
     imu_to_platform_centre_b_m : array_like, shape (3,)
         ``l_bp`` (m, body FRD), used with ``on = "aircraft"``.
+    calibration : BoresightCalibration, optional
+        Set by a strip-check calibration (module notes); ``boresight_sigma_rad`` is
+        then the total sigma, for other flights.
     """
 
     model: str = "polygon"
@@ -118,6 +176,7 @@ class Scanner:
     boresight_sigma_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))
     on: str = "imu"
     imu_to_platform_centre_b_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    calibration: BoresightCalibration = None
 
     def __post_init__(self):
         if self.on not in SCANNER_PLACES:
@@ -153,6 +212,10 @@ class Scanner:
                                    ("boresight_sigma_rad", "rad >= 0", True),
                                    ("imu_to_platform_centre_b_m", "m", False)):
             object.__setattr__(self, name, _vec3(getattr(self, name), name, unit, nonneg))
+        if self.calibration is not None and not isinstance(self.calibration,
+                                                           BoresightCalibration):
+            raise InputError(f"calibration must be a BoresightCalibration, got "
+                             f"{type(self.calibration).__name__}")
 
     @property
     def C_bs(self):
@@ -160,9 +223,14 @@ class Scanner:
         return self.axes @ boresight_dcm(self.boresight_rad)
 
     def with_boresight(self, boresight_rad):
-        """A copy with another boresight (rad)."""
+        """A copy with another boresight (rad); a calibration record is dropped (it
+        belongs to the boresight it was made with)."""
+        return self.replace(boresight_rad=boresight_rad, calibration=None)
+
+    def replace(self, **changes):
+        """A copy with the given fields changed."""
         kw = {n: getattr(self, n) for n in self.__dataclass_fields__}
-        kw["boresight_rad"] = boresight_rad
+        kw.update(changes)
         return Scanner(**kw)
 
 
@@ -223,12 +291,27 @@ def read_scanner(path):
     bsig = mnt.numbers("boresight_sigma_deg", (0.0, 0.0, 0.0), "deg >= 0 (rx, ry, rz)",
                        length=3, lo=0.0, scalar=False, bound=180.0)
     mnt.finish()
+    calibration = None
+    if "calibration" in doc:
+        cal = Table(doc["calibration"], "calibration", path, SCANNER_KEYS["calibration"],
+                    SCANNER_KEYS)
+        span = cal.numbers("time_span_s", REQUIRED, "s, first and last time", length=2,
+                           scalar=False)
+        csig = cal.numbers("boresight_sigma_deg", REQUIRED, "deg >= 0 (rx, ry, rz)", length=3,
+                           lo=0.0, scalar=False, bound=180.0)
+        att_sig = cal.numbers("attitude_sigma_deg", REQUIRED, "deg >= 0 (roll, pitch, yaw)",
+                           length=3, lo=0.0, scalar=False, bound=180.0)
+        cal.finish()
+        if span[1] < span[0]:
+            raise cal.error("time_span_s", f"expected first <= last, got {list(span)!r}",
+                            "s")
+        calibration = BoresightCalibration(span, np.deg2rad(csig), np.deg2rad(att_sig))
     try:
         return Scanner(model=model, forward_tilt_rad=math.radians(tilt), range_sigma_m=rsig,
                        scan_angle_sigma_rad=math.radians(asig), axes=axes, lever_arm_m=lever,
                        boresight_rad=np.deg2rad(bore), lever_arm_sigma_m=lsig,
                        boresight_sigma_rad=np.deg2rad(bsig), on=on,
-                       imu_to_platform_centre_b_m=l_bp)
+                       imu_to_platform_centre_b_m=l_bp, calibration=calibration)
     except InputError as exc:
         raise InputError(f"[mounting] {exc.reason}", path=path) from None
 
@@ -246,6 +329,12 @@ def scanner_to_dict(scanner):
                      "lever_arm_sigma_m": [float(v) for v in scanner.lever_arm_sigma_m],
                      "boresight_sigma_deg": [float(v) for v in
                                              np.rad2deg(scanner.boresight_sigma_rad)]}}
+    cal = scanner.calibration
+    if cal is not None:
+        doc["calibration"] = {
+            "time_span_s": [float(v) for v in cal.time_span_s],
+            "boresight_sigma_deg": [float(v) for v in np.rad2deg(cal.boresight_sigma_rad)],
+            "attitude_sigma_deg": [float(v) for v in np.rad2deg(cal.attitude_sigma_rad)]}
     if scanner.on != "imu":
         doc["mounting"]["on"] = scanner.on
         doc["mounting"]["imu_to_platform_centre_b_m"] = [
