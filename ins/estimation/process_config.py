@@ -144,7 +144,9 @@ class ProcessConfig:
     reject_probability: float = 1e-5
     smooth: bool = True
     recover: bool = True
-    identify: bool = True         # noise identified from the log when none is given
+    # noise identified from the log when none is given: a TOML config's default (true);
+    # a ProcessConfig built in Python runs with the noise it holds unless it sets this
+    identify: bool = False
     noise_source: str = None      # "config", "manifest", "preset NAME"; None: the defaults
     source: str = "config"
     initial_source: str = None
@@ -323,8 +325,8 @@ def _fill(cfg, data, where, path=None):
                                       True)
     cfg.smooth = bool(filt.get("smooth", cfg.smooth))
     cfg.recover = bool(filt.get("recover", cfg.recover))
-    if "identify" in filt:
-        cfg.identify = _flag(filt["identify"], where("filter", "identify"))
+    cfg.identify = (_flag(filt["identify"], where("filter", "identify"))
+                    if "identify" in filt else True)
     _states(cfg, data.get("states", {}), where)
     _measurements(cfg, data.get("measurements", {}), where)
     _vehicle_and_heading(cfg, data, where)

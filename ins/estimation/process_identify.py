@@ -2,11 +2,11 @@
 the GNSS velocity lag identified from the log before the run
 (:mod:`ins.estimation.noise_identification`).
 
-When it runs (:func:`wanted`): loose coupling, ``[filter] identify = true`` (the default),
-and no noise given by the user's config, a flight folder's manifest or a
-:class:`~ins.estimation.process_config.ProcessConfig` built in Python with its own
-``noise`` (a ``--preset`` is a starting point, not a requirement: the search starts from
-it).  The velocity lag
+When it runs (:func:`wanted`): loose coupling, ``[filter] identify = true`` (the default
+of a TOML config; a :class:`~ins.estimation.process_config.ProcessConfig` built in Python
+runs with the noise it holds unless its ``identify`` is set), and no noise given by the
+user's config or a flight folder's manifest (a ``--preset`` is a starting point, not a
+requirement: the search starts from it).  The velocity lag
 is estimated when ``[gnss] velocity_time_shift_s`` is not given and the log has
 velocities; the non-holonomic constraint is tried when ``[measurements] nhc`` is not
 given (by the config or the preset).  The IMU-GNSS time offset is searched when neither
@@ -37,19 +37,7 @@ def wanted(cfg):
         return False
     if cfg.source == "manifest":
         return False
-    if cfg.noise_source is None:          # nothing named: unless set through the API
-        return _is_default(cfg.noise)
-    return cfg.noise_source.startswith("preset")
-
-
-def _is_default(noise):
-    """Whether ``noise`` is ``ImuNoise()`` as it is (a ProcessConfig built in Python with
-    its own ``noise`` and no ``noise_source`` keeps it)."""
-    from dataclasses import fields
-    default = ImuNoise()
-    return all(np.array_equal(np.asarray(getattr(noise, f.name), dtype=object),
-                              np.asarray(getattr(default, f.name), dtype=object))
-               for f in fields(ImuNoise))
+    return cfg.noise_source is None or cfg.noise_source.startswith("preset")
 
 
 def starts(cfg, rest_noise):
