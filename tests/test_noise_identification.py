@@ -166,6 +166,11 @@ def test_search_finds_a_time_offset_when_asked():
     p = {q.name: q for q in out.parameters}["IMU-GNSS time offset"]
     assert p.resolved and p.sigma == pytest.approx(1 / np.sqrt(2e4), rel=0.05)
     assert identify(nll, [("a", ImuNoise(arw_deg_sqrth=0.5))]).time_offset_s is None
+    # a likelihood flat in the offset: not separable, 0 kept, and said so
+    flat = identify(lambda n, h, v, t: 100.0 * np.log(n.arw_deg_sqrth[0] / 0.5) ** 2,
+                    [("a", ImuNoise(arw_deg_sqrth=0.5))], test_nhc=False, time_offset=True)
+    assert flat.time_offset_s == 0.0
+    assert "IMU-GNSS time offset 0 s: not separable by the data" in flat.describe()
 
 
 # --- the simulated twin of the real car ------------------------------------------------

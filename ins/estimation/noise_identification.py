@@ -129,7 +129,9 @@ class Identified:
         lag = ("" if self.velocity_lag is None else
                f"; the lag's start: {self.velocity_lag.describe()}")
         return (f"identified from the log by maximum likelihood over the GNSS innovations "
-                f"({self.runs} filter runs over {self.window_s:.0f} s, from {self.start_name}; "
+                f"({self.runs} filter runs"
+                + ("" if self.window_s is None else f" over {self.window_s:.0f} s")
+                + f", from {self.start_name}; "
                 f"NLL {self.nll_start:.0f} -> {self.nll:.0f}): " + "; ".join(parts)
                 + "; " + nhc + lag)
 
@@ -306,7 +308,7 @@ def identify(run_nll, starts, velocity_lag=None, test_nhc=True, window_s=None,
         ok = bool(np.isfinite(s_t)) and abs(found) >= OFFSET_MIN_S
         params.append(Parameter("IMU-GNSS time offset", found if ok else 0.0, "s",
                                 float(s_t), 0.0, ok, log=False))
-        if not ok:
+        if np.isfinite(s_t) and not ok:
             params[-1].note = (f"{found * 1e3:+.0f} ms found, below the {OFFSET_MIN_S * 1e3:.0f} "
                                f"ms the likelihood can tell on a vibrating car: 0 kept")
     keys = {"ARW": "arw", "VRW": "vrw", "gyro bias instability": "gyro_bi",
