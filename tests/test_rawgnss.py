@@ -47,6 +47,8 @@ def test_ubx_checksum_is_the_spec_example():
     # UBX-ACK-ACK of CFG-PRT (class 05 id 01, length 2, payload 06 00): B5 62 05 01 02
     # 00 06 00 0E 37, the checksum printed in u-blox interface descriptions
     assert frame(0x05, 0x01, bytes([0x06, 0x00])).hex() == "b56205010200060" "00e37"
+    from ins.io.ublox import ubx_checksum       # the readers' own (one for both)
+    assert ubx_checksum(bytes.fromhex("050102000600")) == bytes.fromhex("0e37")
 
 
 def test_separation_of_known_offsets():

@@ -22,6 +22,7 @@ import os
 import struct
 
 from ins.common.errors import InputError
+from ins.io.ublox import ubx_checksum
 
 __all__ = ["is_ubx", "convert_ubx", "first_rawx_time", "UBX_SYNC", "RINEX_VERSION"]
 
@@ -110,20 +111,12 @@ def first_rawx_time(path, limit_bytes=1 << 22):
     while 0 <= k and k + 8 + 16 <= len(data):
         length = struct.unpack_from("<H", data, k + 4)[0]
         end = k + 6 + length
-        if end + 2 <= len(data) and data[end:end + 2] == _checksum(data[k + 2:end]):
+        if end + 2 <= len(data) and data[end:end + 2] == ubx_checksum(data[k + 2:end]):
             tow, week = struct.unpack_from("<dH", data, k + 6)
             if week > 0:
                 return int(week), float(tow)
         k = data.find(b"\xb5\x62\x02\x15", k + 2)
     return None
-
-
-def _checksum(body):
-    a = b = 0
-    for byte in body:
-        a = (a + byte) & 0xFF
-        b = (b + a) & 0xFF
-    return bytes((a, b))
 
 
 def _has_observation(path):

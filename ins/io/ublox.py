@@ -48,7 +48,8 @@ NMEA_UERE_M = {4: 0.02, 5: 0.3, 2: 0.7, 1: 2.5}
 _GGA_Q = {4: 1, 5: 2, 2: 4, 1: 5}
 
 
-def _checksum(body):
+def ubx_checksum(body):
+    """The UBX Fletcher-8 checksum (CK_A, CK_B) of ``body`` (class, id, length, payload)."""
     a = b = 0
     for byte in body:
         a = (a + byte) & 0xFF
@@ -62,7 +63,7 @@ def _frames(data, cls_id):
     while 0 <= k and k + 8 <= len(data):
         length = struct.unpack_from("<H", data, k + 4)[0]
         end = k + 6 + length
-        if end + 2 <= len(data) and data[end:end + 2] == _checksum(data[k + 2:end]):
+        if end + 2 <= len(data) and data[end:end + 2] == ubx_checksum(data[k + 2:end]):
             yield k, data[k + 6:end]
             k = data.find(_SYNC + cls_id, end + 2)
         else:
