@@ -48,14 +48,6 @@ class TrackConsistency:
         return np.isfinite(self.step_nis) & (self.step_nis > self.threshold)
 
 
-def _ned(lla):
-    ref = lla[0]
-    rm, rn = earth.radii(ref[0])
-    return np.column_stack([(lla[:, 0] - ref[0]) * (rm + ref[2]),
-                            (lla[:, 1] - ref[1]) * (rn + ref[2]) * np.cos(lla[:, 0]),
-                            -(lla[:, 2] - ref[2])])
-
-
 def track_consistency(gnss):
     """Each fix of ``gnss`` (:class:`ins.io.gnss_log.GnssLog`) against its predecessor
     (module notes)."""
@@ -70,7 +62,7 @@ def track_consistency(gnss):
     pos = dt[dt > 0]
     med = float(np.median(pos)) if len(pos) else 1.0
     gap[1:] = ~((dt > 0) & (dt <= MAX_GAP_FACTOR * med))
-    p = _ned(np.asarray(gnss.lla, float))
+    p = _ned(gnss.lla)
     cov = (np.asarray(gnss.cov_ned_m2, float) if gnss.cov_ned_m2 is not None
            else np.einsum("ni,ij->nij", np.asarray(gnss.sigma_ned_m, float) ** 2, np.eye(3)))
     acc = (0.5 * UNMODELLED_ACCEL_MPS2 * dt ** 2) ** 2
@@ -101,3 +93,9 @@ def track_consistency(gnss):
         nis[idx] = np.einsum("ni,ni->n", dd, np.linalg.solve(SS, dd[..., None])[..., 0])
     consistent = np.isfinite(nis) & (nis <= thr)
     return TrackConsistency(gap, nis, consistent, thr)
+
+
+def _ned(lla):
+    """NED of every fix about the first, m (:func:`ins.nav.earth.ned_offset`)."""
+    lla = np.asarray(lla, float)
+    return earth.ned_offset(np.broadcast_to(lla[0], lla.shape), lla)

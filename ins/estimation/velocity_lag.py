@@ -96,7 +96,7 @@ def velocity_lag(gnss):
     k = np.flatnonzero(use)
     if len(k) < MIN_RECORDS:
         return None
-    p = _ned(np.asarray(gnss.lla, float))
+    p = _ned(gnss.lla)
     span = (t[k + 1] - t[k - 1])[:, None]
     v_pos = (p[k + 1] - p[k - 1]) / span
     a = (v[k + 1] - v[k - 1]) / span
@@ -118,10 +118,6 @@ def velocity_lag(gnss):
 
 
 def _ned(lla):
-    """Local NED of every fix about the first, m (small area: for differences of
-    neighbours the linear map is exact far below the fixes' centimetres)."""
-    ref = lla[0]
-    rm, rn = earth.radii(ref[0])
-    return np.column_stack([(lla[:, 0] - ref[0]) * (rm + ref[2]),
-                            (lla[:, 1] - ref[1]) * (rn + ref[2]) * np.cos(lla[:, 0]),
-                            -(lla[:, 2] - ref[2])])
+    """NED of every fix about the first, m (:func:`ins.nav.earth.ned_offset`)."""
+    lla = np.asarray(lla, float)
+    return earth.ned_offset(np.broadcast_to(lla[0], lla.shape), lla)
