@@ -324,7 +324,11 @@ def _local_cluster(workers, processes):
         if os.name == "posix" and processes:
             wrapper = os.path.join(folder, "python-ignoring-sigint")
             with open(wrapper, "w") as fh:
-                fh.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(exe)} \"$@\"\n")
+                # TMPDIR: a worker killed on close inside its first tempfile.gettempdir()
+                # leaves that call's empty probe file (a bare 8-letter name) behind; in
+                # the scratch folder it goes with the folder
+                fh.write(f"#!/bin/sh\ntrap '' INT\nTMPDIR={shlex.quote(folder)}\n"
+                         f"export TMPDIR\nexec {shlex.quote(exe)} \"$@\"\n")
             os.chmod(wrapper, 0o755)
             multiprocessing.spawn.set_executable(wrapper)
         # Ctrl-C waits for the start-up (a second or two): a cluster cut off half started
