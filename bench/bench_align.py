@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_align import tactical_log, tactical_priors  # noqa: E402
 
-from ins.estimation.alignment_fine import align_at_rest  # noqa: E402
+from ins.estimation.alignment.fine import align_at_rest  # noqa: E402
 
 
 def run(minutes, mode, lat_deg=30.0, seeds=100):

@@ -11,7 +11,7 @@ on a 2.8 h 100 Hz log.
    timed stage by stage.
 3. ``--correlation``: the correlation of the Allan variance estimates between octaves
    for each noise (1500 logs of 2^15 samples each): ``RHO_OCTAVES`` of
-   ``ins/estimation/allan.py``.
+   ``ins/estimation/tools/allan.py``.
 
 Measured (2 cores, shared machine, 2026-11-27, this script as committed, 20 seeds):
 95 % intervals holding the truth, gyro Q 0.97 N 0.92 B 0.98 K 0.88 R 1.00, accel
@@ -40,13 +40,13 @@ from test_allan_model import (  # noqa: E402
     mems_static,
 )
 
-from ins.estimation.allan import (  # noqa: E402
+from ins.estimation.tools.allan import (  # noqa: E402
     TERMS,
     allan_deviation,
     fit_noise_model,
     octave_taus,
-    static_check,
 )
+from ins.estimation.alignment.static_check import static_check  # noqa: E402
 
 DEG = np.pi / 180
 

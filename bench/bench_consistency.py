@@ -25,7 +25,7 @@ of its epochs inside and a mean near ``d``.
 Measured (30 seeds, 2026-11-24, about 1 min with the flights cached):
 
 - survey layout (default), sensor states random constants plus the bias instability
-  (the model of ``ins.estimation.error_model`` when the manifest gives the instability): smoothed
+  (the model of ``ins.estimation.core.error_model`` when the manifest gives the instability): smoothed
   tilt NEES 0.83-1.05 and heading 1.14-1.40 per class, all inside their bands; forward
   heading before the first turn 0.07 (the 0.5 deg in-air alignment), the rest inside;
   position NEES 2.8-3.0, NIS 3.0.  Smoothed RMS tilt N/E/heading 37.6/28.3/69.3 arcsec
@@ -110,7 +110,7 @@ def filter_statistics(cfg, plan, default_priors=False):
     """The filter's sensor statistics for the drawn errors: the preset's magnitudes as
     the standard deviations (not the drawn values the manifest gives).  With
     ``default_priors`` the non-orthogonality priors are left to the filter's default
-    rule (``ins.estimation.filter_settings.default_misalignment_std_arcsec``: from the
+    rule (``ins.estimation.core.filter_settings.default_misalignment_std_arcsec``: from the
     scale-factor sigmas) instead of the drawn magnitudes."""
     from dataclasses import replace
 
@@ -159,10 +159,10 @@ def run_seed(folder, layout, plan, gauss_markov=False, default_priors=False):
     """Per-node normalized errors and NIS of one flight (``gauss_markov``: every sensor
     state a Gauss-Markov process of its total sigma, the model before the constant
     sensor states; ``default_priors``: see :func:`filter_statistics`)."""
-    from ins.estimation.error_model import LAYOUTS, StateLayout
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
-    from ins.estimation.smoother import rts_errors
+    from ins.estimation.core.error_model import LAYOUTS, StateLayout
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
+    from ins.estimation.core.smoother import rts_errors
     from ins.io.navfiles import read_nav
     from ins.nav.accuracy import compare
     from ins.nav.rotation import quat_to_euler

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 
-from ins.estimation.double_difference import dd_operator
-from ins.estimation.pseudorange import line_of_sight, sagnac_range
+from ins.estimation.coupling.double_difference import dd_operator
+from ins.estimation.coupling.pseudorange import line_of_sight, sagnac_range
 from ins.gnss.raw_pairs import read_pair
 from ins.gnss.rtklib_engine import solve
 from ins.gnss.rtklib_options import RtklibOptions

@@ -130,9 +130,9 @@ def variants(preset):
 
 def figures(folder, gauss_markov):
     """Smoothed attitude error RMS and stated sigma RMS (arcsec), whole and late."""
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
-    from ins.estimation.smoother import rts_errors
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
+    from ins.estimation.core.smoother import rts_errors
     from ins.io.navfiles import read_nav
     from ins.nav.accuracy import compare
     from ins.nav.trajectory import Trajectory

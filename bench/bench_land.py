@@ -8,7 +8,7 @@ Per seed and configuration: the forward pass's worst horizontal error in the out
 the smoothed horizontal RMS (m), the smoothed heading error RMS (deg) and the rejected
 GNSS records; then the median over the seeds.  Configurations: no NHC; NHC with the
 true mounting; NHC with the mounting estimated from the no-NHC solution
-(ins.estimation.vehicle.estimate_mounting); NHC in the IMU's axes; dual-antenna headings (0.1 deg,
+(ins.estimation.tools.vehicle.estimate_mounting); NHC in the IMU's axes; dual-antenna headings (0.1 deg,
 baseline [0.3, 1.2, -0.1] m in b, at the GNSS epochs) without NHC.
 
     python bench/bench_land.py [--seeds 5]
@@ -52,7 +52,7 @@ def make_drive(folder, seed):
     from land_vehicle import CarTruth
     from scipy.spatial.transform import Rotation
 
-    from ins.estimation.heading_files import write_headings
+    from ins.estimation.pipeline.heading_files import write_headings
     from ins.io.gnss import write_gnss
     from ins.io.gnss_log import GnssLog
     from ins.io.imu_files import write_kfgins_text
@@ -87,9 +87,9 @@ def make_drive(folder, seed):
 def run(car, folder, base, name, extra="", heading=False):
     from scipy.spatial.transform import Rotation
 
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.nav import earth
     path = folder / f"{name}.toml"
     path.write_text(base.format(heading='heading = "heading.txt"\n' if heading else "")
@@ -111,7 +111,7 @@ def run(car, folder, base, name, extra="", heading=False):
 
 
 def main(argv=None):
-    from ins.estimation.vehicle import estimate_mounting
+    from ins.estimation.tools.vehicle import estimate_mounting
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=5)
     args = p.parse_args(argv)

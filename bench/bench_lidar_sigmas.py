@@ -91,9 +91,9 @@ def _consistency():
 def flight_errors(seed, fixed=False, workdir=CACHE):
     """Point errors (n, 3) NED (m), their stated variances (n, 3) (m^2) and the strip of
     each point, for one simulated and processed flight."""
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
-    from ins.estimation.process_outputs import write_outputs
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
+    from ins.estimation.pipeline.outputs import write_outputs
     from ins.io.navfiles import read_trajectory
     from ins.lidar.georeference import georeference, read_trajectory_std, returns_to_scanner
     from ins.lidar.lidar_files import iter_returns

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """GNSS/INS post-processing on the shared benchmark flight, beside the peers' figures.
 
-Runs ``ins.estimation.process`` (forward filter + RTS smoother) on the shared dataset
+Runs ``ins.estimation.pipeline.process`` (forward filter + RTS smoother) on the shared dataset
 (../shared/bench/ins, built once into .cache/ins-bench-data) with the noise settings
 and the perturbed start that every peer is given (meta.json), and prints, in the layout
 of that README (errors from its own peerlib over [t0 + 60 s, end]):
@@ -58,8 +58,8 @@ LAYOUT = "kfgins"
 
 
 def config_for(data, gnss_file, node_interval_s=1.0):
-    from ins.estimation.error_model import LAYOUTS, ImuNoise, StateLayout
-    from ins.estimation.process_config import ProcessConfig
+    from ins.estimation.core.error_model import LAYOUTS, ImuNoise, StateLayout
+    from ins.estimation.pipeline.config import ProcessConfig
     meta = json.loads((data / "meta.json").read_text())
     fn, ini, st = meta["filter_noise"], meta["init_filter"], meta["init_std"]
     noise = ImuNoise(fn["arw_dpsh"], fn["vrw_mpsph"], fn["gyro_bias_std_dph"],
@@ -106,7 +106,7 @@ def _fmt(r):
 
 
 def accuracy(args, peerlib, truth, data):
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     out = {}
     print("\nGNSS/INS filter, noisy IMU, perturbed start, errors over [t0+60 s, end] "
           "(README layout)")
@@ -150,7 +150,7 @@ def accuracy(args, peerlib, truth, data):
 
 
 def rate_check(peerlib, truth, data):
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     print("\nCovariance step (node interval): accuracy it costs (gnss_outage.txt, smoothed "
           "and forward pos RMS N/E/D mm, heading RMS arcsec)")
     for dt in (1.0, 0.1):
@@ -261,7 +261,7 @@ def gnss_at_rate(data, hz, path, seed=1):
     on the grid of ``1/hz`` s from the first whole second after its start): antenna =
     IMU position + ``C_nb`` :data:`RATE_LEVER_B_M` (through ``D^-1``) plus white noise of
     :data:`RATE_SIGMA_NED_M`; the columns of gnss.txt (time, lat, lon deg, h m, sigmas)."""
-    from ins.estimation.lever_arm import antenna_lla
+    from ins.estimation.core.lever_arm import antenna_lla
     from ins.nav import earth
     from ins.nav.rotation import euler_to_dcm
     nav = np.loadtxt(data / "truth.nav", usecols=range(1, 11))
@@ -366,8 +366,8 @@ def per_state_cost(args, data):
     in-process (read + forward + smoother, warm), and the compiled node kernels alone
     (prior covariance + one 3-axis update + one smoother step) for larger n, the price
     of extra states (tight coupling's clocks)."""
-    from ins.estimation.error_model import LAYOUTS, StateLayout
-    from ins.estimation.process import process
+    from ins.estimation.core.error_model import LAYOUTS, StateLayout
+    from ins.estimation.pipeline.process import process
     global LAYOUT
     print("\nCost against the number of error states (in-process, warm, CPU time of the "
           "process; best of the repeats)")
@@ -388,7 +388,7 @@ def per_state_cost(args, data):
         print(f"| {label} | {1e6 * best[0] / ep:.2f} | {1e3 * best[0] / nodes:.3f} | "
               f"{best[1]:.2f} |")
     try:
-        from ins.estimation import _kalman_kernels as kk
+        from ins.estimation.core import _kalman_kernels as kk
     except ImportError:                     # an older tree (the "before" figures)
         return
     print("\nCompiled node kernels alone (node_predict + joseph_update 3x n + rts_step), "
@@ -457,7 +457,7 @@ def lever_arm_tables(folder):
     varying-arm compensation (method 1) and the constant arm l_bp + l_ap (method 2)."""
     from test_filter import given_config
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     from ins.io.navfiles import read_nav
     arcsec = np.pi / 180 / 3600
     rows = {}

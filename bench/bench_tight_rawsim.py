@@ -1,7 +1,7 @@
 """Tight against loose coupling on the raw-GPS simulated flight (data/flights/rawsim.toml:
 tactical IMU, real broadcast orbits of 2005-04-02, RINEX 3 rover observations with
 cycle slips, multipath and masks of 3, 2 and 1 satellites for 20 s each), through
-``ins.estimation.process.process`` as ``ins process`` runs it.
+``ins.estimation.pipeline.process.process`` as ``ins process`` runs it.
 
 Loose: RTKLIB's single-point solution of the rover (mode single, GPS L1) as the GNSS
 log.  Tight: the same run with ``coupling = "tight"`` (pseudoranges and Doppler through
@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from ins.estimation.process import process
-from ins.estimation.process_config import config_from_manifest
-from ins.estimation.process_gnss import RawGnss
+from ins.estimation.pipeline.process import process
+from ins.estimation.pipeline.config import config_from_manifest
+from ins.estimation.pipeline.gnss_source import RawGnss
 from ins.gnss.rtklib_options import RtklibOptions
 from ins.io.navfiles import read_nav
 from ins.nav import earth

@@ -27,11 +27,11 @@ _LAZY = {
     "read_nav": "io.navfiles", "write_nav": "io.navfiles", "read_trajectory": "io.navfiles",
     "read_sbet": "io.sbet", "write_sbet": "io.sbet",
     # estimation: GNSS/INS post-processing
-    "ProcessConfig": "estimation.process_config", "load_config": "estimation.process_config",
-    "config_from_manifest": "estimation.process_config",
-    "process": "estimation.process", "ProcessResult": "estimation.process",
-    "write_outputs": "estimation.process_outputs", "write_plots": "estimation.plots",
-    "allan_deviation": "estimation.allan",
+    "ProcessConfig": "estimation.pipeline.config", "load_config": "estimation.pipeline.config",
+    "config_from_manifest": "estimation.pipeline.config",
+    "process": "estimation.pipeline.process", "ProcessResult": "estimation.pipeline.process",
+    "write_outputs": "estimation.pipeline.outputs", "write_plots": "estimation.pipeline.plots",
+    "allan_deviation": "estimation.tools.allan",
 }
 
 

@@ -1,4 +1,4 @@
-"""``ins align``: static alignment at rest without GNSS (ins.estimation.alignment_fine).
+"""``ins align``: static alignment at rest without GNSS (ins.estimation.alignment.fine).
 
 Truths: exact increments of an IMU at rest (f_b = -C_bn g_n, w_b = C_bn w_ie_n) give
 the attitude exactly; a simulated tactical IMU (biases drawn per seed from the stated
@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 
 from ins.cli import main as cli
 from ins.common.errors import InputError
-from ins.estimation.alignment_fine import align_at_rest
-from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL
+from ins.estimation.alignment.fine import align_at_rest
+from ins.estimation.core.error_model import DEG_SQRTH, DPH, MGAL
 from ins.io.imu_files import write_kfgins_binary
 from ins.nav import earth
 from ins.nav.imu import ImuLog
@@ -146,7 +146,7 @@ def test_consumer_gyro_heading_is_unknown(tmp_path, capsys):
 def test_cli_writes_an_initial_state_for_ins_process(tmp_path, capsys):
     """Southern latitude typed as it is (--lla -33.9,...); the TOML is a config that
     ins process reads as its initial state (method 'given')."""
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     lat = np.deg2rad(-33.9)
     log, _ = static_log([1.0, -2.0, 200.0], lat, duration=120.0, t0=5000.0)
     path = tmp_path / "imu.bin"

@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ins.common.errors import InputError
-from ins.estimation.alignment import align_gnss_heading, align_static, static_attitude
-from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL, ImuNoise
+from ins.estimation.alignment.initial import align_gnss_heading, align_static, static_attitude
+from ins.estimation.core.error_model import DEG_SQRTH, DPH, MGAL, ImuNoise
 from ins.io.gnss_log import GnssLog
 from ins.nav import earth
 from ins.nav.imu import ImuLog
@@ -153,8 +153,8 @@ def test_in_air_start_heading_does_not_run_away_in_straight_flight():
     from scipy.stats import chi2
     from test_filter import short_flight
 
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
     folder = short_flight(seed=5, plan=_in_air_plan())
     man = tomllib.loads((folder / "manifest.toml").read_text())
     t_a, t_b = man["stationary"]["segments_s"][0]

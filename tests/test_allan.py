@@ -5,7 +5,7 @@ import pytest
 from test_sensor_errors import static_log
 
 from ins.cli.main import main
-from ins.estimation.allan import allan_deviation, noise_densities
+from ins.estimation.tools.allan import allan_deviation, noise_densities
 from ins.io.imu_files import write_kfgins_text
 from ins.simulate.sensor_errors import DEG_SQRTH, MPS_SQRTH, ImuErrorModel, apply_errors
 
@@ -58,7 +58,7 @@ def test_cli_bad_file(tmp_path, capsys):
 # ---------------------------------------------------------------------------------------
 # a moving log is refused (issue 12): the static check and --start/--end/--allow-motion
 
-from ins.estimation.allan import (  # noqa: E402
+from ins.estimation.alignment.static_check import (  # noqa: E402
     GRAVITY_MARGIN,
     GRAVITY_RANGE,
     MIN_FORCE_DEPARTURE,

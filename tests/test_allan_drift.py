@@ -16,7 +16,7 @@ import pytest
 from test_allan_model import DT, _flicker
 
 from ins.cli.main import main
-from ins.estimation.allan import static_check
+from ins.estimation.alignment.static_check import static_check
 from ins.io.imu_files import write_kfgins_binary
 from ins.nav import earth
 from ins.nav.imu import ImuLog
@@ -232,7 +232,7 @@ def test_classic_reading_against_allantools(filtered):
     minimum) against allantools' overlapping deviation of the same rates: the reading is
     that curve's value times sqrt(tau), and the minimum / 0.664."""
     allantools = pytest.importorskip("allantools")
-    from ins.estimation.allan import classic_reading
+    from ins.estimation.tools.allan import classic_reading
     r = classic_reading(filtered.dtheta_b, DT)
     assert r.found.all()
     for i in range(3):

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ins.cli.main import main
-from ins.estimation.allan import TERMS, allan_deviation, fit_noise_model, static_check
+from ins.estimation.alignment.static_check import static_check
+from ins.estimation.tools.allan import TERMS, allan_deviation, fit_noise_model
 from ins.io.imu_files import write_kfgins_text
 from ins.nav import earth
 from ins.nav.imu import ImuLog

@@ -264,7 +264,7 @@ NAV_CASES = [
 TOML_GARBAGE = [("empty.txt", None, ()), ("garbage.bin", None, ())]
 
 
-# failures in modules another helper is finishing (ins/estimation/process.py, ins/cli/process.py)
+# failures in modules another helper is finishing (ins/estimation/pipeline/process.py, ins/cli/process.py)
 
 def _cases():
     cases = []

@@ -142,9 +142,9 @@ HAND = {"horizontal_m": 1.46, "vel_mps": (0.04, 0.02, 0.05), "att_deg": (0.09, 0
 def test_real_segment_beats_the_hand_figures(tmp_path):
     """The documented path (convert with the offsets estimated from the data, process
     with the mems preset, compare) on the real segment."""
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.io.gnss import read_gnss
     from ins.io.navfiles import read_nav
     seg = tmp_path / "seg"
@@ -152,7 +152,7 @@ def test_real_segment_beats_the_hand_figures(tmp_path):
     assert 0.05 < info["position_offset_s"] < 0.13          # IMU - GNSS clock
     assert 0.0 < info["velocity_offset_s"] < 0.07
     # closure: the written fixes are on the IMU's clock (no offset left)
-    from ins.estimation.time_offset import estimate_time_offset
+    from ins.estimation.tools.time_offset import estimate_time_offset
     from ins.io.imu_files import read_imu
     imu, gnss = read_imu(seg / "imu.txt"), read_gnss(seg / "gnss.txt")
     for source in ("velocity", "position"):
@@ -206,9 +206,9 @@ def test_real_segment_land_preset_with_the_estimated_mounting(tmp_path, capsys):
     continuous GNSS the figures stay those of the mems path (0.591 m, heading 0.116 deg);
     without the mounting the constraint pulls the IMU's pitch by the mounting's 3.9 deg
     (the camera-to-IMU pitch moves from 0.2 to -3.7 deg), with it the pitch stays."""
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.io.gnss import read_gnss
     from ins.io.navfiles import read_nav, write_nav
     seg = tmp_path / "seg"

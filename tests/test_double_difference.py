@@ -1,4 +1,4 @@
-"""Tight coupling against a base station (ins.estimation.double_difference,
+"""Tight coupling against a base station (ins.estimation.coupling.double_difference,
 ins.gnss.raw_pairs): the DD covariance and the update's independence of the reference
 satellite (algebra), the rows against finite differences, the per-satellite w-test
 (a blunder on any one satellite, the reference included, is dropped alone), the pairing
@@ -13,15 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins.estimation.double_difference import (
+from ins.estimation.coupling.double_difference import (
     dd_covariance,
     dd_operator,
     screen,
     single_difference_rows,
     w_test,
 )
-from ins.estimation.error_model import StateLayout
-from ins.estimation.measurements import NavPoint, corrected
+from ins.estimation.core.error_model import StateLayout
+from ins.estimation.core.measurements import NavPoint, corrected
 from ins.gnss.raw_epochs import RawEpochs
 from ins.nav import earth
 from ins.nav.rotation import euler_to_quat
@@ -151,7 +151,7 @@ def test_w_test_is_chi2_of_one_dof():
 def test_reference_kept_while_usable_then_the_highest():
     from types import SimpleNamespace
 
-    from ins.estimation.double_difference import DoubleDifferenceUpdater
+    from ins.estimation.coupling.double_difference import DoubleDifferenceUpdater
     choose = DoubleDifferenceUpdater._choose_ref
     u = SimpleNamespace(_ref=None, ref_changes=0)
     assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 1.2, 0.8])) == 1
@@ -215,9 +215,9 @@ def dd_flight(tmp_path_factory):
 
 
 def _process(folder, base):
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
-    from ins.estimation.process_gnss import RawGnss
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
+    from ins.estimation.pipeline.gnss_source import RawGnss
     from ins.gnss.rtklib_options import RtklibOptions
     cfg = config_from_manifest(str(folder))
     cfg.gnss = None
@@ -284,7 +284,7 @@ def test_dd_beats_single_point_on_the_simulated_flight(dd_flight, dd_runs, capsy
 def test_satellite_residuals_plot_of_double_differences(dd_runs, tmp_path):
     """satellite_residuals.png with the DD records: one series per pair, the satellites
     used (the reference counted) as the updater counted them."""
-    from ins.estimation.plots import plot_satellite_residuals, satellites_used
+    from ins.estimation.pipeline.plots import plot_satellite_residuals, satellites_used
     _, dd, _ = dd_runs
     path = plot_satellite_residuals(dd, str(tmp_path / "sat.png"))
     assert path and (tmp_path / "sat.png").stat().st_size > 10_000
@@ -375,7 +375,7 @@ def test_static_pair_dd_residuals_at_code_noise(tmp_path):
     _needs_real()
     import pymap3d
 
-    from ins.estimation.pseudorange import line_of_sight, sagnac_range
+    from ins.estimation.coupling.pseudorange import line_of_sight, sagnac_range
     from ins.gnss.raw_pairs import read_pair
     from ins.gnss.rtklib_engine import solve
     from ins.gnss.rtklib_options import RtklibOptions
@@ -429,8 +429,8 @@ def test_ubx_rover_pairs_like_its_rinex(tmp_path):
     _needs_real()
     from ubx_frames import rinex2_to_ubx
 
-    from ins.estimation.process_gnss import RawGnss
-    from ins.estimation.tight_pipeline import _read
+    from ins.estimation.pipeline.gnss_source import RawGnss
+    from ins.estimation.pipeline.tight import _read
     rover, base, nav = (PAIR / n for n in ("07590920.05o", "30400920.05o", "07590920.05n"))
     hdr = np.array([-3976219.5082, 3382372.5671, 3652512.9849])
     (tmp_path / "rover.ubx").write_bytes(rinex2_to_ubx(str(rover)))

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from ins.estimation import _filter_kernels
-from ins.estimation.error_model import (
+from ins.estimation.core import _filter_kernels
+from ins.estimation.core.error_model import (
     N_STATES,
     STATE_NAMES,
     ImuNoise,
@@ -327,7 +327,7 @@ def test_process_noise_against_van_loan():
 def test_named_layouts_match_the_documented_indices():
     """The named slices against the documented layout (literal indices, written out
     here independently) and against what the mechanization and the sensor states hold."""
-    from ins.estimation.error_model import NAV, SENSORS, STATE
+    from ins.estimation.core.error_model import NAV, SENSORS, STATE
     names = {"pos": "pos_", "vel": "vel_", "att": "att_", "gyro_bias": "gyro_bias_",
              "accel_bias": "accel_bias_", "gyro_scale": "gyro_scale_",
              "accel_scale": "accel_scale_"}
@@ -356,7 +356,7 @@ def test_misalignment_columns_match_the_mechanization(group):
     """The non-orthogonality columns of the survey layout: a true IMU without
     non-orthogonality mechanized with an estimate ``-dx`` of it (the kernel removes
     ``N(m) dtheta``) departs from the truth by ``Phi dx`` to first order."""
-    from ins.estimation.error_model import StateLayout
+    from ins.estimation.core.error_model import StateLayout
     L = StateLayout(("gyro_misalignment", "accel_misalignment"))
     dt, n = 0.005, 201
     time = np.arange(n) * dt

@@ -8,12 +8,12 @@ import pytest
 import tomllib
 from scipy.stats import chi2
 
-from ins.estimation.filter import run_forward, schedule_nodes
-from ins.estimation.filter_settings import FilterSettings
-from ins.estimation.lever_arm import LeverArm
-from ins.estimation.process import _initial
-from ins.estimation.process_config import ProcessConfig, config_from_manifest
-from ins.estimation.smoother import smooth
+from ins.estimation.core.filter import run_forward, schedule_nodes
+from ins.estimation.core.filter_settings import FilterSettings
+from ins.estimation.core.lever_arm import LeverArm
+from ins.estimation.pipeline.process import _initial
+from ins.estimation.pipeline.config import ProcessConfig, config_from_manifest
+from ins.estimation.core.smoother import smooth
 from ins.io import imu_files
 from ins.io.gnss import read_gnss
 from ins.io.gnss_log import GnssLog
@@ -187,7 +187,7 @@ def test_forward_and_smoothed_nees_within_chi_square_band(flight):
     lo, hi = nees_band(int(duration // 60), 9)         # errors decorrelate within ~60 s
     e_f = errors(fwd.states)
     n_f = nees(e_f, fwd.P_post[:, :9, :9])[settle]
-    from ins.estimation.smoother import rts_errors
+    from ins.estimation.core.smoother import rts_errors
     _, Ps = rts_errors(fwd)
     sm = smooth(fwd)
     n_s = nees(errors(sm.states), Ps[:, :9, :9])[settle]
@@ -310,7 +310,7 @@ def test_velocity_updates_with_the_varying_arm(flight):
     """GNSS velocities of the antenna (from the truth: central difference of the antenna
     positions, mount included) are accepted by the innovation test and improve the
     velocity over position-only updates."""
-    from ins.estimation.lever_arm import antenna_lla
+    from ins.estimation.core.lever_arm import antenna_lla
     from ins.nav import earth
     from ins.nav.rotation import quat_to_dcm
     cfg = given_config(flight)
@@ -353,8 +353,8 @@ def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
     """A negative variance in a node's covariance raises (it used to print as sigma 0),
     naming the node time and the state; rounding-level negatives give 0."""
     from ins.common.errors import QualityError
-    from ins.estimation.filter import std_of
-    from ins.estimation.filter_stores import NodeStore
+    from ins.estimation.core.filter import std_of
+    from ins.estimation.core.filter_stores import NodeStore
     store = NodeStore()
     P = np.eye(21) * 1e-2
     store.append(P, 0.5 * P, np.eye(21), 10.0)
@@ -380,7 +380,7 @@ def test_negative_variance_in_the_filter_is_a_failure_naming_time_and_state():
 
 def test_manifest_gives_constant_sensor_states_with_the_instability(tmp_path):
     """A flight manifest's bias instability makes the sensor states random constants plus
-    the instability (ins.estimation.error_model notes): prior = hypot(constant, instability) of the
+    the instability (ins.estimation.core.error_model notes): prior = hypot(constant, instability) of the
     hand-written values, decay none, bias driving noise 2 sigma_inst^2 / T, scale none;
     a config without the keys keeps the KF-GINS Gauss-Markov model."""
     (tmp_path / "manifest.toml").write_text(

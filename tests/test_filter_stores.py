@@ -1,12 +1,13 @@
-"""The forward filter's per-node and per-measurement stores (ins.estimation.filter_stores):
+"""The forward filter's per-node and per-measurement stores (ins.estimation.core.filter_stores):
 on disk (a work folder) they give back exactly what the in-memory stores give, across
 the buffer's spills; and ``process`` with a work folder gives bit for bit the results of
 a run in memory (issue 26: memory bounded by a constant on long logs)."""
 import numpy as np
 
-from ins.estimation import filter_stores, smoother
-from ins.estimation.filter_stores import RecordStore, Rows, Table
-from ins.estimation.measurements import UpdateRecord
+from ins.estimation.core import filter_stores
+from ins.estimation.core import smoother
+from ins.estimation.core.filter_stores import RecordStore, Rows, Table
+from ins.estimation.core.measurements import UpdateRecord
 
 
 def test_rows_on_disk_read_back_exactly_across_spills(tmp_path):
@@ -106,7 +107,7 @@ def test_process_with_a_work_folder_is_bit_identical(tmp_path, monkeypatch):
     many times), the results equal the in-memory run's exactly."""
     from test_filter import given_config, short_flight
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     cfg = given_config(short_flight())
     ref = process(cfg)
     d = list(Rows.__init__.__defaults__)

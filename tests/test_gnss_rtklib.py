@@ -231,7 +231,7 @@ def test_a_rover_alone_is_positioned_point_by_point():
     """Without a base and with no mode in [rtklib], the mode is "single" (the default
     "kinematic" needs a base: a rover alone for tight coupling was refused); a base or
     a mode given keeps the default or the choice."""
-    from ins.estimation.process_gnss import raw_gnss_config
+    from ins.estimation.pipeline.gnss_source import raw_gnss_config
     from ins.gnss.rtklib_options import mode_without_base
     assert raw_gnss_config({"rover": "r.obs", "nav": "n.nav"}, None).options.mode == "single"
     assert raw_gnss_config({"rover": "r.obs", "base": "b.obs", "nav": "n.nav"},

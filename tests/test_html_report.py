@@ -2,7 +2,7 @@
 page (every element closed, parsed back by the standard library's parser), nothing
 external referenced (every src a data: URI that decodes to the given PNG, no http(s)
 src or href), the Markdown subset of the refine report; the GNSS quality runs of the
-process report (:func:`ins.estimation.process_report.quality_runs`) on hand-made logs."""
+process report (:func:`ins.estimation.pipeline.report.quality_runs`) on hand-made logs."""
 import base64
 import re
 import zlib
@@ -11,7 +11,7 @@ from html.parser import HTMLParser
 import pytest
 
 from ins.common.html_report import CSP, PNG_MAGIC, HtmlReport, escape, png_data_uri
-from ins.estimation.process_report import quality_runs
+from ins.estimation.pipeline.report import quality_runs
 
 EVIL = '<script>alert("x")</script> & <img src=x onerror=alert(1)> \'q\''
 VOID = {"meta", "img", "br", "hr", "link", "input"}
@@ -180,7 +180,7 @@ def test_process_report_sections_of_a_raw_gnss_run(tmp_path):
 
     import numpy as np
 
-    from ins.estimation.process_report import process_report
+    from ins.estimation.pipeline.report import process_report
     from ins.gnss.separation import Separation
     from ins.io.gnss_log import GnssLog
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ins.common.errors import QualityError
-from ins.estimation import _kalman_kernels as kk
-from ins.estimation.error_model import (
+from ins.estimation.core import _kalman_kernels as kk
+from ins.estimation.core.error_model import (
     LAYOUTS,
     OPTIONAL_GROUPS,
     ImuNoise,
@@ -19,7 +19,7 @@ from ins.estimation.error_model import (
     navigation_matrix,
     noise_matrix,
 )
-from ins.estimation.measurements import chi2_upper_quantile, kalman_update
+from ins.estimation.core.measurements import chi2_upper_quantile, kalman_update
 from ins.nav import earth, rotation
 
 LAYOUT_CASES = [StateLayout(LAYOUTS["kfgins"]), StateLayout(LAYOUTS["survey"]),
@@ -169,7 +169,7 @@ def test_diag_std_is_the_numpy_check_and_sqrt():
     """The node store's compiled check: True and ``sqrt(max(diag(P_post), 0))``, bit for
     bit, exactly when numpy's rule (every variance of both at least -rtol times the
     larger magnitude of the two) holds; False for a variance below it or a NaN."""
-    from ins.estimation.error_model import VARIANCE_RTOL as rtol
+    from ins.estimation.core.error_model import VARIANCE_RTOL as rtol
     rng = np.random.default_rng(5)
     n = 27
     for trial in range(400):

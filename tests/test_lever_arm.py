@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ins.common.errors import InputError
-from ins.estimation.lever_arm import (
+from ins.estimation.core.lever_arm import (
     LeverArm,
     antenna_lla,
     antenna_velocity,
@@ -130,7 +130,7 @@ def test_varying_arm_beats_constant_arm_on_a_flight_with_mount_motion():
     removes; the attitude stays comparable."""
     from test_filter import given_config, short_flight
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     folder = short_flight()
     rms = {}
     for varying in (True, False):
@@ -269,7 +269,7 @@ def test_velocity_jacobian_by_central_differences_column_by_column():
 
 def test_one_epoch_antenna_position_equals_the_stacked_form():
     """antenna_lla_one (the filter's path, arm given in n) gives antenna_lla's bits."""
-    from ins.estimation.lever_arm import antenna_lla, antenna_lla_one
+    from ins.estimation.core.lever_arm import antenna_lla, antenna_lla_one
     from ins.nav.rotation import euler_to_dcm
     rng = np.random.default_rng(3)
     for _ in range(200):

@@ -1,4 +1,4 @@
-"""The measurement protocol (ins.estimation.measurements): H of every measurement against central
+"""The measurement protocol (ins.estimation.core.measurements): H of every measurement against central
 finite differences of its predicted value under the filter's own feedback rule, the
 Cholesky update against the textbook (inverse) form, the S-not-positive-definite error,
 and the innovation file read back by hand."""
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ins.common.errors import QualityError
-from ins.estimation.error_model import OPTIONAL_GROUPS, StateLayout
-from ins.estimation.measurements import (
+from ins.estimation.core.error_model import OPTIONAL_GROUPS, StateLayout
+from ins.estimation.core.measurements import (
     DualAntennaHeading,
     GnssPosition,
     GnssVelocity,
@@ -18,7 +18,7 @@ from ins.estimation.measurements import (
     kalman_update,
     write_innovations,
 )
-from ins.estimation.vehicle import mounting_dcm
+from ins.estimation.tools.vehicle import mounting_dcm
 from ins.nav.rotation import euler_to_quat
 
 FULL = StateLayout(tuple(OPTIONAL_GROUPS))
@@ -127,7 +127,7 @@ def test_update_refuses_indefinite_s_naming_measurement_and_time():
 
 
 def test_innovation_file_layout(tmp_path):
-    from ins.estimation.measurements import UpdateRecord
+    from ins.estimation.core.measurements import UpdateRecord
     recs = [UpdateRecord("gnss_position", ("N", "E", "D"), "m", 10.0,
                          np.array([0.01, -0.02, 0.03]), np.array([0.02, 0.02, 0.06]), 2.5, True),
             UpdateRecord("heading", ("psi",), "deg", 11.0, np.array([np.pi / 180]),
@@ -162,7 +162,7 @@ def test_gnss_predictions_carried_by_the_node_acceleration():
     """A record 3 ms after its node with a 4 ms time offset: the predicted velocity is
     v + a dt and the position v dt + a dt^2 / 2 further (dt = 7 ms, by hand in NED);
     node_acceleration of a level IMU at rest is zero (f_b = -g_n)."""
-    from ins.estimation.measurements import node_acceleration
+    from ins.estimation.core.measurements import node_acceleration
     from ins.nav import earth
     p = _point()
     dt = 0.003 + 0.004

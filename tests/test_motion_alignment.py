@@ -1,5 +1,5 @@
-"""Start anywhere (ins.estimation.motion_alignment) and the recovery from a run of
-rejected fixes (ins.estimation.filter), on ground journeys whose truth is closed-form
+"""Start anywhere (ins.estimation.alignment.motion) and the recovery from a run of
+rejected fixes (ins.estimation.core.filter), on ground journeys whose truth is closed-form
 (ins.simulate.ground): a consumer IMU at rest then driving, a walk, a moving start."""
 import warnings
 from pathlib import Path
@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ins.common.errors import InputError
-from ins.estimation.motion_alignment import _match, align_anywhere
+from ins.estimation.alignment.motion import _match, align_anywhere
 from ins.simulate.ground import GroundTruth, Journey, rtk_fixes
 from ins.simulate.imu_synth import synthesize_imu
 from ins.simulate.sensor_errors import ImuErrorModel, apply_errors
@@ -123,7 +123,7 @@ def test_a_log_that_never_moves_starts_from_the_gyrocompass():
     the gyrocompass heading exact too (the Earth rate is all the gyro sees), stated with
     the filter's broad prior (at least 30 deg) and the at-rest bound (about 0 here);
     the gyro biases nil."""
-    from ins.estimation.motion_alignment import STATIC_HEADING_PRIOR_DEG
+    from ins.estimation.alignment.motion import STATIC_HEADING_PRIOR_DEG
     from ins.simulate.ground import Journey as J
     tr = GroundTruth(J(duration_s=30.0, speed_steps=()))
     ms = align_anywhere(synthesize_imu(tr, 100.0), rtk_fixes(tr, seed=1))
@@ -137,9 +137,9 @@ def test_a_log_that_never_moves_starts_from_the_gyrocompass():
 
 def _process(tmp_path, journey_log, extra=""):
     """``ins.process`` of a journey's files with the consumer preset."""
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.io.gnss import write_gnss
     from ins.io.imu_files import write_kfgins_text
     truth, imu, gnss = journey_log
@@ -234,7 +234,7 @@ def test_noise_from_the_rest_when_none_is_given(car):
     """The white noise measured over the rest is the simulator's (consumer grade: ARW
     0.4 deg/sqrt(h), VRW 0.1 m/s/sqrt(h)); the 300-612 deg/h gyro offsets pick the
     consumer priors, a tactical IMU's the tactical ones."""
-    from ins.estimation.motion_alignment import noise_from_rest
+    from ins.estimation.pipeline.presets import noise_from_rest
     truth, imu, gnss = car
     ms = align_anywhere(imu, gnss)
     noise, text = noise_from_rest(imu, ms.alignment.time, ms.alignment.time + ms.rest_s,

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins.estimation.lever_arm import LeverArm
+from ins.estimation.core.lever_arm import LeverArm
 from ins.io.mount import MountLog, read_mount
 
 YAW_RATE_DPS = 4.0
@@ -58,7 +58,7 @@ def test_C_ap_against_scipy_at_the_crossing(log):
 
 
 def test_lever_arm_rate_is_smooth_across_the_crossing(log):
-    """dl_b/dt (central difference of C_ap in ins.estimation.lever_arm) against the analytic rate of
+    """dl_b/dt (central difference of C_ap in ins.estimation.core.lever_arm) against the analytic rate of
     l_b = l_bp + C_pa l_ap: a wrong-way interpolation made it ~ 2 pi |l_ap| / 0.02 s."""
     l_bp, l_ap = np.array([0.1, 0.0, -0.2]), np.array([0.4, 0.2, -1.5])
     arm = LeverArm(l_bp, l_ap, mount=log)

@@ -5,7 +5,7 @@ any integer type, and wrong shapes raise ValueError instead of reading out of bo
 import numpy as np
 import pytest
 
-from ins.estimation import _filter_kernels as F
+from ins.estimation.core import _filter_kernels as F
 from ins.nav import _kernels as K
 
 

@@ -1,6 +1,6 @@
-"""Noise identification from the log (ins.estimation.noise_identification), the GNSS
-velocity lag (ins.estimation.velocity_lag) and the GNSS track's self-consistency
-(ins.estimation.gnss_consistency): each against an independent truth (an analytic track,
+"""Noise identification from the log (ins.estimation.tools.noise_identification), the GNSS
+velocity lag (ins.estimation.coupling.velocity_lag) and the GNSS track's self-consistency
+(ins.estimation.core.gnss_consistency): each against an independent truth (an analytic track,
 scipy's multivariate normal, a quadratic likelihood with a known minimum, the
 simulator's truth), and the real car of ../shared/real/rtklibexplorer_drive as its
 README runs it (skipped when ../shared/real is absent)."""
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
-from ins.estimation.error_model import ImuNoise
-from ins.estimation.gnss_consistency import track_consistency
-from ins.estimation.measurements import NLL_HUBER_NIS, innovation_nll
-from ins.estimation.noise_identification import UNRESOLVED_FACTOR, identify
-from ins.estimation.velocity_lag import velocity_lag
+from ins.estimation.core.error_model import ImuNoise
+from ins.estimation.core.gnss_consistency import track_consistency
+from ins.estimation.core.measurements import NLL_HUBER_NIS, innovation_nll
+from ins.estimation.tools.noise_identification import UNRESOLVED_FACTOR, identify
+from ins.estimation.coupling.velocity_lag import velocity_lag
 from ins.io.gnss_log import GnssLog
 from ins.nav import earth
 
@@ -257,8 +257,8 @@ def test_real_drive_with_no_preset_beats_its_authors_filter(tmp_path):
     forward sigmas cover its errors in the outages (mean square of error / sigma per
     horizontal axis within 0.25-2); the identified velocity lag within 15 ms of the
     hardware's 0.125 s; no recovery."""
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.io.navfiles import write_nav
     cfg = load_config(str(DRIVE / "config.toml"),
                       files={"imu": str(DRIVE / "imu.csv"),

@@ -1,4 +1,4 @@
-"""The PNG plots of ``ins process`` (ins.estimation.plots) and the shared style (ins.common.plotstyle):
+"""The PNG plots of ``ins process`` (ins.estimation.pipeline.plots) and the shared style (ins.common.plotstyle):
 titles, labels with units that fit the values, one time-axis convention, legends
 outside the data, y-limits not set by the start transient, injected biases beside
 the estimates.  The Figure objects are inspected, not the pixels."""
@@ -9,13 +9,13 @@ import pytest
 
 from ins.common import plotstyle
 from ins.common.plotstyle import ARCSEC
-from ins.estimation import plots
+from ins.estimation.pipeline import plots
 
 T0 = 345600.0
 
 
 def _result(with_errors=True):
-    """A processing result shaped like ins.estimation.process.ProcessResult: 400 s of nodes, cm
+    """A processing result shaped like ins.estimation.pipeline.process.ProcessResult: 400 s of nodes, cm
     level position sigmas, a forward filter that starts 1000 times worse (the first
     10 s), known biases."""
     rng = np.random.default_rng(3)

@@ -1,11 +1,11 @@
-"""Processing presets (ins.estimation.presets, ins process --preset): the preset fills only the keys
+"""Processing presets (ins.estimation.pipeline.presets, ins process --preset): the preset fills only the keys
 the config does not give; the config's own values and a flight manifest's IMU noise win."""
 import numpy as np
 import pytest
 
 from ins.common.errors import InputError
-from ins.estimation.presets import PRESETS, apply_preset, names, preset
-from ins.estimation.process_config import ProcessConfig, load_config
+from ins.estimation.pipeline.presets import PRESETS, apply_preset, names, preset
+from ins.estimation.pipeline.config import ProcessConfig, load_config
 
 CONFIG = """\
 [files]

@@ -80,7 +80,7 @@ platform_centre_to_antenna_a_m = {arm['platform_centre_to_antenna_a_m']}
 
 
 def test_example_config_is_valid():
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     p = ROOT / "data" / "configs" / "kfgins_like.toml"
     text = "[files]\nimu = 'a'\ngnss = 'b'\n" + p.read_text()
     tmp = ROOT / ".cache"
@@ -140,8 +140,8 @@ def test_in_air_start_from_gnss_track(flight):
     (crab); the filter converges and the smoother carries the solution back."""
     from test_filter import short_flight  # noqa: F401  (same cached flight)
 
-    from ins.estimation.process import process
-    from ins.estimation.process_config import config_from_manifest
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import config_from_manifest
     man = tomllib.loads((flight / "manifest.toml").read_text())
     cfg = config_from_manifest(str(flight))
     cfg.method = "gnss-heading"
@@ -162,7 +162,7 @@ def test_euler_sigmas_against_a_numerical_jacobian():
     from scipy.spatial.transform import Rotation
 
     from ins.common.errors import QualityError
-    from ins.estimation.process_outputs import euler_std_deg
+    from ins.estimation.pipeline.outputs import euler_std_deg
     rng = np.random.default_rng(7)
     for rpy in ([3.0, -2.0, 40.0], [-20.0, 35.0, -150.0], [5.0, 70.0, 10.0]):
         R = Rotation.from_euler("ZYX", rpy[::-1], degrees=True)

@@ -110,7 +110,7 @@ def test_bad_input_options(flight, tmp_path, capsys):
 
 
 def test_config_keys_and_imu_shift(tmp_path):
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     from ins.io.imu_files import shift_time, shifted_blocks
     from ins.nav.imu import ImuLog
     p = tmp_path / "c.toml"

@@ -125,8 +125,8 @@ def test_start_position_taken_from_the_first_fix(flight, tmp_path):
     moved back along the velocity to time_s (here 0.4975 s before the fix, between two
     IMU epochs: 30 m): the first solution epoch is within a few cm of the truth (not the
     antenna's 1.1 m away), and the run is trusted."""
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     cfg = load_config(_config(tmp_path, flight, position=False, noise=TACTICAL,
                               time_offset_s=0.5025),
                       files={"imu": str(flight / "imu.txt"), "gnss": str(flight / "gnss.txt")})
@@ -147,8 +147,8 @@ def test_start_position_taken_from_the_first_fix(flight, tmp_path):
 def test_start_a_little_off_is_widened_with_a_warning(flight, tmp_path):
     """100 m off (more than 5 sigma, less than the bound 5 sigma + 300 m): a warning, the
     position sigma widened to the distance, and the filter converges to the fixes."""
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     cfg = load_config(_config(tmp_path, flight, noise=TACTICAL, shift_m=(60.0, -80.0, 0.0)),
                       files={"imu": str(flight / "imu.txt"), "gnss": str(flight / "gnss.txt")})
     cfg.mount = str(flight / "mount.txt")
@@ -415,7 +415,7 @@ def test_ctrl_c_at_random_times_leaves_nothing(flight, tmp_path):
 def test_help_states_exit_codes_start_rule_and_thresholds(capsys):
     """--help gives the exit codes, the start-position rule and the thresholds, with the
     numbers the code uses."""
-    from ins.estimation import process_trust as proc
+    from ins.estimation.pipeline import trust as proc
     with pytest.raises(SystemExit):
         main(["process", "--help"])
     text = " ".join(capsys.readouterr().out.split())

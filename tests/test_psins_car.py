@@ -19,9 +19,9 @@ sys.path.insert(0, str(ROOT / "tools"))
 def test_psins_car_from_a_moving_start_against_the_fog(tmp_path):
     import psins_car
 
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     ref = psins_car.write_case(tmp_path, DATA, seed=0)
     cfg = apply_preset(load_config(tmp_path / "config.toml"), "land")
     with warnings.catch_warnings():

@@ -1,6 +1,6 @@
 """Raw GNSS in: u-blox logs through RTKLIB's convrnx (ins.gnss.ubx), precise orbits
 (SP3), the forward/backward separation (ins.gnss.separation) and ``ins process`` from
-raw observations (ins.estimation.process_gnss), on the real GEONET pair 0759/3040.
+raw observations (ins.estimation.pipeline.gnss_source), on the real GEONET pair 0759/3040.
 
 Truths: the pair's own RINEX observations and navigation (a u-blox log encoded from
 them frame by frame, RXM-RAWX and RXM-SFRBX, tests/ubx_frames.py, must convert back to
@@ -407,7 +407,7 @@ def test_user_pos_with_invalid_covariances_is_screened(tmp_path):
 
 
 def test_raw_gnss_config_errors(tmp_path, monkeypatch):
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     (tmp_path / "imu.txt").write_text("")
     cfg = tmp_path / "c.toml"
     cfg.write_text('[files]\nimu = "imu.txt"\ngnss = "g.pos"\nrover = "r.obs"\n'

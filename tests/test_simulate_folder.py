@@ -272,7 +272,7 @@ def test_ins_part_alone_is_the_ins_part_of_the_whole(flight, tmp_path):
     """ins.simulate.folder.simulate_flight without product writers writes the INS files
     of the complete folder byte for byte, a manifest holding exactly its INS entries, and
     a folder that ins process reads."""
-    from ins.estimation.process_config import config_from_manifest
+    from ins.estimation.pipeline.config import config_from_manifest
     from ins.simulate import folder as ins_folder
     folder, _ = flight
     alone = ins_folder.simulate_flight(PLAN, tmp_path / "ins", seed=11)

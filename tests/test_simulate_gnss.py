@@ -107,12 +107,12 @@ def _exact_antenna_velocity(truth, t, h=0.005):
 
 def test_antenna_velocity_of_simulator_and_processor_against_exact(truth):
     """The simulator's antenna velocity (antenna_state) and the post-processor's
-    (ins.estimation.lever_arm.LeverArm on the mount log + antenna_velocity) against the exact one.
+    (ins.estimation.core.lever_arm.LeverArm on the mount log + antenna_velocity) against the exact one.
 
     Both use the first-order form, which neglects w_en x (C_nb l_b) and the turn of n
     between IMU and antenna, ~|v| |l_b| / R = 1.5e-5 m/s; a wrong sign of its
     w_in x (C_nb l_b) term would be off by 2 |w_ie| |l_b| ~ 2e-4 m/s."""
-    from ins.estimation.lever_arm import LeverArm, antenna_velocity
+    from ins.estimation.core.lever_arm import LeverArm, antenna_velocity
     from ins.io.mount import MountLog
     from ins.nav.earth import earth_rate_n, transport_rate_n
     t = np.linspace(truth.t_start + 1.0, truth.t_end - 1.0, 40)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from ins.estimation.smoother import rts_errors
+from ins.estimation.core.smoother import rts_errors
 
 
 def test_closed_loop_rts_equals_open_loop_rts():
@@ -72,7 +72,7 @@ def bench_runs(bench_data):
     sys.path.insert(0, str(SHARED / "bench" / "ins"))
     import peerlib
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     truth = peerlib.load_nav(str(bench_data / "truth.nav"))
     out = {}
     for name in ("gnss.txt", "gnss_outage.txt"):
@@ -177,7 +177,7 @@ def test_negative_smoothed_variance_is_a_failure_not_a_zero_sigma():
                                            r"variance -8\.000e\+00 for state pos_N"):
         rts_errors(rec, full=False)
     # rounding-level negatives are not failures: -1e-12 of the scale gives sigma 0
-    from ins.estimation.error_model import checked_std
+    from ins.estimation.core.error_model import checked_std
     np.testing.assert_array_equal(checked_std([-1e-12, 4.0], [1.0, 4.0]), [0.0, 2.0])
 
 
@@ -195,7 +195,7 @@ def test_smoothed_constant_sensor_errors_are_constant_and_match_the_truth():
     import tomllib
     from test_filter import PLAN, given_config, short_flight
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     plan = PLAN.replace('grade = "navigation"\n', 'grade = "navigation"\n'
                         'gyro_bias_instability_dph = 0.0\n'
                         'accel_bias_instability_mgal = 0.0\n')

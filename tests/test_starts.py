@@ -145,10 +145,10 @@ def test_a_consumer_log_that_never_moves_states_its_heading_unresolved(tmp_path)
     exit 0 (it used to be refused); the heading unresolved, its sigma that of a heading
     uniform on the circle (the consumer gyro's 400-600 deg/h offsets hide the Earth
     rate), even where the filter claims less."""
-    from ins.estimation.motion_alignment import UNKNOWN_HEADING_STD_DEG
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.alignment.motion import UNKNOWN_HEADING_STD_DEG
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     from ins.io.gnss import write_gnss
     from ins.io.imu_files import write_kfgins_text
     from ins.nav import earth
@@ -240,7 +240,7 @@ def test_rest_before_the_first_fix_is_found_from_the_imu():
     """Where the IMU's rest before the first fix begins: a car that stops at 42 s
     (its speed below 0.2 m/s from about 41.5 s), a car parked from the start, one that
     turns in place until 32 s; none when the car moves at the fix."""
-    from ins.estimation.motion_alignment import rest_before_fix
+    from ins.estimation.alignment.motion import rest_before_fix
     cases = [(Journey(duration_s=100.0, speed_steps=((10.0, 4.0, 5.0), (40.0, 4.0, -5.0)),
                       turns=((20.0, 5.0, 45.0),)), 70.0, (41.0, 43.0)),
              (Journey(duration_s=100.0, speed_steps=((80.0, 4.0, 5.0),)), 60.0, (0.0, 0.0)),

@@ -12,9 +12,9 @@ import pytest
 import tomllib
 from test_filter import PLAN, given_config, short_flight
 
-from ins.estimation.error_model import StateLayout
-from ins.estimation.process import process
-from ins.estimation.process_config import config_from_manifest
+from ins.estimation.core.error_model import StateLayout
+from ins.estimation.pipeline.process import process
+from ins.estimation.pipeline.config import config_from_manifest
 
 ARCSEC = np.pi / 180 / 3600
 GYRO_MIS = [150.0, -120.0, 100.0]           # arcsec
@@ -121,9 +121,9 @@ def _static_part(flight, **settings):
     forward result and its velocity errors at the nodes (m/s, NED)."""
     from dataclasses import replace
 
-    from ins.estimation.filter import run_forward
-    from ins.estimation.filter_settings import FilterSettings
-    from ins.estimation.lever_arm import LeverArm
+    from ins.estimation.core.filter import run_forward
+    from ins.estimation.core.filter_settings import FilterSettings
+    from ins.estimation.core.lever_arm import LeverArm
     from ins.io.navfiles import read_nav
     from ins.nav.accuracy import compare
     from ins.nav.mechanization import NavState
@@ -203,10 +203,10 @@ def test_nonholonomic_constraint_on_the_ground():
 def test_default_misalignment_priors_follow_the_grade():
     """Not given, the non-orthogonality priors are the scale-factor sigmas (1 arcsec per
     ppm, per sensor and axis, at least 1 arcsec); given ones win; the presets' grades."""
-    from ins.estimation.error_model import LAYOUTS, ImuNoise
-    from ins.estimation.filter_settings import FilterSettings
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process_config import ProcessConfig, filter_options
+    from ins.estimation.core.error_model import LAYOUTS, ImuNoise
+    from ins.estimation.core.filter_settings import FilterSettings
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.config import ProcessConfig, filter_options
     survey = StateLayout(LAYOUTS["survey"])
     noise = ImuNoise(gyro_scale_std_ppm=[150.0, 0.2, 5.0], accel_scale_std_ppm=300.0)
     s = FilterSettings(noise=noise, layout=survey)

@@ -1,4 +1,4 @@
-"""Tight GNSS/INS coupling (ins.estimation.pseudorange): the measurement rows against
+"""Tight GNSS/INS coupling (ins.estimation.coupling.pseudorange): the measurement rows against
 finite differences, the range model against an exact rotation of the Earth during the
 signal's travel, the clock states' transition, and runs on a simulated flight with a
 synthetic constellation (tests/tight_scenario.py) whose truth is known: one, two and
@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 import tight_scenario as ts
 
-from ins.estimation.error_model import (
+from ins.estimation.core.error_model import (
     ImuNoise,
     StateLayout,
     discretize,
     interval_matrix,
     noise_matrix,
 )
-from ins.estimation.measurements import NavPoint, corrected
-from ins.estimation.pseudorange import range_rows, sagnac_range, sagnac_range_rate
+from ins.estimation.core.measurements import NavPoint, corrected
+from ins.estimation.coupling.pseudorange import range_rows, sagnac_range, sagnac_range_rate
 from ins.nav import earth
 from ins.nav.rotation import euler_to_quat
 
@@ -230,7 +230,7 @@ def test_sagnac_range_equals_rtklib_geodist(pair_epochs):
 
 def test_config_coupling_keys(tmp_path):
     from ins.common.errors import InputError
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     cfg_path = tmp_path / "c.toml"
     cfg_path.write_text('[files]\nimu = "imu.txt"\nrover = "r.obs"\n'
                         'nav = "r.nav"\n[gnss]\ncoupling = "tight"\nelevation_mask_deg = 15\n')
@@ -252,13 +252,13 @@ def test_process_tight_end_to_end(scene, monkeypatch):
     solution against the truth."""
     from test_filter import PLAN, given_config, short_flight
 
-    from ins.estimation.process import process
+    from ins.estimation.pipeline.process import process
     from ins.gnss import raw_epochs
     imu, truth, noise, t0, epochs, bias = scene
     folder = short_flight(3, PLAN.replace('grade = "navigation"', 'grade = "tactical"'))
     cfg = given_config(folder, varying=False)
     cfg.end_s = t0 + 200.0
-    from ins.estimation.process_gnss import RawGnss
+    from ins.estimation.pipeline.gnss_source import RawGnss
     cfg.coupling = "tight"
     cfg.gnss_raw = RawGnss(rover="rover.obs", nav=("brdc.nav",))
     l_b = cfg.lever_bp + cfg.lever_ap
@@ -271,7 +271,7 @@ def test_process_tight_end_to_end(scene, monkeypatch):
         return synth
     monkeypatch.setattr(raw_epochs, "read_raw_epochs", fake)
     # RTKLIB's loose solution of the raw input: the flight's own GNSS log
-    from ins.estimation import process as process_module
+    from ins.estimation.pipeline import process as process_module
     from ins.io.gnss import read_gnss
     monkeypatch.setattr(process_module, "_gnss", lambda c, folder: (read_gnss(c.gnss), None))
     result = process(cfg)
@@ -291,8 +291,8 @@ def test_config_weights_and_clock_keys(tmp_path):
     """[gnss] range_sigma_m, range_rate_sigma_mps and receiver_clock reach the tight
     settings; bad values name the key and the unit."""
     from ins.common.errors import InputError
-    from ins.estimation.process_config import load_config
-    from ins.estimation.pseudorange import CLOCKS, clock_psd
+    from ins.estimation.pipeline.config import load_config
+    from ins.estimation.coupling.pseudorange import CLOCKS, clock_psd
     cfg_path = tmp_path / "c.toml"
     base = '[files]\nimu = "imu.txt"\nrover = "r.obs"\nnav = "r.nav"\n[gnss]\ncoupling = "tight"\n'
     cfg_path.write_text(base + 'range_sigma_m = [1.0, 0.5]\nrange_rate_sigma_mps = 0.1\n'
@@ -321,8 +321,8 @@ def test_ubx_rover_gives_the_rinex_ranges(tmp_path):
         pytest.skip("../shared/real is absent")
     from ubx_frames import rinex2_to_ubx
 
-    from ins.estimation.process_gnss import RawGnss
-    from ins.estimation.tight_pipeline import _read
+    from ins.estimation.pipeline.gnss_source import RawGnss
+    from ins.estimation.pipeline.tight import _read
     from ins.gnss.raw_epochs import read_raw_epochs
     rover, nav = PAIR / "07590920.05o", PAIR / "07590920.05n"
     ubx = tmp_path / "rover.ubx"
@@ -376,7 +376,7 @@ def test_receiver_clock_jump_is_followed(scene):
     """A millisecond jump of the receiver clock (299.8 km in every pseudorange from an
     epoch on, as u-blox receivers do): the clock bias is set again at that epoch, the
     satellites stay in use, and the position does not notice."""
-    from ins.estimation.pseudorange import TightUpdater
+    from ins.estimation.coupling.pseudorange import TightUpdater
     imu, truth, noise, t0, epochs, _ = scene
     i = int(np.searchsorted(epochs.time, t0 + 120.0))
     jumped = epochs.select(lambda k, sats: np.ones(len(sats), bool))

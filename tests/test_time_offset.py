@@ -1,4 +1,4 @@
-"""IMU-GNSS clock offset from the data (ins.estimation.time_offset, ins time-offset): a simulated
+"""IMU-GNSS clock offset from the data (ins.estimation.tools.time_offset, ins time-offset): a simulated
 flight (ins.simulate, the short test plan: turns and a stabilized, nearly level IMU)
 with a known offset injected into the GNSS stamps, and the real comma2k19 segment."""
 from dataclasses import replace
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ins.common.errors import InputError
-from ins.estimation.time_offset import estimate_time_offset, shift_gnss
+from ins.estimation.tools.time_offset import estimate_time_offset, shift_gnss
 from ins.io.gnss import read_gnss, write_gnss
 from ins.io.imu_files import write_kfgins_text
 

@@ -269,9 +269,9 @@ def test_docs_name_every_camera_key(keys):
 
 
 def test_docs_name_the_process_config_keys():
-    """docs/interfaces.md lists every key the processing config accepts (ins/estimation/process.py,
-    another part's file: read its table of known keys, now in ins/estimation/process_config.py)."""
-    from ins.estimation import process_config
+    """docs/interfaces.md lists every key the processing config accepts (ins/estimation/pipeline/process.py,
+    another part's file: read its table of known keys, now in ins/estimation/pipeline/config.py)."""
+    from ins.estimation.pipeline import config as process_config
     sections = process_config._SECTIONS
     assert isinstance(sections, dict)
     doc = _doc()

@@ -1,6 +1,6 @@
 """Land vehicles: the IMU's mounting rotation for the non-holonomic constraint
-(``[vehicle] mounting_rpy_deg``, ins.estimation.vehicle, ``ins vehicle-mounting``) and dual-antenna
-headings (``[files] heading``, ins.estimation.heading_files) on a simulated car
+(``[vehicle] mounting_rpy_deg``, ins.estimation.tools.vehicle, ``ins vehicle-mounting``) and dual-antenna
+headings (``[files] heading``, ins.estimation.pipeline.heading_files) on a simulated car
 (tests/land_vehicle.py: an analytic drive, its truth written from its definition) with
 a consumer-MEMS IMU mounted askew and 1 Hz GNSS positions with a 60 s outage."""
 import sys
@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ins.common.errors import InputError
-from ins.estimation.vehicle import estimate_mounting, mounting_dcm
+from ins.estimation.tools.vehicle import estimate_mounting, mounting_dcm
 from ins.io.gnss import write_gnss
 from ins.io.gnss_log import GnssLog
 from ins.io.imu_files import write_kfgins_text
@@ -123,9 +123,9 @@ def drive(tmp_path_factory):
 def run_drive(drive, name, extra="", preset="mems"):
     """Process the drive with ``base + extra`` and the preset; the figures against the
     truth (smoothed; the forward pass's worst horizontal error in the outage)."""
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     car, d, base = drive
     path = d / f"{name}.toml"
     path.write_text(base + "[filter]\nidentify = false\n" + extra)   # the NHC's mechanics
@@ -194,7 +194,7 @@ def test_nhc_with_the_mounting_beats_no_nhc_and_the_wrong_mounting(drive, tmp_pa
 
 
 def test_vehicle_table_in_the_config(tmp_path):
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     p = tmp_path / "c.toml"
     p.write_text('[files]\nimu = "i.txt"\ngnss = "g.txt"\n[vehicle]\n'
                  "mounting_rpy_deg = [1.0, 3.9, -1.5]\n")
@@ -222,7 +222,7 @@ def _baseline_azimuth_deg(car, t):
 
 
 def test_heading_file_by_hand(tmp_path):
-    from ins.estimation.heading_files import read_headings, within, write_headings
+    from ins.estimation.pipeline.heading_files import read_headings, within, write_headings
     p = tmp_path / "h.txt"
     p.write_text("# time_s heading_deg sigma_deg\n100.0 350.0 0.2\n\n101.0, -10.5, 0.3\n"
                  "102.0 190.0 0.1  # comment\n")
@@ -262,7 +262,7 @@ def test_dual_antenna_heading_improves_heading(drive):
     0.031 deg, the smoothed heading sigma (RMS over the nodes) 0.251 -> 0.030 deg,
     forward worst horizontal error in the outage 40.1 -> 28.2 m (smoothed horizontal RMS
     0.50 -> 0.58 m, within the fixes' noise)."""
-    from ins.estimation.heading_files import write_headings
+    from ins.estimation.pipeline.heading_files import write_headings
     car, d, _ = drive
     tg = np.loadtxt(d / "gnss.txt")[:, 0]
     head = (_baseline_azimuth_deg(car, tg)

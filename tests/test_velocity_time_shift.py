@@ -78,7 +78,7 @@ def test_shifted_log_and_update_events():
 
 
 def test_config_key_and_read(walk, tmp_path):
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.config import load_config
     _, d, base = walk
     p = d / "key.toml"
     p.write_text(base + "time_shift_s = 0.1\nvelocity_time_shift_s = -0.025\n")
@@ -98,9 +98,9 @@ def test_config_key_and_read(walk, tmp_path):
 
 
 def _run(walk, name, extra):
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     truth, d, base = walk
     (d / f"{name}.toml").write_text(base + extra)
     cfg = apply_preset(load_config(d / f"{name}.toml"), "mems")

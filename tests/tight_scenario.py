@@ -17,7 +17,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from ins.estimation.pseudorange import CLIGHT  # noqa: E402
+from ins.estimation.coupling.pseudorange import CLIGHT  # noqa: E402
 from ins.gnss.raw_epochs import RawEpochs  # noqa: E402
 from ins.io.gnss_log import GnssLog  # noqa: E402
 from ins.nav import earth  # noqa: E402
@@ -131,7 +131,7 @@ def spp(epochs, lla0, sigma_rho=(0.3, 0.3)):
     """Loose coupling's input from the same pseudoranges: a weighted least-squares point
     position (Gauss-Newton, Sagnac as the filter's) at every epoch with >= 4 satellites;
     returns a :class:`GnssLog` with the NED covariance."""
-    from ins.estimation.pseudorange import line_of_sight, sagnac_range
+    from ins.estimation.coupling.pseudorange import line_of_sight, sagnac_range
     x = np.append(earth.lla_to_ecef(*lla0), 0.0)
     times, llas, covs = [], [], []
     import pymap3d
@@ -169,7 +169,7 @@ def masked(epochs, span, n_keep, lla, choose="spread"):
     largest trace: a mask that leaves satellites in different directions)."""
     import itertools
 
-    from ins.estimation.pseudorange import line_of_sight
+    from ins.estimation.coupling.pseudorange import line_of_sight
     t0, t1 = span
     inside = (epochs.time >= t0) & (epochs.time <= t1)
     idx = np.flatnonzero(inside)
@@ -220,12 +220,12 @@ def run(imu, truth, noise, t_start, t_end, gnss, tight, smooth=False, options=No
         clock_psd=OCXO):
     """Forward filter (and smoother) from the truth state at ``t_start``: loose with a
     :class:`GnssLog`, tight with :class:`RawEpochs`; returns ``(fwd, states)``."""
-    from ins.estimation.error_model import StateLayout
-    from ins.estimation.filter import run_forward
-    from ins.estimation.filter_settings import FilterSettings
-    from ins.estimation.lever_arm import LeverArm
-    from ins.estimation.pseudorange import TightUpdater
-    from ins.estimation.smoother import smooth as rts
+    from ins.estimation.core.error_model import StateLayout
+    from ins.estimation.core.filter import run_forward
+    from ins.estimation.core.filter_settings import FilterSettings
+    from ins.estimation.core.lever_arm import LeverArm
+    from ins.estimation.coupling.pseudorange import TightUpdater
+    from ins.estimation.core.smoother import smooth as rts
     from ins.nav.mechanization import NavState
     r = int(np.searchsorted(truth.time, t_start - 1e-6))
     state = NavState(truth.lla[r], truth.v_n[r], truth.q_nb[r])

@@ -7,7 +7,7 @@ The real-data path of issue 15 item 5 in two commands (and a comparison)::
     python tools/comma2k19.py --compare seg/out/solution.nav seg   # the figures
 
 and its land-vehicle variant (non-holonomic constraint in the car's axes, the phone's
-mounting estimated from the first solution by ``ins.estimation.vehicle``)::
+mounting estimated from the first solution by ``ins.estimation.tools.vehicle``)::
 
     python tools/comma2k19.py --land seg/out/solution.nav seg     # seg/config_land.toml
     ins process --config seg/config_land.toml --preset land -o seg/out_land
@@ -193,7 +193,7 @@ method = "gnss-heading"           # the car drives from the first fix: heading f
 
 def retime_gnss(gnss, position_offset_s, velocity_offset_s):
     """The fixes on the IMU's time scale when their positions and velocities carry
-    different offsets (IMU clock minus GNSS clock, s, the sign of ``ins.estimation.time_offset``
+    different offsets (IMU clock minus GNSS clock, s, the sign of ``ins.estimation.tools.time_offset``
     and of ``[gnss] time_shift_s``): each record is stamped at its position's IMU time
     ``t + position_offset_s`` and carries the velocity interpolated (linearly) at that
     time from the velocities' IMU times ``t + velocity_offset_s``; records outside the
@@ -207,8 +207,8 @@ def retime_gnss(gnss, position_offset_s, velocity_offset_s):
 
 
 def estimate_offsets(imu, gnss):
-    """``ins.estimation.time_offset`` estimates of the positions' and the velocities' offsets."""
-    from ins.estimation.time_offset import estimate_time_offset
+    """``ins.estimation.tools.time_offset`` estimates of the positions' and the velocities' offsets."""
+    from ins.estimation.tools.time_offset import estimate_time_offset
     return (estimate_time_offset(imu, gnss, source="position"),
             estimate_time_offset(imu, gnss, source="velocity"))
 
@@ -218,7 +218,7 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
     ``conversion.toml`` (module notes) into ``out_dir``; returns a dict of figures.
 
     ``offsets``: ``"estimate"`` (the positions' and velocities' clock offsets estimated
-    from the data by ``ins.estimation.time_offset`` and removed), ``None`` (the stamps as they are)
+    from the data by ``ins.estimation.tools.time_offset`` and removed), ``None`` (the stamps as they are)
     or a pair ``(position_offset_s, velocity_offset_s)`` (IMU minus GNSS clock, s).
     """
     from ins.common.fileio import atomic_open, output_folder
@@ -259,10 +259,10 @@ def convert(segment, out_dir, force=False, stamp="utc", offsets="estimate", **si
 def land_config(solution, folder):
     """Write ``folder/config_land.toml``: ``folder/config.toml`` plus the ``[vehicle]``
     table of the phone's mounting estimated from ``solution`` (a trajectory processed
-    without the constraint; :func:`ins.estimation.vehicle.estimate_mounting`).  Returns the
-    :class:`ins.estimation.vehicle.Mounting`."""
+    without the constraint; :func:`ins.estimation.tools.vehicle.estimate_mounting`).  Returns the
+    :class:`ins.estimation.tools.vehicle.Mounting`."""
     from ins.common.fileio import atomic_open
-    from ins.estimation.vehicle import estimate_mounting
+    from ins.estimation.tools.vehicle import estimate_mounting
     from ins.io.navfiles import read_trajectory
     m = estimate_mounting(read_trajectory(solution))
     base = Path(folder, "config.toml").read_text(encoding="utf-8")
@@ -442,7 +442,7 @@ def _parser():
                         "on the boot clock (0.2 s later)")
     p.add_argument("--offsets", default="estimate", metavar="POS,VEL|estimate|none",
                    help="clock offsets (IMU - GNSS, s) of the positions and the velocities "
-                        "to remove: 'estimate' (default: ins.estimation.time_offset from the data), "
+                        "to remove: 'estimate' (default: ins.estimation.tools.time_offset from the data), "
                         "'none', or two numbers")
     p.add_argument("--sigma-h", type=float, default=SIGMA_H_M, metavar="M",
                    help=f"assumed horizontal sigma of a fix, m (default {SIGMA_H_M:g})")

@@ -24,7 +24,7 @@ the change of the pseudorange over one second is minus it within 0.04 m/s; PSINS
 The tool writes ``imu.txt`` (KF-GINS text, FRD = (y, x, -z) of RFU), ``psins.nav`` (RINEX
 3.04 from ``ephs``: :func:`ins.io.rinex_nav_write.write_gps_nav`; transmission time
 toe - 2 h, the set has none), ``rover.obs`` (RINEX 3.04) and ``config.toml`` (raw GNSS,
-RTKLIB single point, GPS L1), runs loose and tight (``ins.estimation.process.process``,
+RTKLIB single point, GPS L1), runs loose and tight (``ins.estimation.pipeline.process.process``,
 what ``ins process --config config.toml [--coupling tight] --preset PRESET`` runs), and
 prints the satellite positions of the RINEX file through RTKLIB against PSINS's columns
 through the simulator's IS-GPS-200 code, the loose-tight differences, satellites used,
@@ -40,7 +40,7 @@ The same runs from the command line, in the folder the tool keeps (``--keep DIR`
 
 Preset: ``mems`` by default.  The gyros are better than that (the rest's mean rate less
 the Earth's is 1-2 deg/h), but the alignment takes the rest's mean rate, Earth rate
-included, as the initial gyro bias (``ins.estimation.motion_alignment``); with
+included, as the initial gyro bias (``ins.estimation.alignment.motion``); with
 ``--preset tactical``'s 1 deg/h prior the vertical 8.4 deg/h of Earth rate stays in the
 z bias and loose and tight end 2.8 deg apart in heading, with mems' wider priors 0.24.
 The IMU's heading is 90 deg from the car's track (heading - course over ground, printed):
@@ -258,9 +258,9 @@ def orbit_check(nav_path, eph_list, week, times):
 def run(folder, coupling, preset):
     """``(ProcessResult, seconds)`` of ``ins process`` on ``folder/config.toml``."""
     from ins.common.textfiles import read_toml
-    from ins.estimation.presets import apply_preset
-    from ins.estimation.process import process
-    from ins.estimation.process_config import load_config
+    from ins.estimation.pipeline.presets import apply_preset
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.config import load_config
     path = str(Path(folder) / "config.toml")
     cfg = load_config(path)
     cfg.coupling = coupling

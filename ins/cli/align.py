@@ -1,6 +1,6 @@
 """``ins align IMU_FILE --lla LAT,LON,H``: static alignment of an IMU at rest without
 GNSS (coarse levelling and gyrocompassing, fine zero-velocity Kalman filter;
-:mod:`ins.estimation.alignment_fine`)."""
+:mod:`ins.estimation.alignment.fine`)."""
 import argparse
 import os
 
@@ -104,8 +104,8 @@ def _angle_text(rad):
 
 
 def _cmd_align(args):
-    from ins.estimation.alignment_fine import align_at_rest
-    from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL, MPS_SQRTH
+    from ins.estimation.alignment.fine import align_at_rest
+    from ins.estimation.core.error_model import DEG_SQRTH, DPH, MGAL, MPS_SQRTH
     from ins.io import imu_files
 
     lat, lon, h = (float(v) for v in args.lla)
@@ -170,7 +170,7 @@ def _w_h(lat_deg):
 
 
 def _print(args, al, lat):
-    from ins.estimation.error_model import DEG_SQRTH, DPH, MGAL, MPS_SQRTH
+    from ins.estimation.core.error_model import DEG_SQRTH, DPH, MGAL, MPS_SQRTH
     nz = al.noise
     src = nz.sources
     print(f"{args.imu_file}: window {al.time:.3f} .. {al.time_end:.3f} s "

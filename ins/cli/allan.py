@@ -1,7 +1,7 @@
 """``ins allan IMU_FILE``: Allan deviation of a static IMU log, IEEE 952 noise terms per
 axis with intervals, the classic reading where the model does not describe the curve
-(:func:`ins.estimation.allan.classic_reading`); a moving log is refused
-(:func:`ins.estimation.allan.static_check`)."""
+(:func:`ins.estimation.tools.allan.classic_reading`); a moving log is refused
+(:func:`ins.estimation.alignment.static_check.static_check`)."""
 import argparse
 import os
 import warnings
@@ -94,14 +94,14 @@ def _span_text(spans, limit=3):
 
 
 def _cmd_allan(args):
-    from ins.estimation.allan import (
+    from ins.estimation.tools.allan import (
         MIN_RUN_DECADES,
         SLOPE_TOL,
         TERMS,
         allan_deviation,
         fit_noise_model,
-        static_check,
     )
+    from ins.estimation.alignment.static_check import static_check
     from ins.io import imu_files
 
     if args.plot:
@@ -149,7 +149,7 @@ def _cmd_allan(args):
     poor = {sensor: fit.chi2 > CHI2_POOR for sensor, fit in (("gyro", fit_g), ("accel", fit_a))}
     classic = {}
     if any(p.any() for p in poor.values()):
-        from ins.estimation.allan import classic_reading
+        from ins.estimation.tools.allan import classic_reading
         try:
             classic = {"gyro": classic_reading(log.dtheta_b, dt) if poor["gyro"].any()
                        else None,
@@ -232,8 +232,8 @@ def _print_classic(poor, classic, fit_g, fit_a):
 def plot_allan(path, tau_s, adev_gyro_rad_s, adev_accel_mps2, what="", fit_gyro=None,
                fit_accel=None, classic_gyro=None, classic_accel=None):
     """Log-log plot of the Allan deviations (gyro deg/h, accel mGal) against tau (s),
-    with the fitted IEEE 952 models (:class:`ins.estimation.allan.NoiseFit`) dashed and
-    the classic readings (:class:`ins.estimation.allan.ClassicReading`, the axes it
+    with the fitted IEEE 952 models (:class:`ins.estimation.tools.allan.NoiseFit`) dashed and
+    the classic readings (:class:`ins.estimation.tools.allan.ClassicReading`, the axes it
     marks ``found``) dotted: the -1/2 line of N and the minimum of B (a circle)."""
     from ins.common.plotstyle import legend_right, pyplot, save_png
     plt = pyplot()

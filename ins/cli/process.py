@@ -184,7 +184,7 @@ def add_parser(sub):
                         "MODEL EGM2008 (default) or EGM96 to solution_orthometric.txt")
     p.add_argument("--preset", metavar="NAME",
                    help="defaults for the keys the config does not give: tactical, mems, "
-                        "land (ins/estimation/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
+                        "land (ins/estimation/pipeline/presets.py: IMU noise in deg/sqrt(h), m/s/sqrt(h), "
                         "deg/h, mGal, ppm, h)")
     p.add_argument("--mount", metavar="F", help="mount-angle log (varying lever arm)")
     p.add_argument("--coupling", choices=["loose", "tight"],
@@ -218,7 +218,7 @@ def add_parser(sub):
 
 
 def _config(args):
-    from ins.estimation.process_config import config_from_manifest, load_config
+    from ins.estimation.pipeline.config import config_from_manifest, load_config
     if args.flight_dir:
         if args.imu or args.gnss or args.rover:
             raise InputError("give either FLIGHT_DIR or --imu/--gnss (--rover), not both")
@@ -245,7 +245,7 @@ def _config(args):
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
-        from ins.estimation.presets import apply_preset
+        from ins.estimation.pipeline.presets import apply_preset
         given = read_toml(args.config, "a processing config (TOML)") if args.config else {}
         cfg = apply_preset(cfg, args.preset, given)
     return cfg
@@ -257,7 +257,7 @@ def _flight_raw_gnss(cfg, flight_dir):
     single-point solution of them as the GNSS log (start, delays, checks), not the
     folder's ready fixes."""
     from ins.common.textfiles import read_toml
-    from ins.estimation.process_gnss import RawGnss
+    from ins.estimation.pipeline.gnss_source import RawGnss
     from ins.gnss.rtklib_options import RtklibOptions
     files = read_toml(os.path.join(flight_dir, "manifest.toml"), "a flight manifest").get(
         "files", {})
@@ -301,7 +301,7 @@ def _input_options(cfg, args):
 
 def output_formats(text):
     """The trajectory formats of ``--format`` (``"nav"``, ``"sbet"``, ``"nav,sbet"``)."""
-    from ins.estimation.process_outputs import OUTPUT_FORMATS
+    from ins.estimation.pipeline.outputs import OUTPUT_FORMATS
     formats = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
     bad = [f for f in formats if f not in OUTPUT_FORMATS]
     if bad or not formats:
@@ -350,8 +350,8 @@ def _cmd_process(args):
 
     from ins.cli.util import Progress
     from ins.common.fileio import atomic_open, output_folder
-    from ins.estimation.process import process
-    from ins.estimation.process_outputs import write_outputs
+    from ins.estimation.pipeline.process import process
+    from ins.estimation.pipeline.outputs import write_outputs
     t0 = wallclock.perf_counter()
     formats = output_formats(args.format)
     from ins.io.geoid import parse_height
@@ -383,11 +383,11 @@ def _cmd_process(args):
                 names = write_outputs(result, stage, week=args.week, forward=args.forward,
                                       formats=formats, height=height)
                 if not args.no_plots:
-                    from ins.estimation.plots import write_plots
+                    from ins.estimation.pipeline.plots import write_plots
                     names += write_plots(result, stage, flight_dir=args.flight_dir)
                 t2 = wallclock.perf_counter()
                 if result.gnss_source is not None:
-                    from ins.estimation.process_gnss import SEPARATION_PNG, SEPARATION_TXT
+                    from ins.estimation.pipeline.gnss_source import SEPARATION_PNG, SEPARATION_TXT
                     names += [os.path.join(stage, n)
                               for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
                               if os.path.isfile(os.path.join(stage, n))]
@@ -407,10 +407,10 @@ def _cmd_process(args):
 
 
 def _report(args, cfg, result, stage, paths, times):
-    """The HTML report of the run (:mod:`ins.estimation.process_report`): every PNG in
+    """The HTML report of the run (:mod:`ins.estimation.pipeline.report`): every PNG in
     the staged folder embedded."""
-    from ins.estimation.plots import injected_biases
-    from ins.estimation.process_report import process_report
+    from ins.estimation.pipeline.plots import injected_biases
+    from ins.estimation.pipeline.report import process_report
     raw = cfg.gnss_raw
     inputs = [("flight folder", args.flight_dir), ("config", args.config),
               ("IMU", cfg.imu), ("GNSS", cfg.gnss),
@@ -455,7 +455,7 @@ def _start_lines(result, out):
               f"with no GNSS fix to start from)", file=out)
     if st["heading_from"] != "gyrocompass":
         return
-    from ins.estimation.error_model import NAV
+    from ins.estimation.core.error_model import NAV
     from ins.nav.rotation import quat_to_euler
     last = result.node_solution()[-1]
     yaw = np.mod(np.rad2deg(quat_to_euler(last[NAV.q_nb])[2]), 360)
@@ -470,7 +470,7 @@ def _summary(result, cfg, paths, t_proc, t_write):
     c = result.counts
     out = sys.stdout
     if result.gnss_source is not None:
-        from ins.estimation.process_gnss import source_lines
+        from ins.estimation.pipeline.gnss_source import source_lines
         shown = next((p for p in paths if os.path.basename(p) == "gnss.pos"), None)
         for line in source_lines(result.gnss_source, shown):
             print(line, file=out)
@@ -512,7 +512,7 @@ def _summary(result, cfg, paths, t_proc, t_write):
               f"{s['bound_m']:.4g} m)", file=out)
     if result.alignment is not None:
         al = result.alignment
-        from ins.estimation.error_model import NAV
+        from ins.estimation.core.error_model import NAV
         from ins.nav.rotation import quat_to_euler
         first = result.fwd.node_rows_of("node_states", 0, 1)[0]      # the first node
         rpy = np.rad2deg(quat_to_euler(first[NAV.q_nb]))

@@ -1,5 +1,5 @@
 """``ins time-offset --imu F --gnss F``: the IMU-GNSS clock offset estimated from the
-data (:mod:`ins.estimation.time_offset`), with its sigma; ``-o`` writes the GNSS log shifted onto
+data (:mod:`ins.estimation.tools.time_offset`), with its sigma; ``-o`` writes the GNSS log shifted onto
 the IMU's time scale."""
 import argparse
 
@@ -91,7 +91,7 @@ def add_parser(sub):
 
 def _cmd_time_offset(args):
     from ins.common.fileio import check_output_file
-    from ins.estimation.time_offset import estimate_time_offset, shift_gnss
+    from ins.estimation.tools.time_offset import estimate_time_offset, shift_gnss
     from ins.io.gnss import read_gnss, write_gnss
     from ins.io.imu_files import read_imu
     if args.output:

@@ -1,5 +1,5 @@
 """``ins vehicle-mounting SOLUTION``: the IMU's pitch and yaw in a land vehicle estimated
-from a solution processed without the non-holonomic constraint (:mod:`ins.estimation.vehicle`),
+from a solution processed without the non-holonomic constraint (:mod:`ins.estimation.tools.vehicle`),
 printed as the ``[vehicle]`` table of the processing config."""
 import argparse
 
@@ -36,7 +36,7 @@ example:
 
 
 def add_parser(sub):
-    from ins.estimation.vehicle import BLOCK_S, MAX_TURN_DPS, MIN_SPEED_MPS
+    from ins.estimation.tools.vehicle import BLOCK_S, MAX_TURN_DPS, MIN_SPEED_MPS
     p = sub.add_parser("vehicle-mounting", help="IMU pitch and yaw in a land vehicle from a "
                        "solution (for the non-holonomic constraint)",
                        description="Estimate the IMU's mounting rotation in a land vehicle "
@@ -58,7 +58,7 @@ def add_parser(sub):
 
 def _cmd_vehicle_mounting(args):
     from ins.common.errors import InputError
-    from ins.estimation.vehicle import estimate_mounting
+    from ins.estimation.tools.vehicle import estimate_mounting
     from ins.io.navfiles import read_trajectory
     traj = read_trajectory(args.solution)
     try:

@@ -12,7 +12,7 @@ silent fetch.  Every text given to a :class:`HtmlReport` method is escaped
 ``` `code` ```, ``![title](name)`` figures taken from a given mapping), so that a
 Markdown report and its HTML form have one source.
 
-Shared by ``ins process --report`` (:mod:`ins.estimation.process_report`) and
+Shared by ``ins process --report`` (:mod:`ins.estimation.pipeline.report`) and
 ``photogrammetry refine --report F.html``.
 """
 import base64

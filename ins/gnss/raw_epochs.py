@@ -31,7 +31,7 @@ GPS_L1_HZ = 1575.42e6
 
 @dataclass
 class RawEpochs:
-    """Corrected raw observations per epoch (:mod:`ins.estimation.pseudorange`'s notes), ragged over epochs.
+    """Corrected raw observations per epoch (:mod:`ins.estimation.coupling.pseudorange`'s notes), ragged over epochs.
 
     Attributes
     ----------

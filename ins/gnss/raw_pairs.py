@@ -1,5 +1,5 @@
 """Rover and base station epochs paired for double differences (tight coupling against a
-base, :mod:`ins.estimation.double_difference`).
+base, :mod:`ins.estimation.coupling.double_difference`).
 
 Both receivers' observations go through :func:`ins.gnss.raw_epochs.read_raw_epochs`
 (RTKLIB through ``pyrtklib5``: satellite positions and clocks at each receiver's own

@@ -1,7 +1,7 @@
 """Compiled loops of the strapdown mechanization (private; hot paths only; Cython).
 
 The step itself is C inline code in ``ins/nav/_strapdown.pxd`` (shared with
-:mod:`ins.estimation._filter_kernels`), the Earth model that of ``ins/nav/_earth.pxd``
+:mod:`ins.estimation.core._filter_kernels`), the Earth model that of ``ins/nav/_earth.pxd``
 (the formulas of :mod:`ins.nav.earth`; ``tests/test_native_earth.py`` holds the two
 equal through :func:`earth_terms`).
 

@@ -1,5 +1,5 @@
 # Strapdown mechanization step as C inline functions (private), cimported by
-# ins/nav/_kernels.pyx and ins/estimation/_filter_kernels.pyx so that the step is inlined
+# ins/nav/_kernels.pyx and ins/estimation/core/_filter_kernels.pyx so that the step is inlined
 # into both loops (a function cimported from another extension module would be called
 # through a pointer).
 #

@@ -19,7 +19,7 @@ KF-GINS GNSS text of ``docs/interfaces.md``).
 """
 import numpy as np
 
-from ins.estimation.lever_arm import antenna_velocity
+from ins.estimation.core.lever_arm import antenna_velocity
 from ins.io.gnss_log import GnssLog
 from ins.nav.earth import earth_rate_n, lla_rate, offset_ecef, offset_lla, transport_rate_n
 from ins.nav.rotation import quat_to_dcm, rot_x, rot_y, rot_z, skew

@@ -1,0 +1,136 @@
+"""``ins process`` with tight coupling (``[gnss] coupling = "tight"``, ``--coupling
+tight``): the rover's RINEX observations and the broadcast navigation file(s) of the raw
+GNSS input (``[files] rover``, ``nav``; :mod:`ins.estimation.pipeline.gnss_source`) through
+RTKLIB (:func:`ins.gnss.raw_epochs.read_raw_epochs`) into the filter's pseudorange and
+range-rate updates (:class:`ins.estimation.coupling.pseudorange.TightUpdater`).
+
+RTKLIB's solution of the same input (run first, as for loose coupling) still gives the
+start (alignment, start check), the receiver positions for the atmospheric delays
+(interpolated in time; the nearest fix outside its span) and the trust checks'
+reference.  With a base station (``[files] base``) the updates are double differences
+against it (:class:`ins.estimation.coupling.double_difference.DoubleDifferenceUpdater`, the
+base's epochs paired by :func:`ins.gnss.raw_pairs.read_pair`, its position from its
+RINEX header or ``[rtklib] base_lla_deg``): the receiver clocks cancel and the layout
+has no clock states.  Carrier phase is not used.  A u-blox log as the rover is converted on the way.
+``[gnss] range_sigma_m``, ``range_rate_sigma_mps`` and ``receiver_clock`` set the
+weights and the clock model (:class:`ins.estimation.coupling.pseudorange.TightOptions`,
+:data:`ins.estimation.coupling.pseudorange.CLOCKS`): the defaults (RTKLIB's 0.3 m + 0.3 m /
+sin(el)) suit a geodetic receiver; a range error correlated over a minute (multipath)
+is not white noise, and on the simulated flight with 0.3 m of it the smoothed
+trajectory within 60 s of 3, 2 and 1 satellites is 1.45 m off with them, 0.97 m with
+``range_sigma_m = [1, 1]`` (``bench/bench_tight_rawsim.py``).
+
+Double differences against the base (same bench): on ``data/flights/rawsim_dd.toml``
+(the ionosphere twice Klobuchar, the troposphere 1.1 Saastamoinen, white code noise)
+the smoothed horizontal/vertical RMS is 0.31/0.36 m against single point's 0.78/6.14
+m (the ionosphere's residual is a height error for one receiver).  With the 0.3 m
+multipath of ``rawsim.toml`` at both receivers (equal antennas; the models exact) DD is
+worse horizontally, 1.36 m against 0.87 m: the multipath of two receivers adds up and
+there is no common error to cancel.  One satellite gives no DD: a 1-satellite span is
+free inertial.
+"""
+import functools
+
+import numpy as np
+
+from ins.common.errors import InputError
+from ins.estimation.core.error_model import StateLayout
+from ins.estimation.coupling.pseudorange import CLOCKS, TightOptions, TightUpdater, clock_psd
+from ins.nav import earth
+
+__all__ = ["COUPLINGS", "tight_inputs", "tight_counts"]
+
+COUPLINGS = ("loose", "tight")
+
+
+def _positions(gnss):
+    """``f(t) -> ECEF (3,)`` from the loose log, interpolated per axis."""
+    r = earth.lla_to_ecef(gnss.lla[:, 0], gnss.lla[:, 1], gnss.lla[:, 2])
+    t = np.asarray(gnss.time, dtype=float)
+    return lambda s: np.array([np.interp(s, t, r[:, k]) for k in range(3)])
+
+
+def tight_inputs(cfg, gnss, settings):
+    """The raw epochs and the filter settings of a tight run.
+
+    Parameters
+    ----------
+    cfg : ins.estimation.pipeline.config.ProcessConfig
+        With raw GNSS input (``cfg.gnss_raw``: rover and nav).
+    gnss : ins.io.gnss_log.GnssLog
+        The loose log (receiver positions for the delays).
+    settings : ins.estimation.core.filter_settings.FilterSettings
+        The loose run's settings; the layout gains the ``clock`` group.
+
+    Returns
+    -------
+    raw : ins.gnss.raw_epochs.RawEpochs
+    settings : FilterSettings
+    """
+    from dataclasses import replace
+
+    from ins.gnss.ubx import is_ubx
+    raw_in = getattr(cfg, "gnss_raw", None)
+    if raw_in is None or not (raw_in.nav or is_ubx(raw_in.rover)):
+        raise InputError("[gnss] coupling = \"tight\": needs raw GNSS input, [files] rover "
+                         "and nav (--rover, --nav: the rover's RINEX observations and the "
+                         "broadcast navigation file; a u-blox log with its own ephemerides "
+                         "needs no nav), not a GNSS solution alone")
+    if len(gnss) == 0:
+        raise InputError("tight coupling: the GNSS log has no fix for the receiver "
+                         "positions of the atmospheric delays", path=cfg.gnss)
+    raw = _read(raw_in, _positions(gnss))
+    if cfg.gnss_time_shift_s:
+        raw.time = raw.time + cfg.gnss_time_shift_s
+    options = TightOptions(elevation_mask_deg=cfg.elevation_mask_deg,
+                           range_sigma_m=tuple(cfg.range_sigma_m),
+                           range_rate_sigma_mps=tuple(cfg.range_rate_sigma_mps))
+    if raw_in.base:
+        from ins.estimation.coupling.double_difference import DoubleDifferenceUpdater
+        return raw, replace(settings, updater=functools.partial(DoubleDifferenceUpdater,
+                                                                options=options))
+    layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
+    return raw, replace(settings, layout=layout, clock_psd=clock_psd(*CLOCKS[cfg.receiver_clock]),
+                        updater=functools.partial(TightUpdater, options=options))
+
+
+def _read(raw_in, positions):
+    """The raw epochs of the rover: RINEX as it is, a u-blox log converted first (RTKLIB's
+    convrnx, :func:`ins.gnss.ubx.convert_ubx`, into a temporary folder); the log's own
+    ephemerides are used when no nav file is given."""
+    import tempfile
+
+    from ins.gnss.raw_epochs import read_raw_epochs
+    from ins.gnss.rtklib_engine import binding
+    from ins.gnss.ubx import convert_ubx, is_ubx
+
+    def read(obs, navs):
+        if raw_in.base:
+            from ins.gnss.raw_pairs import read_pair
+            return read_pair(obs, raw_in.base, navs, positions, raw_in.options)
+        return read_raw_epochs(obs, navs, positions)
+    if not is_ubx(raw_in.rover):
+        return read(raw_in.rover, raw_in.nav)
+    with tempfile.TemporaryDirectory(prefix="ins-ubx-") as tmp:
+        obs, nav = convert_ubx(raw_in.rover, tmp, binding())
+        navs = tuple(raw_in.nav) or ((nav,) if nav else ())
+        if not navs:
+            raise InputError("tight coupling: the u-blox log holds no ephemeris (RXM-SFRBX) "
+                             "and no nav file is given ([files] nav, --nav)",
+                             path=raw_in.rover)
+        return read(obs, navs)
+
+
+def tight_counts(fwd):
+    """Summary counts of a tight run: satellites used per epoch (min, mean), the
+    coupling and, with double differences, the base (``base``) and the reference
+    satellite's changes; ``{"coupling": "loose"}`` for a loose one."""
+    up = getattr(fwd, "updater", None)
+    if not hasattr(up, "satellites_used"):
+        return {"coupling": "loose"}
+    lo, mean, _ = up.satellites_used()
+    out = {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2),
+           "clock_jumps": list(getattr(up, "clock_jumps", []))}
+    if hasattr(up, "base_name"):
+        out.update(base=up.base_name, reference_changes=up.ref_changes)
+    return out
