@@ -31,9 +31,11 @@ import os
 import struct
 
 from ins.common.errors import InputError
+from ins.io.ublox import ubx_checksum
 
 __all__ = ["FORMATS", "RAW_FORMATS", "detect_format", "convert_raw", "observations",
-           "first_epoch", "RINEX_VERSION", "format_names"]
+           "first_epoch", "first_rawx_time", "nav_epoch", "obs_epoch", "RINEX_VERSION", "format_names",
+           "check_format"]
 
 #: RINEX version of the converted files (x100, RTKLIB's rnxopt_t.rnxver).
 RINEX_VERSION = 304
@@ -125,7 +127,6 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
     and Unicore headers; SBF block headers), else None."""
     if fmt == "ubx":
-        from ins.gnss.ubx import first_rawx_time
         return first_rawx_time(path, limit_bytes)
     if fmt not in ("oem4", "unicore", "sbf"):
         return None
@@ -149,21 +150,55 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
     return None
 
 
-def _nav_time(navs, rtk):
-    """RTKLIB's ``gtime_t`` of the first GPS ephemeris's toe in the navigation files
-    ``navs`` (RINEX), or None."""
+def first_rawx_time(path, limit_bytes=1 << 22):
+    """``(week, tow_s)`` of the first RXM-RAWX message (with a valid checksum) in the
+    first ``limit_bytes`` of a UBX log, or None."""
+    with open(path, "rb") as f:
+        data = f.read(limit_bytes)
+    k = data.find(b"\xb5\x62\x02\x15")
+    while 0 <= k and k + 8 + 16 <= len(data):
+        length = struct.unpack_from("<H", data, k + 4)[0]
+        end = k + 6 + length
+        if end + 2 <= len(data) and data[end:end + 2] == ubx_checksum(data[k + 2:end]):
+            tow, week = struct.unpack_from("<dH", data, k + 6)
+            if week > 0:
+                return int(week), float(tow)
+        k = data.find(b"\xb5\x62\x02\x15", k + 2)
+    return None
+
+
+def nav_epoch(navs, rtk):
+    """``(week, tow_s)`` of the first GPS ephemeris's toe in the RINEX navigation files
+    ``navs``, or None (copied out before RTKLIB's arrays are freed)."""
     for p in navs or ():
         obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
         try:
             if rtk.readrnx(os.fspath(p), 1, "", obs, nav, sta) and nav.n > 0:
-                return nav.eph[0].toe
+                w = rtk.Arr1Dint(1)
+                tow = rtk.time2gpst(nav.eph[0].toe, w)
+                return int(w[0]), float(tow)
         finally:
             rtk.freeobs(obs)
             rtk.freenav(nav, 0xFF)
     return None
 
 
-def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=()):
+def obs_epoch(path, rtk):
+    """``(week, tow_s)`` of the first epoch of a RINEX observation file (RTKLIB's
+    ``readrnx``), or None."""
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    try:
+        if rtk.readrnx(os.fspath(path), 1, "", obs, nav, sta) and obs.n > 0:
+            w = rtk.Arr1Dint(1)
+            tow = rtk.time2gpst(obs.data[0].time, w)
+            return int(w[0]), float(tow)
+    finally:
+        rtk.freeobs(obs)
+        rtk.freenav(nav, 0xFF)
+    return None
+
+
+def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None):
     """Convert a receiver log into RINEX 3.04 files in ``folder`` with RTKLIB.
 
     Parameters
@@ -181,6 +216,10 @@ def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=()):
     navs : sequence of paths
         RINEX navigation files given with the log: their first ephemeris dates a log
         whose format has no complete week (module notes).
+    epoch : (int, float), optional
+        ``(GPS week, s of week)`` near the log's start, for a format without a complete
+        week (RTCM's week; the rover's first epoch for a base station's log); before
+        the navigation files'.
 
     Returns
     -------
@@ -215,7 +254,9 @@ def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=()):
         for j in range(64):
             opt.mask[i, j] = "1"
     first = first_epoch(path, fmt)
-    when = rtk.gpst2time(*first) if first is not None else _nav_time(navs, rtk)
+    first = epoch if first is None else first
+    first = nav_epoch(navs, rtk) if first is None else first
+    when = None if first is None else rtk.gpst2time(*first)
     if when is not None:
         opt.trtcm = when
         rtk.timeset(rtk.gpst2utc(when))
@@ -235,14 +276,14 @@ def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=()):
     return obs_path, nav_path
 
 
-def observations(path, folder, rtk, stem="rover", fmt=None, navs=()):
+def observations(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None):
     """``(RINEX observation path, converted navigation path or None)`` of ``path``: a
     RINEX file as it is, a receiver log converted into ``folder``
     (:func:`convert_raw`); ``fmt`` None: :func:`detect_format`."""
     fmt = detect_format(path) if fmt is None else fmt
     if fmt == "rinex":
         return os.fspath(path), None
-    return convert_raw(path, folder, rtk, stem, fmt, navs)
+    return convert_raw(path, folder, rtk, stem, fmt, navs, epoch)
 
 
 def _has_observation(path):

@@ -200,9 +200,15 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
         files = [rover_obs]
         converted_navs = [rover_nav]
         if opts.uses_base:
+            from ins.gnss.receiver_formats import obs_epoch
             base_obs, base_nav = _observations(base, tmp, "base", rtk, opts.base_format,
-                                               navs)
+                                               navs, epoch=obs_epoch(rover_obs, rtk))
             count_epochs(base_obs, rtk, shown=base)
+            if (base_obs != base and opts.base_position == "rinex"
+                    and opts.base_lla_deg is None and not _header_position(base_obs)):
+                raise InputError("the base log gives no antenna position (RTCM3 1005/1006 "
+                                 "messages do): set [rtklib] base_position = \"single\" or "
+                                 "base_lla_deg = [lat deg, lon deg, h m]", path=base)
             files.append(base_obs)
             converted_navs.append(base_nav)
         navs += [p for p in converted_navs if p]
@@ -283,16 +289,30 @@ def _precise_hint(precise):
             "observations)" if precise else "")
 
 
-def _observations(path, folder, stem, rtk, fmt=None, navs=()):
+def _observations(path, folder, stem, rtk, fmt=None, navs=(), epoch=None):
     """(RINEX observation path, converted navigation path or None) of ``path``: a
     receiver log (format ``fmt``, None: detected from the content) is converted into
-    ``folder`` first (:func:`ins.gnss.receiver_formats.observations`)."""
+    ``folder`` first (:func:`ins.gnss.receiver_formats.observations`; ``epoch`` dates
+    a log without a complete week: the rover's first for the base)."""
     from ins.gnss.receiver_formats import detect_format, observations
     fmt = detect_format(path) if fmt is None else fmt
     if fmt == "rinex":
         return path, None
     with _LOCK:                                       # RTKLIB's clock is set meanwhile
-        return observations(path, folder, rtk, stem, fmt, navs)
+        return observations(path, folder, rtk, stem, fmt, navs, epoch)
+
+
+def _header_position(path):
+    """The ``APPROX POSITION XYZ`` of a RINEX observation header (m), or None when it
+    is absent or zero."""
+    with open(path, "rb") as f:
+        for line in f:
+            if b"APPROX POSITION XYZ" in line:
+                xyz = [float(v) for v in line[:42].split()]
+                return xyz if len(xyz) == 3 and any(xyz) else None
+            if b"END OF HEADER" in line:
+                return None
+    return None
 
 
 def _has_epoch(path):

@@ -21,10 +21,8 @@ the first RXM-RAWX epoch of the log (whose week is complete) and resets it after
 (``timereset``): callers serialize RTKLIB calls (:mod:`ins.gnss.rtklib_engine`).
 """
 import os
-import struct
 
-from ins.gnss.receiver_formats import RINEX_VERSION  # noqa: F401  (re-exported)
-from ins.io.ublox import ubx_checksum
+from ins.gnss.receiver_formats import RINEX_VERSION, first_rawx_time  # noqa: F401  (re-exported)
 
 __all__ = ["is_ubx", "convert_ubx", "first_rawx_time", "UBX_SYNC", "RINEX_VERSION"]
 
@@ -63,20 +61,3 @@ def convert_ubx(path, folder, rtk, stem="rover"):
     """
     from ins.gnss.receiver_formats import convert_raw
     return convert_raw(path, folder, rtk, stem, fmt="ubx")
-
-
-def first_rawx_time(path, limit_bytes=1 << 22):
-    """``(week, tow_s)`` of the first RXM-RAWX message (with a valid checksum) in the
-    first ``limit_bytes`` of a UBX log, or None."""
-    with open(path, "rb") as f:
-        data = f.read(limit_bytes)
-    k = data.find(b"\xb5\x62\x02\x15")
-    while 0 <= k and k + 8 + 16 <= len(data):
-        length = struct.unpack_from("<H", data, k + 4)[0]
-        end = k + 6 + length
-        if end + 2 <= len(data) and data[end:end + 2] == ubx_checksum(data[k + 2:end]):
-            tow, week = struct.unpack_from("<dH", data, k + 6)
-            if week > 0:
-                return int(week), float(tow)
-        k = data.find(b"\xb5\x62\x02\x15", k + 2)
-    return None
