@@ -305,3 +305,35 @@ def test_tight_coupling_pairs_the_novatel_rover_with_the_rtcm3_base(tmp_path):
         np.testing.assert_allclose(a.range_m[k], b.range_m[k], atol=1e-3)
         np.testing.assert_allclose(a.base.range_m[k], b.base.range_m[k], atol=1e-3)
     assert sorted(os.listdir(tmp_path)) == ["base.rtcm3", "rover.gps"]
+
+
+@needs_pair
+def test_process_takes_the_logs_loose(tmp_path, capsys):
+    """``ins process --rover rover.gps --base base.rtcm3 --rover-format oem4`` (loose):
+    gnss.pos equal to RTKLIB's solution of the RINEX files; [rtklib] base_format in the
+    config; a format for a run without raw GNSS is refused."""
+    rtk = _rtk()
+    from test_rawgnss import _config
+
+    from ins.cli.main import main
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.io.rtklib import read_pos
+    rover, base, _, _ = _pair_logs(tmp_path, rtk)
+    cfg = _config(tmp_path, files=f'nav = ["{NAV}"]', rtklib='base_format = "rtcm3"')
+    out = tmp_path / "out"
+    assert main(["process", "--config", str(cfg), "--rover", str(rover), "--base",
+                 str(base), "--nav", NAV, "--rover-format", "oem4", "--no-plots", "-o",
+                 str(out)]) == 0
+    assert "115 of 120 rover epochs solved (fix 115)" in capsys.readouterr().out
+    ref = solve(ROVER, NAV, tmp_path / "ref.pos", base=BASE,
+                options=RtklibOptions(systems=("gps",))).log
+    got = read_pos(out / "gnss.pos")
+    assert np.array_equal(got.quality, ref.quality)
+    assert np.max(np.abs(got.lla[:, 2] - ref.lla[:, 2])) < 1e-4
+    plain = tmp_path / "plain.toml"                    # no [rtklib], no raw GNSS
+    plain.write_text(cfg.read_text().replace('[rtklib]\nsystems = ["gps"]\n'
+                                             'base_format = "rtcm3"\n', ""))
+    assert main(["process", "--config", str(plain), "--gnss", str(out / "gnss.pos"),
+                 "--rover-format", "oem4", "-o", str(tmp_path / "o2")]) == 2
+    assert "--rover-format / --base-format go with raw GNSS" in capsys.readouterr().err
