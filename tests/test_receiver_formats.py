@@ -16,7 +16,7 @@ from ins.common.errors import InputError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import receiver_frames as rf  # noqa: E402
-from ubx_frames import read_rinex2_obs, read_rinex3_obs, rinex2_to_ubx  # noqa: E402
+from ubx_frames import read_rinex2_obs, read_rinex3_obs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAIR = ROOT.parent / "shared" / "real" / "rtklib_static_pair"

@@ -34,8 +34,8 @@ from ins.common.errors import InputError
 from ins.io.ublox import ubx_checksum
 
 __all__ = ["FORMATS", "RAW_FORMATS", "detect_format", "convert_raw", "observations",
-           "first_epoch", "first_rawx_time", "nav_epoch", "obs_epoch", "RINEX_VERSION", "format_names",
-           "check_format"]
+           "first_epoch", "first_rawx_time", "nav_epoch", "obs_epoch", "RINEX_VERSION",
+           "format_names", "check_format"]
 
 #: RINEX version of the converted files (x100, RTKLIB's rnxopt_t.rnxver).
 RINEX_VERSION = 304

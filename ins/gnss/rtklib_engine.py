@@ -3,7 +3,8 @@
 
 :func:`solve` runs RTKLIB's ``postpos`` (the engine of ``rnx2rtkp``/``rtkpost``) on a
 rover's RINEX 2/3 observations (or a receiver log in any format RTKLIB decodes,
-converted on the way by :mod:`ins.gnss.receiver_formats`), an optional base station's, the broadcast navigation file(s)
+converted on the way by :mod:`ins.gnss.receiver_formats`), an optional base station's,
+the broadcast navigation file(s)
 and optional precise products (SP3 orbits and clocks, RINEX CLK), with the
 settings of :class:`~ins.gnss.rtklib_options.RtklibOptions`, and reads the solution back
 with :func:`ins.io.rtklib.read_pos` (whose covariance screen catches RTKLIB's invalid
