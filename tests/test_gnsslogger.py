@@ -143,13 +143,17 @@ def test_import_android_reconstructs_the_simulation(tmp_path, capsys):
             worst["L"] = max(worst["L"], abs(rows[sat]["L" + code] - cp))
             worst["D"] = max(worst["D"], abs(rows[sat]["D" + code] - dop))
             assert abs(rows[sat]["S" + code] - cn0) < 1e-3
-    assert worst["C"] < 1e-3 and worst["L"] < 1e-3 and worst["D"] < 1e-3, worst
+    assert worst["C"] < 6e-4 and worst["L"] < 6e-4 and worst["D"] < 6e-4, worst
+    print("worst |RINEX - truth|:", worst)
     body = (out / "gnss.obs").read_text()
     assert "G    8 C1C L1C D1C S1C C5Q L5Q D5Q S5Q" in body and "R    4 C1C" in body
     # the slip (ADR state 5 = valid + cycle slip) at epoch 3 of G05 L1: LLI 1 after L1C
     ep3 = body.split("> ")[4].splitlines()
     g05 = next(line for line in ep3 if line.startswith("G05"))
     assert g05[3 + 16 + 14] == "1"
+    rtk = pytest.importorskip("pyrtklib5", reason="RTKLIB reads the RINEX too")
+    from ins.gnss.rtklib_engine import count_epochs
+    assert count_epochs(out / "gnss.obs", rtk) == 6
     imu = read_csv(out / "imu.csv")
     dt = np.diff(imu.time)
     assert np.allclose(dt, 0.02, atol=1e-6)

@@ -138,6 +138,7 @@ def test_rtcm3_msm_decodes_to_the_simulation(tmp_path, kind):
     if kind == 7:
         tol["D"] = 0.0015
     err = _compare(obs, {"L1": "1C", "L2": "2L"}, tol)
+    print(f"MSM{kind} worst |RINEX - truth|:", err)
     assert (kind == 4) == ("D" not in err)
 
 
@@ -151,8 +152,9 @@ def test_oem4_rangeb_decodes_to_the_simulation(tmp_path):
     assert detect_format(log) == "oem4"
     assert first_epoch(log, "oem4") == (WEEK, TOW0)          # the header's full week
     obs, _ = convert_raw(log, str(tmp_path), rtk)
-    _compare(obs, {"L1": "1C", "L2": "2W"}, {"C": 5e-4 + 1e-6, "L": 5e-4 + 1e-6,
+    err = _compare(obs, {"L1": "1C", "L2": "2W"}, {"C": 5e-4 + 1e-6, "L": 5e-4 + 1e-6,
                                              "D": 1e-3, "S": 0.005})
+    print("RANGEB worst |RINEX - truth|:", err)
 
 
 def test_detection_and_errors(tmp_path):
