@@ -11,10 +11,20 @@ from ins.common.errors import InputError, QualityError
 
 EPILOG = """\
 inputs:
-  ROVER (or --rover), --base: RINEX 2.x/3.x observations, or u-blox logs (.ubx,
-  RXM-RAWX; converted to RINEX 3.04 on the way with RTKLIB's convrnx, their RXM-SFRBX
-  ephemerides too); --nav: broadcast navigation (RINEX nav, repeatable; needed unless
-  the u-blox logs hold ephemerides); --sp3, --clk: precise orbits and clocks
+  ROVER (or --rover), --base: RINEX 2.x/3.x observations, or raw receiver logs in any
+  format RTKLIB decodes, converted to RINEX 3.04 on the way with RTKLIB's convrnx
+  (their ephemerides too): rtcm2, rtcm3 (MSM4-7 or 1002/1004/1010/1012), oem4 (NovAtel
+  OEM4/6/7 binary RANGEB/RANGECMPB), ubx (u-blox RXM-RAWX, RXM-SFRBX), sbf
+  (Septentrio), hemisphere, skytraq, javad, nvs, binex, rt17 (Trimble), unicore,
+  swift (SBP).  The format is detected from the content (RINEX header; valid UBX,
+  RTCM3, NovAtel, Unicore, SBF, SBP, SkyTraq, RT17 frames with their checksums; BINEX,
+  $BIN) or the extension; rtcm2, javad and nvs logs must be named: --gnss-format
+  (the rover's) and --base-format, or [rtklib] rover_format / base_format.  RTCM3
+  carries no week: it is taken from the rover's first epoch (for a base) or the nav
+  file's first ephemeris.  A base log must give its antenna position (RTCM3 1005/
+  1006) unless base_position = "single" or base_lla_deg is set.
+  --nav: broadcast navigation (RINEX nav, repeatable; needed unless the logs hold
+  ephemerides); --sp3, --clk: precise orbits and clocks
   (repeatable; given any, RTKLIB uses the precise ephemeris: they must cover the whole
   span of the observations).
 
@@ -23,7 +33,8 @@ settings (--config FILE, its [rtklib] table, strict keys; the command line wins)
   "combined", elevation_mask_deg = 15, frequencies = 2, systems = ["gps", "glonass",
   "galileo"], dynamics = false, ambiguity = "fix-and-hold", ar_ratio = 3,
   ionosphere = "broadcast", troposphere = "saastamoinen", base_position = "rinex"|
-  "single" or base_lla_deg = [lat deg, lon deg, h m].
+  "single" or base_lla_deg = [lat deg, lon deg, h m], rover_format, base_format
+  (default detected: see inputs).
 
 output: RTKLIB's .pos (lat/lon deg, ellipsoidal height m, GPS week and seconds, Q =
   1 fix, 2 float, 4 DGNSS, 5 single; sigmas in m).  The summary gives the epochs per
@@ -44,6 +55,8 @@ example:
   ins gnss 07590920.05o --base 30400920.05o --nav 07590920.05n -o rover.pos
   ins gnss rover.obs --nav brdc.nav --mode single -o rover.pos
   ins gnss --rover rover.ubx --base base.obs --nav brdc.nav -o rover.pos
+  ins gnss --rover rover.gps --base ntrip.rtcm3 --nav brdc.nav -o rover.pos
+  ins gnss --rover rover.log --gnss-format javad --base base.obs --nav brdc.nav -o r.pos
 """
 
 _QNAME = {1: "fix", 2: "float", 3: "sbas", 4: "dgnss", 5: "single", 6: "ppp"}
@@ -57,12 +70,20 @@ def add_parser(sub):
                                    "products) with RTKLIB demo5's engine into a .pos file.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("rover_file", nargs="?", metavar="ROVER",
-                   help="rover observations (RINEX, or a u-blox .ubx log)")
+                   help="rover observations (RINEX, or a receiver log: see inputs)")
     p.add_argument("--rover", metavar="ROVER", help="the same, as an option")
     p.add_argument("--nav", action="append", default=[], metavar="NAV",
                    help="broadcast navigation file (RINEX nav; repeatable)")
     p.add_argument("--base", metavar="BASE",
-                   help="base station observations (RINEX or u-blox .ubx)")
+                   help="base station observations (RINEX or a receiver log)")
+    from ins.gnss.receiver_formats import RAW_FORMATS
+    names = ("rinex",) + RAW_FORMATS
+    p.add_argument("--gnss-format", "--rover-format", dest="rover_format",
+                   type=str.lower, choices=names, metavar="NAME",
+                   help="the rover's receiver format (default: detected): "
+                        + ", ".join(names))
+    p.add_argument("--base-format", type=str.lower, choices=names, metavar="NAME",
+                   help="the base's receiver format (default: detected)")
     p.add_argument("--sp3", action="append", default=[], metavar="SP3",
                    help="precise orbits (repeatable)")
     p.add_argument("--clk", action="append", default=[], metavar="CLK",
@@ -91,7 +112,9 @@ def _options(args):
         doc = read_toml(path, "a config with an [rtklib] table (TOML)")
         table = doc.get("rtklib")
     return read_rtklib_options(table, path, direction=args.direction,
-                               mode=mode_without_base(table, args.base, args.mode))
+                               mode=mode_without_base(table, args.base, args.mode),
+                               rover_format=args.rover_format,
+                               base_format=args.base_format)
 
 
 def separation_paths(pos_path):

@@ -244,6 +244,7 @@ def _cmd_compare(args):
 # Sub-commands that live in modules of their own (one line each).
 COMMAND_MODULES = [
     "ins.cli.align",
+    "ins.cli.android",
     "ins.cli.allan",
     "ins.cli.bag",
     "ins.cli.export",

@@ -27,7 +27,11 @@ inputs:
                     the altitude above mean sea level plus the GGA geoid separation, or
                     plus N of --gnss-geoid (EGM96 default) when the GGA has none
   --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
-                    config's [files] rover, base, nav, sp3, clk; RINEX or u-blox .ubx):
+                    config's [files] rover, base, nav, sp3, clk): RINEX, or a receiver log
+                    in any format RTKLIB decodes (rtcm2, rtcm3, oem4 NovAtel, ubx, sbf,
+                    hemisphere, skytraq, javad, nvs, binex, rt17, unicore, swift),
+                    detected from the content or named by --rover-format/--base-format
+                    ([rtklib] rover_format, base_format), converted to RINEX on the way
                     RTKLIB runs first with the config's [rtklib] settings (ins gnss
                     --help; optional extra: pip install 'insphoto[gnss]'), writes
                     OUT_DIR/gnss.pos (and, in kinematic mode, fwd_bwd_separation.txt
@@ -145,7 +149,7 @@ def add_parser(sub):
     p.add_argument("--gnss", metavar="F",
                    help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
     p.add_argument("--rover", metavar="F",
-                   help="raw GNSS: the rover's observations (RINEX or u-blox .ubx), run "
+                   help="raw GNSS: the rover's observations (RINEX or a receiver log), run "
                         "through RTKLIB first instead of --gnss")
     p.add_argument("--base", metavar="F", help="raw GNSS: base station observations")
     p.add_argument("--nav", action="append", metavar="F",
@@ -154,6 +158,14 @@ def add_parser(sub):
                    help="raw GNSS: precise orbits (repeatable)")
     p.add_argument("--clk", action="append", metavar="F",
                    help="raw GNSS: precise clocks, RINEX CLK (repeatable)")
+    from ins.gnss.receiver_formats import RAW_FORMATS
+    raw_names = ("rinex",) + RAW_FORMATS
+    p.add_argument("--rover-format", type=str.lower, choices=raw_names, metavar="NAME",
+                   help="raw GNSS: the receiver format of --rover (default: detected from "
+                        "the content; [rtklib] rover_format): " + ", ".join(raw_names))
+    p.add_argument("--base-format", type=str.lower, choices=raw_names, metavar="NAME",
+                   help="raw GNSS: the receiver format of --base (default: detected; "
+                        "[rtklib] base_format)")
     p.add_argument("--gnss-format", choices=["kfgins", "rtklib", "ubx", "nmea"],
                    help="GNSS file format (default: detected from the extension and "
                         "content): KF-GINS text, RTKLIB .pos, a u-blox receiver's own "
@@ -283,6 +295,15 @@ def _input_options(cfg, args):
                              f"import-bag {path} -o DIR' (imu.txt, gnss.pos)")
     if args.gnss_format:
         cfg.gnss_format = args.gnss_format
+    formats = {k: getattr(args, k) for k in ("rover_format", "base_format")
+               if getattr(args, k, None)}
+    if formats:
+        if cfg.gnss_raw is None:
+            raise InputError("--rover-format / --base-format go with raw GNSS (--rover, or "
+                             "[files] rover)")
+        from dataclasses import replace
+        cfg.gnss_raw = replace(cfg.gnss_raw, options=replace(cfg.gnss_raw.options,
+                                                             **formats))
     if args.gnss_geoid:
         cfg.gnss_geoid = args.gnss_geoid
     if args.gnss_quality:

@@ -2,8 +2,9 @@
 ``pyrtklib5`` binding: optional extra ``pip install 'insphoto[gnss]'``).
 
 :func:`solve` runs RTKLIB's ``postpos`` (the engine of ``rnx2rtkp``/``rtkpost``) on a
-rover's RINEX 2/3 observations (or a u-blox log, converted on the way by
-:mod:`ins.gnss.ubx`), an optional base station's, the broadcast navigation file(s)
+rover's RINEX 2/3 observations (or a receiver log in any format RTKLIB decodes,
+converted on the way by :mod:`ins.gnss.receiver_formats`), an optional base station's,
+the broadcast navigation file(s)
 and optional precise products (SP3 orbits and clocks, RINEX CLK), with the
 settings of :class:`~ins.gnss.rtklib_options.RtklibOptions`, and reads the solution back
 with :func:`ins.io.rtklib.read_pos` (whose covariance screen catches RTKLIB's invalid
@@ -120,7 +121,7 @@ def count_epochs(path, rtk=None, shown=None):
         rtk.freenav(nav, 0xFF)
     if n <= 0:
         raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
-                         "2.x/3.x observations or a u-blox log with RXM-RAWX)",
+                         "2.x/3.x observations or a receiver log: --gnss-format)",
                          path=path if shown is None else os.fspath(shown))
     if _ends_inside_a_line(path):
         warnings.warn(f"{path if shown is None else os.fspath(shown)}: the file ends inside a "
@@ -146,8 +147,10 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     Parameters
     ----------
     rover : str or os.PathLike
-        Rover observations: RINEX 2.x/3.x, or a u-blox log (``.ubx``, RXM-RAWX;
-        converted on the way by :func:`ins.gnss.ubx.convert_ubx`).
+        Rover observations: RINEX 2.x/3.x, or a receiver log of any format RTKLIB
+        decodes (RTCM3, NovAtel, u-blox, SBF, ...: :mod:`ins.gnss.receiver_formats`;
+        detected from the content unless ``options.rover_format`` names it), converted
+        on the way with RTKLIB's ``convrnx``.
     nav : str or os.PathLike or sequence of them, or None
         Broadcast navigation file(s) (RINEX nav: GPS ``.n``, GLONASS ``.g``, mixed ``.p``
         / RINEX 3 ``_MN.rnx``); may be empty when a u-blox log holds the ephemerides
@@ -155,8 +158,8 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     out_path : str or os.PathLike
         The ``.pos`` file to write (RTKLIB's llh layout, GPS week and seconds).
     base : str or os.PathLike, optional
-        Base station observations, RINEX or u-blox (required by every mode but
-        ``single``).
+        Base station observations, RINEX or a receiver log (``options.base_format``;
+        required by every mode but ``single``).
     sp3, clk : sequence of paths
         Precise orbits (SP3) and clocks (RINEX CLK); given any, RTKLIB uses the precise
         ephemeris.
@@ -181,9 +184,9 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     if opts.uses_base and base is None:
         raise InputError(f"RTKLIB mode {opts.mode!r} needs the base station's observations "
                          f"(--base, or [files] base); mode 'single' needs none")
-    rover = _check_file(rover, "rover observations (RINEX or u-blox)")
+    rover = _check_file(rover, "rover observations (RINEX or a receiver log)")
     if opts.uses_base:
-        base = _check_file(base, "base observations (RINEX or u-blox)")
+        base = _check_file(base, "base observations (RINEX or a receiver log)")
     out_path = os.fspath(out_path)
     folder = os.path.dirname(os.path.abspath(out_path))
     if os.path.isdir(out_path):
@@ -192,20 +195,28 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
         raise InputError("the output's folder does not exist", path=out_path)
     tmp = tempfile.mkdtemp(prefix=".rtklib-", dir=folder)
     try:
-        rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk)
+        rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk, opts.rover_format,
+                                             navs)
         rover_epochs = count_epochs(rover_obs, rtk, shown=rover)
         files = [rover_obs]
         converted_navs = [rover_nav]
         if opts.uses_base:
-            base_obs, base_nav = _observations(base, tmp, "base", rtk)
+            from ins.gnss.receiver_formats import obs_epoch
+            base_obs, base_nav = _observations(base, tmp, "base", rtk, opts.base_format,
+                                               navs, epoch=obs_epoch(rover_obs, rtk))
             count_epochs(base_obs, rtk, shown=base)
+            if (base_obs != base and opts.base_position == "rinex"
+                    and opts.base_lla_deg is None and not _header_position(base_obs)):
+                raise InputError("the base log gives no antenna position (RTCM3 1005/1006 "
+                                 "messages do): set [rtklib] base_position = \"single\" or "
+                                 "base_lla_deg = [lat deg, lon deg, h m]", path=base)
             files.append(base_obs)
             converted_navs.append(base_nav)
         navs += [p for p in converted_navs if p]
         if not navs:
             raise InputError("RTKLIB needs the broadcast navigation (--nav, or [files] nav: "
-                             "RINEX nav); a u-blox log gives it only with RXM-SFRBX "
-                             "messages", path=rover)
+                             "RINEX nav); a receiver log gives it only with its "
+                             "ephemeris messages (u-blox RXM-SFRBX, RTCM3 1019, ...)", path=rover)
         files += navs + precise
         tmp_pos = os.path.join(tmp, "solution.pos")
         with _LOCK:
@@ -279,14 +290,30 @@ def _precise_hint(precise):
             "observations)" if precise else "")
 
 
-def _observations(path, folder, stem, rtk):
+def _observations(path, folder, stem, rtk, fmt=None, navs=(), epoch=None):
     """(RINEX observation path, converted navigation path or None) of ``path``: a
-    u-blox log is converted into ``folder`` first."""
-    from ins.gnss.ubx import convert_ubx, is_ubx
-    if is_ubx(path):
-        with _LOCK:                                   # RTKLIB's clock is set meanwhile
-            return convert_ubx(path, folder, rtk, stem)
-    return path, None
+    receiver log (format ``fmt``, None: detected from the content) is converted into
+    ``folder`` first (:func:`ins.gnss.receiver_formats.observations`; ``epoch`` dates
+    a log without a complete week: the rover's first for the base)."""
+    from ins.gnss.receiver_formats import detect_format, observations
+    fmt = detect_format(path) if fmt is None else fmt
+    if fmt == "rinex":
+        return path, None
+    with _LOCK:                                       # RTKLIB's clock is set meanwhile
+        return observations(path, folder, rtk, stem, fmt, navs, epoch)
+
+
+def _header_position(path):
+    """The ``APPROX POSITION XYZ`` of a RINEX observation header (m), or None when it
+    is absent or zero."""
+    with open(path, "rb") as f:
+        for line in f:
+            if b"APPROX POSITION XYZ" in line:
+                xyz = [float(v) for v in line[:42].split()]
+                return xyz if len(xyz) == 3 and any(xyz) else None
+            if b"END OF HEADER" in line:
+                return None
+    return None
 
 
 def _has_epoch(path):

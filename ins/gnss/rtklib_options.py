@@ -27,6 +27,9 @@ file with strict keys, and put into a COPY of RTKLIB's own defaults.
                          header; "single": the mean of the base's single-point solutions)
     base_lla_deg       = [lat_deg, lon_deg, h_m]   (the base antenna, WGS84 ellipsoidal;
                          instead of base_position)
+    rover_format       = "rtcm3"|"oem4"|"ubx"|"sbf"|...|"rinex"   (the receiver format of
+    base_format          the rover's / base's observations; default: detected from the
+                         content, :mod:`ins.gnss.receiver_formats`)
 
 The precise ephemeris (SP3/CLK) is used when such files are given (RTKLIB's
 ``pos1-sateph = precise``); the broadcast navigation file is still needed for the
@@ -57,7 +60,7 @@ BASE_POSITION = ("rinex", "single")
 
 KEYS = ("mode", "direction", "elevation_mask_deg", "frequencies", "systems", "dynamics",
         "ambiguity", "ar_ratio", "ionosphere", "troposphere", "base_position",
-        "base_lla_deg")
+        "base_lla_deg", "rover_format", "base_format")
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,8 @@ class RtklibOptions:
     troposphere: str = "saastamoinen"
     base_position: str = "rinex"
     base_lla_deg: tuple = None
+    rover_format: str = None
+    base_format: str = None
 
     def __post_init__(self):
         for name, allowed in (("mode", MODES), ("direction", DIRECTIONS),
@@ -159,6 +164,13 @@ def read_rtklib_options(table, path=None, sections=None, **overrides):
             raise t.error("base_lla_deg", f"latitude {lla[0]!r} outside +-90",
                           "[lat deg, lon deg, h m]")
         kw["base_lla_deg"] = lla
+    from ins.gnss.receiver_formats import format_names
+    for key in ("rover_format", "base_format"):
+        value = t.raw(key, None)
+        if value is not None:
+            if not isinstance(value, str) or value.lower() not in format_names().split(", "):
+                raise t.error(key, f"unknown GNSS receiver format {value!r}", format_names())
+            kw[key] = value.lower()
     t.finish()
     kw.update({k: v for k, v in overrides.items() if v is not None})
     return RtklibOptions(**kw)

@@ -4,7 +4,8 @@ solution.
 
 Configuration (TOML, in place of ``[files] gnss``; paths relative to the file)::
 
-    [files]   rover = "rover.obs" | "rover.ubx"   (RINEX 2/3 or a u-blox log)
+    [files]   rover = "rover.obs" | "rover.ubx"   (RINEX 2/3 or a receiver log:
+                                                   ins.gnss.receiver_formats)
               base  = "base.obs"                  (required by every mode but single)
               nav   = "brdc.nav" or ["a.nav", "b.nav"]   (broadcast, RINEX nav)
               sp3   = "orbits.sp3" or a list      (optional: precise ephemeris)

@@ -11,7 +11,8 @@ reference.  With a base station (``[files] base``) the updates are double differ
 against it (:class:`ins.estimation.coupling.double_difference.DoubleDifferenceUpdater`, the
 base's epochs paired by :func:`ins.gnss.raw_pairs.read_pair`, its position from its
 RINEX header or ``[rtklib] base_lla_deg``): the receiver clocks cancel and the layout
-has no clock states.  Carrier phase is not used.  A u-blox log as the rover is converted on the way.
+has no clock states.  Carrier phase is not used.  A receiver log (any format RTKLIB
+decodes, :mod:`ins.gnss.receiver_formats`) is converted on the way, the base's too.
 ``[gnss] range_sigma_m``, ``range_rate_sigma_mps`` and ``receiver_clock`` set the
 weights and the clock model (:class:`ins.estimation.coupling.pseudorange.TightOptions`,
 :data:`ins.estimation.coupling.pseudorange.CLOCKS`): the defaults (RTKLIB's 0.3 m + 0.3 m /
@@ -69,13 +70,13 @@ def tight_inputs(cfg, gnss, settings):
     """
     from dataclasses import replace
 
-    from ins.gnss.ubx import is_ubx
+    from ins.gnss.receiver_formats import detect_format
     raw_in = getattr(cfg, "gnss_raw", None)
-    if raw_in is None or not (raw_in.nav or is_ubx(raw_in.rover)):
+    if raw_in is None or not (raw_in.nav or _rover_format(raw_in, detect_format) != "rinex"):
         raise InputError("[gnss] coupling = \"tight\": needs raw GNSS input, [files] rover "
                          "and nav (--rover, --nav: the rover's RINEX observations and the "
-                         "broadcast navigation file; a u-blox log with its own ephemerides "
-                         "needs no nav), not a GNSS solution alone")
+                         "broadcast navigation file; a receiver log with its own "
+                         "ephemerides needs no nav), not a GNSS solution alone")
     if len(gnss) == 0:
         raise InputError("tight coupling: the GNSS log has no fix for the receiver "
                          "positions of the atmospheric delays", path=cfg.gnss)
@@ -94,31 +95,40 @@ def tight_inputs(cfg, gnss, settings):
                         updater=functools.partial(TightUpdater, options=options))
 
 
+def _rover_format(raw_in, detect):
+    """The rover's format: ``[rtklib] rover_format`` or detected."""
+    fmt = getattr(raw_in.options, "rover_format", None)
+    return detect(raw_in.rover) if fmt is None else fmt
+
+
 def _read(raw_in, positions):
-    """The raw epochs of the rover: RINEX as it is, a u-blox log converted first (RTKLIB's
-    convrnx, :func:`ins.gnss.ubx.convert_ubx`, into a temporary folder); the log's own
-    ephemerides are used when no nav file is given."""
+    """The raw epochs of the rover (and base): RINEX as it is, a receiver log of any
+    format RTKLIB decodes converted first (RTKLIB's convrnx,
+    :func:`ins.gnss.receiver_formats.observations`, into a temporary folder); the log's
+    own ephemerides are used when no nav file is given."""
     import tempfile
 
     from ins.gnss.raw_epochs import read_raw_epochs
+    from ins.gnss.receiver_formats import obs_epoch, observations
     from ins.gnss.rtklib_engine import binding
-    from ins.gnss.ubx import convert_ubx, is_ubx
 
-    def read(obs, navs):
-        if raw_in.base:
-            from ins.gnss.raw_pairs import read_pair
-            return read_pair(obs, raw_in.base, navs, positions, raw_in.options)
-        return read_raw_epochs(obs, navs, positions)
-    if not is_ubx(raw_in.rover):
-        return read(raw_in.rover, raw_in.nav)
-    with tempfile.TemporaryDirectory(prefix="ins-ubx-") as tmp:
-        obs, nav = convert_ubx(raw_in.rover, tmp, binding())
+    opts = raw_in.options
+    with tempfile.TemporaryDirectory(prefix="ins-raw-") as tmp:
+        rtk = binding()
+        obs, nav = observations(raw_in.rover, tmp, rtk, "rover",
+                                getattr(opts, "rover_format", None), raw_in.nav)
         navs = tuple(raw_in.nav) or ((nav,) if nav else ())
         if not navs:
-            raise InputError("tight coupling: the u-blox log holds no ephemeris (RXM-SFRBX) "
-                             "and no nav file is given ([files] nav, --nav)",
-                             path=raw_in.rover)
-        return read(obs, navs)
+            raise InputError("tight coupling: the rover's log holds no ephemeris (u-blox "
+                             "RXM-SFRBX, RTCM3 1019, ...) and no nav file is given "
+                             "([files] nav, --nav)", path=raw_in.rover)
+        if not raw_in.base:
+            return read_raw_epochs(obs, navs, positions)
+        from ins.gnss.raw_pairs import read_pair
+        base, _ = observations(raw_in.base, tmp, rtk, "base",
+                               getattr(opts, "base_format", None), navs,
+                               epoch=obs_epoch(obs, rtk))
+        return read_pair(obs, base, navs, positions, opts)
 
 
 def tight_counts(fwd):

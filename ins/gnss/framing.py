@@ -1,0 +1,195 @@
+"""Checksums and frame recognition of binary GNSS receiver formats, to tell a raw log's
+format from its content (:func:`ins.gnss.receiver_formats.detect_format`).
+
+Each recogniser counts the frames of its format, in a block of bytes, whose framing AND
+checksum are valid: random data (or another format's payload) passes a 16- or 24-bit
+check once in 65536 or 16.7 million tries, so the format with the most valid frames is
+the file's.  The checksums are written from the formats' public descriptions:
+
+- RTCM 10403.x (RTCM3): ``D3``, 6 reserved zero bits, 10-bit length, payload, CRC-24Q
+  (polynomial 0x1864CFB, initial value 0, over the preamble to the payload's end);
+- NovAtel OEM4/6/7 binary: ``AA 44 12``, header length, ..., message length (U2 at
+  byte 8), CRC-32 (the manual's ``CalculateBlockCRC32``: reflected polynomial
+  0xEDB88320, initial value 0, no final inversion) over header and message; Unicore's
+  binary the same with ``AA 44 B5``, a 24-byte header and the length at byte 6;
+- u-blox UBX: ``B5 62``, class, id, length, 8-bit Fletcher checksum
+  (:func:`ins.io.ublox.ubx_checksum`);
+- Septentrio SBF: ``$@``, CRC-16 (CCITT polynomial 0x1021, initial value 0) over the
+  block from its ID, the length a multiple of 4;
+- Swift SBP: ``55``, type, sender, length, CRC-16 CCITT over type..payload;
+- SkyTraq: ``A0 A1``, length (big-endian), payload, XOR of the payload, ``0D 0A``;
+- Trimble RT17 (GSOF-style packets): ``02`` status, type, length, data, checksum
+  (sum of status..data mod 256), ``03``.
+"""
+import struct
+import zlib
+
+from ins.io.ublox import ubx_checksum
+
+__all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "count_frames", "RECOGNISERS"]
+
+
+def _crc24q_table():
+    table = []
+    for i in range(256):
+        c = i << 16
+        for _ in range(8):
+            c = ((c << 1) ^ 0x1864CFB) if c & 0x800000 else (c << 1)
+        table.append(c & 0xFFFFFF)
+    return tuple(table)
+
+
+_CRC24Q = _crc24q_table()
+
+
+def crc24q(data):
+    """CRC-24Q of RTCM 10403 (Qualcomm; polynomial 0x1864CFB, initial 0, no reflection,
+    no final XOR), as an int."""
+    c = 0
+    for byte in data:
+        c = ((c << 8) & 0xFFFFFF) ^ _CRC24Q[(c >> 16) ^ byte]
+    return c
+
+
+def crc32_novatel(data):
+    """NovAtel's 32-bit CRC (OEM4/6/7 binary logs): the reflected CRC-32 polynomial
+    0xEDB88320 with initial value 0 and no final inversion (the manual's
+    ``CalculateBlockCRC32``); that is zlib's CRC-32 with both inversions undone."""
+    return (~zlib.crc32(bytes(data), 0xFFFFFFFF)) & 0xFFFFFFFF
+
+
+def _crc16_table():
+    table = []
+    for i in range(256):
+        c = i << 8
+        for _ in range(8):
+            c = ((c << 1) ^ 0x1021) if c & 0x8000 else (c << 1)
+        table.append(c & 0xFFFF)
+    return tuple(table)
+
+
+_CRC16 = _crc16_table()
+
+
+def crc16_ccitt(data, value=0):
+    """CRC-16 CCITT (polynomial 0x1021, not reflected, initial ``value`` 0 as SBF and
+    SBP use it, no final XOR)."""
+    c = value
+    for byte in data:
+        c = ((c << 8) & 0xFFFF) ^ _CRC16[(c >> 8) ^ byte]
+    return c
+
+
+def _scan(data, sync, check):
+    """Frames at each occurrence of ``sync`` that ``check(data, k)`` accepts (it returns
+    the frame's end or 0): their number, skipping over accepted frames."""
+    n, k = 0, data.find(sync)
+    while k >= 0:
+        end = check(data, k)
+        if end:
+            n += 1
+            k = data.find(sync, end)
+        else:
+            k = data.find(sync, k + 1)
+    return n
+
+
+def _rtcm3(data, k):
+    if k + 6 > len(data) or data[k + 1] & 0xFC:
+        return 0
+    length = ((data[k + 1] & 0x03) << 8) | data[k + 2]
+    end = k + 3 + length
+    if end + 3 > len(data):
+        return 0
+    return end + 3 if crc24q(data[k:end]) == int.from_bytes(data[end:end + 3], "big") else 0
+
+
+def _oem4(data, k):
+    if k + 10 > len(data):
+        return 0
+    hlen = data[k + 3]
+    end = k + hlen + struct.unpack_from("<H", data, k + 8)[0]
+    if hlen < 10 or end + 4 > len(data):
+        return 0
+    crc = struct.unpack_from("<I", data, end)[0]
+    return end + 4 if crc32_novatel(data[k:end]) == crc else 0
+
+
+def _unicore(data, k):
+    if k + 8 > len(data):
+        return 0
+    end = k + 24 + struct.unpack_from("<H", data, k + 6)[0]     # 24-byte header
+    if end + 4 > len(data):
+        return 0
+    crc = struct.unpack_from("<I", data, end)[0]
+    return end + 4 if crc32_novatel(data[k:end]) == crc else 0
+
+
+def _ubx(data, k):
+    if k + 8 > len(data):
+        return 0
+    end = k + 6 + struct.unpack_from("<H", data, k + 4)[0]
+    if end + 2 > len(data):
+        return 0
+    return end + 2 if ubx_checksum(data[k + 2:end]) == data[end:end + 2] else 0
+
+
+def _sbf(data, k):
+    if k + 8 > len(data):
+        return 0
+    crc, _, length = struct.unpack_from("<HHH", data, k + 2)
+    if length < 8 or length % 4 or k + length > len(data):
+        return 0
+    return k + length if crc16_ccitt(data[k + 4:k + length]) == crc else 0
+
+
+def _sbp(data, k):
+    if k + 8 > len(data):
+        return 0
+    end = k + 6 + data[k + 5]
+    if end + 2 > len(data):
+        return 0
+    crc = struct.unpack_from("<H", data, end)[0]
+    return end + 2 if crc16_ccitt(data[k + 1:end]) == crc else 0
+
+
+def _skytraq(data, k):
+    if k + 7 > len(data):
+        return 0
+    length = struct.unpack_from(">H", data, k + 2)[0]
+    end = k + 4 + length
+    if not length or end + 3 > len(data) or data[end + 1:end + 3] != b"\r\n":
+        return 0
+    x = 0
+    for byte in data[k + 4:end]:
+        x ^= byte
+    return end + 3 if x == data[end] else 0
+
+
+def _rt17(data, k):
+    if k + 6 > len(data) or data[k + 2] not in (0x40, 0x55, 0x57):
+        return 0
+    end = k + 4 + data[k + 3]
+    if end + 2 > len(data) or data[end + 1] != 0x03:
+        return 0
+    return end + 2 if sum(data[k + 1:end]) & 0xFF == data[end] else 0
+
+
+#: format name -> (sync bytes, frame check).
+RECOGNISERS = {
+    "ubx": (b"\xb5\x62", _ubx),
+    "rtcm3": (b"\xd3", _rtcm3),
+    "oem4": (b"\xaa\x44\x12", _oem4),
+    "unicore": (b"\xaa\x44\xb5", _unicore),
+    "sbf": (b"$@", _sbf),
+    "swift": (b"\x55", _sbp),
+    "skytraq": (b"\xa0\xa1", _skytraq),
+    "rt17": (b"\x02", _rt17),
+}
+
+
+def count_frames(data):
+    """``{format: number of valid frames}`` in ``data`` (bytes) for the formats of
+    :data:`RECOGNISERS` (zero counts left out)."""
+    counts = {name: _scan(data, sync, check) for name, (sync, check) in RECOGNISERS.items()}
+    return {k: v for k, v in counts.items() if v}

@@ -1,0 +1,104 @@
+"""RINEX 3.04 observation files of several systems and signals (the writer of
+``ins import-android``): a ``SYS / # / OBS TYPES`` record per system (``C L D S`` of
+each of its signals, in the order first met), epoch records ``> yyyy mm dd hh mm
+ss.sssssss  0 n`` in GPS time, satellite lines ``Xnn`` with F14.3 values, the
+loss-of-lock indicator after each phase (bit 0: lost lock since the previous epoch).
+Units of RINEX: pseudorange m, phase cycles, Doppler Hz, C/N0 dB-Hz.  Written
+atomically (:func:`ins.common.fileio.atomic_open`)."""
+import numpy as np
+
+from ins.common.fileio import atomic_open
+from ins.io.rinex_obs import _field, _hline, gps_calendar
+
+__all__ = ["write_rinex3_multi"]
+
+_SYSTEM_ORDER = "GRECJIS"
+
+
+def write_rinex3_multi(path, week, time_s, epochs, program="ins import-android",
+                       marker="ANDROID", receiver="ANDROID", comments=(), leap_seconds=None):
+    """Write observations of any systems as RINEX 3.04.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    week : int
+        GPS week of ``time_s``.
+    time_s : array_like, shape (n,)
+        Epochs, GPS s of ``week``.
+    epochs : list of dict, length n
+        ``{(system letter, prn, signal code e.g. "1C"): (C m, L cycles, D Hz, S dB-Hz,
+        lli)}``; NaN values are left blank.
+    comments : sequence of str
+        ``COMMENT`` lines.
+
+    Returns
+    -------
+    int
+        Epochs written (those with at least one value).
+    """
+    codes = {}
+    for ep in epochs:
+        for sys, _, code in ep:
+            codes.setdefault(sys, [])
+            if code not in codes[sys]:
+                codes[sys].append(code)
+    systems = [s for s in _SYSTEM_ORDER if s in codes]
+    types = {s: [q + c for c in codes[s] for q in "CLDS"] for s in systems}
+    first = next((i for i, ep in enumerate(epochs) if ep), 0)
+    y, mo, d, h, mi, s = gps_calendar(week, time_s[first] if len(time_s) else 0.0)
+    head = [_hline(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{'M':<20s}",
+                   "RINEX VERSION / TYPE"),
+            _hline(f"{program:<20.20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
+                   f"{h:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE")]
+    head += [_hline(c, "COMMENT") for c in comments]
+    head += [_hline(marker, "MARKER NAME"), _hline("NON_GEODETIC", "MARKER TYPE"),
+             _hline(f"{'':<20s}{'':<40s}", "OBSERVER / AGENCY"),
+             _hline(f"{'0':<20s}{receiver:<20.20s}{'':<20s}", "REC # / TYPE / VERS"),
+             _hline(f"{'0':<20s}{'ANDROID':<20s}", "ANT # / TYPE"),
+             _hline("".join(f"{0.0:14.4f}" for _ in range(3)), "APPROX POSITION XYZ"),
+             _hline(f"{0.0:14.4f}{0.0:14.4f}{0.0:14.4f}", "ANTENNA: DELTA H/E/N")]
+    for sname in systems:
+        t = types[sname]
+        for k in range(0, len(t), 13):
+            lead = f"{sname}{len(t):5d}" if k == 0 else " " * 6
+            head.append(_hline(lead + "".join(f" {x}" for x in t[k:k + 13]),
+                               "SYS / # / OBS TYPES"))
+    head.append(_hline(f"{y:6d}{mo:6d}{d:6d}{h:6d}{mi:6d}{s:13.7f}     GPS",
+                       "TIME OF FIRST OBS"))
+    for sname in systems:
+        head += [_hline(f"{sname} {x}", "SYS / PHASE SHIFT") for x in types[sname]
+                 if x.startswith("L")]
+    if "R" in systems:
+        head.append(_hline(" C1C    0.000 C1P    0.000 C2C    0.000 C2P    0.000",
+                           "GLONASS COD/PHS/BIS"))
+    if leap_seconds is not None:
+        head.append(_hline(f"{int(leap_seconds):6d}", "LEAP SECONDS"))
+    head.append(_hline("", "END OF HEADER"))
+    written = 0
+    with atomic_open(path, "w") as f:
+        f.write("".join(head))
+        for ti, ep in zip(time_s, epochs):
+            sats = sorted({(s, p) for s, p, _ in ep},
+                          key=lambda sp: (_SYSTEM_ORDER.index(sp[0]), sp[1]))
+            lines = []
+            for sname, prn in sats:
+                vals = []
+                for x in types[sname]:
+                    v = ep.get((sname, prn, x[1:]))
+                    if v is None:
+                        vals.append(" " * 16)
+                        continue
+                    k = "CLDS".index(x[0])
+                    lli = int(v[4]) if x[0] == "L" else 0
+                    vals.append(_field(float(v[k]) if np.isfinite(v[k]) else np.nan, lli, 0))
+                body = "".join(vals).rstrip()
+                if body:
+                    lines.append(f"{sname}{prn:02d}{body}\n")
+            if not lines:
+                continue
+            y, mo, d, h, mi, s = gps_calendar(week, ti)
+            f.write(f"> {y:04d} {mo:02d} {d:02d} {h:02d} {mi:02d}{s:11.7f}  0{len(lines):3d}\n")
+            f.write("".join(lines))
+            written += 1
+    return written
