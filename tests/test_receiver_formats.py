@@ -286,13 +286,13 @@ def test_a_base_log_without_a_position_is_refused(tmp_path):
 
 @needs_pair
 def test_tight_coupling_pairs_the_novatel_rover_with_the_rtcm3_base(tmp_path):
-    """Tight coupling's double differences (ins.estimation.tight_pipeline._read) from
+    """Tight coupling's double differences (ins.estimation.pipeline.tight._read) from
     the NovAtel rover and the RTCM3 base (its 1005 position, its week from the rover):
     the same pairs and ranges as from the RINEX files; the format named in [rtklib]
     rover_format / base_format is taken as it is."""
     rtk = _rtk()
-    from ins.estimation.process_gnss import RawGnss
-    from ins.estimation.tight_pipeline import _read
+    from ins.estimation.pipeline.gnss_source import RawGnss
+    from ins.estimation.pipeline.tight import _read
     from ins.gnss.rtklib_options import RtklibOptions
     hdr = np.array([-3976219.5082, 3382372.5671, 3652512.9849])
     rover, base, _, _ = _pair_logs(tmp_path, rtk)
