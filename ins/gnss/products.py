@@ -25,7 +25,7 @@ import os
 from ins.common.errors import InputError
 
 __all__ = ["sp3_span", "clock_span", "check_coverage", "readable_clock", "gps_seconds",
-           "format_gpst"]
+           "format_gpst", "parse_gpst"]
 
 _GPS0 = calendar.timegm((1980, 1, 6, 0, 0, 0))
 
@@ -40,6 +40,28 @@ def format_gpst(t):
     """``YYYY-MM-DD hh:mm:ss GPST`` of GPS seconds since 1980-01-06."""
     import time
     return time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(_GPS0 + round(t))) + " GPST"
+
+
+def parse_gpst(text, what="time"):
+    """GPS seconds since 1980-01-06 of ``YYYY-MM-DDThh:mm:ss`` (or with a space; the
+    seconds may have decimals), a date and time in GPST.
+
+    Raises
+    ------
+    InputError
+        Naming ``what`` (e.g. ``--start``) and the expected form.
+    """
+    import re
+    m = re.fullmatch(r"\s*(\d{4})-(\d{1,2})-(\d{1,2})[T ](\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)\s*",
+                     str(text))
+    if m is None:
+        raise InputError(f"{what}: expected a GPST date and time YYYY-MM-DDThh:mm:ss, got "
+                         f"{text!r}")
+    y, mo, d, h, mi = (int(v) for v in m.groups()[:5])
+    sec = float(m.group(6))
+    if not (1 <= mo <= 12 and 1 <= d <= 31 and h < 24 and mi < 60 and sec < 61):
+        raise InputError(f"{what}: not a date and time: {text!r}")
+    return gps_seconds(y, mo, d, h, mi, sec)
 
 
 def _lines(path, what):
@@ -194,10 +216,9 @@ def check_coverage(observed, sp3=(), clk=(), margin_s=0.0):
         first, last = _union([reader(p) for p in paths])
         spans[key] = (first, last)
         if first > t0 + margin_s or last < t1 - margin_s:
-            extra = ("; without --clk RTKLIB interpolates the SP3 file's clocks"
-                     if key == "clk" else "")
             raise InputError(f"{what} {', '.join(paths)} cover {format_gpst(first)} to "
                              f"{format_gpst(last)}, not the observations' "
                              f"{format_gpst(t0)} to {format_gpst(t1)}: give the products of "
-                             f"the whole span{extra}")
+                             f"the whole span, or process a span within theirs (--start, "
+                             f"--end)")
     return spans

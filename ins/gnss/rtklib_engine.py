@@ -74,7 +74,7 @@ class GnssSolution:
     path : str
         The ``.pos`` file written.
     rover_epochs : int
-        Epochs in the rover's observation file(s).
+        Epochs in the rover's observation file(s) (within the time window).
     options : RtklibOptions
     run_time_s : float
         Wall time of RTKLIB's ``postpos``, s.
@@ -125,7 +125,9 @@ def observation_span(path, rtk=None, shown=None):
     return _epochs_and_span(path, rtk, shown)[1]
 
 
-def _epochs_and_span(path, rtk=None, shown=None):
+def _epochs_and_span(path, rtk=None, shown=None, window=None):
+    """(epochs, (first, last) GPS s since 1980) of a RINEX observation file; with a
+    ``window`` (first, last, GPS s), the epochs within it (the span is the file's)."""
     rtk = binding() if rtk is None else rtk
     path = _check_file(path, "RINEX observations")
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
@@ -137,10 +139,17 @@ def _epochs_and_span(path, rtk=None, shown=None):
             week = rtk.Arr1Dint(1)
             span = tuple(rtk.time2gpst(obs.data[i].time, week) + WEEK_S * week[0]
                          for i in (0, obs.n - 1))
+            if window is not None:
+                times = set()
+                for i in range(obs.n):
+                    t = rtk.time2gpst(obs.data[i].time, week) + WEEK_S * week[0]
+                    if window[0] - 1e-3 <= t <= window[1] + 1e-3:
+                        times.add(round(t, 3))
+                n = len(times)
     finally:
         rtk.freeobs(obs)
         rtk.freenav(nav, 0xFF)
-    if n <= 0:
+    if span is None:
         raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
                          "2.x/3.x observations or a u-blox log with RXM-RAWX)",
                          path=path if shown is None else os.fspath(shown))
@@ -241,7 +250,7 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
     tmp = tempfile.mkdtemp(prefix=".rtklib-", dir=folder)
     try:
         rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk)
-        rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover)
+        rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover, window=window)
         span = _within(span, window, rover)
         if precise:
             from ins.gnss.products import check_coverage, readable_clock
@@ -296,7 +305,7 @@ def _within(span, window, rover):
 
 def _gtime(rtk, t):
     """RTKLIB's time of GPS seconds since 1980-01-06 (the zero time for None)."""
-    if t is None:
+    if t is None or not np.isfinite(t):
         return rtk.gtime_t()
     week = int(t // WEEK_S)
     return rtk.gpst2time(week, float(t - week * WEEK_S))
