@@ -39,8 +39,8 @@ precise point positioning (--mode ppp-static | ppp-kinematic; needs --sp3 and --
   the solution's own horizontal sigma.
 
 settings (--config FILE, its [rtklib] table, strict keys; the command line wins):
-  mode = "single"|"dgnss"|"kinematic"|"static"|"ppp-kinematic"|"ppp-static", direction = "forward"|"backward"|
-  "combined", elevation_mask_deg = 15, frequencies = 2, systems = ["gps", "glonass",
+  mode = "single"|"dgnss"|"kinematic"|"static"|"ppp-kinematic"|"ppp-static",
+  direction = "forward"|"backward"|"combined", elevation_mask_deg = 15, frequencies = 2, systems = ["gps", "glonass",
   "galileo"], dynamics = false, ambiguity = "fix-and-hold", ar_ratio = 3,
   ionosphere = "broadcast", troposphere = "saastamoinen" (PPP: "off", "iono-free",
   "estimate"), base_position = "rinex"|
