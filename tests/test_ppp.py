@@ -322,3 +322,53 @@ def test_cli_states_the_convergence(tmp_path, capsys):
     assert "convergence: the horizontal sigma stays below 10 cm at no time" in text
     assert main(args + ["--mode", "single", "--reference-xyz", *xyz]) == 2
     assert "--reference-xyz and --convergence-m go with --mode ppp" in capsys.readouterr().err
+
+
+def _antex(path, antenna, up_mm):
+    """An ANTEX 1.4 file with one receiver antenna: ``up_mm`` phase centre offset on
+    GPS L1 and L2, no variation."""
+    rows = []
+
+    def line(body, label):
+        rows.append(f"{body:<60s}{label}")
+    line("     1.4            M", "ANTEX VERSION / SYST")
+    line("A", "PCV TYPE / REFANT")
+    line("", "END OF HEADER")
+    line("", "START OF ANTENNA")
+    line(f"{antenna:<20s}", "TYPE / SERIAL NO")
+    line("     0.0", "DAZI")
+    line("     0.0  90.0   5.0", "ZEN1 / ZEN2 / DZEN")
+    line("     2", "# OF FREQUENCIES")
+    for f in ("G01", "G02"):
+        line(f"   {f}", "START OF FREQUENCY")
+        line(f"{0.0:10.2f}{0.0:10.2f}{up_mm:10.2f}", "NORTH / EAST / UP")
+        rows.append("   NOAZI" + f"{0.0:8.2f}" * 19)
+        line(f"   {f}", "END OF FREQUENCY")
+    line("", "END OF ANTENNA")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@needs_slac
+def test_antex_moves_the_solution_to_the_reference_point(tmp_path):
+    """An ANTEX file whose TRM59800.80 NONE has its phase centre 100 mm up on L1 and L2
+    (so 100 mm in the iono-free combination): the PPP solution, now of the antenna
+    reference point, is 100 mm lower (within 1 mm) and does not move horizontally.  An
+    ANTEX without the station's antenna is warned about and changes nothing."""
+    pytest.importorskip("pyrtklib5")
+    from ins.common.errors import InputWarning
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.nav.earth import ned_offset
+    kw = dict(sp3=[SP3], clk=[CLK], options=RtklibOptions(mode="ppp-static"),
+              window=_window())
+    plain = solve(OBS, NAV, tmp_path / "plain.pos", **kw).log
+    atx = _antex(tmp_path / "trm.atx", "TRM59800.80     NONE", 100.0)
+    moved = solve(OBS, NAV, tmp_path / "atx.pos", atx=atx, **kw).log
+    d = ned_offset(plain.lla, moved.lla)
+    np.testing.assert_allclose(d[:, 2], 0.100, atol=1e-3)
+    assert np.max(np.abs(d[:, :2])) < 1e-3
+    other = _antex(tmp_path / "other.atx", "LEIAR25.R3      LEIT", 100.0)
+    with pytest.warns(InputWarning, match=r"antenna 'TRM59800\.80 NONE' is not in the ANTEX"):
+        same = solve(OBS, NAV, tmp_path / "other.pos", atx=other, **kw).log
+    assert np.max(np.abs(ned_offset(plain.lla, same.lla))) < 1e-6

@@ -25,7 +25,7 @@ import os
 from ins.common.errors import InputError
 
 __all__ = ["sp3_span", "clock_span", "check_coverage", "readable_clock", "gps_seconds",
-           "format_gpst", "parse_gpst"]
+           "format_gpst", "parse_gpst", "rinex_antenna", "antex_antennas"]
 
 _GPS0 = calendar.timegm((1980, 1, 6, 0, 0, 0))
 
@@ -222,3 +222,36 @@ def check_coverage(observed, sp3=(), clk=(), margin_s=0.0):
                              f"the whole span, or process a span within theirs (--start, "
                              f"--end)")
     return spans
+
+
+def rinex_antenna(path):
+    """The antenna type (with its radome, e.g. ``"TRM59800.80 NONE"``) of a RINEX
+    observation header's ``ANT # / TYPE`` line, or ``""``."""
+    with open(os.fspath(path), "r", errors="replace") as f:
+        for line in f:
+            if "ANT # / TYPE" in line[60:]:
+                return " ".join(line[20:40].split())
+            if "END OF HEADER" in line[60:]:
+                break
+    return ""
+
+
+def antex_antennas(path):
+    """The receiver antenna types (with radome) of an ANTEX file: the ``TYPE / SERIAL
+    NO`` entries without a satellite code.
+
+    Raises
+    ------
+    InputError
+        The file is not ANTEX (no ``ANTEX VERSION / SYST`` line).
+    """
+    path = os.fspath(path)
+    lines = _lines(path, "antenna file (ANTEX, --atx)")
+    if not lines or "ANTEX VERSION / SYST" not in lines[0]:
+        raise InputError("antenna file (ANTEX, --atx): not an ANTEX file (no ANTEX VERSION "
+                         "/ SYST line)", path=path)
+    out = set()
+    for line in lines:
+        if "TYPE / SERIAL NO" in line[60:] and not line[20:23].strip():
+            out.add(" ".join(line[:20].split()))
+    return out

@@ -252,6 +252,8 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
         rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk)
         rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover, window=window)
         span = _within(span, window, rover)
+        if atx is not None:
+            _check_antenna(rover_obs, atx, rover)
         if precise:
             from ins.gnss.products import check_coverage, readable_clock
             check_coverage(span, [p for p in precise if p not in clocks], clocks)
@@ -287,6 +289,20 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
     log = read_pos(out_path)
     return GnssSolution(log, out_path, rover_epochs, opts, run_time,
                         "precise" if precise else "broadcast", span)
+
+
+def _check_antenna(obs_path, atx, shown):
+    """Warn when the rover's antenna (its RINEX header) is not in the ANTEX file: RTKLIB
+    then applies no receiver phase centre, silently."""
+    from ins.gnss.products import antex_antennas, rinex_antenna
+    antenna = rinex_antenna(obs_path)
+    known = antex_antennas(atx)
+    if antenna and antenna not in known and antenna.split()[0] not in {
+            k.split()[0] for k in known if k}:
+        warnings.warn(f"{os.fspath(shown)}: its antenna {antenna!r} is not in the ANTEX file "
+                      f"{atx}: RTKLIB applies no receiver phase centre (the solution is that "
+                      f"of the antenna's mean phase centre, not of its reference point)",
+                      InputWarning, stacklevel=3)
 
 
 def _within(span, window, rover):
