@@ -169,6 +169,9 @@ def _cmd_gnss(args):
                        else "")
     print(f"{args.output}: {n} of {sol.rover_epochs} rover epochs solved ({how}, "
           f"{sol.ephemeris} ephemeris); {parts}; RTKLIB {sol.run_time_s:.2f} s")
+    if sol.unused_systems:
+        print(f"  not used: {', '.join(sol.unused_systems)} (observed, but no broadcast "
+              f"ephemeris in --nav: RTKLIB drops such satellites even with precise products)")
     for label, q in (("all", None), ("fixed", 1)):
         s = spread_enu_m(log, q)
         if np.all(np.isfinite(s)):

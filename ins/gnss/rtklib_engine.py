@@ -83,6 +83,9 @@ class GnssSolution:
     span : tuple of float
         (first, last) epoch processed: the rover's, within ``window``; GPS seconds
         since 1980-01-06.
+    unused_systems : tuple of str
+        Systems of ``options.systems`` observed by the rover but without a broadcast
+        ephemeris in the navigation files: RTKLIB uses none of their satellites.
     """
 
     log: object
@@ -92,6 +95,7 @@ class GnssSolution:
     run_time_s: float
     ephemeris: str = "broadcast"
     span: tuple = None
+    unused_systems: tuple = ()
 
     def counts(self):
         """``{Q: number of epochs}`` of the solution (RTKLIB's quality flags)."""
@@ -125,9 +129,10 @@ def observation_span(path, rtk=None, shown=None):
     return _epochs_and_span(path, rtk, shown)[1]
 
 
-def _epochs_and_span(path, rtk=None, shown=None, window=None):
+def _epochs_and_span(path, rtk=None, shown=None, window=None, systems=None):
     """(epochs, (first, last) GPS s since 1980) of a RINEX observation file; with a
-    ``window`` (first, last, GPS s), the epochs within it (the span is the file's)."""
+    ``window`` (first, last, GPS s), the epochs within it (the span is the file's);
+    ``systems``, a set, gets RTKLIB's system bits of the satellites observed."""
     rtk = binding() if rtk is None else rtk
     path = _check_file(path, "RINEX observations")
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
@@ -139,6 +144,9 @@ def _epochs_and_span(path, rtk=None, shown=None, window=None):
             week = rtk.Arr1Dint(1)
             span = tuple(rtk.time2gpst(obs.data[i].time, week) + WEEK_S * week[0]
                          for i in (0, obs.n - 1))
+            if systems is not None:
+                prn = rtk.Arr1Dint(1)
+                systems.update({rtk.satsys(obs.data[i].sat, prn) for i in range(obs.n)})
             if window is not None:
                 times = set()
                 for i in range(obs.n):
@@ -250,7 +258,9 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
     tmp = tempfile.mkdtemp(prefix=".rtklib-", dir=folder)
     try:
         rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk)
-        rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover, window=window)
+        observed = set()
+        rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover, window=window,
+                                              systems=observed)
         span = _within(span, window, rover)
         if atx is not None:
             _check_antenna(rover_obs, atx, rover)
@@ -271,6 +281,11 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
             raise InputError("RTKLIB needs the broadcast navigation (--nav, or [files] nav: "
                              "RINEX nav); a u-blox log gives it only with RXM-SFRBX "
                              "messages", path=rover)
+        unused = _without_broadcast(rtk, opts, observed, navs)
+        if unused:
+            warnings.warn(f"{os.fspath(rover)}: {', '.join(unused)} observed but without a "
+                          f"broadcast ephemeris (--nav): RTKLIB drops their satellites, even "
+                          f"with precise orbits and clocks", InputWarning, stacklevel=2)
         files += navs + precise
         tmp_pos = os.path.join(tmp, "solution.pos")
         with _LOCK:
@@ -288,7 +303,32 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=Non
     from ins.io.rtklib import read_pos
     log = read_pos(out_path)
     return GnssSolution(log, out_path, rover_epochs, opts, run_time,
-                        "precise" if precise else "broadcast", span)
+                        "precise" if precise else "broadcast", span, tuple(unused))
+
+
+def _without_broadcast(rtk, opts, observed, navs):
+    """Names of the systems of ``opts`` that the rover observed (``observed``: RTKLIB
+    system bits) but that no navigation file has an ephemeris of."""
+    from ins.gnss.rtklib_options import system_bits
+    bits = system_bits(rtk)
+    wanted = [s for s in opts.systems if bits[s] in observed]
+    if not wanted:
+        return []
+    have = set()
+    nav, obs, sta = rtk.nav_t(), rtk.obs_t(), rtk.sta_t()
+    prn = rtk.Arr1Dint(1)
+    try:
+        for p in navs:
+            rtk.readrnx(os.fspath(p), 0, "", obs, nav, sta)
+        have = {rtk.satsys(nav.eph[i].sat, prn) for i in range(nav.n)}
+        if nav.ng > 0:
+            have.add(rtk.SYS_GLO)
+        if nav.ns > 0:
+            have.add(rtk.SYS_SBS)
+    finally:
+        rtk.freeobs(obs)
+        rtk.freenav(nav, 0xFF)
+    return [s for s in wanted if bits[s] not in have]
 
 
 def _check_antenna(obs_path, atx, shown):

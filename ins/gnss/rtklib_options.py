@@ -210,6 +210,13 @@ def read_rtklib_options(table, path=None, sections=None, **overrides):
     return RtklibOptions(**kw)
 
 
+def system_bits(rtk):
+    """``{system name: RTKLIB's SYS_ bit}`` (``rtk``: the imported ``pyrtklib5``)."""
+    return {"gps": rtk.SYS_GPS, "sbas": rtk.SYS_SBS, "glonass": rtk.SYS_GLO,
+            "galileo": rtk.SYS_GAL, "qzss": rtk.SYS_QZS, "beidou": rtk.SYS_CMP,
+            "navic": rtk.SYS_IRN}
+
+
 def _by_mode(t, key, options):
     """``[rtklib] key`` when given (one of ``options``), else None (the mode's default)."""
     return t.choice(key, options[0], options) if key in t.table else None
@@ -233,9 +240,7 @@ def fill_prcopt(opts, rtk, precise=False, atx=None, dcb=None):
                   "combined": rtk.SOLTYPE_COMBINED}[opts.direction]
     po.elmin = math.radians(opts.elevation_mask_deg)
     po.nf = int(opts.frequencies)
-    sys_bits = {"gps": rtk.SYS_GPS, "sbas": rtk.SYS_SBS, "glonass": rtk.SYS_GLO,
-                "galileo": rtk.SYS_GAL, "qzss": rtk.SYS_QZS, "beidou": rtk.SYS_CMP,
-                "navic": rtk.SYS_IRN}
+    sys_bits = system_bits(rtk)
     navsys = 0
     for s in opts.systems:
         navsys |= sys_bits[s]
