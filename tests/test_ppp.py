@@ -314,8 +314,8 @@ def test_cli_states_the_convergence(tmp_path, capsys):
     out = tmp_path / "slac.pos"
     args = ["gnss", str(OBS), "--nav", str(NAV), "--sp3", str(SP3), "--clk", str(CLK),
             "--start", "2021-04-28T19:30:00", "--end", "2021-04-28T20:30:00", "-o", str(out)]
-    xyz = [f"{v:.4f}" for v in TRUTH]
-    assert main(args + ["--mode", "ppp-static", "--reference-xyz", *xyz,
+    xyz = ",".join(f"{v:.4f}" for v in TRUTH)
+    assert main(args + ["--mode", "ppp-static", "--reference-xyz", xyz,
                         "--convergence-m", "0.5"]) == 0
     text = capsys.readouterr().out
     assert "121 of 121 rover epochs solved (ppp-static, combined, precise ephemeris)" in text
@@ -326,7 +326,7 @@ def test_cli_states_the_convergence(tmp_path, capsys):
     assert main(args + ["--mode", "ppp-kinematic", "--direction", "forward"]) == 0
     text = capsys.readouterr().out
     assert "convergence: the horizontal sigma stays below 10 cm at no time" in text
-    assert main(args + ["--mode", "single", "--reference-xyz", *xyz]) == 2
+    assert main(args + ["--mode", "single", "--reference-xyz", xyz]) == 2
     assert "--reference-xyz and --convergence-m go with --mode ppp" in capsys.readouterr().err
 
 

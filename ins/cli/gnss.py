@@ -34,7 +34,7 @@ precise point positioning (--mode ppp-static | ppp-kinematic; needs --sp3 and --
   The summary states the convergence, from a forward run (the combined solution is
   converged from the start by construction): the time (min) after which the
   horizontal error stays below --convergence-m (m, default 0.1) to the end, against
-  --reference-xyz X Y Z (the antenna's true position, ECEF m: a station's published
+  --reference-xyz X,Y,Z (the antenna's true position, ECEF m: a station's published
   coordinates, in the frame of the orbits) with the errors after it, else against
   the solution's own horizontal sigma.
 
@@ -67,13 +67,14 @@ example:
   ins gnss --rover rover.ubx --base base.obs --nav brdc.nav -o rover.pos
   ins gnss slac1180.21o --nav brdc1180.21n --mode ppp-static --sp3 COD.SP3 \
       --clk COD.CLK --start 2021-04-28T19:30:00 --end 2021-04-28T20:30:00 \
-      --reference-xyz -2703115.266 -4291768.344 3854247.955 -o slac.pos
+      --reference-xyz -2703116.233,-4291767.080,3854247.826 -o slac.pos
 """
 
 _QNAME = {1: "fix", 2: "float", 3: "sbas", 4: "dgnss", 5: "single", 6: "ppp"}
 
 
 def add_parser(sub):
+    from ins.cli.util import triplet
     from ins.gnss.rtklib_options import DIRECTIONS, MODES
     p = sub.add_parser("gnss", help="GNSS solution from raw observations (RTKLIB's engine)",
                        description="Post-process a rover's RINEX observations (with a base "
@@ -99,9 +100,9 @@ def add_parser(sub):
                         "first observed)")
     p.add_argument("--end", metavar="TIME",
                    help="last epoch to process, GPST YYYY-MM-DDThh:mm:ss (default: the last)")
-    p.add_argument("--reference-xyz", nargs=3, type=float, metavar=("X", "Y", "Z"),
-                   help="PPP: the antenna's true position, ECEF m, for the convergence "
-                        "and the errors after it")
+    p.add_argument("--reference-xyz", type=triplet, metavar="X,Y,Z",
+                   help="PPP: the antenna's true position, ECEF m (X,Y,Z), for the "
+                        "convergence and the errors after it")
     p.add_argument("--convergence-m", type=float, default=None, metavar="M",
                    help="PPP: horizontal threshold of convergence, m (default 0.1)")
     p.add_argument("--config", metavar="TOML", help="file with an [rtklib] table of settings")
@@ -156,7 +157,7 @@ def _cmd_gnss(args):
     opts = _options(args)
     kw = dict(base=args.base, sp3=args.sp3, clk=args.clk, atx=args.atx, dcb=args.dcb,
               window=_window(args))
-    if (args.reference_xyz or args.convergence_m is not None) and not opts.is_ppp:
+    if (args.reference_xyz is not None or args.convergence_m is not None) and not opts.is_ppp:
         raise InputError("--reference-xyz and --convergence-m go with --mode ppp-static or "
                          "ppp-kinematic")
     sol = solve(rover, args.nav or None, args.output, options=opts, **kw)
