@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins.common.errors import InputError
+from ins.common.errors import InputError, InputWarning
 
 ROOT = Path(__file__).resolve().parents[1]
 SLAC = ROOT.parent / "shared" / "real" / "slac_cors_2021"
@@ -294,7 +294,9 @@ def test_ppp_as_the_gnss_source_of_ins_process(tmp_path):
                           gnss_velocity_time_shift_s=0.0)
     out = tmp_path / "run"
     out.mkdir()
-    log, source = run_raw_gnss(cfg, str(out))
+    with pytest.warns(InputWarning, match=r"glonass, galileo observed but without a "
+                                          r"broadcast ephemeris"):
+        log, source = run_raw_gnss(cfg, str(out))
     assert source["counts"] == {6: 121} and source["rover_epochs"] == 121
     assert source["mode"] == "ppp-kinematic" and source["direction"] == "forward"
     assert "GNSS source: RTKLIB ppp-kinematic, forward, precise ephemeris" in \
@@ -362,15 +364,18 @@ def test_antex_moves_the_solution_to_the_reference_point(tmp_path):
     reference point, is 100 mm lower (within 1 mm) and does not move horizontally.  An
     ANTEX without the station's antenna is warned about and changes nothing."""
     pytest.importorskip("pyrtklib5")
-    from ins.common.errors import InputWarning
+    import warnings
+
     from ins.gnss.rtklib_engine import solve
     from ins.gnss.rtklib_options import RtklibOptions
     from ins.nav.earth import ned_offset
     kw = dict(sp3=[SP3], clk=[CLK], options=RtklibOptions(mode="ppp-static"),
               window=_window())
-    plain = solve(OBS, NAV, tmp_path / "plain.pos", **kw).log
     atx = _antex(tmp_path / "trm.atx", "TRM59800.80     NONE", 100.0)
-    moved = solve(OBS, NAV, tmp_path / "atx.pos", atx=atx, **kw).log
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")           # glonass, galileo: no broadcast file
+        plain = solve(OBS, NAV, tmp_path / "plain.pos", **kw).log
+        moved = solve(OBS, NAV, tmp_path / "atx.pos", atx=atx, **kw).log
     d = ned_offset(plain.lla, moved.lla)
     np.testing.assert_allclose(d[:, 2], 0.100, atol=1e-3)
     assert np.max(np.abs(d[:, :2])) < 1e-3
@@ -378,3 +383,34 @@ def test_antex_moves_the_solution_to_the_reference_point(tmp_path):
     with pytest.warns(InputWarning, match=r"antenna 'TRM59800\.80 NONE' is not in the ANTEX"):
         same = solve(OBS, NAV, tmp_path / "other.pos", atx=other, **kw).log
     assert np.max(np.abs(ned_offset(plain.lla, same.lla))) < 1e-6
+
+
+@needs_slac
+def test_code_biases_reach_rtklib(tmp_path):
+    """A CODE P1-C1 DCB file (RTKLIB's readdcb format) of +-10 ns on alternate GPS
+    satellites moves the static PPP solution (measured 8 cm up at the first epoch): the
+    file reached RTKLIB's PPP and corrected its C1C codes; a missing file is named."""
+    pytest.importorskip("pyrtklib5")
+    import warnings
+
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.nav.earth import ned_offset
+    rows = ["CODE'S MONTHLY GPS P1-C1 DCB SOLUTION, YEAR-MONTH 21-04", "-" * 80, "",
+            "DIFFERENTIAL (P1-C1) CODE BIASES FOR SATELLITES AND RECEIVERS:", "",
+            "PRN / STATION NAME        VALUE (NS)  RMS (NS)",
+            "***   ****************    *****.***   *****.***"]
+    rows += [f"G{p:02d}                    {10.0 if p % 2 else -10.0:9.3f}{0.01:12.3f}"
+             for p in range(1, 33)]
+    dcb = tmp_path / "P1C12104.DCB"
+    dcb.write_text("\n".join(rows) + "\n")
+    kw = dict(sp3=[SP3], clk=[CLK], options=RtklibOptions(mode="ppp-static",
+                                                           direction="forward"),
+              window=_window())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")           # glonass, galileo: no broadcast file
+        plain = solve(OBS, NAV, tmp_path / "plain.pos", **kw).log
+        biased = solve(OBS, NAV, tmp_path / "dcb.pos", dcb=dcb, **kw).log
+        with pytest.raises(InputError, match=r"code biases \(DCB, --dcb\): no such file"):
+            solve(OBS, NAV, tmp_path / "x.pos", dcb=tmp_path / "none.DCB", **kw)
+    assert np.max(np.abs(ned_offset(plain.lla, biased.lla))) > 0.02
