@@ -58,6 +58,7 @@ BASE = {
     ("ins", "simulate"): ["plan.toml", "-o", "out"],
     ("ins", "process"): ["flight", "-o", "out"],
     ("ins", "compare"): ["a.nav", "b.nav"],
+    ("ins", "gnss"): ["rover.obs", "-o", "rover.pos"],
     ("ins", "import-bag"): ["drive.bag", "-o", "out"],
     ("ins", "time-offset"): ["--imu", "imu.txt", "--gnss", "gnss.txt"],
     ("ins", "vehicle-mounting"): ["solution.nav"],

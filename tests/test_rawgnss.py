@@ -6,7 +6,7 @@ Truths: the pair's own RINEX observations and navigation (a u-blox log encoded f
 them frame by frame, RXM-RAWX and RXM-SFRBX, tests/ubx_frames.py, must convert back to
 the same values); an SP3 synthesized
 from the broadcast orbits (tests/sp3_synth.py) must give the broadcast solution, and a
-shortened one must end the solution where it ends; the separation against pymap3d's
+shortened one is refused (RTKLIB itself would end the solution where it ends); the separation against pymap3d's
 geodetic-to-ENU of the two RTKLIB runs, and against offsets put in by hand; the
 processed trajectory of an IMU at rest against RTKLIB's static solution of the hour."""
 import os
@@ -229,7 +229,8 @@ def sp3_files(tmp_path_factory):
 def test_precise_orbits_are_used(sp3_files, tmp_path):
     """An SP3 of the broadcast orbits gives the broadcast solution within a millimetre
     (measured 0.6 mm; the 3.3 km baseline differences out orbit errors); one that ends
-    at 00:35 ends the solution shortly after: RTKLIB took the orbits from the SP3."""
+    at 00:35 is refused, naming it (ins.gnss.products.check_coverage), and RTKLIB run
+    past the check ends the solution shortly after: it took the orbits from the SP3."""
     from ins.gnss.rtklib_engine import solve
     from ins.gnss.rtklib_options import RtklibOptions
     from ins.nav.earth import ned_offset
@@ -241,10 +242,19 @@ def test_precise_orbits_are_used(sp3_files, tmp_path):
     assert np.array_equal(b.log.time, p.log.time)
     assert np.array_equal(b.log.quality, p.log.quality)
     assert np.max(np.abs(ned_offset(b.log.lla, p.log.lla))) < 2e-3
-    s = solve(ROVER, NAV, tmp_path / "short.pos", base=BASE, options=opts, sp3=[short])
+    with pytest.raises(InputError, match=r"precise orbits \(--sp3\) .*short\.sp3 cover .* "
+                                         r"not the observations'"):
+        solve(ROVER, NAV, tmp_path / "short.pos", base=BASE, options=opts, sp3=[short])
+    assert sorted(os.listdir(tmp_path)) == ["brdc.pos", "prec.pos"]
+    # RTKLIB itself, past the check: the solution ends shortly after the orbits
+    from ins.gnss.rtklib_engine import _postpos_isolated
+    from ins.io.rtklib import read_pos
+    out = tmp_path / "short.pos"
+    _postpos_isolated(opts, True, [ROVER, BASE, NAV, str(short)], str(out))
+    s = read_pos(out)
     end_sp3 = tows[19]
-    assert s.log.time[-1] < T1 - 300.0 and s.log.time[-1] < end_sp3 + 1800.0
-    assert len(s.log) < len(b.log) - 10
+    assert s.time[-1] < T1 - 300.0 and s.time[-1] < end_sp3 + 1800.0
+    assert len(s) < len(b.log) - 10
 
 
 @needs_pair

@@ -26,18 +26,39 @@ inputs:
   --nav: broadcast navigation (RINEX nav, repeatable; needed unless the logs hold
   ephemerides); --sp3, --clk: precise orbits and clocks
   (repeatable; given any, RTKLIB uses the precise ephemeris: they must cover the whole
-  span of the observations).
+  span processed, else the error names the file and both spans; RINEX clock 3.04 is
+  read through a 3.00 copy); --atx: ANTEX antenna file (satellite and receiver
+  antenna phase centres, the receiver antenna type from the RINEX header); --dcb:
+  code biases (CODE's P1C1/P1P2 .DCB, as RTKLIB reads them).  RTKLIB drops every
+  satellite without a broadcast ephemeris, even with precise products: a system
+  with no broadcast file (--nav) is not used.
+  --start, --end: process only this span, GPST date and time YYYY-MM-DDThh:mm:ss.
+
+precise point positioning (--mode ppp-static | ppp-kinematic; needs --sp3 and --clk,
+  no base): dual-frequency iono-free carrier phase and code, zenith tropospheric
+  delay estimated, float ambiguities, solid Earth tides, phase wind-up, eclipsing
+  satellites excluded, antenna phase centres with --atx (without one the solution is
+  the antenna's mean phase centre, some cm above its reference point).  Ocean tide
+  loading is not applied.  Also --mode single with --sp3/--clk: single point with
+  precise orbits and clocks.
+  The summary states the convergence, from a forward run (the combined solution is
+  converged from the start by construction): the time (min) after which the
+  horizontal error stays below --convergence-m (m, default 0.1) to the end, against
+  --reference-xyz X,Y,Z (the antenna's true position, ECEF m: a station's published
+  coordinates, in the frame of the orbits) with the errors after it, else against
+  the solution's own horizontal sigma.
 
 settings (--config FILE, its [rtklib] table, strict keys; the command line wins):
-  mode = "single"|"dgnss"|"kinematic"|"static", direction = "forward"|"backward"|
-  "combined", elevation_mask_deg = 15, frequencies = 2, systems = ["gps", "glonass",
+  mode = "single"|"dgnss"|"kinematic"|"static"|"ppp-kinematic"|"ppp-static",
+  direction = "forward"|"backward"|"combined", elevation_mask_deg = 15, frequencies = 2, systems = ["gps", "glonass",
   "galileo"], dynamics = false, ambiguity = "fix-and-hold", ar_ratio = 3,
-  ionosphere = "broadcast", troposphere = "saastamoinen", base_position = "rinex"|
+  ionosphere = "broadcast", troposphere = "saastamoinen" (PPP: "off", "iono-free",
+  "estimate"), base_position = "rinex"|
   "single" or base_lla_deg = [lat deg, lon deg, h m], rover_format, base_format
   (default detected: see inputs).
 
 output: RTKLIB's .pos (lat/lon deg, ellipsoidal height m, GPS week and seconds, Q =
-  1 fix, 2 float, 4 DGNSS, 5 single; sigmas in m).  The summary gives the epochs per
+  1 fix, 2 float, 4 DGNSS, 5 single, 6 PPP; sigmas in m).  The summary gives the epochs per
   quality, RTKLIB's run time and the scatter (standard deviation about the mean, E/N/U)
   of all epochs and of the fixed ones: the repeatability of a static receiver.
   Exit 3 (unless --accept-poor) when fewer than half of the rover's epochs are solved,
@@ -57,12 +78,16 @@ example:
   ins gnss --rover rover.ubx --base base.obs --nav brdc.nav -o rover.pos
   ins gnss --rover rover.gps --base ntrip.rtcm3 --nav brdc.nav -o rover.pos
   ins gnss --rover rover.log --gnss-format javad --base base.obs --nav brdc.nav -o r.pos
+  ins gnss slac1180.21o --nav brdc1180.21n --mode ppp-static --sp3 COD.SP3 \
+      --clk COD.CLK --start 2021-04-28T19:30:00 --end 2021-04-28T20:30:00 \
+      --reference-xyz -2703116.233,-4291767.080,3854247.826 -o slac.pos
 """
 
 _QNAME = {1: "fix", 2: "float", 3: "sbas", 4: "dgnss", 5: "single", 6: "ppp"}
 
 
 def add_parser(sub):
+    from ins.cli.util import triplet
     from ins.gnss.rtklib_options import DIRECTIONS, MODES
     p = sub.add_parser("gnss", help="GNSS solution from raw observations (RTKLIB's engine)",
                        description="Post-process a rover's RINEX observations (with a base "
@@ -88,6 +113,19 @@ def add_parser(sub):
                    help="precise orbits (repeatable)")
     p.add_argument("--clk", action="append", default=[], metavar="CLK",
                    help="precise clocks, RINEX CLK (repeatable)")
+    p.add_argument("--atx", metavar="ATX",
+                   help="antenna phase centres (ANTEX): satellites' and the receiver's")
+    p.add_argument("--dcb", metavar="DCB", help="code biases (CODE .DCB, as RTKLIB reads)")
+    p.add_argument("--start", metavar="TIME",
+                   help="first epoch to process, GPST YYYY-MM-DDThh:mm:ss (default: the "
+                        "first observed)")
+    p.add_argument("--end", metavar="TIME",
+                   help="last epoch to process, GPST YYYY-MM-DDThh:mm:ss (default: the last)")
+    p.add_argument("--reference-xyz", type=triplet, metavar="X,Y,Z",
+                   help="PPP: the antenna's true position, ECEF m (X,Y,Z), for the "
+                        "convergence and the errors after it")
+    p.add_argument("--convergence-m", type=float, default=None, metavar="M",
+                   help="PPP: horizontal threshold of convergence, m (default 0.1)")
     p.add_argument("--config", metavar="TOML", help="file with an [rtklib] table of settings")
     p.add_argument("--mode", choices=MODES, default=None,
                    help="positioning mode (default: the config's, else kinematic with --base and "
@@ -117,6 +155,15 @@ def _options(args):
                                base_format=args.base_format)
 
 
+def _window(args):
+    """(start, end) GPS seconds since 1980 of --start/--end, or None."""
+    if args.start is None and args.end is None:
+        return None
+    from ins.gnss.products import parse_gpst
+    return (-np.inf if args.start is None else parse_gpst(args.start, "--start"),
+            np.inf if args.end is None else parse_gpst(args.end, "--end"))
+
+
 def separation_paths(pos_path):
     """The separation table and figure beside a ``.pos`` output: ``X_fwd_bwd_separation
     .txt`` and ``.png`` for ``X.pos``."""
@@ -131,16 +178,24 @@ def _cmd_gnss(args):
         raise InputError("give the rover's observations once: ROVER or --rover")
     rover = args.rover_file or args.rover
     opts = _options(args)
-    sol = solve(rover, args.nav or None, args.output, base=args.base, sp3=args.sp3,
-                clk=args.clk, options=opts)
+    kw = dict(base=args.base, sp3=args.sp3, clk=args.clk, atx=args.atx, dcb=args.dcb,
+              window=_window(args))
+    if (args.reference_xyz is not None or args.convergence_m is not None) and not opts.is_ppp:
+        raise InputError("--reference-xyz and --convergence-m go with --mode ppp-static or "
+                         "ppp-kinematic")
+    sol = solve(rover, args.nav or None, args.output, options=opts, **kw)
     log = sol.log
     n = len(log)
     counts = sol.counts()
     parts = ", ".join(f"{_QNAME.get(q, q)} {c} ({100 * c / n:.0f} %)"
                       for q, c in sorted(counts.items()))
-    how = opts.mode + (f", {opts.direction}" if opts.mode in CARRIER_MODES else "")
+    how = opts.mode + (f", {opts.direction}" if opts.mode in CARRIER_MODES or opts.is_ppp
+                       else "")
     print(f"{args.output}: {n} of {sol.rover_epochs} rover epochs solved ({how}, "
           f"{sol.ephemeris} ephemeris); {parts}; RTKLIB {sol.run_time_s:.2f} s")
+    if sol.unused_systems:
+        print(f"  not used: {', '.join(sol.unused_systems)} (observed, but no broadcast "
+              f"ephemeris in --nav: RTKLIB drops such satellites even with precise products)")
     for label, q in (("all", None), ("fixed", 1)):
         s = spread_enu_m(log, q)
         if np.all(np.isfinite(s)):
@@ -149,6 +204,15 @@ def _cmd_gnss(args):
     if log.screen:
         print(f"  covariance screen: {log.screen.repaired_lines.size} repaired, "
               f"{log.screen.dropped_lines.size} dropped")
+    if opts.is_ppp:
+        from ins.gnss.convergence import DEFAULT_THRESHOLD_M, forward_convergence
+        conv, _ = forward_convergence(
+            sol, rover, args.nav or None, os.path.dirname(os.path.abspath(args.output)),
+            reference_ecef=args.reference_xyz,
+            threshold_m=DEFAULT_THRESHOLD_M if args.convergence_m is None
+            else args.convergence_m, **kw)
+        print("  " + conv.line() + ("" if opts.direction == "forward"
+                                    else " (of a forward run)"))
     if opts.mode == "kinematic" and not args.no_separation:
         from ins.gnss.separation import (
             forward_backward,
@@ -157,8 +221,8 @@ def _cmd_gnss(args):
             write_separation,
         )
         sep = forward_backward(rover, args.nav or None,
-                               os.path.dirname(os.path.abspath(args.output)), base=args.base,
-                               sp3=args.sp3, clk=args.clk, options=opts)
+                               os.path.dirname(os.path.abspath(args.output)), options=opts,
+                               **kw)
         txt, png = separation_paths(args.output)
         write_separation(sep, txt)
         plot_separation(sep, png)

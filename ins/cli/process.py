@@ -26,12 +26,14 @@ inputs:
                     height; hAcc, vAcc, sAcc as sigmas) or NMEA GGA + RMC (+ GST sigmas),
                     the altitude above mean sea level plus the GGA geoid separation, or
                     plus N of --gnss-geoid (EGM96 default) when the GGA has none
-  --rover/--base/--nav (repeatable)/--sp3/--clk  raw GNSS instead of --gnss (or the
-                    config's [files] rover, base, nav, sp3, clk): RINEX, or a receiver log
-                    in any format RTKLIB decodes (rtcm2, rtcm3, oem4 NovAtel, ubx, sbf,
-                    hemisphere, skytraq, javad, nvs, binex, rt17, unicore, swift),
-                    detected from the content or named by --rover-format/--base-format
-                    ([rtklib] rover_format, base_format), converted to RINEX on the way
+  --rover/--base/--nav (repeatable)/--sp3/--clk/--atx/--dcb  raw GNSS instead of
+                    --gnss (or the config's [files] rover, base, nav, sp3, clk, atx,
+                    dcb): RINEX, or a receiver log in any format RTKLIB decodes (rtcm2,
+                    rtcm3, oem4 NovAtel, ubx, sbf, hemisphere, skytraq, javad, nvs,
+                    binex, rt17, unicore, swift), detected from the content or named by
+                    --rover-format/--base-format ([rtklib] rover_format, base_format),
+                    converted to RINEX on the way; [rtklib] mode = "ppp-kinematic": PPP
+                    with the precise orbits and clocks, no base;
                     RTKLIB runs first with the config's [rtklib] settings (ins gnss
                     --help; optional extra: pip install 'insphoto[gnss]'), writes
                     OUT_DIR/gnss.pos (and, in kinematic mode, fwd_bwd_separation.txt
@@ -166,6 +168,8 @@ def add_parser(sub):
     p.add_argument("--base-format", type=str.lower, choices=raw_names, metavar="NAME",
                    help="raw GNSS: the receiver format of --base (default: detected; "
                         "[rtklib] base_format)")
+    p.add_argument("--atx", metavar="F", help="raw GNSS: antenna phase centres (ANTEX)")
+    p.add_argument("--dcb", metavar="F", help="raw GNSS: code biases (CODE .DCB)")
     p.add_argument("--gnss-format", choices=["kfgins", "rtklib", "ubx", "nmea"],
                    help="GNSS file format (default: detected from the extension and "
                         "content): KF-GINS text, RTKLIB .pos, a u-blox receiver's own "
@@ -340,9 +344,10 @@ def _from_args(args, load_config, path):
         raise InputError("--imu and --gnss (or --rover, --base, --nav) are required (the "
                          "config has no [files])")
     raw = {"rover": args.rover, "base": args.base, "nav": args.nav, "sp3": args.sp3,
-           "clk": args.clk}
+           "clk": args.clk, "atx": args.atx, "dcb": args.dcb}
     if not args.rover and any(raw.values()):
-        raise InputError("--base, --nav, --sp3, --clk go with --rover (raw GNSS)")
+        raise InputError("--base, --nav, --sp3, --clk, --atx, --dcb go with --rover (raw "
+                         "GNSS)")
     return load_config(path, files={"imu": args.imu, "gnss": args.gnss, **raw})
 
 

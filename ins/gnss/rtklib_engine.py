@@ -48,6 +48,9 @@ MIN_SOLVED_FRACTION = 0.5
 #: fraction of the solved ones is poor: its float positions are decimetres to metres.
 MIN_FIXED_FRACTION = 0.1
 
+#: Seconds in a GPS week.
+WEEK_S = 604800
+
 _LOCK = threading.Lock()
 
 
@@ -72,12 +75,18 @@ class GnssSolution:
     path : str
         The ``.pos`` file written.
     rover_epochs : int
-        Epochs in the rover's observation file(s).
+        Epochs in the rover's observation file(s) (within the time window).
     options : RtklibOptions
     run_time_s : float
         Wall time of RTKLIB's ``postpos``, s.
     ephemeris : str
         ``"broadcast"``, or ``"precise"`` when SP3/CLK files were given.
+    span : tuple of float
+        (first, last) epoch processed: the rover's, within ``window``; GPS seconds
+        since 1980-01-06.
+    unused_systems : tuple of str
+        Systems of ``options.systems`` observed by the rover but without a broadcast
+        ephemeris in the navigation files: RTKLIB uses none of their satellites.
     """
 
     log: object
@@ -86,6 +95,8 @@ class GnssSolution:
     options: RtklibOptions
     run_time_s: float
     ephemeris: str = "broadcast"
+    span: tuple = None
+    unused_systems: tuple = ()
 
     def counts(self):
         """``{Q: number of epochs}`` of the solution (RTKLIB's quality flags)."""
@@ -110,16 +121,44 @@ def count_epochs(path, rtk=None, shown=None):
     InputError
         The file is missing or RTKLIB reads no observation from it.
     """
+    return _epochs_and_span(path, rtk, shown)[0]
+
+
+def observation_span(path, rtk=None, shown=None):
+    """(first, last) observation epoch of a RINEX observation file, GPS seconds since
+    1980-01-06 (as :func:`count_epochs` reads it)."""
+    return _epochs_and_span(path, rtk, shown)[1]
+
+
+def _epochs_and_span(path, rtk=None, shown=None, window=None, systems=None):
+    """(epochs, (first, last) GPS s since 1980) of a RINEX observation file; with a
+    ``window`` (first, last, GPS s), the epochs within it (the span is the file's);
+    ``systems``, a set, gets RTKLIB's system bits of the satellites observed."""
     rtk = binding() if rtk is None else rtk
     path = _check_file(path, "RINEX observations")
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    span = None
     try:
         ok = rtk.readrnx(path, 1, "", obs, nav, sta)
         n = rtk.sortobs(obs) if ok and obs.n > 0 else 0
+        if n > 0:
+            week = rtk.Arr1Dint(1)
+            span = tuple(rtk.time2gpst(obs.data[i].time, week) + WEEK_S * week[0]
+                         for i in (0, obs.n - 1))
+            if systems is not None:
+                prn = rtk.Arr1Dint(1)
+                systems.update({rtk.satsys(obs.data[i].sat, prn) for i in range(obs.n)})
+            if window is not None:
+                times = set()
+                for i in range(obs.n):
+                    t = rtk.time2gpst(obs.data[i].time, week) + WEEK_S * week[0]
+                    if window[0] - 1e-3 <= t <= window[1] + 1e-3:
+                        times.add(round(t, 3))
+                n = len(times)
     finally:
         rtk.freeobs(obs)
         rtk.freenav(nav, 0xFF)
-    if n <= 0:
+    if span is None:
         raise InputError("RTKLIB reads no observation epoch from this file (expected RINEX "
                          "2.x/3.x observations or a receiver log: --gnss-format)",
                          path=path if shown is None else os.fspath(shown))
@@ -127,8 +166,8 @@ def count_epochs(path, rtk=None, shown=None):
         warnings.warn(f"{path if shown is None else os.fspath(shown)}: the file ends inside a "
                       f"line: cut short (an interrupted download or copy?); RTKLIB read "
                       f"the {int(n)} epochs before the cut",
-                      InputWarning, stacklevel=2)
-    return int(n)
+                      InputWarning, stacklevel=3)
+    return int(n), span
 
 
 def _ends_inside_a_line(path):
@@ -141,7 +180,8 @@ def _ends_inside_a_line(path):
         return f.read(1) not in (b"\n", b"\r")
 
 
-def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
+def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None, atx=None,
+          dcb=None, window=None):
     """Run RTKLIB's post-processing and read the solution back.
 
     Parameters
@@ -162,8 +202,19 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
         required by every mode but ``single``).
     sp3, clk : sequence of paths
         Precise orbits (SP3) and clocks (RINEX CLK); given any, RTKLIB uses the precise
-        ephemeris.
+        ephemeris; the PPP modes need both.  They must cover the processed span
+        (:func:`ins.gnss.products.check_coverage`); RINEX clock 3.04 is read through a
+        3.00 copy (:func:`ins.gnss.products.readable_clock`).
     options : RtklibOptions, optional
+    atx : str or os.PathLike, optional
+        ANTEX antenna file: satellite and receiver (type from the rover's RINEX header)
+        antenna phase centre offsets and variations.
+    dcb : str or os.PathLike, optional
+        Code biases as RTKLIB's ``readdcb`` reads them (CODE's ``P1C1``/``P1P2`` DCB
+        files, Bias-SINEX).
+    window : (float, float), optional
+        Process only the epochs from ``window[0]`` to ``window[1]``, GPS seconds since
+        1980-01-06 (:func:`ins.gnss.products.gps_seconds`); None: all.
 
     Returns
     -------
@@ -173,14 +224,28 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     ------
     InputError
         The extra missing, a missing or unreadable input, a mode that needs a base
-        without one, no broadcast navigation, RTKLIB writing no solution epoch.
+        without one, PPP without precise orbits or clocks, precise products that do not
+        cover the observations, no broadcast navigation, RTKLIB writing no solution
+        epoch.
     """
     rtk = binding()
     opts = RtklibOptions() if options is None else options
     navs = [] if nav is None else ([nav] if isinstance(nav, (str, os.PathLike)) else list(nav))
     navs = [_check_file(p, "RINEX navigation") for p in navs]
     precise = [_check_file(p, "precise orbit (SP3)") for p in sp3]
-    precise += [_check_file(p, "precise clock (RINEX CLK)") for p in clk]
+    clocks = [_check_file(p, "precise clock (RINEX CLK)") for p in clk]
+    precise += clocks
+    if opts.is_ppp and not (sp3 and clk):
+        missing = [k for k, v in (("sp3", sp3), ("clk", clk)) if not v]
+        raise InputError(f"RTKLIB mode {opts.mode!r} (precise point positioning) needs "
+                         f"precise orbits and clocks: "
+                         f"{' and '.join('--' + k for k in missing)} missing (in a config: "
+                         f"[files] {' and '.join(missing)})")
+    atx = None if atx is None else _check_file(atx, "antenna file (ANTEX, --atx)")
+    dcb = None if dcb is None else _check_file(dcb, "code biases (DCB, --dcb)")
+    for p in (atx, dcb):
+        if p is not None and len(os.fsencode(p)) >= 1023:
+            raise InputError("path too long for RTKLIB (1023 bytes at most)", path=p)
     if opts.uses_base and base is None:
         raise InputError(f"RTKLIB mode {opts.mode!r} needs the base station's observations "
                          f"(--base, or [files] base); mode 'single' needs none")
@@ -197,7 +262,17 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     try:
         rover_obs, rover_nav = _observations(rover, tmp, "rover", rtk, opts.rover_format,
                                              navs)
-        rover_epochs = count_epochs(rover_obs, rtk, shown=rover)
+        observed = set()
+        rover_epochs, span = _epochs_and_span(rover_obs, rtk, shown=rover, window=window,
+                                              systems=observed)
+        span = _within(span, window, rover)
+        if atx is not None:
+            _check_antenna(rover_obs, atx, rover)
+        if precise:
+            from ins.gnss.products import check_coverage, readable_clock
+            check_coverage(span, [p for p in precise if p not in clocks], clocks)
+            precise = [p for p in precise if p not in clocks] + [
+                readable_clock(p, tmp) for p in clocks]
         files = [rover_obs]
         converted_navs = [rover_nav]
         if opts.uses_base:
@@ -217,10 +292,16 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
             raise InputError("RTKLIB needs the broadcast navigation (--nav, or [files] nav: "
                              "RINEX nav); a receiver log gives it only with its "
                              "ephemeris messages (u-blox RXM-SFRBX, RTCM3 1019, ...)", path=rover)
+        unused = _without_broadcast(rtk, opts, observed, navs)
+        if unused:
+            warnings.warn(f"{os.fspath(rover)}: {', '.join(unused)} observed but without a "
+                          f"broadcast ephemeris (--nav): RTKLIB drops their satellites, even "
+                          f"with precise orbits and clocks", InputWarning, stacklevel=2)
         files += navs + precise
         tmp_pos = os.path.join(tmp, "solution.pos")
         with _LOCK:
-            status, run_time = _postpos_isolated(opts, bool(precise), files, tmp_pos)
+            status, run_time = _postpos_isolated(opts, bool(precise), files, tmp_pos,
+                                                 atx=atx, dcb=dcb, window=window)
         if status != 0 or not os.path.isfile(tmp_pos) or not _has_epoch(tmp_pos):
             shown = [rover] + ([base] if opts.uses_base else []) + navs + precise
             raise InputError(f"RTKLIB wrote no solution epoch (postpos status {status}): "
@@ -233,20 +314,82 @@ def solve(rover, nav, out_path, base=None, sp3=(), clk=(), options=None):
     from ins.io.rtklib import read_pos
     log = read_pos(out_path)
     return GnssSolution(log, out_path, rover_epochs, opts, run_time,
-                        "precise" if precise else "broadcast")
+                        "precise" if precise else "broadcast", span, tuple(unused))
 
 
-def _postpos(opts, precise, files, out):
+def _without_broadcast(rtk, opts, observed, navs):
+    """Names of the systems of ``opts`` that the rover observed (``observed``: RTKLIB
+    system bits) but that no navigation file has an ephemeris of."""
+    from ins.gnss.rtklib_options import system_bits
+    bits = system_bits(rtk)
+    wanted = [s for s in opts.systems if bits[s] in observed]
+    if not wanted:
+        return []
+    have = set()
+    nav, obs, sta = rtk.nav_t(), rtk.obs_t(), rtk.sta_t()
+    prn = rtk.Arr1Dint(1)
+    try:
+        for p in navs:
+            rtk.readrnx(os.fspath(p), 0, "", obs, nav, sta)
+        have = {rtk.satsys(nav.eph[i].sat, prn) for i in range(nav.n)}
+        if nav.ng > 0:
+            have.add(rtk.SYS_GLO)
+        if nav.ns > 0:
+            have.add(rtk.SYS_SBS)
+    finally:
+        rtk.freeobs(obs)
+        rtk.freenav(nav, 0xFF)
+    return [s for s in wanted if bits[s] not in have]
+
+
+def _check_antenna(obs_path, atx, shown):
+    """Warn when the rover's antenna (its RINEX header) is not in the ANTEX file: RTKLIB
+    then applies no receiver phase centre, silently."""
+    from ins.gnss.products import antex_antennas, rinex_antenna
+    antenna = rinex_antenna(obs_path)
+    known = antex_antennas(atx)
+    if antenna and antenna not in known and antenna.split()[0] not in {
+            k.split()[0] for k in known if k}:
+        warnings.warn(f"{os.fspath(shown)}: its antenna {antenna!r} is not in the ANTEX file "
+                      f"{atx}: RTKLIB applies no receiver phase centre (the solution is that "
+                      f"of the antenna's mean phase centre, not of its reference point)",
+                      InputWarning, stacklevel=3)
+
+
+def _within(span, window, rover):
+    """The observations' span cut to ``window`` (GPS s since 1980), or an error."""
+    if window is None:
+        return span
+    from ins.gnss.products import format_gpst
+    w0, w1 = (float(v) for v in window)
+    first, last = max(span[0], w0), min(span[1], w1)
+    if not w0 < w1 or first > last:
+        raise InputError(f"the time window {format_gpst(w0)} to {format_gpst(w1)} holds no "
+                         f"observation (they span {format_gpst(span[0])} to "
+                         f"{format_gpst(span[1])})", path=rover)
+    return first, last
+
+
+def _gtime(rtk, t):
+    """RTKLIB's time of GPS seconds since 1980-01-06 (the zero time for None)."""
+    if t is None or not np.isfinite(t):
+        return rtk.gtime_t()
+    week = int(t // WEEK_S)
+    return rtk.gpst2time(week, float(t - week * WEEK_S))
+
+
+def _postpos(opts, precise, files, out, atx=None, dcb=None, window=None):
     """RTKLIB's ``postpos`` in this process: ``(status, wall time s)``."""
     rtk = binding()
-    po, so, fo = fill_prcopt(opts, rtk, precise=precise)
+    po, so, fo = fill_prcopt(opts, rtk, precise=precise, atx=atx, dcb=dcb)
+    ts, te = (None, None) if window is None else window
     t0 = wallclock.perf_counter()
-    status = rtk.postpos(rtk.gtime_t(), rtk.gtime_t(), 0.0, 0.0, po, so, fo, files,
+    status = rtk.postpos(_gtime(rtk, ts), _gtime(rtk, te), 0.0, 0.0, po, so, fo, files,
                          len(files), out, "", "")
     return status, wallclock.perf_counter() - t0
 
 
-def _postpos_isolated(opts, precise, files, out):
+def _postpos_isolated(opts, precise, files, out, atx=None, dcb=None, window=None):
     """:func:`_postpos` in a fresh Python process (``python -m ins.gnss.rtklib_engine``,
     the arguments as JSON on its standard input; not multiprocessing, whose spawn would
     run an unguarded user script again).
@@ -262,7 +405,8 @@ def _postpos_isolated(opts, precise, files, out):
     import subprocess
     import sys
     job = {"options": dataclasses.asdict(opts), "precise": precise,
-           "files": [os.fspath(f) for f in files], "out": os.fspath(out)}
+           "files": [os.fspath(f) for f in files], "out": os.fspath(out), "atx": atx,
+           "dcb": dcb, "window": None if window is None else [float(w) for w in window]}
     proc = subprocess.run([sys.executable, "-m", "ins.gnss.rtklib_engine"],
                           input=json.dumps(job), capture_output=True, text=True)
     if proc.returncode != 0:
@@ -281,7 +425,8 @@ def _child():
     o["systems"] = tuple(o["systems"])
     if o.get("base_lla_deg") is not None:
         o["base_lla_deg"] = tuple(o["base_lla_deg"])
-    status, run_time = _postpos(RtklibOptions(**o), job["precise"], job["files"], job["out"])
+    status, run_time = _postpos(RtklibOptions(**o), job["precise"], job["files"], job["out"],
+                                atx=job.get("atx"), dcb=job.get("dcb"), window=job.get("window"))
     print(json.dumps([int(status), run_time]))
 
 

@@ -3,9 +3,10 @@ file with strict keys, and put into a COPY of RTKLIB's own defaults.
 
 ``[rtklib]`` (every key optional; the default is RTKLIB demo5's own unless stated)::
 
-    mode               = "single"|"dgnss"|"kinematic"|"static"    ("kinematic"; where
-                         no base is given and the table names no mode, "single":
-                         :func:`mode_without_base`)
+    mode               = "single"|"dgnss"|"kinematic"|"static"|"ppp-kinematic"|
+                         "ppp-static"    ("kinematic"; where no base is given and the
+                         table names no mode, "single": :func:`mode_without_base`; the
+                         two PPP modes need no base but precise orbits and clocks)
     direction          = "forward"|"backward"|"combined"          ("combined"; RTKLIB's
                          default is "forward": the combined forward-backward smoother is
                          what post-processing is for)
@@ -20,9 +21,14 @@ file with strict keys, and put into a COPY of RTKLIB's own defaults.
                          instead of 115 epochs fixed.  Set true for a vehicle whose
                          motion the velocity states help to follow)
     ambiguity          = "fix-and-hold"|"continuous"|"instantaneous"|"off"
+                         ("off" in the PPP modes: RTKLIB 2.5.0's PPP ambiguity
+                         resolution needs satellite phase biases that final SP3/CLK
+                         products do not carry)
     ar_ratio           = 3.0         (ratio test threshold of the integer fix, >= 1)
-    ionosphere         = "broadcast"|"iono-free"|"off"
-    troposphere        = "saastamoinen"|"estimate"|"off"
+    ionosphere         = "broadcast"|"iono-free"|"off"   ("iono-free" in the PPP modes:
+                         the dual-frequency combination, needs frequencies >= 2)
+    troposphere        = "saastamoinen"|"estimate"|"off"   ("estimate" in the PPP
+                         modes: the zenith delay as a random walk)
     base_position      = "rinex"|"single"   ("rinex": the base file's APPROX POSITION
                          header; "single": the mean of the base's single-point solutions)
     base_lla_deg       = [lat_deg, lon_deg, h_m]   (the base antenna, WGS84 ellipsoidal;
@@ -33,24 +39,41 @@ file with strict keys, and put into a COPY of RTKLIB's own defaults.
 
 The precise ephemeris (SP3/CLK) is used when such files are given (RTKLIB's
 ``pos1-sateph = precise``); the broadcast navigation file is still needed for the
-ionosphere model and the satellites' health.
+ionosphere model and the satellites' health, and RTKLIB drops every satellite without a
+broadcast ephemeris even with precise products (its ``satposs`` takes the signal's
+transmission time from the broadcast clock): a system without a broadcast file is
+not used.
+
+The PPP modes (RTKLIB's ``ppp-kine`` / ``ppp-static``) also switch on solid Earth
+tides, the carrier phase wind-up and the exclusion of satellites in eclipse; with an
+ANTEX file (``--atx``) the satellites' and the receiver's antenna phase centres (the
+receiver antenna type from the RINEX header).  The pre-fit phase innovation threshold
+is raised from RTKLIB's 5 m to 30 m (:data:`PPP_MAX_INNOVATION_M`): the receiver clock of
+each epoch starts from the single-point solution, some metres off the iono-free one,
+and at 5 m every phase measurement was rejected (4 of 241 epochs solved on the SLAC
+station).
 
 :func:`fill_prcopt` starts from ``resetsysopts``/``getsysopts`` (RTKLIB's own copy of
 ``prcopt_default`` into a new struct): ``pyrtklib5.prcopt_default`` is a shared object
 of the binding and is never written to.
 """
 import math
+import os
 from dataclasses import dataclass
 
 from ins.common.errors import InputError
 from ins.common.tomlschema import Table
 
 __all__ = ["RtklibOptions", "read_rtklib_options", "MODES", "DIRECTIONS", "SYSTEMS",
-           "fill_prcopt", "CARRIER_MODES", "mode_without_base"]
+           "fill_prcopt", "CARRIER_MODES", "PPP_MODES", "mode_without_base"]
 
-MODES = ("single", "dgnss", "kinematic", "static")
+MODES = ("single", "dgnss", "kinematic", "static", "ppp-kinematic", "ppp-static")
 #: Modes that use the carrier phase (and so fix integer ambiguities).
 CARRIER_MODES = ("kinematic", "static")
+#: Precise point positioning: carrier phase with float ambiguities, no base.
+PPP_MODES = ("ppp-kinematic", "ppp-static")
+#: RTKLIB's pre-fit phase innovation threshold in the PPP modes, m (module notes).
+PPP_MAX_INNOVATION_M = 30.0
 DIRECTIONS = ("forward", "backward", "combined")
 SYSTEMS = ("gps", "sbas", "glonass", "galileo", "qzss", "beidou", "navic")
 AMBIGUITY = ("off", "continuous", "instantaneous", "fix-and-hold")
@@ -73,10 +96,10 @@ class RtklibOptions:
     frequencies: int = 2
     systems: tuple = ("gps", "glonass", "galileo")
     dynamics: bool = False
-    ambiguity: str = "fix-and-hold"
+    ambiguity: str = None          # None: "fix-and-hold", "off" in the PPP modes
     ar_ratio: float = 3.0
-    ionosphere: str = "broadcast"
-    troposphere: str = "saastamoinen"
+    ionosphere: str = None         # None: "broadcast", "iono-free" in the PPP modes
+    troposphere: str = None        # None: "saastamoinen", "estimate" in the PPP modes
     base_position: str = "rinex"
     base_lla_deg: tuple = None
     rover_format: str = None
@@ -86,7 +109,8 @@ class RtklibOptions:
         for name, allowed in (("mode", MODES), ("direction", DIRECTIONS),
                               ("ambiguity", AMBIGUITY), ("ionosphere", IONOSPHERE),
                               ("troposphere", TROPOSPHERE), ("base_position", BASE_POSITION)):
-            if getattr(self, name) not in allowed:
+            if getattr(self, name) not in allowed and not (
+                    getattr(self, name) is None and name in _BY_MODE):
                 raise InputError(f"rtklib {name}: expected one of {', '.join(allowed)}, "
                                  f"got {getattr(self, name)!r}")
         bad = [s for s in self.systems if s not in SYSTEMS]
@@ -100,6 +124,10 @@ class RtklibOptions:
             raise InputError(f"rtklib frequencies: expected 1, 2 or 3, got {self.frequencies!r}")
         if not (math.isfinite(self.ar_ratio) and self.ar_ratio >= 1.0):
             raise InputError(f"rtklib ar_ratio: expected a number >= 1, got {self.ar_ratio!r}")
+        if self.setting("ionosphere") == "iono-free" and self.frequencies < 2:
+            why = f" (the default of mode {self.mode!r})" if self.ionosphere is None else ""
+            raise InputError(f"rtklib ionosphere 'iono-free'{why}: needs frequencies >= 2, "
+                             f"got {self.frequencies}")
         if self.base_lla_deg is not None:
             lat, lon, h = self.base_lla_deg
             if not (abs(lat) <= 90 and abs(lon) <= 360 and math.isfinite(h)):
@@ -109,7 +137,25 @@ class RtklibOptions:
     @property
     def uses_base(self):
         """Whether the mode needs a base station's observations."""
-        return self.mode != "single"
+        return self.mode != "single" and self.mode not in PPP_MODES
+
+    @property
+    def is_ppp(self):
+        """Whether the mode is precise point positioning (precise products, no base)."""
+        return self.mode in PPP_MODES
+
+    def setting(self, name):
+        """The value of ``ambiguity``, ``ionosphere`` or ``troposphere`` in force: the
+        one given, else the mode's default (module notes)."""
+        value = getattr(self, name)
+        if value is None:
+            return _BY_MODE[name][1 if self.is_ppp else 0]
+        return value
+
+
+#: Settings whose default depends on the mode: (other modes, PPP modes).
+_BY_MODE = {"ambiguity": ("fix-and-hold", "off"), "ionosphere": ("broadcast", "iono-free"),
+            "troposphere": ("saastamoinen", "estimate")}
 
 
 def mode_without_base(table, base, mode=None):
@@ -145,10 +191,10 @@ def read_rtklib_options(table, path=None, sections=None, **overrides):
         frequencies=t.number("frequencies", d.frequencies, "1, 2 or 3", lo=1, hi=3,
                              integer=True),
         dynamics=t.boolean("dynamics", d.dynamics),
-        ambiguity=t.choice("ambiguity", d.ambiguity, AMBIGUITY),
+        ambiguity=_by_mode(t, "ambiguity", AMBIGUITY),
         ar_ratio=t.number("ar_ratio", d.ar_ratio, ">= 1", lo=1.0),
-        ionosphere=t.choice("ionosphere", d.ionosphere, IONOSPHERE),
-        troposphere=t.choice("troposphere", d.troposphere, TROPOSPHERE),
+        ionosphere=_by_mode(t, "ionosphere", IONOSPHERE),
+        troposphere=_by_mode(t, "troposphere", TROPOSPHERE),
         base_position=t.choice("base_position", d.base_position, BASE_POSITION),
     )
     systems = t.raw("systems", None)
@@ -176,23 +222,37 @@ def read_rtklib_options(table, path=None, sections=None, **overrides):
     return RtklibOptions(**kw)
 
 
-def fill_prcopt(opts, rtk, precise=False):
+def system_bits(rtk):
+    """``{system name: RTKLIB's SYS_ bit}`` (``rtk``: the imported ``pyrtklib5``)."""
+    return {"gps": rtk.SYS_GPS, "sbas": rtk.SYS_SBS, "glonass": rtk.SYS_GLO,
+            "galileo": rtk.SYS_GAL, "qzss": rtk.SYS_QZS, "beidou": rtk.SYS_CMP,
+            "navic": rtk.SYS_IRN}
+
+
+def _by_mode(t, key, options):
+    """``[rtklib] key`` when given (one of ``options``), else None (the mode's default)."""
+    return t.choice(key, options[0], options) if key in t.table else None
+
+
+def fill_prcopt(opts, rtk, precise=False, atx=None, dcb=None):
     """RTKLIB's (prcopt, solopt, filopt) for ``opts``: fresh structs filled by RTKLIB
     from its defaults (``resetsysopts`` + ``getsysopts``, a C struct copy of
     ``prcopt_default``), then the settings of ``opts``.  ``rtk`` is the imported
-    ``pyrtklib5`` module; ``precise`` selects the SP3/CLK ephemeris."""
+    ``pyrtklib5`` module; ``precise`` selects the SP3/CLK ephemeris; ``atx`` (an ANTEX
+    file: satellite and receiver antenna phase centres) and ``dcb`` (code biases, a
+    file RTKLIB's ``readdcb`` reads) are paths or None."""
     rtk.resetsysopts()
     po, so, fo = rtk.prcopt_t(), rtk.solopt_t(), rtk.filopt_t()
     rtk.getsysopts(po, so, fo)
     po.mode = {"single": rtk.PMODE_SINGLE, "dgnss": rtk.PMODE_DGPS,
-               "kinematic": rtk.PMODE_KINEMA, "static": rtk.PMODE_STATIC}[opts.mode]
+               "kinematic": rtk.PMODE_KINEMA, "static": rtk.PMODE_STATIC,
+               "ppp-kinematic": rtk.PMODE_PPP_KINEMA,
+               "ppp-static": rtk.PMODE_PPP_STATIC}[opts.mode]
     po.soltype = {"forward": rtk.SOLTYPE_FORWARD, "backward": rtk.SOLTYPE_BACKWARD,
                   "combined": rtk.SOLTYPE_COMBINED}[opts.direction]
     po.elmin = math.radians(opts.elevation_mask_deg)
     po.nf = int(opts.frequencies)
-    sys_bits = {"gps": rtk.SYS_GPS, "sbas": rtk.SYS_SBS, "glonass": rtk.SYS_GLO,
-                "galileo": rtk.SYS_GAL, "qzss": rtk.SYS_QZS, "beidou": rtk.SYS_CMP,
-                "navic": rtk.SYS_IRN}
+    sys_bits = system_bits(rtk)
     navsys = 0
     for s in opts.systems:
         navsys |= sys_bits[s]
@@ -200,13 +260,27 @@ def fill_prcopt(opts, rtk, precise=False):
     po.dynamics = 1 if opts.dynamics else 0
     po.modear = {"off": rtk.ARMODE_OFF, "continuous": rtk.ARMODE_CONT,
                  "instantaneous": rtk.ARMODE_INST, "fix-and-hold": rtk.ARMODE_FIXHOLD
-                 }[opts.ambiguity]
+                 }[opts.setting("ambiguity")]
     po.thresar[0] = float(opts.ar_ratio)          # index 0 of 8: within bounds
     po.ionoopt = {"off": rtk.IONOOPT_OFF, "broadcast": rtk.IONOOPT_BRDC,
-                  "iono-free": rtk.IONOOPT_IFLC}[opts.ionosphere]
+                  "iono-free": rtk.IONOOPT_IFLC}[opts.setting("ionosphere")]
     po.tropopt = {"off": rtk.TROPOPT_OFF, "saastamoinen": rtk.TROPOPT_SAAS,
-                  "estimate": rtk.TROPOPT_EST}[opts.troposphere]
+                  "estimate": rtk.TROPOPT_EST}[opts.setting("troposphere")]
     po.sateph = rtk.EPHOPT_PREC if precise else rtk.EPHOPT_BRDC
+    if opts.is_ppp:
+        po.tidecorr = 1                           # solid Earth tides
+        po.posopt[2] = 1                          # phase wind-up
+        po.posopt[3] = 1                          # exclude satellites in eclipse
+        po.maxinno[0] = PPP_MAX_INNOVATION_M      # phase (module notes); 2 elements
+    if atx is not None:
+        po.posopt[0] = 1                          # satellite antenna PCO/PCV
+        po.posopt[1] = 1                          # receiver antenna PCO/PCV
+        po.anttype[0, 0] = "*"                    # the rover's type from its RINEX header
+        po.anttype[0, 1] = "\0"
+        rtk.setstr(fo.satantp, os.fspath(atx), 1023)
+        rtk.setstr(fo.rcvantp, os.fspath(atx), 1023)
+    if dcb is not None:
+        rtk.setstr(fo.dcb, os.fspath(dcb), 1023)
     if opts.base_lla_deg is not None:
         lat, lon, h = opts.base_lla_deg
         po.refpos = rtk.POSOPT_POS_LLH

@@ -98,17 +98,19 @@ def separation(forward_log, backward_log):
                       backward_log.quality[i_b].astype(int), len(tf), len(tb))
 
 
-def forward_backward(rover, nav, folder, base=None, sp3=(), clk=(), options=None):
+def forward_backward(rover, nav, folder, base=None, sp3=(), clk=(), options=None,
+                     **solve_kw):
     """Run RTKLIB forward and backward (the settings of ``options`` otherwise) in a
     temporary folder inside ``folder`` and return their :class:`Separation`; nothing is
-    left in ``folder``."""
+    left in ``folder``.  ``solve_kw``: the other arguments of
+    :func:`ins.gnss.rtklib_engine.solve` (atx, dcb, window)."""
     from ins.gnss.rtklib_engine import solve
     from ins.gnss.rtklib_options import RtklibOptions
     opts = RtklibOptions() if options is None else options
     tmp = tempfile.mkdtemp(prefix=".fwd-bwd-", dir=folder)
     try:
         logs = [solve(rover, nav, os.path.join(tmp, f"{d}.pos"), base=base, sp3=sp3,
-                      clk=clk, options=replace(opts, direction=d)).log
+                      clk=clk, options=replace(opts, direction=d), **solve_kw).log
                 for d in ("forward", "backward")]
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

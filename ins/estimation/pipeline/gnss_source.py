@@ -9,8 +9,11 @@ Configuration (TOML, in place of ``[files] gnss``; paths relative to the file)::
               base  = "base.obs"                  (required by every mode but single)
               nav   = "brdc.nav" or ["a.nav", "b.nav"]   (broadcast, RINEX nav)
               sp3   = "orbits.sp3" or a list      (optional: precise ephemeris)
-              clk   = "clocks.clk" or a list      (optional)
-    [rtklib]  RTKLIB's settings, strict keys (:mod:`ins.gnss.rtklib_options`)
+              clk   = "clocks.clk" or a list      (optional; both needed by PPP)
+              atx   = "igs20.atx"                 (optional: antenna phase centres)
+              dcb   = "P1C12104.DCB"              (optional: code biases)
+    [rtklib]  RTKLIB's settings, strict keys (:mod:`ins.gnss.rtklib_options`; mode =
+              "ppp-kinematic" for precise point positioning, no base)
 
 The solution is written into the output folder as ``gnss.pos`` (RTKLIB's llh layout),
 read back through the covariance screen (:mod:`ins.io.pos_screen`), and filtered by
@@ -30,7 +33,7 @@ __all__ = ["RawGnss", "RAW_KEYS", "raw_gnss_config", "run_raw_gnss", "GNSS_POS",
            "SEPARATION_TXT", "SEPARATION_PNG", "source_lines"]
 
 #: ``[files]`` keys of raw GNSS input.
-RAW_KEYS = ("rover", "base", "nav", "sp3", "clk")
+RAW_KEYS = ("rover", "base", "nav", "sp3", "clk", "atx", "dcb")
 GNSS_POS = "gnss.pos"
 SEPARATION_TXT = "fwd_bwd_separation.txt"
 SEPARATION_PNG = "fwd_bwd_separation.png"
@@ -47,6 +50,8 @@ class RawGnss:
     sp3: tuple = ()
     clk: tuple = ()
     options: object = None
+    atx: str = None
+    dcb: str = None
 
 
 def _paths(value, where, many):
@@ -92,6 +97,8 @@ def raw_gnss_config(files, rtklib_table, path=None):
                    nav=_paths(files.get("nav"), where("nav"), True),
                    sp3=_paths(files.get("sp3"), where("sp3"), True),
                    clk=_paths(files.get("clk"), where("clk"), True),
+                   atx=_paths(files.get("atx"), where("atx"), False),
+                   dcb=_paths(files.get("dcb"), where("dcb"), False),
                    options=options)
 
 
@@ -124,8 +131,8 @@ def run_raw_gnss(cfg, folder):
     raw = cfg.gnss_raw
     opts = raw.options
     out = os.path.join(folder, GNSS_POS)
-    sol = solve(raw.rover, raw.nav or None, out, base=raw.base, sp3=raw.sp3, clk=raw.clk,
-                options=opts)
+    kw = dict(base=raw.base, sp3=raw.sp3, clk=raw.clk, atx=raw.atx, dcb=raw.dcb)
+    sol = solve(raw.rover, raw.nav or None, out, options=opts, **kw)
     screen = sol.log.screen
     poor = poor_reason(sol)
     if poor:
@@ -133,13 +140,13 @@ def run_raw_gnss(cfg, folder):
     sep = None
     if opts.mode == "kinematic":
         from ins.gnss.separation import forward_backward, plot_separation, write_separation
-        sep = forward_backward(raw.rover, raw.nav or None, folder, base=raw.base,
-                               sp3=raw.sp3, clk=raw.clk, options=opts)
+        sep = forward_backward(raw.rover, raw.nav or None, folder, options=opts, **kw)
         write_separation(sep, os.path.join(folder, SEPARATION_TXT))
         if cfg.gnss_raw_plot:
             plot_separation(sep, os.path.join(folder, SEPARATION_PNG))
     source = {"path": out, "mode": opts.mode,
-              "direction": opts.direction if opts.mode in CARRIER_MODES else None,
+              "direction": opts.direction if opts.mode in CARRIER_MODES or opts.is_ppp
+              else None,
               "ephemeris": sol.ephemeris, "counts": sol.counts(),
               "rover_epochs": sol.rover_epochs,
               "repaired": 0 if not screen else int(screen.repaired_lines.size),
