@@ -169,3 +169,26 @@ def test_the_simulated_slips_are_found_and_refixed(flight, runs):
     assert len(at.get(100, set())) >= 5
     fixed = np.array(up.fixed_at) - t0
     assert np.any((fixed > 100.0) & (fixed <= 110.0))
+
+
+def test_a_slip_without_its_flag_is_found_by_the_ins(flight, monkeypatch):
+    """The loss-of-lock flags removed from both receivers: the 5-cycle slip of G08 at
+    60 s is found by the w-test against the INS's prediction alone, and the solution
+    stays at the centimetre."""
+    import tomllib
+
+    from ins.estimation.pipeline import tight
+    read = tight._read
+
+    def no_flags(raw_in, positions):
+        raw = read(raw_in, positions)
+        raw.lli = None
+        raw.base.lli = None
+        return raw
+    monkeypatch.setattr(tight, "_read", no_flags)
+    res = _run(flight, True)
+    t0 = tomllib.loads((flight / "manifest.toml").read_text())["flight"]["start_time_s"]
+    slips = {(round(t - t0), s) for t, s in res.fwd.updater.slips}
+    assert (60, "G08") in slips
+    _, h, _ = _horizontal(flight, res.smoothed)
+    assert float(np.sqrt(np.mean(h ** 2))) < 0.03
