@@ -26,10 +26,12 @@ import numpy as np
 
 from ins.common.errors import InputError
 
-__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ"]
+__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ", "GPS_L2_HZ"]
 
 #: GPS L1 carrier frequency, Hz.
 GPS_L1_HZ = 1575.42e6
+#: GPS L2 carrier frequency, Hz.
+GPS_L2_HZ = 1227.60e6
 
 
 @dataclass
@@ -60,6 +62,11 @@ class RawEpochs:
         epoch).
     wavelength_m : float
         The carrier's wavelength, m.
+    phase2_m, lli2 : list of ndarray (k_i,), optional
+        The same for the second frequency (GPS L2; its ionospheric advance scaled by
+        ``(f1 / f2)^2``), when observed.
+    wavelength2_m : float
+        Its wavelength, m.
     """
 
     time: np.ndarray
@@ -73,6 +80,9 @@ class RawEpochs:
     phase_m: list = None
     lli: list = None
     wavelength_m: float = 299792458.0 / 1575.42e6
+    phase2_m: list = None
+    lli2: list = None
+    wavelength2_m: float = 299792458.0 / 1227.60e6
 
     def __post_init__(self):
         self.time = np.asarray(self.time, dtype=float)
@@ -93,7 +103,8 @@ class RawEpochs:
         True (a boolean array over the epoch's satellites): masking for tests."""
         out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
                                "range_rate_mps", "names")}
-        opt = {k: [] for k in ("snr_dbhz", "phase_m", "lli") if getattr(self, k) is not None}
+        opt = {k: [] for k in ("snr_dbhz", "phase_m", "lli", "phase2_m", "lli2")
+               if getattr(self, k) is not None}
         for i in range(len(self.time)):
             m = np.asarray(keep(i, self.sats[i]), dtype=bool)
             for k in out:
@@ -102,7 +113,8 @@ class RawEpochs:
                               [n for n, f in zip(v, m) if f])
             for k in opt:
                 opt[k].append(np.asarray(getattr(self, k)[i])[m])
-        return RawEpochs(self.time, wavelength_m=self.wavelength_m, **opt, **out)
+        return RawEpochs(self.time, wavelength_m=self.wavelength_m,
+                         wavelength2_m=self.wavelength2_m, **opt, **out)
 
 
 def _arr(rtk, values):
@@ -166,7 +178,8 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
     lam = rtk.CLIGHT / GPS_L1_HZ
     fixed = None if callable(receiver_ecef) else np.asarray(receiver_ecef, float)
     out = {k: [] for k in ("time", "sats", "sat_pos_e", "sat_vel_e", "range_m",
-                           "range_rate_mps", "snr_dbhz", "names", "phase_m", "lli")}
+                           "range_rate_mps", "snr_dbhz", "names", "phase_m", "lli",
+                           "phase2_m", "lli2")}
     week = rtk.Arr1Dint(1)
     rs, dts, var, svh = (rtk.Arr1Ddouble(6), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(1),
                          rtk.Arr1Dint(1))
@@ -211,17 +224,23 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
             ep["phase_m"].append(lam * d.L[0] + rtk.CLIGHT * dts[0] + iono - trop
                                  if d.L[0] != 0.0 else np.nan)
             ep["lli"].append(int(d.LLI[0]))
+            lam2, gamma = rtk.CLIGHT / GPS_L2_HZ, (GPS_L1_HZ / GPS_L2_HZ) ** 2
+            ep["phase2_m"].append(lam2 * d.L[1] + rtk.CLIGHT * dts[0] + gamma * iono - trop
+                                  if d.L[1] != 0.0 else np.nan)
+            ep["lli2"].append(int(d.LLI[1]))
         i = j
         if not ep["sats"]:
             continue
         out["time"].append(t_s)
         for k, v in ep.items():
             out[k].append(v if k == "names" else np.array(
-                v, dtype=int if k in ("sats", "lli") else float).reshape((len(v), 3) if k in (
+                v, dtype=int if k in ("sats", "lli", "lli2") else float).reshape((len(v), 3) if k in (
                     "sat_pos_e", "sat_vel_e") else (len(v),)))
     if not out["time"]:
         raise InputError("no epoch with a GPS satellite that has a broadcast ephemeris")
     out["time"] = np.array(out["time"])
+    if not any(np.any(np.isfinite(p)) for p in out["phase2_m"]):
+        out["phase2_m"] = out["lli2"] = None        # no second frequency in the file
     return out
 
 

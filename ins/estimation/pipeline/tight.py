@@ -112,7 +112,8 @@ def tight_inputs(cfg, gnss, settings):
 def _ambiguity_slots(raw):
     """Ambiguity slots for carrier phase against the base: the most satellites with
     carrier at both receivers in one epoch, plus 4 for those rising while others are
-    kept through a short gap; 0 when either receiver has no carrier."""
+    kept through a short gap, times the frequencies both have (L1, L2); 0 when either
+    receiver has no carrier."""
     b = raw.base
     if raw.phase_m is None or getattr(b, "phase_m", None) is None:
         return 0
@@ -121,7 +122,10 @@ def _ambiguity_slots(raw):
         rs = {int(s) for s, p in zip(raw.sats[k], raw.phase_m[k]) if np.isfinite(p)}
         bs = {int(s) for s, p in zip(b.sats[k], b.phase_m[k]) if np.isfinite(p)}
         most = max(most, len(rs & bs))
-    return most + 4 if most >= 2 else 0
+    if most < 2:
+        return 0
+    two = raw.phase2_m is not None and getattr(b, "phase2_m", None) is not None
+    return (most + 4) * (2 if two else 1)
 
 
 def _read(raw_in, positions):
