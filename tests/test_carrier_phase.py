@@ -165,7 +165,7 @@ def test_the_simulated_slips_are_found_and_refixed(flight, runs):
     at = {}
     for t, s in up.slips:
         at.setdefault(round(t - t0), set()).add(s)
-    assert "G08" in at.get(60, set())
+    assert "G08 L1" in at.get(60, set())
     assert len(at.get(100, set())) >= 5
     fixed = np.array(up.fixed_at) - t0
     assert np.any((fixed > 100.0) & (fixed <= 110.0))
@@ -189,6 +189,6 @@ def test_a_slip_without_its_flag_is_found_by_the_ins(flight, monkeypatch):
     res = _run(flight, True)
     t0 = tomllib.loads((flight / "manifest.toml").read_text())["flight"]["start_time_s"]
     slips = {(round(t - t0), s) for t, s in res.fwd.updater.slips}
-    assert (60, "G08") in slips
+    assert (60, "G08 L1") in slips
     _, h, _ = _horizontal(flight, res.smoothed)
     assert float(np.sqrt(np.mean(h ** 2))) < 0.03
