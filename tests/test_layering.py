@@ -46,7 +46,7 @@ GRAPH = {
     # on raw observations and reads them through ins.gnss.raw_epochs)
     "ins.estimation.core": {"ins.common", "ins.nav"},
     "ins.estimation.alignment": {"ins.common", "ins.nav", "ins.estimation.core"},
-    "ins.estimation.coupling": {"ins.nav", "ins.estimation.core"},
+    "ins.estimation.coupling": {"ins.common", "ins.nav", "ins.estimation.core"},
     "ins.estimation.tools": {"ins.common", "ins.nav", "ins.estimation.core"},
     "ins.estimation.pipeline": {"ins.common", "ins.nav", "ins.io", "ins.gnss",
                                 "ins.estimation.core", "ins.estimation.alignment",

@@ -14,7 +14,10 @@ wrong by 1 km moves the delays by millimetres horizontally; by about 0.3 m per k
 height error at zenith (troposphere).
 
 GPS only (one receiver clock bias in the filter); the first frequency's pseudorange and
-Doppler (RINEX 2 ``C1``/``P1`` and ``D1``, RINEX 3 the first L1 code RTKLIB keeps).
+Doppler (RINEX 2 ``C1``/``P1`` and ``D1``, RINEX 3 the first L1 code RTKLIB keeps), and
+the L1 carrier phase corrected like the code but for the ionosphere's sign
+(``lambda L + c dt_s + I - T``, m: the carrier is advanced by what delays the code) with
+its loss-of-lock indicator (RINEX LLI, bit 0 a possible cycle slip).
 Times are GPS seconds of the week (the IMU's convention).
 """
 from dataclasses import dataclass
@@ -23,10 +26,12 @@ import numpy as np
 
 from ins.common.errors import InputError
 
-__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ"]
+__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ", "GPS_L2_HZ"]
 
 #: GPS L1 carrier frequency, Hz.
 GPS_L1_HZ = 1575.42e6
+#: GPS L2 carrier frequency, Hz.
+GPS_L2_HZ = 1227.60e6
 
 
 @dataclass
@@ -49,6 +54,19 @@ class RawEpochs:
         Carrier-to-noise density, dB-Hz.
     names : list of list of str, optional
         Satellite names (``G05``) for the innovation file.
+    phase_m : list of ndarray (k_i,), optional
+        Corrected L1 carrier phase, m (``nan``: none; its ambiguity ``lambda N`` and the
+        receiver's phase offset left in).
+    lli : list of ndarray (k_i,) of int, optional
+        Loss-of-lock indicators (bit 0: a cycle slip may have happened since the last
+        epoch).
+    wavelength_m : float
+        The carrier's wavelength, m.
+    phase2_m, lli2 : list of ndarray (k_i,), optional
+        The same for the second frequency (GPS L2; its ionospheric advance scaled by
+        ``(f1 / f2)^2``), when observed.
+    wavelength2_m : float
+        Its wavelength, m.
     """
 
     time: np.ndarray
@@ -59,6 +77,12 @@ class RawEpochs:
     range_rate_mps: list
     snr_dbhz: list = None
     names: list = None
+    phase_m: list = None
+    lli: list = None
+    wavelength_m: float = 299792458.0 / 1575.42e6
+    phase2_m: list = None
+    lli2: list = None
+    wavelength2_m: float = 299792458.0 / 1227.60e6
 
     def __post_init__(self):
         self.time = np.asarray(self.time, dtype=float)
@@ -79,16 +103,18 @@ class RawEpochs:
         True (a boolean array over the epoch's satellites): masking for tests."""
         out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
                                "range_rate_mps", "names")}
-        snr = [] if self.snr_dbhz is not None else None
+        opt = {k: [] for k in ("snr_dbhz", "phase_m", "lli", "phase2_m", "lli2")
+               if getattr(self, k) is not None}
         for i in range(len(self.time)):
             m = np.asarray(keep(i, self.sats[i]), dtype=bool)
             for k in out:
                 v = getattr(self, k)[i]
                 out[k].append(np.asarray(v)[m] if k != "names" else
                               [n for n, f in zip(v, m) if f])
-            if snr is not None:
-                snr.append(self.snr_dbhz[i][m])
-        return RawEpochs(self.time, snr_dbhz=snr, **out)
+            for k in opt:
+                opt[k].append(np.asarray(getattr(self, k)[i])[m])
+        return RawEpochs(self.time, wavelength_m=self.wavelength_m,
+                         wavelength2_m=self.wavelength2_m, **opt, **out)
 
 
 def _arr(rtk, values):
@@ -152,7 +178,8 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
     lam = rtk.CLIGHT / GPS_L1_HZ
     fixed = None if callable(receiver_ecef) else np.asarray(receiver_ecef, float)
     out = {k: [] for k in ("time", "sats", "sat_pos_e", "sat_vel_e", "range_m",
-                           "range_rate_mps", "snr_dbhz", "names")}
+                           "range_rate_mps", "snr_dbhz", "names", "phase_m", "lli",
+                           "phase2_m", "lli2")}
     week = rtk.Arr1Dint(1)
     rs, dts, var, svh = (rtk.Arr1Ddouble(6), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(1),
                          rtk.Arr1Dint(1))
@@ -194,17 +221,26 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
             ep["range_rate_mps"].append(rate)
             ep["snr_dbhz"].append(d.SNR[0] * 0.001 if d.SNR[0] > 1000 else float(d.SNR[0]))
             ep["names"].append(_name(name))
+            ep["phase_m"].append(lam * d.L[0] + rtk.CLIGHT * dts[0] + iono - trop
+                                 if d.L[0] != 0.0 else np.nan)
+            ep["lli"].append(int(d.LLI[0]))
+            lam2, gamma = rtk.CLIGHT / GPS_L2_HZ, (GPS_L1_HZ / GPS_L2_HZ) ** 2
+            ep["phase2_m"].append(lam2 * d.L[1] + rtk.CLIGHT * dts[0] + gamma * iono - trop
+                                  if d.L[1] != 0.0 else np.nan)
+            ep["lli2"].append(int(d.LLI[1]))
         i = j
         if not ep["sats"]:
             continue
         out["time"].append(t_s)
         for k, v in ep.items():
             out[k].append(v if k == "names" else np.array(
-                v, dtype=int if k == "sats" else float).reshape((len(v), 3) if k in (
+                v, dtype=int if k in ("sats", "lli", "lli2") else float).reshape((len(v), 3) if k in (
                     "sat_pos_e", "sat_vel_e") else (len(v),)))
     if not out["time"]:
         raise InputError("no epoch with a GPS satellite that has a broadcast ephemeris")
     out["time"] = np.array(out["time"])
+    if not any(np.any(np.isfinite(p)) for p in out["phase2_m"]):
+        out["phase2_m"] = out["lli2"] = None        # no second frequency in the file
     return out
 
 

@@ -120,8 +120,9 @@ class BaseEpochs:
         Base antenna, ECEF m.
     time : ndarray (m,)
         Base epoch time paired with each rover epoch, s (nan: none).
-    sats, sat_pos_e, sat_vel_e, range_m, range_rate_mps, snr_dbhz
-        As in :class:`RawEpochs`, the base's.
+    sats, sat_pos_e, sat_vel_e, range_m, range_rate_mps, snr_dbhz, phase_m, lli
+        As in :class:`RawEpochs`, the base's (``phase_m``, ``lli``: ``None`` when the
+        base has no carrier phase).
     name : str
         The base, for the summary (its file's name).
     """
@@ -135,6 +136,10 @@ class BaseEpochs:
     range_rate_mps: list
     snr_dbhz: list
     name: str = "base"
+    phase_m: list = None
+    lli: list = None
+    phase2_m: list = None
+    lli2: list = None
 
 
 class PairedEpochs(RawEpochs):
@@ -143,7 +148,9 @@ class PairedEpochs(RawEpochs):
 
     def __init__(self, rover, base):
         super().__init__(rover.time, rover.sats, rover.sat_pos_e, rover.sat_vel_e,
-                         rover.range_m, rover.range_rate_mps, rover.snr_dbhz, rover.names)
+                         rover.range_m, rover.range_rate_mps, rover.snr_dbhz, rover.names,
+                         rover.phase_m, rover.lli, rover.wavelength_m, rover.phase2_m,
+                         rover.lli2, rover.wavelength2_m)
         self.base = base
 
     def select(self, keep):
@@ -174,7 +181,7 @@ def pair_epochs(rover, base, base_r_e, tolerance_s=DEFAULT_TOLERANCE_S, name="ba
     ok = np.abs(tb[j] - rover.time) <= tolerance_s
     empty3 = np.zeros((0, 3))
     out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m", "range_rate_mps",
-                           "snr_dbhz")}
+                           "snr_dbhz", "phase_m", "lli", "phase2_m", "lli2")}
     for i, (jj, good) in enumerate(zip(j, ok)):
         for k in out:
             if good:
@@ -182,7 +189,7 @@ def pair_epochs(rover, base, base_r_e, tolerance_s=DEFAULT_TOLERANCE_S, name="ba
                 out[k].append(v[jj] if v is not None else np.full(len(base.sats[jj]), np.nan))
             else:
                 out[k].append(empty3 if k in ("sat_pos_e", "sat_vel_e") else
-                              np.zeros(0, dtype=int if k == "sats" else float))
+                              np.zeros(0, dtype=int if k in ("sats", "lli", "lli2") else float))
     return PairedEpochs(rover, BaseEpochs(np.asarray(base_r_e, float),
                                           np.where(ok, tb[j], np.nan), name=name, **out))
 

@@ -144,9 +144,16 @@ class StateLayout:
         the estimate vector of a run has ``n - 9`` elements in this order.
     gyro_misalignment, accel_misalignment, lever_arm, time_offset : slice or None
         The optional groups (``None`` when absent).
+    ambiguity : slice or None
+        After the groups: ``n_ambiguities`` carrier-phase ambiguity slots (cycles, single
+        differences rover minus base; :mod:`ins.estimation.coupling.carrier_phase`),
+        random constants re-initialized by their updater when a satellite rises or
+        slips; ``None`` without.
+    groups_stop : int
+        End of the optional groups (the start of the ambiguity slots).
     """
 
-    def __init__(self, groups=()):
+    def __init__(self, groups=(), n_ambiguities=0):
         unknown = [g for g in groups if g not in OPTIONAL_GROUPS]
         if unknown:
             raise ValueError(f"unknown state group(s) {unknown} (known: "
@@ -163,6 +170,13 @@ class StateLayout:
                 k += OPTIONAL_GROUPS[g]
             else:
                 setattr(self, g, None)
+        self.groups_stop = k
+        self.n_ambiguities = int(n_ambiguities)
+        if self.n_ambiguities < 0:
+            raise ValueError(f"n_ambiguities must be >= 0, got {n_ambiguities}")
+        self.ambiguity = slice(k, k + self.n_ambiguities) if self.n_ambiguities else None
+        names += [f"ambiguity_{i}" for i in range(self.n_ambiguities)]
+        k += self.n_ambiguities
         self.n = k
         self.sensors = slice(9, k)
         self.names = tuple(names)
@@ -177,13 +191,15 @@ class StateLayout:
         return sensors[..., sl.start - 9:sl.stop - 9]
 
     def __eq__(self, other):
-        return isinstance(other, StateLayout) and other.groups == self.groups
+        return (isinstance(other, StateLayout) and other.groups == self.groups
+                and other.n_ambiguities == self.n_ambiguities)
 
     def __hash__(self):
-        return hash(self.groups)
+        return hash((self.groups, self.n_ambiguities))
 
     def __repr__(self):
-        return f"StateLayout({list(self.groups)!r}, n={self.n})"
+        amb = f", n_ambiguities={self.n_ambiguities}" if self.n_ambiguities else ""
+        return f"StateLayout({list(self.groups)!r}{amb}, n={self.n})"
 
 
 #: The KF-GINS layout (21 states) and the named layouts of ``[states] layout``: ``survey``

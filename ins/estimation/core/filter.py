@@ -375,7 +375,8 @@ class _ForwardRun:
             self.P, _ = self.updater.update(self.gj, t[k0], state, self.sensors, self.P,
                                             np.zeros(3))
             self.gj += 1
-        self.nodes.append(P0, self.P, np.eye(self.layout.n), t[k0])
+        P0, Phi0 = _reinitialized(self.updater, P0, np.eye(self.layout.n))
+        self.nodes.append(P0, self.P, Phi0, t[k0])
         self.dxs.append(np.zeros(self.layout.n))
         self.traj.append(t[k0:k0 + 1], state[None, :])
         self.row_base, self.n_rows = -k0, 1
@@ -471,6 +472,7 @@ class _ForwardRun:
             P, d = up.others(t[r], self.state, self.sensors, P, w_meas_b, rest, heads)
             dx += d
         P = 0.5 * (P + P.T)
+        P_prior, Phi = _reinitialized(up, P_prior, Phi)
         self.nodes.append(P_prior, P, Phi, t[r])
         self.dxs.append(dx)
         return P
@@ -522,6 +524,17 @@ class _ForwardRun:
         out.layout = self.layout
         out.updater = up
         return out
+
+
+def _reinitialized(updater, P_prior, Phi):
+    """The node's prior covariance and transition with the re-initialization that its
+    updater made (:meth:`ins.estimation.core.updates.Updater.reinitialize`)."""
+    tr = updater.take_transform()
+    if tr is None:
+        return P_prior, Phi
+    T, q = tr
+    P = T @ P_prior @ T.T + q
+    return 0.5 * (P + P.T), T @ Phi
 
 
 def std_of(P, time=None):

@@ -166,7 +166,10 @@ class FilterSettings:
         std = np.concatenate([np.broadcast_to(np.asarray(self.pos_std_ned_m, float), 3),
                               np.broadcast_to(np.asarray(self.vel_std_ned_mps, float), 3),
                               np.broadcast_to(np.asarray(self.att_std_deg, float), 3) * DEG,
-                              self.noise.sensor_std, self.prior_std()])
+                              self.noise.sensor_std, self.prior_std(),
+                              # unused ambiguity slots: 1 cycle, uncorrelated (the
+                              # updater sets a slot when a satellite takes it)
+                              np.ones(self.layout.n_ambiguities)])
         if np.any(~np.isfinite(std)) or np.any(std <= 0):
             raise InputError(f"initial standard deviations must be > 0, got "
                              f"{dict(zip(self.layout.names, std))}")

@@ -92,10 +92,34 @@ class Updater:
             from ins.estimation.core.gnss_consistency import track_consistency
             self.track = track_consistency(gnss)
         self.last_k = -1              # the last position record processed
+        self.transform = None         # (T, q) of states re-initialized at this node
         # robust negative log-likelihood of the GNSS innovations (positions, velocities)
         # and their count: what ins.estimation.tools.noise_identification minimizes
         self.nll = {"gnss_position": 0.0, "gnss_velocity": 0.0}
         self.n_nll = {"gnss_position": 0, "gnss_velocity": 0}
+
+    def reinitialize(self, P, T, q):
+        """Re-initialize states at the current node: the error state becomes ``T dx + w``
+        (``T`` (n, n), ``w`` white with variances ``q`` (n,)), e.g. an ambiguity slot
+        taken by a new satellite or reset after a cycle slip (its row of ``T`` ties it to
+        the other states, or is zero).  Returns ``T P T^T + diag(q)``; the forward filter
+        applies the same to the node's prior covariance and transition
+        (:meth:`take_transform`), so that the smoother sees the re-initialization as part
+        of the step to this node."""
+        Q = np.diag(np.asarray(q, float))
+        Pn = T @ P @ T.T + Q
+        if self.transform is not None:    # a second one at the same node: composed
+            T0, Q0 = self.transform
+            self.transform = (T @ T0, T @ Q0 @ T.T + Q)
+        else:
+            self.transform = (T, Q)
+        return 0.5 * (Pn + Pn.T)
+
+    def take_transform(self):
+        """The re-initialization ``(T, Q)`` of this node (``Q`` (n, n)), or ``None``;
+        cleared."""
+        out, self.transform = self.transform, None
+        return out
 
     def _threshold(self, m):
         if m not in self.thresholds:

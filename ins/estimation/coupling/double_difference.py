@@ -229,6 +229,7 @@ class DoubleDifferenceUpdater(Updater):
         self.epochs, self.reference = [], []
         self.ref_changes = 0
         self._ref = None
+        self.used = {}                 # kind name -> satellites in its last accepted DDs
         import pymap3d
         self._base_lla = np.array(pymap3d.ecef2geodetic(*gnss.base.r_e, deg=False))
 
@@ -251,10 +252,24 @@ class DoubleDifferenceUpdater(Updater):
     def update(self, e, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
         """Process epoch ``ev_record[e]`` at the node of time ``t_row``; returns
         ``(P, dx)`` like :meth:`Updater.update`."""
+        c = self._epoch(e, t_row, state, sensors, w_meas_b, f_meas_b)
+        if c is None:
+            return P, np.zeros(self.layout.n)
+        H, z, R = self._screened(c, c.kinds, P)
+        if not z:
+            return P, np.zeros(self.layout.n)
+        from scipy.linalg import block_diag
+        return apply_rows(self, c.point, P, np.vstack(H), block_diag(*R), np.concatenate(z),
+                          c.k)
+
+    def _epoch(self, e, t_row, state, sensors, w_meas_b, f_meas_b):
+        """The epoch's common satellites, predictions and code/Doppler kinds (a
+        namespace), or ``None`` when fewer than two common satellites are above the
+        masks."""
+        from types import SimpleNamespace
         g, L, b = self.gnss, self.layout, self.gnss.base
         k = self.ev_record[e]
         tg = g.time[k]
-        dx = np.zeros(L.n)
         a_n = None if f_meas_b is None else node_acceleration(state, f_meas_b)
         l_b, dl_b, valid = self.s.lever.at(tg)
         if not valid[0]:
@@ -272,7 +287,7 @@ class DoubleDifferenceUpdater(Updater):
         self.epochs.append(ep)
         self.reference.append("")
         if len(ir) < 2:
-            return P, dx
+            return None
         ir, ib = np.array(ir), np.array(ib)
         names = [g.names[k][i] for i in ir]
         r_s, v_s = np.asarray(g.sat_pos_e[k], float)[ir], np.asarray(g.sat_vel_e[k], float)[ir]
@@ -299,15 +314,23 @@ class DoubleDifferenceUpdater(Updater):
                                 + has_b * self._var(el_b, self.opt.range_rate_sigma_mps)),
                           up & np.isfinite(y_d)))
         if np.count_nonzero(up) < 2:
-            return P, dx
+            return None
         ref0 = self._choose_ref(names, np.where(up, el, -np.inf))
+        return SimpleNamespace(k=k, tg=tg, point=point, ep=ep, names=names, ir=ir, ib=ib,
+                               sd_r=sd_r, H_r=H_r, el=el, el_b=el_b, up=up, kinds=kinds,
+                               ref0=ref0)
+
+    def _screened(self, c, kinds, P):
+        """Screen each kind's double differences (:func:`screen`) and record them;
+        returns the accepted ``(H blocks, z blocks, R blocks)``."""
         H_all, z_all, R_blocks = [], [], []
         thr = self._threshold(1)
+        names, tg, ep = c.names, c.tg, c.ep
         for n_kind, (kind, ok) in enumerate(kinds):
             sub = np.flatnonzero(ok)
-            pref = int(np.searchsorted(sub, ref0)) if ref0 in sub else -1
+            pref = int(np.searchsorted(sub, c.ref0)) if c.ref0 in sub else -1
             kept, ref, rejected = screen(kind.z[sub], kind.H[sub], kind.var[sub], P, pref,
-                                         thr, el[sub])
+                                         thr, c.el[sub])
             for i, w in rejected:
                 self.records.append(UpdateRecord(kind.name, (names[sub[i]],), kind.unit, tg,
                                                  np.array([np.nan]), np.array([np.nan]), w,
@@ -332,11 +355,8 @@ class DoubleDifferenceUpdater(Updater):
             if n_kind == 0:
                 ep.used = len(idx)
                 self.reference[-1] = names[ref]
-        if not z_all:
-            return P, dx
-        from scipy.linalg import block_diag
-        return apply_rows(self, point, P, np.vstack(H_all), block_diag(*R_blocks),
-                          np.concatenate(z_all), k)
+            self.used[kind.name] = [names[i] for i in idx]
+        return H_all, z_all, R_blocks
 
     def satellites_used(self):
         """``(min, mean, max)`` satellites in the pseudorange DDs per epoch (reference

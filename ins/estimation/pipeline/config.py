@@ -87,7 +87,8 @@ _SECTIONS = {
     "gnss": {"lever_arm_b_m", "use_velocity", "reject_probability", "format",
              "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
              "coupling", "elevation_mask_deg", "range_sigma_m", "range_rate_sigma_mps",
-             "receiver_clock", "geoid"},
+             "receiver_clock", "geoid", "carrier_phase", "carrier_sigma_m",
+             "ambiguity_ratio", "ambiguity_success_rate"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover", "identify"},
@@ -155,6 +156,10 @@ class ProcessConfig:
     range_sigma_m: tuple = (0.3, 0.3)          # tight: (a, b) of sqrt(a^2 + b^2 / sin^2 el)
     range_rate_sigma_mps: tuple = (0.05, 0.05)
     receiver_clock: str = "tcxo"               # tight: the clock states' noise
+    carrier_phase: bool = True                 # tight with a base: RTK (carrier DDs)
+    carrier_sigma_m: tuple = (0.003, 0.003)
+    ambiguity_ratio: float = 3.0
+    ambiguity_success_rate: float = 0.99
     layout: StateLayout = field(default_factory=lambda: StateLayout(LAYOUTS[DEFAULT_LAYOUT]))
     priors: dict = field(default_factory=dict)
     measurements: dict = field(default_factory=dict)
@@ -420,8 +425,21 @@ def _coupling(cfg, gnss, where):
         cfg.elevation_mask_deg = _number(gnss["elevation_mask_deg"],
                                          where("gnss", "elevation_mask_deg"), lo=0.0, hi=90.0,
                                          unit="deg")
+    if "carrier_phase" in gnss:
+        if not isinstance(gnss["carrier_phase"], bool):
+            raise InputError(f"{where('gnss', 'carrier_phase')}: expected true or false, got "
+                             f"{gnss['carrier_phase']!r}")
+        cfg.carrier_phase = gnss["carrier_phase"]
+    if "ambiguity_ratio" in gnss:
+        cfg.ambiguity_ratio = _number(gnss["ambiguity_ratio"], where("gnss", "ambiguity_ratio"),
+                                      lo=1.0, hi=1000.0, unit="(ratio of squared norms)")
+    if "ambiguity_success_rate" in gnss:
+        cfg.ambiguity_success_rate = _number(gnss["ambiguity_success_rate"],
+                                             where("gnss", "ambiguity_success_rate"), lo=0.0,
+                                             hi=1.0, unit="(probability)")
     for key, unit, bound in (("range_sigma_m", "m", 1000.0),
-                             ("range_rate_sigma_mps", "m/s", 100.0)):
+                             ("range_rate_sigma_mps", "m/s", 100.0),
+                             ("carrier_sigma_m", "m", 1.0)):
         if key in gnss:
             v = _vector(gnss[key], where("gnss", key), n=2, bound=bound, unit=unit)
             if np.any(v < 0) or not np.any(v > 0):

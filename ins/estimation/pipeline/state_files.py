@@ -28,7 +28,7 @@ def _state_units(group):
 
 def optional_columns(layout):
     """Column names of ``states.txt`` for a layout (estimates, then sigmas)."""
-    names = [n for n in layout.names[21:]]
+    names = [n for n in layout.names[21:layout.groups_stop]]
     unit = {}
     for g in layout.groups:
         for k, (suffix, _) in enumerate(_state_units(g)):
@@ -55,8 +55,8 @@ def write_optional_states(path, result):
                   "time t + offset; clock: the estimated receiver clock bias c dt, m, "
                   "and drift, m/s)\n")
         for c in chunks:                     # block by block over the nodes
-            est = c.smoothed_sensors[:, 12:] / scale
-            std = c.smoothed_std[:, 21:] / scale
+            est = c.smoothed_sensors[:, 12:layout.groups_stop - 9] / scale
+            std = c.smoothed_std[:, 21:layout.groups_stop] / scale
             table = np.column_stack([c.time, est, std])
             try:                             # compiled, digit for digit as '%.6f'
                 f.write(format_table(table, 6).tobytes().decode("ascii"))

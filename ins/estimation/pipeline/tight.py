@@ -11,7 +11,11 @@ reference.  With a base station (``[files] base``) the updates are double differ
 against it (:class:`ins.estimation.coupling.double_difference.DoubleDifferenceUpdater`, the
 base's epochs paired by :func:`ins.gnss.raw_pairs.read_pair`, its position from its
 RINEX header or ``[rtklib] base_lla_deg``): the receiver clocks cancel and the layout
-has no clock states.  Carrier phase is not used.  A receiver log (any format RTKLIB
+has no clock states.  When both receivers have the L1 carrier (``[gnss] carrier_phase``,
+default true) the carrier double differences join them with float ambiguities as
+states, fixed by LAMBDA and held (:class:`ins.estimation.coupling.carrier_phase.
+CarrierPhaseUpdater`; ``carrier_sigma_m``, ``ambiguity_ratio``,
+``ambiguity_success_rate``).  A receiver log (any format RTKLIB
 decodes, :mod:`ins.gnss.receiver_formats`) is converted on the way, the base's too.
 ``[gnss] range_sigma_m``, ``range_rate_sigma_mps`` and ``receiver_clock`` set the
 weights and the clock model (:class:`ins.estimation.coupling.pseudorange.TightOptions`,
@@ -88,6 +92,17 @@ def tight_inputs(cfg, gnss, settings):
                            range_rate_sigma_mps=tuple(cfg.range_rate_sigma_mps))
     if raw_in.base:
         from ins.estimation.coupling.double_difference import DoubleDifferenceUpdater
+        slots = _ambiguity_slots(raw) if getattr(cfg, "carrier_phase", True) else 0
+        if slots:
+            from ins.estimation.coupling.carrier_phase import (
+                CarrierOptions,
+                CarrierPhaseUpdater,
+            )
+            carrier = CarrierOptions(cfg.carrier_sigma_m, cfg.ambiguity_ratio,
+                                     cfg.ambiguity_success_rate)
+            layout = StateLayout(tuple(settings.layout.groups), n_ambiguities=slots)
+            return raw, replace(settings, layout=layout, updater=functools.partial(
+                CarrierPhaseUpdater, options=options, carrier=carrier))
         return raw, replace(settings, updater=functools.partial(DoubleDifferenceUpdater,
                                                                 options=options))
     layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
@@ -99,6 +114,25 @@ def _rover_format(raw_in, detect):
     """The rover's format: ``[rtklib] rover_format`` or detected."""
     fmt = getattr(raw_in.options, "rover_format", None)
     return detect(raw_in.rover) if fmt is None else fmt
+
+
+def _ambiguity_slots(raw):
+    """Ambiguity slots for carrier phase against the base: the most satellites with
+    carrier at both receivers in one epoch, plus 4 for those rising while others are
+    kept through a short gap, times the frequencies both have (L1, L2); 0 when either
+    receiver has no carrier."""
+    b = raw.base
+    if raw.phase_m is None or getattr(b, "phase_m", None) is None:
+        return 0
+    most = 0
+    for k in range(len(raw.time)):
+        rs = {int(s) for s, p in zip(raw.sats[k], raw.phase_m[k]) if np.isfinite(p)}
+        bs = {int(s) for s, p in zip(b.sats[k], b.phase_m[k]) if np.isfinite(p)}
+        most = max(most, len(rs & bs))
+    if most < 2:
+        return 0
+    two = raw.phase2_m is not None and getattr(b, "phase2_m", None) is not None
+    return (most + 4) * (2 if two else 1)
 
 
 def _read(raw_in, positions):
@@ -143,4 +177,10 @@ def tight_counts(fwd):
            "clock_jumps": list(getattr(up, "clock_jumps", []))}
     if hasattr(up, "base_name"):
         out.update(base=up.base_name, reference_changes=up.ref_changes)
+    if hasattr(up, "fix_rate"):
+        rate = up.fix_rate()
+        out.update(carrier_epochs=up.carrier_epochs, fixed_epochs=up.fixed_epochs,
+                   fix_rate=None if not np.isfinite(rate) else round(float(rate), 4),
+                   cycle_slips=len(up.slips),
+                   refix_s=[round(float(v), 1) for v in up.refix_s])
     return out
