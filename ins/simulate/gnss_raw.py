@@ -107,7 +107,7 @@ class RawSettings:
         :mod:`ins.simulate.kepler_orbit`, :mod:`ins.simulate.glonass_orbit`).
     signals : tuple of str
         Signals of :data:`ins.simulate.gnss_signals.SIGNALS` (``L1 L2 L5 E1 E5a G1 G2 B1I
-        B3I``); empty: the first of each system.
+        B2a B3I``); empty: the first of each system.
     beidou_geo : bool
         Include BeiDou's five GEO satellites.
     """

@@ -30,7 +30,8 @@ defaults of :class:`ins.simulate.gnss_raw.RawSettings`)::
     masks = [[200.0, 30.0, 3]]    # [start_s after the start, duration_s, satellites kept]
     base_lla_deg = [35.17, 139.60, 60.0]   # optional static base station -> base.obs
     systems = ["G", "R", "E", "C"]   # GPS (nav_file), GLONASS, Galileo, BeiDou (generated)
-    signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B3I"]  # default: firsts
+    signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a", "B3I"]
+                                  # default: the first of each system
     beidou_geo = true             # BeiDou's 5 GEO satellites (PRN 1-5)
 
 With ``systems`` other than ``["G"]`` or ``signals`` beyond ``L1``, the observations are
@@ -104,7 +105,8 @@ def parse_gnss_raw(sec, source):
         raise sec.error("base_lla_deg", f"expected [lat deg, lon deg, h m], got {list(base)}",
                         "[lat deg, lon deg, h m]")
     systems = _strings(sec, "systems", ["G"], "a list of systems of G R E C")
-    signals = _strings(sec, "signals", [], "a list of signals of L1 L2 L5 G1 G2 E1 E5a B1I B3I")
+    signals = _strings(sec, "signals", [],
+                       "a list of signals of L1 L2 L5 G1 G2 E1 E5a B1I B2a B3I")
     try:
         signal_table(systems, signals)
     except InputError as exc:

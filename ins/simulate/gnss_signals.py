@@ -11,7 +11,8 @@ them; the default is each system's first)::
     R  G1  1602 + 0.5625 k MHz  C1C L1C D1C S1C   (FDMA: channel k of the satellite)
        G2  1246 + 0.4375 k MHz  C2C L2C D2C S2C
     C  B1I 1561.098 MHz C2I L2I D2I S2I    (RINEX 3.04 calls B1 band 2)
-       B3I 1268.52 MHz  C6I L6I D6I S6I
+       B2a 1176.45 MHz  C5P L5P D5P S5P    (BDS-3 pilot; given to every satellite here)
+       B3I 1268.52 MHz  C6I L6I D6I S6I    (RTKLIB-EX 2.5.0 with NFREQ = 3 skips band 6)
 
 Satellite clock of a signal (s, satellite minus system time): the broadcast clock for
 every signal except GPS, whose ``tgd`` is the L1-L2 P(Y) group delay
@@ -38,7 +39,7 @@ SIGNALS = {
     "G": (("L1", 1575.42e6, "1C"), ("L2", 1227.60e6, "2W"), ("L5", 1176.45e6, "5Q")),
     "E": (("E1", 1575.42e6, "1C"), ("E5a", 1176.45e6, "5Q")),
     "R": (("G1", None, "1C"), ("G2", None, "2C")),
-    "C": (("B1I", 1561.098e6, "2I"), ("B3I", 1268.52e6, "6I")),
+    "C": (("B1I", 1561.098e6, "2I"), ("B2a", 1176.45e6, "5P"), ("B3I", 1268.52e6, "6I")),
 }
 #: The systems in RINEX order of this simulator.
 SYSTEMS = ("G", "R", "E", "C")
@@ -53,7 +54,7 @@ def signal_table(systems, signals=()):
     systems : sequence of str
         Of ``G R E C``.
     signals : sequence of str
-        Signal names (``L1 L2 L5 E1 E5a G1 G2 B1I B3I``); empty: each system's first.
+        Signal names (``L1 L2 L5 E1 E5a G1 G2 B1I B2a B3I``); empty: each system's first.
 
     Returns
     -------
