@@ -202,6 +202,43 @@ def test_beidou_time_and_geo_satellites(quiet):
         beidou_constellation(1316, 518400.0, 519000.0)
 
 
+def test_generated_ephemerides_agree_where_the_selection_changes():
+    """Consecutive ephemerides of a generated satellite give the same position and clock
+    at the midpoint of their reference times (where the nearest-toe rule of RTKLIB and of
+    the simulator changes from one to the next): no jump in the truth (< 1 mm)."""
+    from ins.simulate.glonass_orbit import glonass_constellation, integrate
+    from ins.simulate.kepler_orbit import (beidou_constellation, galileo_constellation,
+                                           kepler_state)
+    worst = 0.0
+    g = glonass_constellation(WEEK, T0, T0 + 3600.0)
+    for a, b in zip(g[:-1], g[1:]):
+        if a.slot == b.slot:
+            mid = 0.5 * (a.tb + b.tb)
+            ra = integrate(np.r_[a.pos, a.vel], a.acc, [mid - a.tb])[0, :3]
+            rb = integrate(np.r_[b.pos, b.vel], b.acc, [mid - b.tb])[0, :3]
+            ca, cb = -a.tau_n + a.gamma_n * (mid - a.tb), -b.tau_n + b.gamma_n * (mid - b.tb)
+            worst = max(worst, np.linalg.norm(ra - rb), C_LIGHT * abs(ca - cb))
+    for ephs in (galileo_constellation(WEEK, T0, T0 + 3600.0),
+                 beidou_constellation(WEEK, T0, T0 + 3600.0)):
+        for a, b in zip(ephs[:-1], ephs[1:]):
+            if a.prn == b.prn and a.week == b.week:
+                mid = 0.5 * (a.toe + b.toe)
+                ra, _, ca, _ = kepler_state(a, [mid])
+                rb, _, cb, _ = kepler_state(b, [mid])
+                worst = max(worst, np.linalg.norm(ra - rb), C_LIGHT * abs(ca - cb)[0])
+    assert worst < 1e-3
+
+
+def test_glonass_channel_frequencies_of_the_icd():
+    """ICD table 3.1/3.2: channel -7 at 1598.0625 / 1242.9375 MHz, 0 at 1602 / 1246, 6 at
+    1605.375 / 1248.625 MHz."""
+    from ins.simulate.glonass_orbit import glonass_frequencies
+    f1, f2 = glonass_frequencies([-7, 0, 6])
+    np.testing.assert_allclose(f1, [1598.0625e6, 1602.0e6, 1605.375e6], atol=0.1)
+    np.testing.assert_allclose(f2, [1242.9375e6, 1246.0e6, 1248.625e6], atol=0.1)
+    np.testing.assert_allclose(f1 / f2, 9.0 / 7.0)
+
+
 # ---------------------------------------------------------------------------------------
 # observations
 

@@ -27,8 +27,10 @@ The PZ-90.11 frame is taken as WGS84 (they agree to a few centimetres).
 (i = 64.8 deg, a = 25510 km, 8 slots per plane, the planes' arguments of latitude shifted
 by 15 deg) with the frequency channels of the real slots, and an ephemeris every 30 min
 (``t_b`` at 15 and 45 min past the hour, UTC).  Each ephemeris' state is the previous one
-integrated to its ``t_b``, and the luni-solar accelerations vary slowly from one to the
-next, so the truth is continuous to a few centimetres at the change of ephemeris.
+integrated to the midpoint between the two ``t_b`` (with the previous message's
+luni-solar acceleration), then on to its ``t_b`` with its own: the two messages agree at
+the midpoint, where the nearest-``t_b`` rule changes from one to the other, so the truth
+is continuous there (to the 12 digits of RINEX).
 """
 import datetime as _dt
 from dataclasses import dataclass
@@ -277,8 +279,10 @@ def glonass_constellation(gps_week, t_first, t_last, seed=1982):
         t_prev = tbs[0]
         for tb in tbs:
             acc = _luni_solar(tb, phase)
-            if tb != t_prev:
-                state = integrate(state, _luni_solar(t_prev, phase), [tb - t_prev])[0]
+            if tb != t_prev:         # the previous message to the midpoint, this one on
+                mid = 0.5 * (t_prev + tb)
+                state = integrate(state, _luni_solar(t_prev, phase), [mid - t_prev])[0]
+                state = integrate(state, acc, [tb - mid])[0]
             # the file holds km with 12 digits: the truth is what it holds
             state = np.array([rinex_round(x / 1e3) * 1e3 for x in state])
             acc = np.array([rinex_round(x / 1e3) * 1e3 for x in acc])
