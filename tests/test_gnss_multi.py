@@ -371,7 +371,8 @@ def test_doppler_is_minus_the_carrier_rate_on_every_signal(quiet):
 # a simulated flight with every system
 
 PLAN_EXTRA = ('systems = ["G", "R", "E", "C"]\n'
-              'signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a", "B3I"]\n')
+              'signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a", "B3I"]\n'
+              'signal_noise = { L2 = 2.0 }\n')
 
 
 @pytest.fixture(scope="module")
@@ -410,6 +411,33 @@ def test_flight_files_read_by_rtklib(flight):
     assert {s[0] for s in tr["sat"]} == set(ALL)
     assert set(np.unique(tr["lli"])) == {0, 1}
     assert nav.ng > 24 and nav.n > 100
+
+
+def test_flight_code_noise_of_each_signal(flight):
+    """RTKLIB's reading of each pseudorange minus the truth's model of it (range, clocks,
+    delays, multipath) is the white noise of 0.3 m / sin(el) times the signal's factor
+    (L2: 2): unit variance, zero mean, per signal."""
+    rtk = _rtk()
+    from ins.simulate.gnss_signals import SIGNALS as TABLE
+    tr = np.genfromtxt(flight / "gnss_raw_truth.csv", delimiter=",", names=True, dtype=None,
+                       encoding="ascii")
+    clock = np.loadtxt(flight / "receiver_clock.txt")
+    robs, _ = _read(rtk, flight / "rover.obs")
+    read = {}
+    for sow, sat, dd, sigs in _rtk_epochs(rtk, robs):
+        for code, (_, P, _, _) in sigs.items():
+            read[(round(sow, 3), sat, code)] = P
+    code_of = {(sy, n): c for sy, v in TABLE.items() for n, _, c in v}
+    bias = np.interp(tr["time_rx_s"], clock[:, 0], clock[:, 2])
+    model = (tr["range_m"] + C_LIGHT * bias - tr["sat_clock_m"] + tr["iono_m"] + tr["tropo_m"]
+             + tr["multipath_code_m"])
+    sigma = 0.3 / np.sin(np.deg2rad(tr["elevation_deg"])) * np.where(tr["signal"] == "L2", 2, 1)
+    for name in ("L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a"):
+        rows = np.flatnonzero(tr["signal"] == name)
+        P = np.array([read[(round(tr["time_rx_s"][r], 3), tr["sat"][r],
+                            code_of[(tr["sat"][r][0], name)])] for r in rows])
+        z = (P - model[rows]) / sigma[rows]
+        assert len(rows) > 200 and 0.85 < np.std(z) < 1.15 and abs(np.mean(z)) < 0.15, name
 
 
 @pytest.mark.parametrize("system", ["gps", "glonass", "galileo", "beidou"])
@@ -503,6 +531,8 @@ def test_multi_gnss_rtk_fixes_fast_to_the_truth(flight_with_base, tmp_path):
     ('systems = "G"', r"\[gnss_raw\] systems"),
     ('signals = ["L7"]', r"\[gnss_raw\] signals"),
     ("beidou_geo = 1", r"\[gnss_raw\] beidou_geo"),
+    ("signal_noise = { L9 = 2.0 }", r"\[gnss_raw\] signal_noise"),
+    ("signal_noise = { L2 = 0.0 }", r"\[gnss_raw\] signal_noise"),
 ])
 def test_plan_multi_keys_errors(tmp_path, line, message):
     from test_gnss_raw import PLAN
@@ -521,9 +551,9 @@ def test_plan_multi_keys_read(tmp_path):
     p = tmp_path / "plan.toml"
     p.write_text(PLAN.format(start=T0, nav=NAV).replace(
         "[gnss_raw]\n", '[gnss_raw]\nsystems = ["E", "R"]\nsignals = ["E5a"]\n'
-                        "beidou_geo = false\n"))
+                        "beidou_geo = false\nsignal_noise = { E5a = 2.5 }\n"))
     raw = load_plan(p).gnss_raw
     assert raw.systems == ("E", "R") and raw.signals == ("E5a",) and raw.multi
-    assert not raw.beidou_geo
+    assert not raw.beidou_geo and raw.signal_noise == (("E5a", 2.5),)
     from ins.simulate.gnss_signals import signal_table
     assert signal_table(raw.systems, raw.signals) == {"E": (1,), "R": (0,)}

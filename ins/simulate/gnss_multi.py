@@ -14,7 +14,8 @@ One receiver clock (in GPS time) for all systems: the system times are taken exa
 (no inter-system bias), and each system's broadcast clock is relative to its own time.
 The geometry (light time, Sagnac, elevation, masks, the vehicle's body, arcs) is per
 satellite and shared by its signals; ambiguities, multipath and white noise are drawn per
-signal (the same standard deviations as L1); a slip of ``[gnss_raw] slips`` (a GPS PRN,
+signal (the standard deviations of the settings times the signal's factor of
+``signal_noise``, 1 by default); a slip of ``[gnss_raw] slips`` (a GPS PRN,
 or 0: every satellite) jumps every signal of the satellite by its cycles and sets their
 LLI.  The Doppler's derivative is the central difference of :mod:`ins.simulate.gnss_raw`.
 """
@@ -251,7 +252,12 @@ def simulate_multi(orbits, week, time_rx, receiver, settings, rng, t_start=None)
         for q in range(k):
             mp_code[:, j, q] = _gauss_markov(n, dt, s.multipath_time_s, rng)
             mp_phase[:, j, q] = _gauss_markov(n, dt, s.multipath_time_s, rng)
-    se = sin_el[:, :, None]
+    factors = dict(s.signal_noise)
+    fac = np.ones((m, k))
+    for j, sat in enumerate(sats):
+        for q, i in enumerate(orbits.signals[sat[0]]):
+            fac[j, q] = factors.get(SIGNALS[sat[0]][i][0], 1.0)
+    se = sin_el[:, :, None] / fac[None, :, :]
     mp_code *= s.multipath_code_m / se
     mp_phase *= s.multipath_phase_m / se
     e_code = rng.standard_normal(shape) * s.sigma_code_m / se

@@ -203,6 +203,7 @@ def write_gnss_multi(flight, settings, rng):
         "multipath_phase_m": s.multipath_phase_m, "multipath_time_s": s.multipath_time_s,
         "clock_bias_ms": s.clock_bias_s * 1e3, "clock_drift_ppb": s.clock_drift * 1e9,
         "iono_scale": s.iono_scale, "tropo_scale": s.tropo_scale,
+        "signal_noise": {k: v for k, v in s.signal_noise},
         "klobuchar_alpha": list(rec["alpha"]), "klobuchar_beta": list(rec["beta"]),
         "leap_seconds": int(rec["leap"]),
         "slips": [[float(a), int(b), int(c)] for a, b, c in s.slips],

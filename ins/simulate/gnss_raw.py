@@ -110,6 +110,9 @@ class RawSettings:
         B2a B3I``); empty: the first of each system.
     beidou_geo : bool
         Include BeiDou's five GEO satellites.
+    signal_noise : tuple of (str, float)
+        ``(signal name, factor)``: the signal's white noise and multipath (code, phase,
+        Doppler) are those above times the factor (default 1 for every signal).
     """
 
     nav_file: str = ""
@@ -138,6 +141,7 @@ class RawSettings:
     systems: tuple = ("G",)
     signals: tuple = ()
     beidou_geo: bool = True
+    signal_noise: tuple = ()
 
     @property
     def multi(self):

@@ -33,6 +33,7 @@ defaults of :class:`ins.simulate.gnss_raw.RawSettings`)::
     signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a", "B3I"]
                                   # default: the first of each system
     beidou_geo = true             # BeiDou's 5 GEO satellites (PRN 1-5)
+    signal_noise = { L2 = 2.0 }   # x the noise and multipath above, per signal (default 1)
 
 With ``systems`` other than ``["G"]`` or ``signals`` beyond ``L1``, the observations are
 those of :mod:`ins.simulate.gnss_multi` (RINEX 3.04 mixed ``rover.obs`` and ``rover.nav``);
@@ -49,7 +50,7 @@ import numpy as np
 
 from ins.common.errors import InputError
 from ins.simulate.gnss_raw import RawSettings
-from ins.simulate.gnss_signals import signal_table
+from ins.simulate.gnss_signals import SIGNALS, signal_table
 
 __all__ = ["GNSS_RAW_KEYS", "parse_gnss_raw"]
 
@@ -60,7 +61,7 @@ GNSS_RAW_KEYS = ("nav_file", "rate_hz", "elevation_mask_deg", "antenna_mask_deg"
                  "clock_bias_noise_ns_sqrts", "clock_drift_noise_ppb_sqrts", "iono_scale",
                  "tropo_scale", "humidity_percent", "cn0_zenith_dbhz", "cn0_horizon_dbhz",
                  "ambiguity_max_cycles", "slips", "masks", "base_lla_deg", "systems",
-                 "signals", "beidou_geo")
+                 "signals", "beidou_geo", "signal_noise")
 
 
 def _rows(sec, key, width, what, check):
@@ -112,6 +113,13 @@ def parse_gnss_raw(sec, source):
     except InputError as exc:
         key = "systems" if "systems" in str(exc) else "signals"
         raise sec.error(key, str(exc).split(": ", 1)[-1]) from None
+    noise = sec.raw("signal_noise", {})
+    names = {n for sys in SIGNALS.values() for n, _, _ in sys}
+    if not (isinstance(noise, dict) and all(
+            k in names and isinstance(v, (int, float)) and not isinstance(v, bool)
+            and 0 < v <= 100 for k, v in noise.items())):
+        raise sec.error("signal_noise", f"expected a table of signal = factor in (0, 100] "
+                                        f"with signals of {sorted(names)}, got {noise!r}")
     zenith = nonneg("cn0_zenith_dbhz", d.cn0_zenith_dbhz, "dB-Hz in [0, 99]", 99.0)
     horizon = nonneg("cn0_horizon_dbhz", d.cn0_horizon_dbhz, "dB-Hz in [0, 99]", 99.0)
     return RawSettings(
@@ -146,7 +154,8 @@ def parse_gnss_raw(sec, source):
         base_lla=(float(np.deg2rad(base[0])), float(np.deg2rad(base[1])), float(base[2]))
         if base else None,
         systems=tuple(systems), signals=tuple(signals),
-        beidou_geo=sec.boolean("beidou_geo", d.beidou_geo))
+        beidou_geo=sec.boolean("beidou_geo", d.beidou_geo),
+        signal_noise=tuple((str(k), float(v)) for k, v in noise.items()))
 
 
 def _strings(sec, key, default, what):
