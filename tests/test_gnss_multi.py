@@ -411,6 +411,13 @@ def test_flight_files_read_by_rtklib(flight):
     assert {s[0] for s in tr["sat"]} == set(ALL)
     assert set(np.unique(tr["lli"])) == {0, 1}
     assert nav.ng > 24 and nav.n > 100
+    # every slip made: LLI on each signal of the satellite, its ambiguity up by the cycles
+    for t_slip, sat, cycles in m["slips_made"]:
+        now = tr[(tr["time_rx_s"] == t_slip) & (tr["sat"] == sat)]
+        before = tr[(np.abs(tr["time_rx_s"] - (t_slip - 1.0)) < 1e-6) & (tr["sat"] == sat)]
+        assert len(now) == len(before) >= 2 and np.all(now["lli"] == 1), sat
+        np.testing.assert_array_equal(now["ambiguity_cycles"] - before["ambiguity_cycles"],
+                                      cycles)
 
 
 def test_flight_code_noise_of_each_signal(flight):
@@ -521,6 +528,17 @@ def test_multi_gnss_rtk_fixes_fast_to_the_truth(flight_with_base, tmp_path):
     d = ned_offset(g.lla[ib[fixed]], sol.log.lla[ia[fixed]])
     rms = np.sqrt(np.mean(d ** 2, axis=0))
     assert np.all(rms < [0.04, 0.04, 0.07]), rms
+
+
+def test_without_gps_no_navigation_file_is_needed():
+    """Galileo alone needs no navigation file (RTKLIB's default Klobuchar coefficients);
+    GPS without one is refused naming the key."""
+    from ins.simulate.gnss_multi_product import KLOBUCHAR_DEFAULT, build_orbits
+    from ins.simulate.gnss_raw import RawSettings
+    orbits, rec = build_orbits(RawSettings(systems=("E",)), WEEK, T0, T0 + 60.0)
+    assert orbits.alpha == KLOBUCHAR_DEFAULT[0] and rec["gps"] == [] and len(orbits.sats) == 24
+    with pytest.raises(InputError, match="nav_file"):
+        build_orbits(RawSettings(systems=("G", "E")), WEEK, T0, T0 + 60.0)
 
 
 # ---------------------------------------------------------------------------------------
