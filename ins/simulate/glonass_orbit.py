@@ -14,7 +14,8 @@ at ``t`` is the numerical integration (Runge-Kutta 4) of::
 the rotating frame) with ``mu = 398600.4418e9 m^3/s^2``, ``a_e = 6378136 m``,
 ``J2 = 1082625.75e-9``, ``w = 7.292115e-5 rad/s``.  The step here is
 :data:`STEP_S` (RTKLIB's ``glorbit`` takes 60 s: both are far below the model's own
-error).  The clock (ICD 3.3.3, ``t_b`` the reference)::
+error; a time is integrated from the nearest of the ephemeris' states cached every
+``STEP_S``).  The clock (ICD 3.3.3, ``t_b`` the reference)::
 
     dt_s = -tau_n + gamma_n (t - t_b)        (satellite time minus GLONASS time, s)
 
@@ -153,19 +154,34 @@ def derivatives(state, acc):
 
 
 def integrate(state0, acc, dt, step_s=STEP_S):
-    """Runge-Kutta 4 from ``state0`` (6,) over ``dt`` (n,) seconds (either sign), each
-    element in ``ceil(|dt| / step_s)`` equal steps (all elements take the largest count).
+    """Runge-Kutta 4 from ``state0`` over ``dt`` seconds (either sign), each element in
+    ``ceil(max |dt| / step_s)`` equal steps.
+
+    Parameters
+    ----------
+    state0 : array_like, shape (6,) or (n, 6)
+        PZ-90 position (m) and velocity (m/s) at the start: one for every ``dt``, or one
+        per element.
+    acc : array_like, shape (3,) or (n, 3)
+        Luni-solar acceleration, m/s^2 (constant).
+    dt : array_like, shape (n,)
+        s.
 
     Returns
     -------
     ndarray (n, 6)
         PZ-90 position (m) and velocity (m/s).
     """
-    dt = np.atleast_1d(np.asarray(dt, dtype=float))
+    s = np.asarray(state0, dtype=float)
+    a = np.asarray(acc, dtype=float)
+    if s.ndim == 1:
+        dt = np.atleast_1d(np.asarray(dt, dtype=float))
+        s, a = np.tile(s, (len(dt), 1)), np.tile(a, (len(dt), 1))
+    else:
+        dt = np.broadcast_to(np.asarray(dt, dtype=float), (len(s),))
+        a = np.broadcast_to(a, s[:, :3].shape)
     steps = max(1, int(np.ceil(np.max(np.abs(dt)) / step_s))) if dt.size else 1
     h = (dt / steps)[:, None]
-    s = np.tile(np.asarray(state0, dtype=float), (len(dt), 1))
-    a = np.tile(np.asarray(acc, dtype=float), (len(dt), 1))
     for _ in range(steps):
         k1 = derivatives(s, a)
         k2 = derivatives(s + 0.5 * h * k1, a)
@@ -186,6 +202,25 @@ class GlonassOrbits:
             if e.health == 0:
                 self._by_slot.setdefault(e.slot, []).append(e)
         self.system = "R"
+        self._cache = {}
+
+    def _nodes(self, e):
+        """The ephemeris' states every :data:`STEP_S` from ``t_b - MAX_AGE_S`` to
+        ``t_b + MAX_AGE_S`` (RK4 steps of ``STEP_S`` out from ``t_b``; cached): a time is
+        integrated from its nearest node in one step of at most ``STEP_S / 2``."""
+        key = (e.slot, e.week, e.tb)
+        nodes = self._cache.get(key)
+        if nodes is None:
+            n = int(np.ceil(MAX_AGE_S / STEP_S)) + 1
+            s = np.tile(np.r_[e.pos, e.vel], (2, 1))
+            out = [s]
+            for _ in range(n):
+                s = integrate(s, e.acc, np.array([STEP_S, -STEP_S]))
+                out.append(s)
+            out = np.array(out)                          # (n + 1, 2, 6)
+            nodes = np.concatenate([out[:0:-1, 1], out[:, 0]])
+            self._cache[key] = nodes
+        return nodes
 
     @property
     def prns(self):
@@ -223,7 +258,9 @@ class GlonassOrbits:
             m = k == j
             e = ephs[j]
             d = t[m] - tb[j]
-            s = integrate(np.r_[e.pos, e.vel], e.acc, d)
+            nodes = self._nodes(e)
+            i = np.clip(np.round(d / STEP_S).astype(int), -len(nodes) // 2, len(nodes) // 2)
+            s = integrate(nodes[i + len(nodes) // 2], e.acc, d - i * STEP_S)
             r[m], v[m] = s[:, :3], s[:, 3:]
             dt[m] = -e.tau_n + e.gamma_n * d
             ddt[m] = e.gamma_n
@@ -231,10 +268,13 @@ class GlonassOrbits:
 
 
 def _luni_solar(t_cont, phase):
-    """A slowly varying luni-solar acceleration (plausible size, about 2e-6 m/s^2)."""
+    """Slowly varying luni-solar accelerations (plausible size, about 2e-6 m/s^2), one
+    row per phase, m/s^2."""
     w = 2 * np.pi / 86400.0
-    return np.array([2.0e-6 * np.sin(w * t_cont + phase), 1.5e-6 * np.cos(w * t_cont + 2 * phase),
-                     1.0e-6 * np.sin(0.5 * w * t_cont + 3 * phase)])
+    phase = np.asarray(phase, dtype=float)
+    return np.column_stack([2.0e-6 * np.sin(w * t_cont + phase),
+                            1.5e-6 * np.cos(w * t_cont + 2 * phase),
+                            1.0e-6 * np.sin(0.5 * w * t_cont + 3 * phase)])
 
 
 def glonass_constellation(gps_week, t_first, t_last, seed=1982):
@@ -263,37 +303,39 @@ def glonass_constellation(gps_week, t_first, t_last, seed=1982):
     a, inc = 25510.0e3, np.deg2rad(64.8)
     n = np.sqrt(MU_GLO / a ** 3)
     theta0 = rng.uniform(0, 2 * np.pi)
-    out = []
+    states = []
     for slot in range(1, 25):
         p, q = divmod(slot - 1, 8)
-        raan = theta0 + 2 * np.pi * p / 3
         u = 2 * np.pi * q / 8 + np.deg2rad(15.0) * p
         # inertial (the frame that coincides with PZ-90 at the first t_b) -> rotating
-        ru = np.array([np.cos(u), np.sin(u), 0.0])
-        vu = np.array([-np.sin(u), np.cos(u), 0.0])
-        R = _rz(raan) @ _rx(inc)
-        r_i, v_i = a * (R @ ru), a * n * (R @ vu)
-        state = np.r_[r_i, v_i - np.cross([0.0, 0.0, OMEGA_GLO], r_i)]
-        tau0, gamma = rng.uniform(-3e-4, 3e-4), rinex_round(rng.uniform(-2e-12, 2e-12))
-        phase = rng.uniform(0, 2 * np.pi)
-        t_prev = tbs[0]
-        for tb in tbs:
-            acc = _luni_solar(tb, phase)
-            if tb != t_prev:         # the previous message to the midpoint, this one on
-                mid = 0.5 * (t_prev + tb)
-                state = integrate(state, _luni_solar(t_prev, phase), [mid - t_prev])[0]
-                state = integrate(state, acc, [tb - mid])[0]
-            # the file holds km with 12 digits: the truth is what it holds
-            state = np.array([rinex_round(x / 1e3) * 1e3 for x in state])
-            acc = np.array([rinex_round(x / 1e3) * 1e3 for x in acc])
-            week = int((tb) // SECONDS_PER_WEEK)
+        R = _rz(theta0 + 2 * np.pi * p / 3) @ _rx(inc)
+        r_i = a * (R @ [np.cos(u), np.sin(u), 0.0])
+        v_i = a * n * (R @ [-np.sin(u), np.cos(u), 0.0])
+        states.append(np.r_[r_i, v_i - np.cross([0.0, 0.0, OMEGA_GLO], r_i)])
+    state = np.array(states)
+    tau0 = rng.uniform(-3e-4, 3e-4, 24)
+    gamma = np.array([rinex_round(g) for g in rng.uniform(-2e-12, 2e-12, 24)])
+    phase = rng.uniform(0, 2 * np.pi, 24)
+    out = []
+    t_prev = tbs[0]
+    for tb in tbs:
+        acc = _luni_solar(tb, phase)
+        if tb != t_prev:             # the previous message to the midpoint, this one on
+            mid = 0.5 * (t_prev + tb)
+            state = integrate(state, _luni_solar(t_prev, phase), mid - t_prev)
+            state = integrate(state, acc, tb - mid)
+        # the file holds km with 12 digits: the truth is what it holds
+        state = np.vectorize(rinex_round)(state / 1e3) * 1e3
+        acc = np.vectorize(rinex_round)(acc / 1e3) * 1e3
+        week = int(tb // SECONDS_PER_WEEK)
+        for j in range(24):
             out.append(GlonassEphemeris(
-                slot=slot, k=FREQ_CHANNELS[slot - 1], week=week,
-                tb=float(tb - week * SECONDS_PER_WEEK),
-                pos=tuple(state[:3]), vel=tuple(state[3:]), acc=tuple(acc),
-                tau_n=rinex_round(tau0 - gamma * (tb - tbs[0])), gamma_n=gamma))
-            t_prev = tb
-    return out
+                slot=j + 1, k=FREQ_CHANNELS[j], week=week,
+                tb=float(tb - week * SECONDS_PER_WEEK), pos=tuple(state[j, :3]),
+                vel=tuple(state[j, 3:]), acc=tuple(acc[j]),
+                tau_n=rinex_round(tau0[j] - gamma[j] * (tb - tbs[0])), gamma_n=float(gamma[j])))
+        t_prev = tb
+    return sorted(out, key=lambda e: (e.slot, e.week, e.tb))
 
 
 def _rz(a):

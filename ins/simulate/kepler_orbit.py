@@ -39,7 +39,7 @@ from ins.simulate.gps_orbit import C_LIGHT
 
 __all__ = ["KeplerEphemeris", "KeplerOrbits", "SYSTEM_CONSTANTS", "BDT_MINUS_GPST_S",
            "BDT_WEEK0_GPS", "kepler_state", "galileo_constellation", "beidou_constellation",
-           "is_beidou_geo", "rinex_round"]
+           "is_beidou_geo", "rinex_round", "to_system_time"]
 
 #: (mu m^3/s^2, w_e rad/s) of each system's ICD.
 SYSTEM_CONSTANTS = {"E": (3.986004418e14, 7.2921151467e-5), "C": (3.986004418e14, 7.292115e-5)}

@@ -21,7 +21,7 @@ import numpy as np
 from ins.common.fileio import atomic_open
 from ins.io.rinex_nav import SECONDS_PER_WEEK
 from ins.io.rinex_obs import gps_calendar
-from ins.simulate.gnss_signals import obs_types
+from ins.simulate.gnss_signals import SIGNALS, obs_types
 from ins.simulate.kepler_orbit import BDT_WEEK0_GPS
 
 __all__ = ["write_mixed_obs", "write_mixed_nav"]
@@ -84,7 +84,6 @@ def write_mixed_obs(path, obs, glonass_channels, approx_xyz_m, interval_s, marke
     int
         Epochs written.
     """
-    from ins.simulate.gnss_signals import SIGNALS
     systems = list(obs.signals)
     types = {sy: obs_types(sy, [i for i, (nm, _, _) in enumerate(SIGNALS[sy])
                                 if nm in obs.signals[sy]]) for sy in systems}
