@@ -29,6 +29,11 @@ gnss_raw, gps_orbit, gnss_raw_plan, gnss_raw_product
     Raw GPS L1 observations (RINEX 3.04 ``rover.obs``) of the antenna from real broadcast
     orbits (own IS-GPS-200 orbit, Klobuchar, Saastamoinen, clocks, multipath, slips,
     masks) with their truth: the plan's ``[gnss_raw]`` or ``ins simulate --gnss-raw``.
+gnss_multi, gnss_signals, kepler_orbit, glonass_orbit, rinex_mixed, gnss_multi_product
+    The same for GPS (L1, L2, L5), GLONASS (G1, G2 FDMA; PZ-90 state vectors integrated
+    by the ICD's RK4), Galileo (E1, E5a) and BeiDou (B1I, B2a, B3I; MEO, IGSO and GEO in
+    BDT) from generated constellations: ``[gnss_raw] systems``, ``signals``; RINEX 3.04
+    mixed observation and navigation files.
 manifest
     ``manifest.toml``: the INS tables and the merge of the tables of product writers.
 folder

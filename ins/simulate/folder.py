@@ -256,7 +256,13 @@ def _raw_settings(plan, nav):
 def _write_products(plan, plan_text, folder, seed, grade, progress, products, raw=None):
     from ins.simulate.truth import build_truth
     truth = build_truth(plan)
-    if raw is not None:                  # the orbits must cover the flight: before the work
+    if raw is not None and raw.multi:    # several systems or signals: the same, checked
+        from ins.simulate import gnss_multi_product
+        gnss_multi_product.check_multi(raw, plan.source, plan.flight.gps_week, truth.t_start,
+                                       truth.t_end)
+        products = (lambda flight: gnss_multi_product.write_gnss_multi(
+            flight, raw, product_rng(seed, "gnss_raw")),) + products
+    elif raw is not None:                # the orbits must cover the flight: before the work
         from ins.simulate import gnss_raw_product
         gnss_raw_product.check_span(gnss_raw_product.load_orbits(raw, plan.source),
                                     plan.flight.gps_week, truth.t_start, truth.t_end)

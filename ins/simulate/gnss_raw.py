@@ -100,6 +100,19 @@ class RawSettings:
     base_lla : tuple of 3 float or None
         A static base station (lat, lon rad, ellipsoidal h m) observed as well (the
         flight folder's ``base.obs``), or None.
+    systems : tuple of str
+        Constellations of ``G R E C`` (GPS, GLONASS, Galileo, BeiDou).  Anything but GPS
+        alone, or more signals than L1, makes the observations those of
+        :mod:`ins.simulate.gnss_multi` (GPS from ``nav_file``, the others generated:
+        :mod:`ins.simulate.kepler_orbit`, :mod:`ins.simulate.glonass_orbit`).
+    signals : tuple of str
+        Signals of :data:`ins.simulate.gnss_signals.SIGNALS` (``L1 L2 L5 E1 E5a G1 G2 B1I
+        B2a B3I``); empty: the first of each system.
+    beidou_geo : bool
+        Include BeiDou's five GEO satellites.
+    signal_noise : tuple of (str, float)
+        ``(signal name, factor)``: the signal's white noise and multipath (code, phase,
+        Doppler) are those above times the factor (default 1 for every signal).
     """
 
     nav_file: str = ""
@@ -125,6 +138,15 @@ class RawSettings:
     slips: tuple = ()
     masks: tuple = ()
     base_lla: tuple | None = None
+    systems: tuple = ("G",)
+    signals: tuple = ()
+    beidou_geo: bool = True
+    signal_noise: tuple = ()
+
+    @property
+    def multi(self):
+        """Whether the settings ask for more than GPS L1 (:mod:`ins.simulate.gnss_multi`)."""
+        return tuple(self.systems) != ("G",) or any(x != "L1" for x in self.signals)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The flight plan's ``[gnss_raw]`` section: raw GPS observations of the flight.
+"""The flight plan's ``[gnss_raw]`` section: raw GNSS observations of the flight.
 
 Present, it makes the simulator write ``rover.obs`` (RINEX 3.04), ``rover.nav`` (the
 navigation file's records of the flight's span), ``receiver_clock.txt`` and
@@ -29,6 +29,16 @@ defaults of :class:`ins.simulate.gnss_raw.RawSettings`)::
     slips = [[120.0, 7, 3]]       # [time_s after the start, PRN (0: all), cycles]
     masks = [[200.0, 30.0, 3]]    # [start_s after the start, duration_s, satellites kept]
     base_lla_deg = [35.17, 139.60, 60.0]   # optional static base station -> base.obs
+    systems = ["G", "R", "E", "C"]   # GPS (nav_file), GLONASS, Galileo, BeiDou (generated)
+    signals = ["L1", "L2", "L5", "G1", "G2", "E1", "E5a", "B1I", "B2a", "B3I"]
+                                  # default: the first of each system
+    beidou_geo = true             # BeiDou's 5 GEO satellites (PRN 1-5)
+    signal_noise = { L2 = 2.0 }   # x the noise and multipath above, per signal (default 1)
+
+With ``systems`` other than ``["G"]`` or ``signals`` beyond ``L1``, the observations are
+those of :mod:`ins.simulate.gnss_multi` (RINEX 3.04 mixed ``rover.obs`` and ``rover.nav``);
+``nav_file`` is then needed only with GPS (without it the Klobuchar coefficients are
+RTKLIB's defaults).
 
 The flight's time (``[flight] gps_week``, ``start_time_s``) must lie within the
 ephemerides of the navigation file (e.g. week 1316, 518400-525600 s for the 2005 day 092
@@ -38,7 +48,9 @@ import os
 
 import numpy as np
 
+from ins.common.errors import InputError
 from ins.simulate.gnss_raw import RawSettings
+from ins.simulate.gnss_signals import SIGNALS, signal_table
 
 __all__ = ["GNSS_RAW_KEYS", "parse_gnss_raw"]
 
@@ -48,7 +60,8 @@ GNSS_RAW_KEYS = ("nav_file", "rate_hz", "elevation_mask_deg", "antenna_mask_deg"
                  "multipath_time_s", "clock_bias_ms", "clock_drift_ppb",
                  "clock_bias_noise_ns_sqrts", "clock_drift_noise_ppb_sqrts", "iono_scale",
                  "tropo_scale", "humidity_percent", "cn0_zenith_dbhz", "cn0_horizon_dbhz",
-                 "ambiguity_max_cycles", "slips", "masks", "base_lla_deg")
+                 "ambiguity_max_cycles", "slips", "masks", "base_lla_deg", "systems",
+                 "signals", "beidou_geo", "signal_noise")
 
 
 def _rows(sec, key, width, what, check):
@@ -92,6 +105,21 @@ def parse_gnss_raw(sec, source):
                  or not -500 <= base[2] <= 9000):
         raise sec.error("base_lla_deg", f"expected [lat deg, lon deg, h m], got {list(base)}",
                         "[lat deg, lon deg, h m]")
+    systems = _strings(sec, "systems", ["G"], "a list of systems of G R E C")
+    signals = _strings(sec, "signals", [],
+                       "a list of signals of L1 L2 L5 G1 G2 E1 E5a B1I B2a B3I")
+    try:
+        signal_table(systems, signals)
+    except InputError as exc:
+        key = "systems" if "systems" in str(exc) else "signals"
+        raise sec.error(key, str(exc).split(": ", 1)[-1]) from None
+    noise = sec.raw("signal_noise", {})
+    names = {n for sys in SIGNALS.values() for n, _, _ in sys}
+    if not (isinstance(noise, dict) and all(
+            k in names and isinstance(v, (int, float)) and not isinstance(v, bool)
+            and 0 < v <= 100 for k, v in noise.items())):
+        raise sec.error("signal_noise", f"expected a table of signal = factor in (0, 100] "
+                                        f"with signals of {sorted(names)}, got {noise!r}")
     zenith = nonneg("cn0_zenith_dbhz", d.cn0_zenith_dbhz, "dB-Hz in [0, 99]", 99.0)
     horizon = nonneg("cn0_horizon_dbhz", d.cn0_horizon_dbhz, "dB-Hz in [0, 99]", 99.0)
     return RawSettings(
@@ -124,4 +152,14 @@ def parse_gnss_raw(sec, source):
         slips=tuple((float(a), int(b), int(c)) for a, b, c in slips),
         masks=tuple((float(a), float(b), int(c)) for a, b, c in masks),
         base_lla=(float(np.deg2rad(base[0])), float(np.deg2rad(base[1])), float(base[2]))
-        if base else None)
+        if base else None,
+        systems=tuple(systems), signals=tuple(signals),
+        beidou_geo=sec.boolean("beidou_geo", d.beidou_geo),
+        signal_noise=tuple((str(k), float(v)) for k, v in noise.items()))
+
+
+def _strings(sec, key, default, what):
+    raw = sec.raw(key, default)
+    if not (isinstance(raw, list) and all(isinstance(x, str) for x in raw)):
+        raise sec.error(key, f"expected {what}, got {raw!r}")
+    return list(raw)
