@@ -149,18 +149,23 @@ def test_w_test_is_chi2_of_one_dof():
 
 
 def test_reference_kept_while_usable_then_the_highest():
+    """Per constellation: the previous reference while it is above the masks, else the
+    highest satellite of that constellation; changes counted."""
     from types import SimpleNamespace
 
     from ins.estimation.coupling.double_difference import DoubleDifferenceUpdater
-    choose = DoubleDifferenceUpdater._choose_ref
-    u = SimpleNamespace(_ref=None, ref_changes=0)
-    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 1.2, 0.8])) == 1
-    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 0.9, 1.3])) == 1      # kept
+    choose = DoubleDifferenceUpdater._choose_refs
+    u = SimpleNamespace(_refs={}, ref_changes=0)
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 1.2, 0.8])) == {"G": 1}
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, 0.9, 1.3])) == {"G": 1}  # kept
     assert u.ref_changes == 0
-    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, -np.inf, 1.3])) == 2  # masked
-    assert choose(u, ["G01", "G03"], np.array([1.4, 1.3])) == 1
-    assert choose(u, ["G01", "G05"], np.array([1.4, 1.3])) == 0                  # set
-    assert (u._ref, u.ref_changes) == ("G01", 2)
+    assert choose(u, ["G01", "G02", "G03"], np.array([0.3, -np.inf, 1.3])) == {"G": 2}
+    assert choose(u, ["G01", "G03"], np.array([1.4, 1.3])) == {"G": 1}
+    assert choose(u, ["G01", "G05"], np.array([1.4, 1.3])) == {"G": 0}              # set
+    assert (u._refs["G"], u.ref_changes) == ("G01", 2)
+    # a second constellation has its own reference, and a masked one none
+    out = choose(u, ["G01", "E11", "E12", "R03"], np.array([1.4, 0.5, 0.9, -np.inf]))
+    assert out == {"G": 0, "E": 2} and u._refs["E"] == "E12"
 
 
 def _epochs(times, sats):

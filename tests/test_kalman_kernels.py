@@ -82,7 +82,8 @@ def test_navigation_block_by_hand():
     assert F[6, 7] == pytest.approx(w_in_d, rel=1e-14)        # -[w_in x]: (N, E) = w_D
 
 
-@pytest.mark.parametrize("n,m", [(21, 3), (27, 3), (31, 1), (33, 6)])
+@pytest.mark.parametrize("n,m", [(21, 3), (27, 3), (31, 1), (33, 6), (29, 48)])   # m > n: every
+# satellite of four constellations, code and Doppler, in one update
 def test_joseph_update_matches_filterpy(n, m):
     from filterpy.kalman import update as fp_update
     rng = np.random.default_rng(100 + n + m)

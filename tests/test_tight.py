@@ -270,6 +270,8 @@ def test_process_tight_end_to_end(scene, monkeypatch):
         seen["args"] = (obs, nav, receiver_ecef(t0 + 10.0))
         return synth
     monkeypatch.setattr(raw_epochs, "read_raw_epochs", fake)
+    from ins.gnss import receiver_formats      # the files are stand-ins: taken as RINEX
+    monkeypatch.setattr(receiver_formats, "detect_format", lambda path: "rinex")
     # RTKLIB's loose solution of the raw input: the flight's own GNSS log
     from ins.estimation.pipeline import process as process_module
     from ins.io.gnss import read_gnss

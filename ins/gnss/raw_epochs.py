@@ -4,7 +4,7 @@ again): ``readrnx`` reads the files, ``satposs`` gives each satellite's position
 velocity, clock bias and drift at the transmit time (broadcast ephemerides),
 ``satazel`` its elevation and azimuth, ``ionmodel`` the Klobuchar delay (the nav file's
 coefficients) and ``tropmodel`` the Saastamoinen delay.  The result is a
-:class:`RawEpochs` with corrected GPS L1 pseudoranges
+:class:`RawEpochs` with corrected pseudoranges
 (``P - c TGD + c dt_s - I - T``, m) and range rates (``-lambda D + c ddt_s``, m/s).
 
 The ionospheric and tropospheric delays need the receiver's position: ``receiver_ecef``
@@ -13,11 +13,16 @@ height) or a callable of time (s) giving it (e.g. from the loose solution).  A p
 wrong by 1 km moves the delays by millimetres horizontally; by about 0.3 m per km of
 height error at zenith (troposphere).
 
-GPS only (one receiver clock bias in the filter); the first frequency's pseudorange and
-Doppler (RINEX 2 ``C1``/``P1`` and ``D1``, RINEX 3 the first L1 code RTKLIB keeps), and
-the L1 carrier phase corrected like the code but for the ionosphere's sign
-(``lambda L + c dt_s + I - T``, m: the carrier is advanced by what delays the code) with
-its loss-of-lock indicator (RINEX LLI, bit 0 a possible cycle slip).
+The constellations of ``systems`` (GPS by default; GLONASS, Galileo, BeiDou, QZSS),
+each satellite's first frequency as RTKLIB keeps it (GPS L1 C/A, GLONASS G1 of its
+channel, Galileo E1, BeiDou B1I; RINEX 2 ``C1``/``P1`` and ``D1``) with its own
+wavelength (``sat2freq``; the Klobuchar delay scaled by ``(f_L1 / f)^2``), and the
+carrier phase of the first and second frequencies corrected like the code but for the
+ionosphere's sign (``lambda L + c dt_s + I - T``, m: the carrier is advanced by what
+delays the code) with their loss-of-lock indicators (RINEX LLI, bit 0 a possible cycle
+slip).  The filter gives each system other than the first its own clock offset
+(:mod:`ins.estimation.coupling.pseudorange`) or forms double differences within each
+system (:mod:`ins.estimation.coupling.double_difference`).
 Times are GPS seconds of the week (the IMU's convention).
 """
 from dataclasses import dataclass
@@ -26,7 +31,13 @@ import numpy as np
 
 from ins.common.errors import InputError
 
-__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ", "GPS_L2_HZ"]
+__all__ = ["RawEpochs", "read_raw_epochs", "GPS_L1_HZ", "GPS_L2_HZ", "SYSTEMS",
+           "SYSTEM_NAMES"]
+
+#: Constellations tight coupling reads: RINEX letters.
+SYSTEMS = ("G", "R", "E", "C", "J")
+#: Their names as ``[rtklib] systems`` spells them.
+SYSTEM_NAMES = {"gps": "G", "glonass": "R", "galileo": "E", "beidou": "C", "qzss": "J"}
 
 #: GPS L1 carrier frequency, Hz.
 GPS_L1_HZ = 1575.42e6
@@ -67,6 +78,9 @@ class RawEpochs:
         ``(f1 / f2)^2``), when observed.
     wavelength2_m : float
         Its wavelength, m.
+    lam_m, lam2_m : list of ndarray (k_i,), optional
+        The wavelength of each satellite's first and second frequency, m (GLONASS: its
+        channel's; ``None``: ``wavelength_m`` / ``wavelength2_m`` for all).
     """
 
     time: np.ndarray
@@ -83,6 +97,8 @@ class RawEpochs:
     phase2_m: list = None
     lli2: list = None
     wavelength2_m: float = 299792458.0 / 1227.60e6
+    lam_m: list = None
+    lam2_m: list = None
 
     def __post_init__(self):
         self.time = np.asarray(self.time, dtype=float)
@@ -103,7 +119,8 @@ class RawEpochs:
         True (a boolean array over the epoch's satellites): masking for tests."""
         out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m",
                                "range_rate_mps", "names")}
-        opt = {k: [] for k in ("snr_dbhz", "phase_m", "lli", "phase2_m", "lli2")
+        opt = {k: [] for k in ("snr_dbhz", "phase_m", "lli", "phase2_m", "lli2", "lam_m",
+                               "lam2_m")
                if getattr(self, k) is not None}
         for i in range(len(self.time)):
             m = np.asarray(keep(i, self.sats[i]), dtype=bool)
@@ -124,8 +141,9 @@ def _arr(rtk, values):
     return a
 
 
-def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, rtk=None):
-    """Read and correct a receiver's GPS observations (module notes).
+def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, rtk=None,
+                    systems=("G",)):
+    """Read and correct a receiver's observations of ``systems`` (module notes).
 
     Parameters
     ----------
@@ -139,6 +157,9 @@ def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, r
         Satellites below are left out here (the filter applies its own mask), deg.
     rtk : module, optional
         The binding (default: :func:`ins.gnss.rtklib_engine.binding`).
+    systems : sequence of str
+        The constellations read, letters of :data:`SYSTEMS` (``G`` GPS, ``R``
+        GLONASS, ``E`` Galileo, ``C`` BeiDou, ``J`` QZSS).
 
     Returns
     -------
@@ -163,29 +184,40 @@ def read_raw_epochs(obs_path, nav_paths, receiver_ecef, elevation_min_deg=0.0, r
             if not rtk.readrnx(str(p), 1, "", obs, nav, sta):
                 raise InputError("RTKLIB reads nothing from this navigation file",
                                  path=str(p))
-        if nav.n <= 0:
-            raise InputError("no GPS broadcast ephemeris in the navigation file(s)",
+        unknown = [s for s in systems if s not in SYSTEMS]
+        if unknown:
+            raise ValueError(f"systems: unknown {unknown} (known: {', '.join(SYSTEMS)})")
+        if nav.n + nav.ng <= 0:
+            raise InputError("no broadcast ephemeris in the navigation file(s)",
                              path=str(nav_paths[0]))
         rtk.sortobs(obs)
         rtk.uniqnav(nav)
-        return RawEpochs(**_epochs(rtk, obs, nav, receiver_ecef, elevation_min_deg))
+        return RawEpochs(**_epochs(rtk, obs, nav, receiver_ecef, elevation_min_deg,
+                                   tuple(systems)))
     finally:
         rtk.freeobs(obs)
         rtk.freenav(nav, 0xFF)
 
 
-def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
-    lam = rtk.CLIGHT / GPS_L1_HZ
+def _systems(rtk):
+    """RTKLIB's system flags -> the letters of :data:`SYSTEMS`."""
+    return {rtk.SYS_GPS: "G", rtk.SYS_GLO: "R", rtk.SYS_GAL: "E", rtk.SYS_CMP: "C",
+            rtk.SYS_QZS: "J"}
+
+
+def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg, systems=SYSTEMS):
     fixed = None if callable(receiver_ecef) else np.asarray(receiver_ecef, float)
     out = {k: [] for k in ("time", "sats", "sat_pos_e", "sat_vel_e", "range_m",
                            "range_rate_mps", "snr_dbhz", "names", "phase_m", "lli",
-                           "phase2_m", "lli2")}
+                           "phase2_m", "lli2", "lam_m", "lam2_m")}
+    letters = _systems(rtk)
     week = rtk.Arr1Dint(1)
     rs, dts, var, svh = (rtk.Arr1Ddouble(6), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(1),
                          rtk.Arr1Dint(1))
     e, azel, pos = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(2), rtk.Arr1Ddouble(3)
     name, prn = rtk.Arr1Dchar(8), rtk.Arr1Dint(1)
     tgd = _group_delays(nav)
+    c = rtk.CLIGHT
     data, n = obs.data, obs.n
     i = 0
     while i < n:
@@ -200,7 +232,10 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
         ep = {k: [] for k in out if k != "time"}
         for k in range(i, j):
             d = data[k]
-            if rtk.satsys(d.sat, prn) != rtk.SYS_GPS or d.P[0] == 0.0:
+            if letters.get(rtk.satsys(d.sat, prn)) not in systems or d.P[0] == 0.0:
+                continue
+            f1 = rtk.sat2freq(d.sat, d.code[0], nav)
+            if not f1 > 0.0:                  # a GLONASS satellite without its channel
                 continue
             rtk.satposs(d.time, d, 1, nav, rtk.EPHOPT_BRDC, rs, dts, var, svh)
             if svh[0] != 0 or (rs[0] == 0.0 and rs[1] == 0.0 and rs[2] == 0.0):
@@ -209,10 +244,12 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
             el = rtk.satazel(pos, e, azel)
             if el < np.deg2rad(el_min_deg):
                 continue
-            iono = rtk.ionmodel(d.time, nav.ion_gps, pos, azel)
+            # Klobuchar's L1 delay, scaled to the signal's frequency (1/f^2)
+            klob = rtk.ionmodel(d.time, nav.ion_gps, pos, azel)
             trop = rtk.tropmodel(d.time, pos, azel, 0.7)
-            rng = d.P[0] - rtk.CLIGHT * tgd.get(d.sat, 0.0) + rtk.CLIGHT * dts[0] - iono - trop
-            rate = (-lam * d.D[0] + rtk.CLIGHT * dts[1]) if d.D[0] != 0.0 else np.nan
+            lam1, iono1 = c / f1, klob * (GPS_L1_HZ / f1) ** 2
+            rng = d.P[0] - c * tgd.get(d.sat, 0.0) + c * dts[0] - iono1 - trop
+            rate = (-lam1 * d.D[0] + c * dts[1]) if d.D[0] != 0.0 else np.nan
             rtk.satno2id(d.sat, name)
             ep["sats"].append(int(d.sat))
             ep["sat_pos_e"].append([rs[0], rs[1], rs[2]])
@@ -221,33 +258,39 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg):
             ep["range_rate_mps"].append(rate)
             ep["snr_dbhz"].append(d.SNR[0] * 0.001 if d.SNR[0] > 1000 else float(d.SNR[0]))
             ep["names"].append(_name(name))
-            ep["phase_m"].append(lam * d.L[0] + rtk.CLIGHT * dts[0] + iono - trop
+            ep["phase_m"].append(lam1 * d.L[0] + c * dts[0] + iono1 - trop
                                  if d.L[0] != 0.0 else np.nan)
             ep["lli"].append(int(d.LLI[0]))
-            lam2, gamma = rtk.CLIGHT / GPS_L2_HZ, (GPS_L1_HZ / GPS_L2_HZ) ** 2
-            ep["phase2_m"].append(lam2 * d.L[1] + rtk.CLIGHT * dts[0] + gamma * iono - trop
-                                  if d.L[1] != 0.0 else np.nan)
+            ep["lam_m"].append(lam1)
+            f2 = rtk.sat2freq(d.sat, d.code[1], nav) if d.L[1] != 0.0 else 0.0
+            lam2 = c / f2 if f2 > 0.0 else np.nan
+            ep["phase2_m"].append(lam2 * d.L[1] + c * dts[0] + klob * (GPS_L1_HZ / f2) ** 2
+                                  - trop if f2 > 0.0 else np.nan)
             ep["lli2"].append(int(d.LLI[1]))
+            ep["lam2_m"].append(lam2)
         i = j
         if not ep["sats"]:
             continue
         out["time"].append(t_s)
         for k, v in ep.items():
             out[k].append(v if k == "names" else np.array(
-                v, dtype=int if k in ("sats", "lli", "lli2") else float).reshape((len(v), 3) if k in (
-                    "sat_pos_e", "sat_vel_e") else (len(v),)))
+                v, dtype=int if k in ("sats", "lli", "lli2") else float).reshape(
+                    (len(v), 3) if k in ("sat_pos_e", "sat_vel_e") else (len(v),)))
     if not out["time"]:
-        raise InputError("no epoch with a GPS satellite that has a broadcast ephemeris")
+        raise InputError(f"no epoch with a satellite of {', '.join(systems)} that has a "
+                         f"broadcast ephemeris")
     out["time"] = np.array(out["time"])
     if not any(np.any(np.isfinite(p)) for p in out["phase2_m"]):
-        out["phase2_m"] = out["lli2"] = None        # no second frequency in the file
+        out["phase2_m"] = out["lli2"] = out["lam2_m"] = None   # no second frequency
     return out
 
 
 def _group_delays(nav):
-    """Broadcast L1 group delay (TGD, s) per satellite from the ephemerides (the last
-    one read; TGD changes rarely), applied to the L1 pseudorange as RTKLIB's single-
-    frequency code does (``P1 - c TGD``)."""
+    """Broadcast group delay of the first frequency (s) per satellite from the
+    ephemerides (the last one read; it changes rarely), applied to its pseudorange as
+    RTKLIB's single-frequency code does (``P1 - c TGD``): GPS and QZSS TGD, Galileo
+    BGD(E1, E5a), BeiDou TGD1 (B1I); GLONASS none (its broadcast clock is the G1
+    user's)."""
     out = {}
     for k in range(nav.n):
         e = nav.eph[k]

@@ -140,6 +140,8 @@ class BaseEpochs:
     lli: list = None
     phase2_m: list = None
     lli2: list = None
+    lam_m: list = None
+    lam2_m: list = None
 
 
 class PairedEpochs(RawEpochs):
@@ -150,7 +152,7 @@ class PairedEpochs(RawEpochs):
         super().__init__(rover.time, rover.sats, rover.sat_pos_e, rover.sat_vel_e,
                          rover.range_m, rover.range_rate_mps, rover.snr_dbhz, rover.names,
                          rover.phase_m, rover.lli, rover.wavelength_m, rover.phase2_m,
-                         rover.lli2, rover.wavelength2_m)
+                         rover.lli2, rover.wavelength2_m, rover.lam_m, rover.lam2_m)
         self.base = base
 
     def select(self, keep):
@@ -181,7 +183,8 @@ def pair_epochs(rover, base, base_r_e, tolerance_s=DEFAULT_TOLERANCE_S, name="ba
     ok = np.abs(tb[j] - rover.time) <= tolerance_s
     empty3 = np.zeros((0, 3))
     out = {k: [] for k in ("sats", "sat_pos_e", "sat_vel_e", "range_m", "range_rate_mps",
-                           "snr_dbhz", "phase_m", "lli", "phase2_m", "lli2")}
+                           "snr_dbhz", "phase_m", "lli", "phase2_m", "lli2", "lam_m",
+                           "lam2_m")}
     for i, (jj, good) in enumerate(zip(j, ok)):
         for k in out:
             if good:
@@ -195,7 +198,7 @@ def pair_epochs(rover, base, base_r_e, tolerance_s=DEFAULT_TOLERANCE_S, name="ba
 
 
 def read_pair(rover_path, base_path, nav_paths, rover_ecef, options=None,
-              tolerance_s=DEFAULT_TOLERANCE_S, rtk=None):
+              tolerance_s=DEFAULT_TOLERANCE_S, rtk=None, systems=("G",)):
     """Read the rover and the base (:func:`ins.gnss.raw_epochs.read_raw_epochs`) and pair
     them (:func:`pair_epochs`); the base's position from :func:`base_position`.
 
@@ -209,6 +212,8 @@ def read_pair(rover_path, base_path, nav_paths, rover_ecef, options=None,
         The rover's position for its atmospheric delays (ECEF m, or of time).
     options : RtklibOptions, optional
         ``base_lla_deg``.
+    systems : sequence of str
+        Constellations (:data:`ins.gnss.raw_epochs.SYSTEMS`).
 
     Raises
     ------
@@ -220,8 +225,8 @@ def read_pair(rover_path, base_path, nav_paths, rover_ecef, options=None,
 
     from ins.gnss.raw_epochs import read_raw_epochs
     r_b = base_position(base_path, options)
-    rover = read_raw_epochs(rover_path, nav_paths, rover_ecef, rtk=rtk)
-    base = read_raw_epochs(base_path, nav_paths, r_b, rtk=rtk)
+    rover = read_raw_epochs(rover_path, nav_paths, rover_ecef, rtk=rtk, systems=systems)
+    base = read_raw_epochs(base_path, nav_paths, r_b, rtk=rtk, systems=systems)
     if getattr(options, "base_lla_deg", None) is None and getattr(
             options, "base_position", "rinex") == "single":
         r_b = static_position(base, r_b)

@@ -381,7 +381,7 @@ def joseph_update(const double[:, ::1] P not None, const double[:, ::1] H not No
     cdef double[::1] dx = dx_arr
     cdef double s, nis
     cdef double *Kt = _alloc(m * n)        # (P H^T)^T = H P^T (m x n), then K^T
-    cdef double *Pt = _alloc(n * n)
+    cdef double *Pt = _alloc(n * max(n, m))    # P^T (n x n), then P H^T (n x m)
     cdef double *L = _alloc(m * m)
     cdef double *wv = _alloc(m)
     try:

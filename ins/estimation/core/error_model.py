@@ -117,10 +117,13 @@ STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), (
 #: :mod:`ins.estimation.coupling.pseudorange`) is the exception: bias (m, ``c dt_r``) and drift
 #: (m/s) with ``bias' = drift`` and white noise on both (:func:`noise_matrix`'s
 #: ``clock_psd``), truth minus estimate like the sensor states.
+#: The inter-system biases ``isb`` (tight coupling with several constellations): the
+#: clock offsets of GLONASS, Galileo, BeiDou and QZSS less the receiver clock's bias (of
+#: GPS), m, random constants like the other groups.
 OPTIONAL_GROUPS = {"gyro_misalignment": 3, "accel_misalignment": 3, "lever_arm": 3,
-                   "time_offset": 1, "clock": 2}
+                   "time_offset": 1, "clock": 2, "isb": 4}
 _OPTIONAL_AXES = {"gyro_misalignment": "xyz", "accel_misalignment": "xyz", "lever_arm": "xyz",
-                  "time_offset": ("",), "clock": ("bias", "drift")}
+                  "time_offset": ("",), "clock": ("bias", "drift"), "isb": "RECJ"}
 
 
 class StateLayout:

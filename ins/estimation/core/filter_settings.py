@@ -101,6 +101,8 @@ class FilterSettings:
         Recover from a run of rejected position fixes by inflating the navigation
         states' covariance (:data:`ins.estimation.core.updates.RECOVER_AFTER_S`); False keeps
         rejecting them.
+    isb_std_m : float
+        Prior sigma of the inter-system biases (layout group ``isb``), m.
     clock_bias_std_m, clock_drift_std_mps : float
         Prior sigma of the receiver clock states (layout group ``clock``), m and m/s.
     clock_psd : (float, float)
@@ -139,6 +141,7 @@ class FilterSettings:
     recover: bool = True
     clock_bias_std_m: float = 30.0
     clock_drift_std_mps: float = 1.0
+    isb_std_m: float = 300.0
     clock_psd: tuple = (0.5 * 299792458.0 ** 2 * 2e-19,
                         2.0 * np.pi ** 2 * 299792458.0 ** 2 * 2e-20)
     updater: object = None
@@ -150,7 +153,8 @@ class FilterSettings:
                 "accel_misalignment": (accel, ARCSEC, 3),
                 "lever_arm": (self.lever_arm_std_m, 1.0, 3),
                 "time_offset": (self.time_offset_std_ms, 1e-3, 1),
-                "clock": ((self.clock_bias_std_m, self.clock_drift_std_mps), 1.0, 2)}
+                "clock": ((self.clock_bias_std_m, self.clock_drift_std_mps), 1.0, 2),
+                "isb": (self.isb_std_m, 1.0, 4)}
         return np.concatenate([[]] + [np.broadcast_to(np.asarray(edge[g][0], float), edge[g][2])
                                       * edge[g][1] for g in self.layout.groups])
 

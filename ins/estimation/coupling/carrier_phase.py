@@ -75,6 +75,10 @@ __all__ = ["CarrierOptions", "CarrierPhaseUpdater", "INITIAL_SIGMA_CYC", "HOLD_S
 INITIAL_SIGMA_CYC = 160.0
 #: Sigma of the fixed double differences applied as measurements (fix and hold), cycles.
 HOLD_SIGMA_CYC = 0.01
+#: Constellations whose ambiguities stay float: GLONASS (FDMA: the receivers' phase
+#: offsets in cycles differ per channel, so its double differences are no integers
+#: without an inter-frequency bias calibration).
+FLOAT_ONLY = ("R",)
 #: A satellite not observed for longer than this, or than 2.5 of the receiver's epoch
 #: intervals (a 30 s reference station), is taken as a new arc, s.
 MAX_GAP_S = 5.0
@@ -139,10 +143,11 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
             raise ValueError("carrier phase needs both receivers' carrier (phase_m)")
         super().__init__(settings, gnss, options)
         self.c = carrier or CarrierOptions()
-        self.frequencies = [("L1", float(gnss.wavelength_m), "phase_m", "lli")]
+        self.frequencies = [("L1", float(gnss.wavelength_m), "phase_m", "lli", "lam_m")]
         if (getattr(gnss, "phase2_m", None) is not None
                 and getattr(gnss.base, "phase2_m", None) is not None):
-            self.frequencies.append(("L2", float(gnss.wavelength2_m), "phase2_m", "lli2"))
+            self.frequencies.append(("L2", float(gnss.wavelength2_m), "phase2_m", "lli2",
+                                     "lam2_m"))
         dt = np.diff(np.asarray(gnss.time, float))
         self.max_gap_s = max(MAX_GAP_S, 2.5 * float(np.median(dt)) if len(dt) else 0.0)
         self.slot = {}                 # (satellite, frequency) -> slot (0-based)
@@ -203,9 +208,13 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         return P, dx
 
     def _carrier(self, c, freq):
-        """One frequency's single differences at the epoch: a dict."""
-        f, lam, attr, lli_attr = freq
+        """One frequency's single differences at the epoch: a dict (``lam`` per
+        satellite, m: a GLONASS channel's own)."""
+        f, lam0, attr, lli_attr, lam_attr = freq
         g, b, k = self.gnss, self.gnss.base, c.k
+        lams = getattr(g, lam_attr, None)
+        lam = (np.full(len(c.ir), lam0) if lams is None
+               else np.asarray(lams[k], float)[c.ir])
         y = (np.asarray(getattr(g, attr)[k], float)[c.ir]
              - np.asarray(getattr(b, attr)[k], float)[c.ib])
         lli = np.zeros(len(c.ir), int)
@@ -216,7 +225,7 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         var = (self._var(c.el, self.c.carrier_sigma_m)
                + self._var(c.el_b, self.c.carrier_sigma_m))
         return {"f": f, "lam": lam, "y": y, "lli": lli, "var": var,
-                "ok": c.up & np.isfinite(y), "kind": f"dd_carrier_{f}"}
+                "ok": c.up & np.isfinite(y) & np.isfinite(lam), "kind": f"dd_carrier_{f}"}
 
     def _apply(self, c, P, H, z, R):
         if not z:
@@ -238,8 +247,8 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
             key = (s, o["f"])
             if key in self.slot:
                 col = self._col(key)
-                H[i, col] -= o["lam"]      # z = H dx - lambda (N - N_est)
-                z[i] = c.sd_r[i] + o["lam"] * sensors[col - 9] - o["y"][i]
+                H[i, col] -= o["lam"][i]   # z = H dx - lambda (N - N_est)
+                z[i] = c.sd_r[i] + o["lam"][i] * sensors[col - 9] - o["y"][i]
         return _Kind(o["kind"], "m", z, H, o["var"])
 
     def _slots(self, c, sensors, P, o):
@@ -256,9 +265,13 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
                 if key in self.slot and not new:
                     self.slips.append((t, f"{s} {f}"))
                 reset.add(i)
-        tracked = [i for i in range(len(names)) if ok[i] and i not in reset]
-        if len(tracked) >= 2:             # slips the INS sees: w-test before the update
-            phase = self._phase_kind(c, sensors, o)
+        phase = None
+        for system in sorted(set(c.sys.tolist())):
+            tracked = [i for i in range(len(names)) if ok[i] and i not in reset
+                       and c.sys[i] == system]
+            if len(tracked) < 2:
+                continue                   # slips the INS sees: w-test before the update
+            phase = phase or self._phase_kind(c, sensors, o)
             sub = np.array(tracked)
             pref = max(range(len(tracked)), key=lambda j: ((names[tracked[j]], f) in
                                                            self.held, c.el[tracked[j]]))
@@ -272,24 +285,26 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         for i, s in enumerate(names):
             if ok[i]:
                 self.seen[(s, f)] = t
-        if not reset:
-            return P
-        return self._reinit(c, sensors, P, o, sorted(reset))
+        for system in sorted({c.sys[i] for i in reset}):
+            P = self._reinit(c, sensors, P, o, sorted(i for i in reset if c.sys[i] == system))
+        return P
 
     def _reinit(self, c, sensors, P, o, reset):
-        L, lam, f, y, var = self.layout, o["lam"], o["f"], o["y"], o["var"]
-        names = c.names
+        """Re-initialize the slots of ``reset`` (satellites of one constellation) against
+        an anchor of that constellation (module notes)."""
+        L, f, y, var, lam = self.layout, o["f"], o["y"], o["var"], o["lam"]
+        names, system = c.names, c.sys[reset[0]]
         for i in reset:
             self._release((names[i], f))
         anchors = [i for i in range(len(names)) if o["ok"][i] and i not in reset
-                   and (names[i], f) in self.slot]
+                   and c.sys[i] == system and (names[i], f) in self.slot]
         if anchors:
             a = max(anchors, key=lambda i: ((names[i], f) in self.held, c.el[i]))
         else:                              # no anchor: the highest one starts, alone
             a = max(reset, key=lambda i: c.el[i])
             self.slot[(names[a], f)] = self._free_slot(c.tg)
             col = self._col((names[a], f))
-            sensors[col - 9] = (y[a] - c.sd_r[a]) / lam
+            sensors[col - 9] = (y[a] - c.sd_r[a]) / lam[a]
             T, q = np.eye(L.n), np.zeros(L.n)
             T[col, :] = 0.0
             q[col] = INITIAL_SIGMA_CYC ** 2
@@ -302,11 +317,12 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         for i in reset:                    # tied to the anchor through the INS
             self.slot[(names[i], f)] = self._free_slot(c.tg)
             col = self._col((names[i], f))
-            sensors[col - 9] = (sensors[col_a - 9]
-                                + ((y[i] - y[a]) - (c.sd_r[i] - c.sd_r[a])) / lam)
-            T[col, :] = (c.H_r[i] - c.H_r[a]) / lam
-            T[col, col_a] += 1.0
-            q[col] = (var[i] + var[a]) / lam ** 2
+            # y_i - y_a = p_i - p_a + lam_i N_i - lam_a N_a (+ noise)
+            sensors[col - 9] = ((y[i] - y[a]) - (c.sd_r[i] - c.sd_r[a])
+                                + lam[a] * sensors[col_a - 9]) / lam[i]
+            T[col, :] = (c.H_r[i] - c.H_r[a]) / lam[i]
+            T[col, col_a] += lam[a] / lam[i]
+            q[col] = (var[i] + var[a]) / lam[i] ** 2
         return self.reinitialize(P, T, q)
 
     # ------------------------------------------------------------------ resolution
@@ -319,9 +335,15 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         el = dict(zip(c.names, c.el))
         pairs = []                         # (key, reference key) per DD
         for f, sats in used.items():
-            held = [s for s in sats if (s, f) in self.held]
-            ref = held[0] if held else max(sats, key=lambda s: el[s])
-            pairs += [((s, f), (ref, f)) for s in sats if s != ref]
+            for system in sorted({s[0] for s in sats} - set(FLOAT_ONLY)):
+                of = [s for s in sats if s[0] == system]
+                if len(of) < 2:
+                    continue
+                held = [s for s in of if (s, f) in self.held]
+                ref = held[0] if held else max(of, key=lambda s: el[s])
+                pairs += [((s, f), (ref, f)) for s in of if s != ref]
+        if not pairs:
+            return P, dx
         D = np.zeros((len(pairs), L.n))
         for j, (key, ref) in enumerate(pairs):
             D[j, self._col(key)] += 1.0

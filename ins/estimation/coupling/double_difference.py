@@ -213,7 +213,8 @@ class DoubleDifferenceUpdater(Updater):
         Satellites common to both receivers (``visible``), used in the pseudorange DDs
         (reference included) and rejected, per epoch.
     reference : list of str
-        The reference satellite of each epoch's pseudoranges ('' when none).
+        The reference satellites of each epoch's pseudoranges, one per constellation,
+        comma-separated ('' when none).
     ref_changes : int
         How often the reference changed.
     """
@@ -228,7 +229,7 @@ class DoubleDifferenceUpdater(Updater):
         self.base_name = getattr(gnss.base, "name", "base")
         self.epochs, self.reference = [], []
         self.ref_changes = 0
-        self._ref = None
+        self._refs = {}                # system letter -> reference satellite
         self.used = {}                 # kind name -> satellites in its last accepted DDs
         import pymap3d
         self._base_lla = np.array(pymap3d.ecef2geodetic(*gnss.base.r_e, deg=False))
@@ -238,16 +239,25 @@ class DoubleDifferenceUpdater(Updater):
         s_el = np.maximum(np.sin(el), 1e-3)
         return sigma[0] ** 2 + (sigma[1] / s_el) ** 2
 
-    def _choose_ref(self, names, el):
-        """The previous reference if present and usable (``el`` finite: above the masks),
-        else the highest satellite; returns its index, counts the changes."""
-        if self._ref in names and np.isfinite(el[names.index(self._ref)]):
-            return names.index(self._ref)
-        k = int(np.argmax(el))
-        if self._ref is not None:
-            self.ref_changes += 1
-        self._ref = names[k]
-        return k
+    def _choose_refs(self, names, el):
+        """Per constellation (the names' first letter): the previous reference if
+        present and usable (``el`` finite: above the masks), else the highest satellite;
+        returns ``{system: index}``, counts the changes."""
+        out = {}
+        for s in sorted({n[0] for n in names}):
+            idx = [i for i, n in enumerate(names) if n[0] == s and np.isfinite(el[i])]
+            if not idx:
+                continue
+            old = self._refs.get(s)
+            if old in names and names.index(old) in idx:
+                out[s] = names.index(old)
+                continue
+            k = max(idx, key=lambda i: el[i])
+            if old is not None:
+                self.ref_changes += 1
+            self._refs[s] = names[k]
+            out[s] = k
+        return out
 
     def update(self, e, t_row, state, sensors, P, w_meas_b, f_meas_b=None):
         """Process epoch ``ev_record[e]`` at the node of time ``t_row``; returns
@@ -315,47 +325,59 @@ class DoubleDifferenceUpdater(Updater):
                           up & np.isfinite(y_d)))
         if np.count_nonzero(up) < 2:
             return None
-        ref0 = self._choose_ref(names, np.where(up, el, -np.inf))
+        refs = self._choose_refs(names, np.where(up, el, -np.inf))
+        sysl = np.array([n[0] for n in names])
         return SimpleNamespace(k=k, tg=tg, point=point, ep=ep, names=names, ir=ir, ib=ib,
                                sd_r=sd_r, H_r=H_r, el=el, el_b=el_b, up=up, kinds=kinds,
-                               ref0=ref0)
+                               refs=refs, sys=sysl)
 
     def _screened(self, c, kinds, P):
-        """Screen each kind's double differences (:func:`screen`) and record them;
-        returns the accepted ``(H blocks, z blocks, R blocks)``."""
+        """Screen each kind's double differences (:func:`screen`), within each
+        constellation against its own reference, and record them; returns the accepted
+        ``(H blocks, z blocks, R blocks)``."""
         H_all, z_all, R_blocks = [], [], []
         thr = self._threshold(1)
         names, tg, ep = c.names, c.tg, c.ep
+        refs_used = []
         for n_kind, (kind, ok) in enumerate(kinds):
-            sub = np.flatnonzero(ok)
-            pref = int(np.searchsorted(sub, c.ref0)) if c.ref0 in sub else -1
-            kept, ref, rejected = screen(kind.z[sub], kind.H[sub], kind.var[sub], P, pref,
-                                         thr, c.el[sub])
-            for i, w in rejected:
-                self.records.append(UpdateRecord(kind.name, (names[sub[i]],), kind.unit, tg,
-                                                 np.array([np.nan]), np.array([np.nan]), w,
-                                                 False))
-                self.n_rejected += 1
-                ep.rejected += 1
-            if not kept:
-                continue
-            idx, ref = [int(sub[i]) for i in kept], int(sub[ref])
-            r = idx.index(ref)
-            D = dd_operator(len(idx), r)
-            H, z = D @ kind.H[idx], D @ kind.z[idx]
-            R = dd_covariance(kind.var[idx], r)
-            s = np.sqrt(np.diag(H @ P @ H.T + R))
-            for row, i in enumerate(i for i in idx if i != ref):
-                self.records.append(UpdateRecord(
-                    kind.name, (f"{names[i]}-{names[ref]}",), kind.unit, tg, z[row:row + 1],
-                    s[row:row + 1], float((z[row] / s[row]) ** 2), True))
-            H_all.append(H)
-            z_all.append(z)
-            R_blocks.append(R)
+            used = []
+            for system in sorted(set(c.sys.tolist())):
+                sub = np.flatnonzero(ok & (c.sys == system))
+                if len(sub) < 2:           # one satellite of a system: no DD
+                    continue
+                r0 = c.refs.get(system)
+                pref = int(np.searchsorted(sub, r0)) if r0 in sub else -1
+                kept, ref, rejected = screen(kind.z[sub], kind.H[sub], kind.var[sub], P,
+                                             pref, thr, c.el[sub])
+                for i, w in rejected:
+                    self.records.append(UpdateRecord(kind.name, (names[sub[i]],), kind.unit,
+                                                     tg, np.array([np.nan]),
+                                                     np.array([np.nan]), w, False))
+                    self.n_rejected += 1
+                    ep.rejected += 1
+                if not kept:
+                    continue
+                idx, ref = [int(sub[i]) for i in kept], int(sub[ref])
+                r = idx.index(ref)
+                D = dd_operator(len(idx), r)
+                H, z = D @ kind.H[idx], D @ kind.z[idx]
+                R = dd_covariance(kind.var[idx], r)
+                s = np.sqrt(np.diag(H @ P @ H.T + R))
+                for row, i in enumerate(i for i in idx if i != ref):
+                    self.records.append(UpdateRecord(
+                        kind.name, (f"{names[i]}-{names[ref]}",), kind.unit, tg,
+                        z[row:row + 1], s[row:row + 1], float((z[row] / s[row]) ** 2), True))
+                H_all.append(H)
+                z_all.append(z)
+                R_blocks.append(R)
+                used += [names[i] for i in idx]
+                if n_kind == 0:
+                    refs_used.append(names[ref])
             if n_kind == 0:
-                ep.used = len(idx)
-                self.reference[-1] = names[ref]
-            self.used[kind.name] = [names[i] for i in idx]
+                ep.used = len(used)
+                self.reference[-1] = ",".join(refs_used)
+            if used:
+                self.used[kind.name] = used
         return H_all, z_all, R_blocks
 
     def satellites_used(self):

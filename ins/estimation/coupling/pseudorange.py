@@ -69,9 +69,11 @@ from ins.estimation.core.updates import Updater
 from ins.nav import earth
 
 __all__ = ["CLOCK_JUMP_SIGMAS", "CLOCKS", "apply_rows", "satellites_used", "clock_psd", "TightOptions", "TightUpdater", "line_of_sight", "range_rows",
-           "sagnac_range", "sagnac_range_rate", "CLIGHT"]
+           "sagnac_range", "sagnac_range_rate", "CLIGHT", "ISB_SYSTEMS"]
 
 CLIGHT = 299792458.0
+#: The systems of the layout's ``isb`` group, in its order (GPS is the clock's).
+ISB_SYSTEMS = "RECJ"
 
 
 def sagnac_range(r_sat_e, r_e):
@@ -150,10 +152,14 @@ class TightOptions:
     use_doppler: bool = True
 
 
-def range_rows(point, r_sat_e, v_sat_e, time):
+def range_rows(point, r_sat_e, v_sat_e, time, systems=None):
     """Predicted pseudoranges and range rates (without and with the clock) and their
     ``H`` rows at ``point`` (:class:`~ins.estimation.core.measurements.NavPoint`; without the
     layout's ``clock`` group, as for double differences, no clock term and column) for satellites at ``r_sat_e``, ``v_sat_e`` (k, 3) ECEF.
+
+    With the layout's ``isb`` group and ``systems`` (one RINEX letter per satellite),
+    a satellite of GLONASS, Galileo, BeiDou or QZSS has its system's inter-system bias
+    added to the range (column ``-1``).
 
     Returns
     -------
@@ -187,6 +193,13 @@ def range_rows(point, r_sat_e, v_sat_e, time):
     if L.clock is not None:
         H_rho[:, L.clock.start] = -1.0
         H_rate[:, L.clock.start + 1] = -1.0
+    if L.isb is not None and systems is not None:
+        isb = L.estimate(point.sensors, "isb")
+        for i, s in enumerate(systems):
+            j = ISB_SYSTEMS.find(s)
+            if j >= 0:
+                rho[i] += isb[j]
+                H_rho[i, L.isb.start + j] = -1.0
     return rho, rate, H_rho, H_rate, el
 
 
@@ -265,21 +278,22 @@ class TightUpdater(Updater):
         y_d = np.asarray(g.range_rate_mps[k], float)
         snr = None if g.snr_dbhz is None else g.snr_dbhz[k]
         names = g.names[k]
+        sysl = [n[0] for n in names]
         ep = _Epoch(tg, len(y_r), 0)
         self.epochs.append(ep)
         if len(y_r) == 0:
             return P, dx
-        rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg)
+        rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg, sysl)
         up = (el >= np.deg2rad(self.opt.elevation_mask_deg)) & np.isfinite(y_r)
         if not np.any(up):
             return P, dx
         if not self._clock_set:
-            self._init_clock(sensors, rho, rate, y_r, y_d, up)
-            rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg)
+            self._init_clock(sensors, rho, rate, y_r, y_d, up, sysl)
+            rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg, sysl)
         var_r, var_d = self._sigmas(el, snr)
         P = self._clock_jump(tg, sensors, P, rho, y_r, var_r, up)
         if self.clock_jumps and self.clock_jumps[-1][0] == tg:
-            rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg)
+            rho, rate, H_r, H_d, el = range_rows(point, r_s, v_s, tg, sysl)
         rows, z, R = [], [], []
         thr = self._threshold(1)
         cand = [(i, "pseudorange", "m", rho[i] - y_r[i], H_r[i], var_r[i]) for i in
@@ -337,11 +351,23 @@ class TightUpdater(Updater):
         self.clock_jumps.append((t, off))
         return P
 
-    def _init_clock(self, sensors, rho, rate, y_r, y_d, up):
+    def _init_clock(self, sensors, rho, rate, y_r, y_d, up, systems=None):
         """The clock estimate from the first epoch: the median of the measured minus
-        predicted ranges (range rates) of the satellites above the mask."""
-        k = self.layout.clock.start - 9
-        sensors[k] += float(np.median(y_r[up] - rho[up]))
+        predicted ranges (range rates) of the satellites above the mask (of the first
+        system seen; each other system's inter-system bias from its own satellites, when
+        the layout has them)."""
+        L = self.layout
+        k = L.clock.start - 9
+        sysl = np.array(systems if systems is not None else ["G"] * len(y_r))
+        first = next(s for s in "GRECJ" if np.any(up & (sysl == s)))
+        d = y_r - rho
+        clock = float(np.median(d[up & (sysl == first)]))
+        sensors[k] += clock
+        if L.isb is not None:
+            for j, s in enumerate(ISB_SYSTEMS):
+                m = up & (sysl == s)
+                if np.any(m) and s != first:
+                    sensors[L.isb.start - 9 + j] += float(np.median(d[m])) - clock
         ok = up & np.isfinite(y_d)
         if np.any(ok):
             sensors[k + 1] += float(np.median(y_d[ok] - rate[ok]))

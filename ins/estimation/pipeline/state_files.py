@@ -17,7 +17,9 @@ ARCSEC = np.pi / 180.0 / 3600.0
 GROUP_UNITS = {"gyro_misalignment": ("arcsec", ARCSEC), "accel_misalignment": ("arcsec", ARCSEC),
                "lever_arm": ("m", 1.0), "time_offset": ("ms", 1e-3),
                # the receiver clock (tight coupling): bias c*dt in m, drift in m/s
-               "clock": (("m", 1.0), ("mps", 1.0))}
+               "clock": (("m", 1.0), ("mps", 1.0)),
+               # inter-system biases (tight coupling, several constellations), m
+               "isb": ("m", 1.0)}
 
 
 def _state_units(group):

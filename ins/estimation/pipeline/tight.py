@@ -105,7 +105,10 @@ def tight_inputs(cfg, gnss, settings):
                 CarrierPhaseUpdater, options=options, carrier=carrier))
         return raw, replace(settings, updater=functools.partial(DoubleDifferenceUpdater,
                                                                 options=options))
-    layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
+    groups = tuple(settings.layout.groups) + ("clock",)
+    if len(observed_systems(raw)) > 1:     # a clock offset per other constellation
+        groups += ("isb",)
+    layout = StateLayout(groups)
     return raw, replace(settings, layout=layout, clock_psd=clock_psd(*CLOCKS[cfg.receiver_clock]),
                         updater=functools.partial(TightUpdater, options=options))
 
@@ -156,13 +159,28 @@ def _read(raw_in, positions):
             raise InputError("tight coupling: the rover's log holds no ephemeris (u-blox "
                              "RXM-SFRBX, RTCM3 1019, ...) and no nav file is given "
                              "([files] nav, --nav)", path=raw_in.rover)
+        systems = tight_systems(opts)
         if not raw_in.base:
-            return read_raw_epochs(obs, navs, positions)
+            return read_raw_epochs(obs, navs, positions, systems=systems)
         from ins.gnss.raw_pairs import read_pair
         base, _ = observations(raw_in.base, tmp, rtk, "base",
                                getattr(opts, "base_format", None), navs,
                                epoch=obs_epoch(obs, rtk))
-        return read_pair(obs, base, navs, positions, opts)
+        return read_pair(obs, base, navs, positions, opts, systems=systems)
+
+
+def observed_systems(raw):
+    """The constellations (RINEX letters) with at least one satellite in ``raw``."""
+    return sorted({n[0] for names in raw.names for n in names}, key="GRECJ".index)
+
+
+def tight_systems(options):
+    """The constellations of tight coupling: those of ``[rtklib] systems`` (RTKLIB's
+    default GPS, GLONASS and Galileo) as RINEX letters, GPS first."""
+    from ins.gnss.raw_epochs import SYSTEM_NAMES
+    names = getattr(options, "systems", None) or ("gps",)
+    out = [SYSTEM_NAMES[n] for n in names if n in SYSTEM_NAMES]
+    return tuple(sorted(set(out), key="GREJC".index)) or ("G",)
 
 
 def tight_counts(fwd):
