@@ -49,8 +49,11 @@ covariance), so one bad satellite does not reject the epoch; the accepted rows a
 applied in one update.  One, two or three satellites are used as they come: each is a
 scalar constraint on position along its line of sight and on the clock.
 
-GPS only (one clock bias); several systems would need one bias (or an inter-system
-bias) per system.
+Several constellations: the receiver clock is the first system's (GPS when there is
+one); each other system's pseudoranges carry its inter-system bias, the layout's
+``isb`` group (:data:`ISB_SYSTEMS`; random constants, initialized from the first epoch
+by :meth:`TightUpdater._init_clock`).  GLONASS's inter-frequency code biases between
+channels (decimetres on some receivers) are not modelled.
 """
 from dataclasses import dataclass, field
 
