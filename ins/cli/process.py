@@ -243,6 +243,13 @@ def _config(args):
         if not os.path.isdir(args.flight_dir):
             raise InputError(f"FLIGHT_DIR {args.flight_dir}: not a folder")
         cfg = config_from_manifest(args.flight_dir, overrides=args.config)
+        extra = [f"--{k}" for k in ("base", "nav", "sp3", "clk", "atx", "dcb")
+                 if getattr(args, k, None)]
+        if extra and not (extra == ["--base"] and getattr(args, "coupling", None) == "tight"):
+            raise InputError(f"{', '.join(extra)} with FLIGHT_DIR: only --base, with "
+                             f"--coupling tight (double differences and RTK against that "
+                             f"base; the flight's own raw files give the rover and the "
+                             f"navigation)")
     else:
         if not args.config:
             raise InputError("--config F.toml is required without FLIGHT_DIR")
@@ -259,7 +266,7 @@ def _config(args):
     if getattr(args, "coupling", None):
         cfg.coupling = args.coupling
     if args.flight_dir and cfg.coupling == "tight" and cfg.gnss_raw is None:
-        _flight_raw_gnss(cfg, args.flight_dir)
+        _flight_raw_gnss(cfg, args.flight_dir, getattr(args, "base", None))
     _input_options(cfg, args)
     if args.preset:
         from ins.common.textfiles import read_toml
@@ -269,23 +276,27 @@ def _config(args):
     return cfg
 
 
-def _flight_raw_gnss(cfg, flight_dir):
-    """Tight coupling on a simulated flight folder: its raw GPS (``rover.obs`` and
-    ``rover.nav`` of ``[gnss_raw]``, :mod:`ins.simulate.gnss_raw_product`) with RTKLIB's
-    single-point solution of them as the GNSS log (start, delays, checks), not the
-    folder's ready fixes."""
+def _flight_raw_gnss(cfg, flight_dir, base=None):
+    """Tight coupling on a simulated flight folder: its raw GNSS (``rover.obs`` and
+    ``rover.nav`` of ``[gnss_raw]``, :mod:`ins.simulate.gnss_raw_product`; the systems
+    it simulated) with RTKLIB's single-point solution of them as the GNSS log (start,
+    delays, checks), not the folder's ready fixes; with ``base`` (``--base``, e.g. the
+    folder's ``base.obs``) double differences and RTK against it."""
     from ins.common.textfiles import read_toml
     from ins.estimation.pipeline.gnss_source import RawGnss
     from ins.gnss.rtklib_options import RtklibOptions
-    files = read_toml(os.path.join(flight_dir, "manifest.toml"), "a flight manifest").get(
-        "files", {})
+    manifest = read_toml(os.path.join(flight_dir, "manifest.toml"), "a flight manifest")
+    files = manifest.get("files", {})
+    letters = manifest.get("gnss_raw", {}).get("systems", ["G"])
+    names = {"G": "gps", "R": "glonass", "E": "galileo", "C": "beidou", "J": "qzss"}
     if not (files.get("gnss_raw_obs") and files.get("gnss_raw_nav")):
         raise InputError(f"--coupling tight: the flight folder {flight_dir} has no raw GPS "
                          "observations (simulate it with a [gnss_raw] table in the plan or "
                          "'ins simulate --gnss-raw NAV_FILE')")
     cfg.gnss_raw = RawGnss(rover=os.path.join(flight_dir, files["gnss_raw_obs"]),
-                           nav=(os.path.join(flight_dir, files["gnss_raw_nav"]),),
-                           options=RtklibOptions(mode="single", systems=("gps",),
+                           nav=(os.path.join(flight_dir, files["gnss_raw_nav"]),), base=base,
+                           options=RtklibOptions(mode="single", systems=tuple(
+                               names[s] for s in letters if s in names) or ("gps",),
                                                  frequencies=1,
                                                  elevation_mask_deg=cfg.elevation_mask_deg))
     cfg.gnss = None
@@ -506,15 +517,25 @@ def _summary(result, cfg, paths, t_proc, t_write):
           f"updates, {c['rejected']} rejected by the innovation test, {c['outside_imu_span']} "
           f"outside the processed span, {c['mount_fallback']} with the static arm (no mount data)",
           file=out)
+    systems = "+".join(c.get("systems", ["G"]))
     if c.get("coupling") == "tight" and c.get("base"):
-        print(f"tight coupling (double differences against {c['base']}): GPS satellites "
-              f"used per epoch min {c['satellites_min']}, mean {c['satellites_mean']:.1f} "
-              f"(the reference included; it changed {c['reference_changes']} times; updates "
-              f"and rejections count pseudorange and range-rate DDs)", file=out)
+        print(f"tight coupling (double differences against {c['base']}): {systems} "
+              f"satellites used per epoch min {c['satellites_min']}, mean "
+              f"{c['satellites_mean']:.1f} (the references included, one per system; they "
+              f"changed {c['reference_changes']} times; updates and rejections count "
+              f"pseudorange and range-rate DDs)", file=out)
+        if c.get("carrier_epochs") is not None:
+            rate = c.get("fix_rate")
+            refix = ", ".join(f"{v:g}" for v in c.get("refix_s", [])) or "none"
+            print(f"RTK ({'+'.join(c.get('carriers', ['L1']))} carrier): "
+                  f"{c['fixed_epochs']} of {c['carrier_epochs']} carrier epochs fixed "
+                  f"({'-' if rate is None else f'{100 * rate:.1f} %'}; LAMBDA, ratio and "
+                  f"success rate tests), {c['cycle_slips']} cycle slips; re-fix after "
+                  f"each total outage: {refix} s", file=out)
     elif c.get("coupling") == "tight":
-        print(f"tight coupling: GPS satellites used per epoch min {c['satellites_min']}, "
-              f"mean {c['satellites_mean']:.1f} (updates and rejections count pseudoranges "
-              f"and range rates)", file=out)
+        print(f"tight coupling: {systems} satellites used per epoch min "
+              f"{c['satellites_min']}, mean {c['satellites_mean']:.1f} (updates and "
+              f"rejections count pseudoranges and range rates)", file=out)
         for t, jump in c.get("clock_jumps", []):
             print(f"receiver clock jump at {t:.2f} s: {jump:+.1f} m ({jump / 299792.458:+.4f} "
                   f"ms) common to the pseudoranges; the clock bias set again", file=out)

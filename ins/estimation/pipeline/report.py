@@ -116,8 +116,14 @@ def _summary_rows(result, times):
             ("re-anchorings after GNSS gaps", c.get("reanchors", 0)),
             ("GNSS steps (rejected fixes off the GNSS track)", c.get("gnss_steps", 0))]
     if c.get("coupling") == "tight":
-        rows += [("GPS satellites used per epoch, min", c.get("satellites_min")),
-                 ("GPS satellites used per epoch, mean", c.get("satellites_mean"))]
+        rows += [("systems", "+".join(c.get("systems", ["G"]))),
+                 ("satellites used per epoch, min", c.get("satellites_min")),
+                 ("satellites used per epoch, mean", c.get("satellites_mean"))]
+        if c.get("carrier_epochs") is not None:
+            rows += [("RTK carrier epochs fixed", f"{c['fixed_epochs']} of "
+                      f"{c['carrier_epochs']}"), ("cycle slips", c.get("cycle_slips")),
+                     ("re-fix after total outages, s",
+                      ", ".join(f"{v:g}" for v in c.get("refix_s", [])) or "none")]
     if q:
         rows += [("GNSS measurements tested", q["tested"]),
                  ("rejected fraction", f"{100 * q['rejected_fraction']:.2f} %")]

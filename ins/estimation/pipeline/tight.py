@@ -192,13 +192,14 @@ def tight_counts(fwd):
         return {"coupling": "loose"}
     lo, mean, _ = up.satellites_used()
     out = {"coupling": "tight", "satellites_min": lo, "satellites_mean": round(mean, 2),
-           "clock_jumps": list(getattr(up, "clock_jumps", []))}
+           "clock_jumps": list(getattr(up, "clock_jumps", [])),
+           "systems": observed_systems(up.gnss)}
     if hasattr(up, "base_name"):
         out.update(base=up.base_name, reference_changes=up.ref_changes)
     if hasattr(up, "fix_rate"):
         rate = up.fix_rate()
         out.update(carrier_epochs=up.carrier_epochs, fixed_epochs=up.fixed_epochs,
                    fix_rate=None if not np.isfinite(rate) else round(float(rate), 4),
-                   cycle_slips=len(up.slips),
+                   cycle_slips=len(up.slips), carriers=[f[0] for f in up.frequencies],
                    refix_s=[round(float(v), 1) for v in up.refix_s])
     return out
