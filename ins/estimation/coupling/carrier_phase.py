@@ -124,8 +124,9 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
     fixed_epochs, carrier_epochs : int
         Epochs with a fixed solution; epochs with carrier double differences.
     refix_s : list of float
-        After each epoch with no carrier double difference (a total outage), the time
-        to the next fixed epoch, s.
+        After each total outage (epochs with fewer than two common satellites, or none
+        for longer than 2.5 epoch intervals), the time from the first carrier epoch to
+        the first fixed one, s (0: fixed at once).
     ratios : list of (float, float, float)
         (time s, ratio, success rate) of each resolution attempt.
     fixed_at : list of float
@@ -156,6 +157,7 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         self.slips = []
         self.fixed_epochs = self.carrier_epochs = 0
         self.refix_s, self._outage_end = [], None
+        self._last_carrier = None      # time of the last epoch with carrier DDs, s
         self.ratios = []
         self.fixed_at = []
 
@@ -200,6 +202,9 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         used = {o["f"]: self.used.pop(o["kind"], []) for o in obs}
         used = {f: names for f, names in used.items() if len(names) >= 2}
         if used:
+            last, self._last_carrier = self._last_carrier, c.tg
+            if last is not None and c.tg - last > self.max_gap_s:
+                self._outage_end = c.tg    # the first carrier epoch after an outage
             self.carrier_epochs += 1
             P, dx2 = self._resolve(c, sensors, P, used)
             dx = dx + dx2
