@@ -142,3 +142,25 @@ def test_rtk_with_every_system_fixes_at_once(flight):
     assert not any(key[0].startswith("R") for key in up.held)
     assert {n[0] for names in up.gnss.names for n in names} == {"G", "R", "E", "C"}
     assert _horizontal(flight, res.smoothed) < 0.03
+
+
+def test_geometry_free_finds_the_slips_without_their_flags(flight, monkeypatch):
+    """The loss-of-lock flags removed: the slip of every satellite at 20 s (4 cycles on
+    each frequency) is found by the geometry-free combination of the two carriers and
+    the RTK solution stays at the centimetre."""
+    from ins.estimation.pipeline import tight
+    read = tight._read
+
+    def no_flags(raw_in, positions):
+        raw = read(raw_in, positions)
+        for r in (raw, raw.base):
+            r.lli = r.lli2 = None
+        return raw
+    monkeypatch.setattr(tight, "_read", no_flags)
+    res = _run(flight, str(flight / "base.obs"), SYSTEMS)
+    up = res.fwd.updater
+    t0 = up.gnss.time[0]
+    assert up.gf_slips >= 10
+    at_20 = {s for t, s in up.slips if abs(t - t0 - 20.0) < 1.5}
+    assert len(at_20) >= 10
+    assert _horizontal(flight, res.smoothed) < 0.03

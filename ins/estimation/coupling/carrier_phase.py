@@ -40,9 +40,11 @@ says so (LLI bit 0), when it was not observed for more than :data:`MAX_GAP_S` (o
 epoch intervals), or when
 its carrier double differences fail the per-satellite w-test against the INS's
 prediction before the update (:func:`ins.estimation.coupling.double_difference.screen`);
-each re-initialization of a tracked satellite counts as a slip.  There is no
-geometry-free or Melbourne-Wuebbena test yet (the INS's prediction does that job: a slip
-of one cycle is 19 or 24 cm against centimetres of predicted range).
+each re-initialization of a tracked satellite counts as a slip.  With two frequencies
+the geometry-free combination of the single differences flags a jump beyond
+:data:`GF_JUMP_M` (no Melbourne-Wuebbena test: the second frequency's code is not
+read); the INS's prediction does the rest (a slip of one cycle is 19 or 24 cm against
+centimetres of predicted range).
 
 Ambiguity resolution and hold
 -----------------------------
@@ -75,6 +77,10 @@ __all__ = ["CarrierOptions", "CarrierPhaseUpdater", "INITIAL_SIGMA_CYC", "HOLD_S
 INITIAL_SIGMA_CYC = 160.0
 #: Sigma of the fixed double differences applied as measurements (fix and hold), cycles.
 HOLD_SIGMA_CYC = 0.01
+#: A jump of the geometry-free combination between two epochs beyond this is a slip, m
+#: (the ionosphere's change over a second is millimetres; one cycle on both GPS
+#: frequencies moves it by 5.4 cm).
+GF_JUMP_M = 0.03
 #: Constellations whose ambiguities stay float: GLONASS (FDMA: the receivers' phase
 #: offsets in cycles differ per channel, so its double differences are no integers
 #: without an inter-frequency bias calibration).
@@ -158,6 +164,8 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
         self.fixed_epochs = self.carrier_epochs = 0
         self.refix_s, self._outage_end = [], None
         self._last_carrier = None      # time of the last epoch with carrier DDs, s
+        self.gf = {}                   # satellite -> (time, geometry-free SD, m)
+        self.gf_slips = 0              # slips the geometry-free combination found
         self.ratios = []
         self.fixed_at = []
 
@@ -190,6 +198,8 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
             self._no_carrier()
             return P, np.zeros(L.n)
         obs = [self._carrier(c, f) for f in self.frequencies]
+        if len(obs) == 2:
+            self._geometry_free(c, obs)
         for o in obs:
             if np.count_nonzero(o["ok"]) >= 2:
                 P = self._slots(c, sensors, P, o)
@@ -256,6 +266,29 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
                 z[i] = c.sd_r[i] + o["lam"][i] * sensors[col - 9] - o["y"][i]
         return _Kind(o["kind"], "m", z, H, o["var"])
 
+    def _geometry_free(self, c, obs):
+        """Slips seen by the geometry-free combination of the two carriers: the single
+        differences' ``y1 - y2`` (m: the ionosphere's and the ambiguities' combination,
+        no geometry, no clock) moves by more than :data:`GF_JUMP_M` since the satellite's
+        last epoch (within the arc gap): both frequencies flagged as by a loss of lock
+        (bit 1 of ``lli``).  A slip of the same cycles on both frequencies moves it by
+        ``n (lambda1 - lambda2)``, 5.4 cm a cycle on GPS L1/L2."""
+        o1, o2 = obs
+        gf = o1["y"] - o2["y"]
+        t = c.tg
+        for i, s in enumerate(c.names):
+            if not (o1["ok"][i] and o2["ok"][i]):
+                self.gf.pop(s, None)
+                continue
+            last = self.gf.get(s)
+            self.gf[s] = (t, gf[i])
+            if last is None or t - last[0] > self.max_gap_s:
+                continue
+            if abs(gf[i] - last[1]) > GF_JUMP_M:
+                o1["lli"][i] |= 1
+                o2["lli"][i] |= 1
+                self.gf_slips += 1
+
     def _slots(self, c, sensors, P, o):
         """Slips and new satellites of one frequency: their slots re-initialized."""
         from ins.estimation.coupling.double_difference import screen
@@ -266,7 +299,7 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
                 continue
             key = (s, f)
             new = key not in self.slot or t - self.seen.get(key, -np.inf) > self.max_gap_s
-            if new or o["lli"][i]:
+            if new or o["lli"][i] & 1:
                 if key in self.slot and not new:
                     self.slips.append((t, f"{s} {f}"))
                 reset.add(i)
