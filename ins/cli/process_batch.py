@@ -33,12 +33,12 @@ many logs (a batch):
                     -3, ... in the order given: a/flight b/flight -> OUT/flight,
                     OUT/flight-2), built aside and swapped in whole as for one run,
                     with its summary in OUT/NAME/summary.txt; a failed run leaves no
-                    folder.  An existing non-empty OUT/NAME stops the batch before
-                    any work (exit 2) unless --force (each OUT/NAME replaced whole;
-                    nothing else in OUT touched).  The options apply to every run;
-                    those naming one log's files (--imu, --gnss, --rover ...,
-                    --mount, --truth) are refused; --report NAME.html is written
-                    into each run's folder.
+                    folder (nor OUT, when made for none).  An existing non-empty
+                    OUT/NAME stops the batch before any work (exit 2) unless --force
+                    (each OUT/NAME replaced whole; nothing else in OUT touched).  The
+                    options apply to every run; those naming one log's files (--imu,
+                    --gnss, --rover ..., --mount, --truth) are refused; --report
+                    NAME.html is written into each run's folder.
   --workers N       N local Dask worker processes (at most one per input); without
                     it, or with 1, the runs go one after another in this process.
   --scheduler ADDR  an existing dask.distributed scheduler's cluster instead; its
@@ -292,6 +292,7 @@ def run_batch(args):
     if os.path.isdir(out):                # an occupied OUT/NAME: before any work
         for f in folders:
             check_output_folder(f, args.force)
+    made = not os.path.isdir(out)
     os.makedirs(out, exist_ok=True)
     total = len(inputs)
     workers = args.workers or 1
@@ -346,8 +347,11 @@ def run_batch(args):
         map_tasks(run_one, tasks(), workers=workers, scheduler=args.scheduler,
                   total=total, on_result=finished)
     finally:
-        for stage in list(stages.values()):    # the unfinished runs: after the cluster
-            remove_staging(stage)
+        with interrupts.deferred():
+            for stage in list(stages.values()):    # the unfinished runs: after the cluster
+                remove_staging(stage)
+            if made and not os.listdir(out):       # no run finished: OUT as before
+                os.rmdir(out)
     if not quiet:
         for line in batch_table(records, names):
             print(line)
