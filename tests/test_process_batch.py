@@ -227,31 +227,45 @@ def test_ctrl_c_and_sigterm_at_random_moments_of_a_batch(flights, tmp_path):
     named there complete (as in an uninterrupted batch), the others absent, OUT absent
     when none had finished, no staging folder, nothing left in TMPDIR, no process left."""
     names = ["a", "b", "c"]
-    reference = _run(names + ["-o", "ref", "-q", "--workers", "2"], flights)
+    t0 = time.perf_counter()
+    reference = _run(names + ["-o", "ref", "-q", "--no-plots", "--workers", "2"], flights)
+    duration = time.perf_counter() - t0
     assert reference.returncode == 0, reference.stderr
     complete = {n: _listing(flights / "ref" / n) for n in names}
     rng = random.Random(f"{SEED}-batch")
-    cases = [(signal.SIGINT, "2"), (signal.SIGTERM, "2"), (signal.SIGINT, "1"),
-             (signal.SIGTERM, "2"), (signal.SIGINT, "2"), (signal.SIGTERM, "1")]
+    # (signal, workers, when): at a random moment of the run, or a moment after the
+    # first run's folder is in place (the finished/unfinished split)
+    cases = [(signal.SIGINT, "2", "any"), (signal.SIGTERM, "2", "any"),
+             (signal.SIGINT, "1", "after"), (signal.SIGTERM, "2", "after"),
+             (signal.SIGINT, "2", "after"), (signal.SIGTERM, "1", "any")]
     outcomes = []
-    for k, (sig, workers) in enumerate(cases):
+    for k, (sig, workers, when) in enumerate(cases):
         work, tmp = tmp_path / f"run{k}", tmp_path / f"tmp{k}"
         work.mkdir()
         tmp.mkdir()
-        argv = PY + [str(flights / n) for n in names] + ["-o", "out", "-q", "--workers",
+        argv = PY + [str(flights / n) for n in names] + ["-o", "out", "-q", "--no-plots", "--workers",
                                                          workers]
-        t0 = time.perf_counter()
         proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True, start_new_session=True,
                                 env=dict(os.environ, TMPDIR=str(tmp)))
-        delay = rng.uniform(0.5, 14.0)
-        time.sleep(delay)
+        t0 = time.perf_counter()
+        if when == "any":
+            delay = rng.uniform(0.5, 0.9 * duration)
+            time.sleep(delay)
+        else:
+            while proc.poll() is None and not (
+                    (work / "out").is_dir() and any(
+                        not n.startswith(".") for n in os.listdir(work / "out"))):
+                time.sleep(0.02)
+            time.sleep(rng.uniform(0.0, 1.0))
+            delay = time.perf_counter() - t0
         try:
             os.killpg(proc.pid, sig)
         except ProcessLookupError:
             pass
         _, err = proc.communicate(timeout=600)
-        where = f"run {k} ({sig.name} at {delay:.1f} s, --workers {workers}): rc " \
+        where = f"run {k} ({sig.name} at {delay:.1f} s of {duration:.1f}, --workers " \
+                f"{workers}): rc " \
                 f"{proc.returncode}, stderr {err!r}, files {_listing(work)}"
         assert "Traceback" not in err, where
         lines = [x for x in err.splitlines() if x.strip() and not x.startswith("warning:")]
@@ -285,6 +299,5 @@ def test_ctrl_c_and_sigterm_at_random_moments_of_a_batch(flights, tmp_path):
             raise AssertionError(where + subprocess.run(
                 ["ps", "-o", "pid,stat,cmd", "-g", str(proc.pid)], capture_output=True,
                 text=True).stdout)
-        del t0
     print(f"\nbatch interrupts: {outcomes}")
     assert sum(not o.startswith("0") for o in outcomes) >= len(cases) // 2
