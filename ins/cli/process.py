@@ -7,7 +7,6 @@ import time as wallclock
 
 import numpy as np
 
-from ins.cli.process_batch import BATCH_EPILOG, add_batch_arguments, run_batch
 from ins.cli.util import nonnegative_int, number
 from ins.common.errors import InputError, QualityError
 from ins.common.limits import MAX_TIME_SHIFT_S
@@ -146,7 +145,7 @@ def add_parser(sub):
             "misalignment; lever-arm and IMU-GNSS time-offset groups on request) or\n"
             "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
             "scale factor)."),
-        epilog=EPILOG + BATCH_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("flight_dir", nargs="*", metavar="FLIGHT_DIR",
                    help="flight folder with manifest.toml; two or more (flight folders "
                         "or per-log configs F.toml): a batch into OUT_DIR/NAME (see "
@@ -234,8 +233,8 @@ def add_parser(sub):
     p.add_argument("--force", action="store_true",
                    help="replace a non-empty OUT_DIR whole (the new run is built aside "
                         "and swapped in; nothing of the old run is kept)")
-    add_batch_arguments(p)
     p.set_defaults(func=_cmd_process)
+    return p            # ins.cli.process_batch adds the batch's options and help
 
 
 def _config(args):
@@ -380,9 +379,7 @@ def _cmd_process(args):
     import contextlib
 
     from ins.common.fileio import atomic_open, output_folder
-    inputs = args.flight_dir or []
-    if len(inputs) > 1:                         # many logs: ins.cli.process_batch
-        return run_batch(args)
+    inputs = args.flight_dir or []              # one (several: ins.cli.process_batch)
     args.flight_dir = inputs[0] if inputs else None
     t0 = wallclock.perf_counter()
     formats, height = _products(args)

@@ -19,7 +19,7 @@ import time as wallclock
 
 from ins.common.errors import InputError
 
-__all__ = ["BATCH_EPILOG", "add_batch_arguments", "run_batch", "run_one", "RunRecord",
+__all__ = ["BATCH_EPILOG", "add_parser", "cmd_process", "add_batch_arguments", "run_batch", "run_one", "RunRecord",
            "output_names", "worst_status"]
 
 BATCH_EPILOG = """
@@ -65,6 +65,25 @@ _QUIET = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, Resource
 #: Options that name one log's files: refused in a batch.
 _ONE_LOG = ("imu", "gnss", "rover", "base", "nav", "sp3", "clk", "atx", "dcb", "mount",
             "truth")
+
+
+def add_parser(sub):
+    """``ins process``: the parser of :mod:`ins.cli.process` with the batch's options
+    and help; several inputs run as a batch (:func:`run_batch`), one as before."""
+    from ins.cli import process
+    p = process.add_parser(sub)
+    p.epilog += BATCH_EPILOG
+    add_batch_arguments(p)
+    p.set_defaults(func=cmd_process)
+
+
+def cmd_process(args):
+    """``ins process``: a batch for two or more inputs, else the one run of
+    :mod:`ins.cli.process`, exactly as without the batch."""
+    if len(args.flight_dir or []) > 1:
+        return run_batch(args)
+    from ins.cli import process
+    return process._cmd_process(args)
 
 
 def add_batch_arguments(p):
