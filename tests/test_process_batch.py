@@ -168,10 +168,11 @@ def test_name_clashes_occupied_folders_and_bad_batches(flights, tmp_path):
         f"ins process: error: {out / 'a-2'}: the output folder is not empty (--force "
         "replaces it whole)"]
     assert _listing(out) == ["a-2", "a-2/old.txt", "keep.txt"]
-    proc = _run(argv + ["--force", "-q"], tmp_path)
+    proc = _run(argv + ["--force", "-q", "--report", "qc.html"], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == "" and proc.stderr == ""          # -q: no progress, no table
     assert sorted(os.listdir(out)) == ["a", "a-2", "keep.txt"]
+    assert (out / "a" / "qc.html").read_text().startswith("<!DOCTYPE html>")
     assert not (out / "a-2" / "old.txt").exists() and (out / "a-2" / "summary.txt").exists()
     assert (out / "a" / "solution.nav").read_bytes() == \
         (out / "a-2" / "solution.nav").read_bytes()
@@ -186,6 +187,26 @@ def test_name_clashes_occupied_folders_and_bad_batches(flights, tmp_path):
         assert not (tmp_path / "new").exists()
     proc = _run([str(flights / "a"), str(flights / "a"), "-o", "new"], tmp_path)
     assert proc.returncode == 2 and "given twice" in proc.stderr
+    proc = _run([str(flights / "a"), str(flights / "b"), "-o", str(flights)], tmp_path)
+    assert proc.returncode == 2 and "would hold or replace the input" in proc.stderr
+
+
+def test_a_run_that_meets_a_bug(flights, tmp_path, monkeypatch, capsys):
+    """An unexpected exception in a run (a bug) is that run's exit 1 with its traceback;
+    the batch goes on; no folder is left for it (nor OUT, made for no finished run)."""
+    from ins.cli import process_batch
+    from ins.cli.main import main
+
+    def broken(result, cfg):
+        raise ZeroDivisionError("a bug")
+    monkeypatch.setattr(process_batch, "_gnss_source", broken)
+    out = tmp_path / "out"
+    assert main(["process", str(flights / "a"), str(flights / "broken.toml"), "-o", str(out),
+                 "--no-plots"]) == 2                        # 2 > 1: the worst
+    err = capsys.readouterr().err
+    assert f"ins process: {flights / 'a'}: error: internal error: ZeroDivisionError: a bug" \
+        in err and "Traceback" in err
+    assert not out.exists()
 
 
 def test_a_scheduler_address(flights, tmp_path):

@@ -308,6 +308,11 @@ def run_batch(args):
         raise NotADirectoryError(20, "exists and is not a directory", out)
     names = output_names(inputs)
     folders = [os.path.join(out, n) for n in names]
+    for path, folder in zip(inputs, folders):
+        a, b = os.path.realpath(path), os.path.realpath(folder)
+        if a == b or a.startswith(b + os.sep) or b.startswith(a + os.sep):
+            raise InputError(f"-o {out}: its run folder {folder} would hold or replace "
+                             f"the input {path}; give an output folder outside the inputs")
     if os.path.isdir(out):                # an occupied OUT/NAME: before any work
         for f in folders:
             check_output_folder(f, args.force)
