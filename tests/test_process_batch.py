@@ -264,8 +264,8 @@ def test_ctrl_c_and_sigterm_at_random_moments_of_a_batch(flights, tmp_path):
         work, tmp = tmp_path / f"run{k}", tmp_path / f"tmp{k}"
         work.mkdir()
         tmp.mkdir()
-        argv = PY + [str(flights / n) for n in names] + ["-o", "out", "-q", "--no-plots", "--workers",
-                                                         workers]
+        argv = PY + [str(flights / n) for n in names] + ["-o", "out", "-q", "--no-plots",
+                                                         "--workers", workers]
         proc = subprocess.Popen(argv, cwd=work, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True, start_new_session=True,
                                 env=dict(os.environ, TMPDIR=str(tmp)))

@@ -19,8 +19,8 @@ import time as wallclock
 
 from ins.common.errors import InputError
 
-__all__ = ["BATCH_EPILOG", "add_parser", "cmd_process", "add_batch_arguments", "run_batch", "run_one", "RunRecord",
-           "output_names", "worst_status"]
+__all__ = ["BATCH_EPILOG", "add_parser", "cmd_process", "add_batch_arguments", "run_batch",
+           "run_one", "RunRecord", "output_names", "worst_status", "batch_table"]
 
 BATCH_EPILOG = """
 many logs (a batch):
@@ -187,6 +187,7 @@ def _run_args(args, path, folder, absolute):
 
 
 def argparse_copy(args):
+    """A shallow copy of the parsed arguments ``args``."""
     import argparse
     return argparse.Namespace(**vars(args))
 
