@@ -226,6 +226,40 @@ def test_a_scheduler_address(flights, tmp_path):
         assert _files(tmp_path / "out" / name) == _files(tmp_path / "plain" / name)
 
 
+def test_a_per_log_config_beside_a_flight_folder(flights, tmp_path):
+    """A per-log config (its [files] relative to it) runs as its own log, into
+    OUT/<its name without .toml>, as the same log's single run with --config does."""
+    import tomllib
+    man = tomllib.loads((flights / "b" / "manifest.toml").read_text())
+    ini, arm = man["initial"], man["lever_arm"]
+    cfg = tmp_path / "logs" / "log_b.toml"
+    cfg.parent.mkdir()
+    cfg.write_text(f"""
+[files]
+imu = "../../{flights.name}/b/imu.txt"
+gnss = "../../{flights.name}/b/gnss.txt"
+mount = "../../{flights.name}/b/mount.txt"
+[initial]
+time_s = {man['flight']['start_time_s']}
+lat_deg = {ini['lat_deg']}
+lon_deg = {ini['lon_deg']}
+h_m = {ini['h_m']}
+vel_ned_mps = {list(ini['vel_ned_mps'])}
+rpy_deg = {list(ini['rpy_deg'])}
+att_std_deg = [0.05, 0.05, 0.2]
+[mount]
+imu_to_platform_centre_b_m = {arm['imu_to_platform_centre_b_m']}
+platform_centre_to_antenna_a_m = {arm['platform_centre_to_antenna_a_m']}
+""".replace(f"../../{flights.name}", os.path.relpath(flights, cfg.parent)))
+    proc = _run([str(flights / "a"), str(cfg), "-o", "out", "--no-plots"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(os.listdir(tmp_path / "out")) == ["a", "log_b"]
+    one = _run(["--config", str(cfg), "-o", "one", "--no-plots", "-q"], tmp_path)
+    assert one.returncode == 0, one.stderr
+    assert (tmp_path / "out" / "log_b" / "solution.nav").read_bytes() == \
+        (tmp_path / "one" / "solution.nav").read_bytes()
+
+
 def test_the_help_states_the_batch_rules(capsys):
     from ins.cli.main import main
     with pytest.raises(SystemExit):
