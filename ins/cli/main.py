@@ -250,7 +250,7 @@ COMMAND_MODULES = [
     "ins.cli.export",
     "ins.cli.georeference",
     "ins.cli.gnss",
-    "ins.cli.process",
+    "ins.cli.process_batch",        # ins process (one log: ins.cli.process; many)
     "ins.cli.strip_check",
     "ins.cli.time_offset",
     "ins.cli.vehicle",

@@ -89,6 +89,7 @@ exit codes:
   0 success; 2 bad input (files, config, options, start far from the GNSS fixes, an
   output folder that is not empty without --force); 3 untrustworthy solution (nothing
   written without --accept-poor); 130 interrupted (Ctrl-C), 143 SIGTERM (nothing written).
+  A batch (several inputs) exits with its worst run's code (see 'many logs' below).
 
 outputs (in -o OUT_DIR, a new or empty folder; --force replaces an existing one whole,
 built aside and swapped in: never a mix of two runs):
@@ -147,8 +148,10 @@ def add_parser(sub):
             "'kfgins' (the 21 states: position, velocity, attitude, gyro/accel bias and\n"
             "scale factor)."),
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("flight_dir", nargs="?", metavar="FLIGHT_DIR",
-                   help="flight folder with manifest.toml")
+    p.add_argument("flight_dir", nargs="*", metavar="FLIGHT_DIR",
+                   help="flight folder with manifest.toml; two or more (flight folders "
+                        "or per-log configs F.toml): a batch into OUT_DIR/NAME (see "
+                        "'many logs' below)")
     p.add_argument("--imu", metavar="F", help="IMU log (KF-GINS text/binary or CSV)")
     p.add_argument("--gnss", metavar="F",
                    help="GNSS log of the antenna (KF-GINS text or RTKLIB .pos, detected)")
@@ -233,6 +236,7 @@ def add_parser(sub):
                    help="replace a non-empty OUT_DIR whole (the new run is built aside "
                         "and swapped in; nothing of the old run is kept)")
     p.set_defaults(func=_cmd_process)
+    return p            # ins.cli.process_batch adds the batch's options and help
 
 
 def _config(args):
@@ -387,18 +391,13 @@ def report_target(report, out_dir):
 def _cmd_process(args):
     import contextlib
 
-    from ins.cli.util import Progress
     from ins.common.fileio import atomic_open, output_folder
-    from ins.estimation.pipeline.process import process
-    from ins.estimation.pipeline.outputs import write_outputs
+    inputs = args.flight_dir or []              # one (several: ins.cli.process_batch)
+    args.flight_dir = inputs[0] if inputs else None
     t0 = wallclock.perf_counter()
-    formats = output_formats(args.format)
-    from ins.io.geoid import parse_height
-    height = parse_height(args.height)          # before the run: a missing grid stops here
+    formats, height = _products(args)
     report_inside, report_outside = report_target(args.report, args.output)
     cfg = _config(args)
-    progress = Progress("process", not args.quiet)
-    progress.note(f"reading {cfg.imu} ...")
     with contextlib.ExitStack() as outside:
         # a report outside OUT_DIR: a temporary file beside it, renamed after the
         # folder's swap (this stack unwinds last); removed on any failure
@@ -408,41 +407,67 @@ def _cmd_process(args):
         # end; on any failure (QualityError, Ctrl-C) that sibling is removed: nothing is
         # written
         with output_folder(args.output, force=args.force) as stage:
-            # the forward trajectory and the node matrices are spilled to temporary files
-            # inside the staged folder (memory bounded whatever the length of the log),
-            # removed before the swap
-            with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
-                try:
-                    result = process(cfg, progress=progress, workdir=work,
-                                     accept_poor=args.accept_poor, gnss_dir=stage)
-                except QualityError as exc:
-                    raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
-                                       f"outputs anyway).") from None
-                t1 = wallclock.perf_counter()
-                names = write_outputs(result, stage, week=args.week, forward=args.forward,
-                                      formats=formats, height=height)
-                if not args.no_plots:
-                    from ins.estimation.pipeline.plots import write_plots
-                    names += write_plots(result, stage, flight_dir=args.flight_dir)
-                t2 = wallclock.perf_counter()
-                if result.gnss_source is not None:
-                    from ins.estimation.pipeline.gnss_source import SEPARATION_PNG, SEPARATION_TXT
-                    names += [os.path.join(stage, n)
-                              for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
-                              if os.path.isfile(os.path.join(stage, n))]
-                paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
-                if args.report:
-                    paths.append(os.path.join(args.output, report_inside) if report_inside
-                                 else report_outside)
-                    page = _report(args, cfg, result, stage, paths,
-                                   {"processing_s": t1 - t0, "writing_s": t2 - t1})
-                    if report_inside:
-                        page.write(os.path.join(stage, report_inside))
-                    else:
-                        report_file.write(page.html().encode("utf-8"))
+            result, paths, t_proc, t_write = run_into(
+                args, cfg, formats, height, stage, t0, report_inside, report_outside,
+                report_file)
     if not args.quiet:
-        _summary(result, cfg, paths, t1 - t0, t2 - t1)
+        _summary(result, cfg, paths, t_proc, t_write)
     return 0
+
+
+def _products(args):
+    """The trajectory formats and the height system of the run (checked first: a
+    missing geoid grid stops before the work)."""
+    from ins.io.geoid import parse_height
+    return output_formats(args.format), parse_height(args.height)
+
+
+def run_into(args, cfg, formats, height, stage, t0, report_inside=None, report_outside=None,
+             report_file=None, progress=None):
+    """One run of ``args`` (its ``flight_dir`` one folder or None) and ``cfg``
+    (:func:`_config`), built in the folder ``stage`` that becomes ``args.output``; the
+    report inside it, or into the open ``report_file`` (``report_outside`` its path).
+    Returns ``(result, paths, processing_s, writing_s)``, ``paths`` as they will be once
+    ``stage`` is in place."""
+    from ins.cli.util import Progress
+    from ins.estimation.pipeline.outputs import write_outputs
+    from ins.estimation.pipeline.process import process
+    if progress is None:
+        progress = Progress("process", not args.quiet)
+    progress.note(f"reading {cfg.imu} ...")
+    # the forward trajectory and the node matrices are spilled to temporary files
+    # inside the staged folder (memory bounded whatever the length of the log),
+    # removed before the swap
+    with tempfile.TemporaryDirectory(dir=stage, prefix=".work-") as work:
+        try:
+            result = process(cfg, progress=progress, workdir=work,
+                             accept_poor=args.accept_poor, gnss_dir=stage)
+        except QualityError as exc:
+            raise QualityError(f"{exc} Nothing written (--accept-poor writes the "
+                               f"outputs anyway).") from None
+        t1 = wallclock.perf_counter()
+        names = write_outputs(result, stage, week=args.week, forward=args.forward,
+                              formats=formats, height=height)
+        if not args.no_plots:
+            from ins.estimation.pipeline.plots import write_plots
+            names += write_plots(result, stage, flight_dir=args.flight_dir)
+        t2 = wallclock.perf_counter()
+        if result.gnss_source is not None:
+            from ins.estimation.pipeline.gnss_source import SEPARATION_PNG, SEPARATION_TXT
+            names += [os.path.join(stage, n)
+                      for n in ("gnss.pos", SEPARATION_TXT, SEPARATION_PNG)
+                      if os.path.isfile(os.path.join(stage, n))]
+        paths = [os.path.join(args.output, os.path.basename(p)) for p in names]
+        if args.report:
+            paths.append(os.path.join(args.output, report_inside) if report_inside
+                         else report_outside)
+            page = _report(args, cfg, result, stage, paths,
+                           {"processing_s": t1 - t0, "writing_s": t2 - t1})
+            if report_inside:
+                page.write(os.path.join(stage, report_inside))
+            else:
+                report_file.write(page.html().encode("utf-8"))
+    return result, paths, t1 - t0, t2 - t1
 
 
 def _report(args, cfg, result, stage, paths, times):
@@ -505,9 +530,10 @@ def _start_lines(result, out):
           f"biases allow", file=out)
 
 
-def _summary(result, cfg, paths, t_proc, t_write):
+def _summary(result, cfg, paths, t_proc, t_write, out=None):
+    """The summary of a run, printed on ``out`` (default: standard output)."""
     c = result.counts
-    out = sys.stdout
+    out = sys.stdout if out is None else out
     if result.gnss_source is not None:
         from ins.estimation.pipeline.gnss_source import source_lines
         shown = next((p for p in paths if os.path.basename(p) == "gnss.pos"), None)

@@ -21,7 +21,8 @@ import warnings
 from ins.common import interrupts
 
 __all__ = ["atomic_open", "check_parent_directory", "check_output_file",
-           "check_output_folder", "output_folder", "clear_stale_staging", "owner_state",
+           "check_output_folder", "output_folder", "make_staging", "install_staging",
+           "remove_staging", "clear_stale_staging", "owner_state",
            "StagingWarning", "OWNER_FILE"]
 
 #: The owner record inside a staging folder (and inside a replaced output moved aside
@@ -313,49 +314,78 @@ def output_folder(path, force=False):
     The sibling holds an owner record (:data:`OWNER_FILE`) until just before the swap;
     staging folders of earlier runs into ``path`` whose process is gone (killed outright)
     are removed first (:func:`clear_stale_staging`, which warns about each one, removed
-    or left alone).
+    or left alone).  The same two steps apart: :func:`make_staging` and
+    :func:`install_staging` (a folder built by another process, a Dask worker).
 
     Raises
     ------
     FileNotFoundError, NotADirectoryError, FileExistsError, PermissionError
         Naming ``path``.
     """
+    tmp = make_staging(path, force)
+    try:
+        yield tmp
+        install_staging(tmp, path, force)
+    except BaseException:
+        remove_staging(tmp)
+        raise
+
+
+def make_staging(path, force=False):
+    """The staging folder of the output folder ``path`` (``.<name>.*.part`` beside it,
+    with this process's owner record), after the checks of :func:`check_output_folder`
+    and :func:`clear_stale_staging`; install it with :func:`install_staging`, or remove
+    it with :func:`remove_staging`.  Returns its path."""
     path = os.fspath(path)
     check_output_folder(path, force)
     parent = os.path.dirname(os.path.abspath(path))
     name = os.path.basename(os.path.abspath(path))
     clear_stale_staging(path)
     tmp = None
-    try:
-        with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
-            try:
-                tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
-                _write_owner(tmp)
-            except OSError as exc:
-                raise _fs_error(exc, path) from None
-        yield tmp
-        check_output_folder(path, force)
-        os.chmod(tmp, 0o777 & ~_umask())
-        with interrupts.deferred():       # Ctrl-C neither splits the swap nor the cleanup
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(os.path.join(tmp, OWNER_FILE))
-            if not os.path.exists(path):
-                os.rename(tmp, path)
-                interrupts.record_output(path)
-                return
-            old = tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=parent)
-            os.rename(path, old)                # replaces the empty placeholder
-            try:
-                os.rename(tmp, path)
-            except BaseException:
-                os.rename(old, path)
-                raise
-            interrupts.record_output(path)
-            with contextlib.suppress(OSError):  # a kill during the removal: the next
-                _write_owner(old)               # run removes the rest
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        if tmp is not None:
-            with interrupts.deferred():
+    with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
+        try:
+            tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
+            _write_owner(tmp)
+        except OSError as exc:
+            if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
-        raise
+            raise _fs_error(exc, path) from None
+    return tmp
+
+
+def install_staging(tmp, path, force=False):
+    """Swap the staging folder ``tmp`` (:func:`make_staging`) into place as ``path``,
+    whole: an existing folder (only with ``force``, checked again now) is moved aside
+    first and deleted after the swap; Ctrl-C is held back meanwhile, and ``path`` is
+    recorded as written (:func:`ins.common.interrupts.record_output`)."""
+    path = os.fspath(path)
+    check_output_folder(path, force)
+    parent = os.path.dirname(os.path.abspath(path))
+    name = os.path.basename(os.path.abspath(path))
+    os.chmod(tmp, 0o777 & ~_umask())
+    with interrupts.deferred():       # Ctrl-C neither splits the swap nor the cleanup
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(os.path.join(tmp, OWNER_FILE))
+        if not os.path.exists(path):
+            os.rename(tmp, path)
+            interrupts.record_output(path)
+            return
+        old = tempfile.mkdtemp(prefix=f".{name}.", suffix=".old", dir=parent)
+        os.rename(path, old)                # replaces the empty placeholder
+        try:
+            os.rename(tmp, path)
+        except BaseException:
+            os.rename(old, path)
+            raise
+        interrupts.record_output(path)
+        with contextlib.suppress(OSError):  # a kill during the removal: the next
+            _write_owner(old)               # run removes the rest
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def remove_staging(tmp):
+    """Remove the staging folder ``tmp`` (Ctrl-C held back meanwhile); no error if it is
+    gone already."""
+    if tmp is not None:
+        with interrupts.deferred():
+            shutil.rmtree(tmp, ignore_errors=True)

@@ -3,14 +3,15 @@
 :func:`refine` is the unit of work: EO, tie points and camera in, refined EO, block
 adjustment and INS assessment out.  :func:`refine_many` runs several blocks or flights as
 tasks on ``dask.distributed`` (a local cluster by default, or an existing scheduler's
-address); the tasks are pure functions of their inputs, so the results are identical to
-running :func:`refine` on each block in one process.
+address; :func:`ins.common.dask_tasks.map_tasks`, re-exported here); the tasks are pure
+functions of their inputs, so the results are identical to running :func:`refine` on each
+block in one process.
 """
-import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ins.common.dask_tasks import map_tasks
 from ins.common.errors import InputError, QualityError
 from ins.nav.rotation import wrap_to_pi
 from photogrammetry.adjustment.assessment import assess
@@ -173,28 +174,6 @@ def check_quality(quality, accept_poor=False, where=""):
                        + " (rule: photogrammetry refine --help, 'trust')")
 
 
-def _call(func, kwargs):
-    """``func(**kwargs)`` on one task; its warnings travel with the result (a Dask
-    worker's own warnings would otherwise be printed raw on the worker's stderr)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = func(**kwargs)
-    result.warnings = [(w.category, str(w.message)) for w in caught]
-    return result
-
-
-def _run(kwargs):
-    """:func:`refine` on one task (its warnings with the result)."""
-    return _call(refine, kwargs)
-
-
-def _reemit(results):
-    for r in results:
-        for category, message in getattr(r, "warnings", ()):
-            warnings.warn(message, category, stacklevel=3)
-    return results
-
-
 def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=True):
     """Run :func:`refine` on many blocks as Dask tasks.
 
@@ -216,162 +195,3 @@ def refine_many(tasks, workers=None, scheduler=None, progress=None, processes=Tr
     list of RefineResult, in the order of `tasks`.
     """
     return map_tasks(refine, tasks, workers, scheduler, progress, processes)
-
-
-def map_tasks(func, tasks, workers=None, scheduler=None, progress=None, processes=True,
-              total=None):
-    """``func(**task)`` for every task, as Dask tasks (see :func:`refine_many`).
-
-    `func` must be a module-level function (pickled by reference) whose result takes a
-    ``warnings`` attribute (the task's warnings, re-issued here in the caller).  Each
-    task's keyword arguments travel to the worker that runs it, and only there; they are
-    submitted a few at a time (twice the workers in flight), so neither the scheduler
-    nor a worker holds the data of all tasks at once, and `tasks` may be a generator
-    (give `total`, its length, for the progress).  `progress` is called as
-    ``progress(done, total, index)`` with the index of the task just finished when it
-    takes three arguments, else ``progress(done, total)``.
-
-    Returns
-    -------
-    list of the results, in the order of `tasks`.
-    """
-    if total is None:
-        tasks = list(tasks)
-        total = len(tasks)
-    note = _progress_call(progress)
-    if scheduler is None and workers == 1:
-        out = []
-        for k, t in enumerate(tasks):
-            out.append(_call(func, t))
-            note(k + 1, total, k)
-        return _reemit(out)
-    import dask
-    from dask.distributed import Client, as_completed
-    cluster = scratch = None
-    try:
-        if scheduler is None:
-            cluster, scratch = _local_cluster(workers, processes)
-            client = Client(cluster)
-        else:
-            client = Client(scheduler)
-    except BaseException:
-        _close_cluster(None, cluster, scratch)
-        raise
-    try:
-        window = 2 * max(1, sum(client.nthreads().values()))
-        pending = enumerate(tasks)
-        running = as_completed()
-        index = {}
-
-        def submit_next():
-            for k, task in pending:
-                fut = client.submit(_call, func, task, pure=False)
-                index[fut.key] = k
-                running.add(fut)
-                return
-
-        results = [None] * total
-        # a task's own data (a tile of a block: tens of MB) is meant to travel with it
-        with dask.config.set({"distributed.admin.large-graph-warning-threshold": "4GB"}):
-            for _ in range(window):
-                submit_next()
-            for done, fut in enumerate(running, 1):
-                k = index.pop(fut.key)
-                results[k] = fut.result()
-                fut.release()
-                note(done, total, k)
-                submit_next()
-        return _reemit(results)
-    finally:
-        _close_cluster(client, cluster, scratch)
-
-
-def _local_cluster(workers, processes):
-    """A quiet local Dask cluster and its scratch: ``(cluster, scratch)``.
-
-    Ctrl-C belongs to the main process: the worker processes are spawned through a
-    two-line shell wrapper that ignores SIGINT before it runs Python (an ignored signal
-    stays ignored across exec, and Python then installs no KeyboardInterrupt handler),
-    so a Ctrl-C to the terminal's process group leaves them alone (it used to print a
-    worker's KeyboardInterrupt traceback from the middle of its imports) and the main
-    process closes them.  distributed's log lines are not printed (its warnings and
-    errors of workers cut off by the close); every
-    ``dask-scratch-space`` (workers and scheduler) is made in a temporary folder
-    removed on close (:func:`_close_cluster`)."""
-    import logging
-    import multiprocessing.spawn
-    import os
-    import shlex
-    import sys
-    import tempfile
-
-    import dask
-    from dask.distributed import LocalCluster
-
-    from ins.common import interrupts
-    for name in ("distributed", "distributed.nanny", "distributed.scheduler"):
-        logging.getLogger(name).setLevel(logging.CRITICAL)
-    # the semaphores of workers killed on close are the resource tracker's to clean up
-    # (it says so at exit, in a process of its own that takes these warning options)
-    quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
-    if quiet not in sys.warnoptions:
-        sys.warnoptions.append(quiet)
-    folder = tempfile.mkdtemp(prefix="insphoto-dask-")
-    exe = os.fsdecode(multiprocessing.spawn.get_executable())
-    scratch = (folder, dask.config.set({"temporary-directory": folder}), exe)
-    cluster = None
-    try:
-        if os.name == "posix" and processes:
-            wrapper = os.path.join(folder, "python-ignoring-sigint")
-            with open(wrapper, "w") as fh:
-                # TMPDIR: a worker killed on close inside its first tempfile.gettempdir()
-                # leaves that call's empty probe file (a bare 8-letter name) behind; in
-                # the scratch folder it goes with the folder
-                fh.write(f"#!/bin/sh\ntrap '' INT\nTMPDIR={shlex.quote(folder)}\n"
-                         f"export TMPDIR\nexec {shlex.quote(exe)} \"$@\"\n")
-            os.chmod(wrapper, 0o755)
-            multiprocessing.spawn.set_executable(wrapper)
-        # Ctrl-C waits for the start-up (a second or two): a cluster cut off half started
-        # has workers that nobody closes, and they write scratch after its removal
-        with interrupts.deferred():
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                   processes=processes, dashboard_address=None,
-                                   local_directory=folder, silence_logs=logging.CRITICAL)
-    except BaseException:
-        _close_cluster(None, cluster, scratch)
-        raise
-    return cluster, scratch
-
-
-def _close_cluster(client, cluster, scratch):
-    """Close the client and the local cluster (Ctrl-C held back meanwhile), then undo
-    the scratch ``(folder, dask config setting, spawn executable)`` of
-    :func:`_local_cluster`."""
-    from ins.common import interrupts
-    with interrupts.deferred():
-        for c in (client, cluster):
-            if c is not None:
-                try:
-                    c.close()
-                except Exception:           # a cluster half started or already gone
-                    pass
-        if scratch is not None:
-            import multiprocessing.spawn
-            import shutil
-            multiprocessing.spawn.set_executable(scratch[2])
-            scratch[1].__exit__(None, None, None)
-            shutil.rmtree(scratch[0], ignore_errors=True)
-
-
-def _progress_call(progress):
-    """`progress` as a function of (done, total, index)."""
-    if progress is None:
-        return lambda done, total, k: None
-    import inspect
-    try:
-        n = len(inspect.signature(progress).parameters)
-    except (TypeError, ValueError):
-        n = 2
-    if n >= 3:
-        return progress
-    return lambda done, total, k: progress(done, total)

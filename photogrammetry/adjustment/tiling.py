@@ -3,7 +3,7 @@
 A block of many thousand images does not fit one small worker (5000 images in one
 process: 0.67 GB known-base, 1.75 GB base-free; ``bench/bench_block_scale.py``).  :func:`refine_tiled` cuts it into tiles and adjusts
 each tile on its own (:func:`photogrammetry.adjustment.block.adjust_block`, a Dask task through
-:func:`photogrammetry.adjustment.batch.map_tasks`); a worker receives only its tile's data (priors,
+:func:`ins.common.dask_tasks.map_tasks`); a worker receives only its tile's data (priors,
 positions, the pairs inside the tile and their points), never the whole block.
 
 Partition (:func:`partition`, deterministic): the images are split by recursive
