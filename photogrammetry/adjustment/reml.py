@@ -77,7 +77,7 @@ class BandedV:
                 E = sparse.eye(S.shape[0], n)
                 aug = sparse.bmat([[S / (lam * op.sigma0 ** 2), E],
                                    [E.T, -sparse.diags(self.d)]], format="csc")
-                self.lu = splu(aug)
+                self.lu = _AugmentedLDL(aug, _interleaved_order(op, n))
             return
         if self.woodbury:
             M = S / (lam * op.sigma0 ** 2) + sparse.diags(1.0 / self.d)
@@ -111,6 +111,50 @@ class BandedV:
         """``V v``."""
         dv = self.d * v if v.ndim == 1 else self.d[:, None] * v
         return self.lam * self.op.apply(v) + dv
+
+
+def _interleaved_order(op, n):
+    """Elimination order of the augmented system ``[[H / c, E], [E', -D]]``: the order
+    of the block's sparse factor of ``H`` (:class:`photogrammetry.adjustment.banded.SparseSPD`,
+    minimum degree), each angle's ``x`` right after its angle.  The angle's pivot is then
+    ``H``'s and the ``x``'s about ``-V_ii`` (quasi-definite: diagonal pivots exist in any
+    order), where SuperLU's own column order with partial pivoting eliminated an ``x``
+    (pivot ``-d``, tiny for a component at its bound) first, and the solves lost 1e-5
+    relative on a ``V`` of condition 1e4 (470-image base-free block); in this order they
+    are accurate to 1e-11, and the factor has a fifth of the non-zeros.  None when the
+    block's solver has no such order (banded)."""
+    solver = getattr(op, "solver", None)
+    pc = getattr(solver, "perm_c", None)
+    N = op.S.shape[0]
+    if pc is None or len(pc) != N:
+        return None
+    key = np.concatenate([2 * np.asarray(pc, float), 2 * np.asarray(pc[:n], float) + 1])
+    return np.argsort(key, kind="stable")
+
+
+class _AugmentedLDL:
+    """Sparse ``L D L'`` of the quasi-definite augmented matrix in a given order
+    (:func:`_interleaved_order`; diagonal pivots), or SuperLU's LU with partial
+    pivoting when there is no order or a pivot vanishes."""
+
+    def __init__(self, aug, order):
+        self.order = None
+        if order is not None:
+            try:
+                self.lu = splu(aug[order][:, order].tocsc(), permc_spec="NATURAL",
+                               diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+                self.order = order
+                return
+            except RuntimeError:                     # an exactly zero pivot
+                pass
+        self.lu = splu(aug)
+
+    def solve(self, rhs):
+        if self.order is None:
+            return self.lu.solve(rhs)
+        out = np.empty_like(rhs)
+        out[self.order] = self.lu.solve(np.ascontiguousarray(rhs[self.order]))
+        return out
 
 
 def banded_v(op, lam, d, perm=None, cache=None):
