@@ -302,7 +302,11 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
             if est[a + 1]:
                 ya, ca = y[groups == a] ** 2, cdiag[groups == a]
                 theta[a + 1] = max(np.mean(ya) - np.mean(ca), 0.1 * np.mean(ya)) / scale
-    live = est.copy()
+    # a variance component that starts at 0 (held at its bound by the last fit) stays
+    # there (its log-space step cannot move it), so it is not live from the start:
+    # live, its score polluted the first step of the others through the information
+    # (the next fit's first lambda 1.76 for 1.25, two evaluations more)
+    live = est & ~((theta == 0) & (np.arange(4) > 0))
     last = None
     clipped = np.zeros(4, int)               # steps clipped toward 0 in a row
     prev_l = prev_live = None                # the last step in log(theta)
