@@ -29,13 +29,15 @@ PROBES = 64
 #: Smallest INS variance (relative to the largest adjustment variance) for the
 #: Woodbury form of ``V^-1``.
 WOODBURY_MIN = 1e-6
-#: The REML iteration has converged when every estimated component's step is below this
-#: fraction of its own sigma (from the average information), as well as by ``tol``: the
-#: solves of a component held at its bound (``V`` nearly singular on its images) are
-#: accurate to about 1e-5 relative, so the iterates jitter at that level and ``tol``
-#: alone ran to ``max_iter`` (a 470-image base-free block: 60 iterations of each fit
-#: where 10 reached 1e-3 of the sigmas).  The same fraction as the boresight fit's
-#: increments (:func:`photogrammetry.adjustment.assessment._small`).
+#: The REML iteration has also converged when every estimated component's step is
+#: below this fraction of its own sigma (from the average information) and has stopped
+#: shrinking (at least half the last one, in sigmas): the iterates have reached the noise
+#: of the solves.  Before the augmented system was factored in the interleaved order
+#: (:func:`_interleaved_order`) those were accurate to 1e-5 relative near a bound and
+#: ``tol`` alone ran to ``max_iter`` (a 470-image base-free block: 60 iterations of each
+#: fit); iterates that still converge (linearly, at a rate below one half, or faster)
+#: stop at ``tol`` as before.  The same fraction as the boresight fit's increments
+#: (:func:`photogrammetry.adjustment.assessment._small`).
 STEP_SIGMA = 1e-3
 #: Steps clipped toward zero in a row after which a component's bound is tried at once
 #: (the clipped steps divide it by e^1.5 each: about 16 of them to reach the bound).
@@ -48,6 +50,9 @@ BOUND_TRY = 2
 #: geometric series, ``step / (1 - r)``, and the iteration goes on from there (its stop
 #: is the same).
 EXTRAPOLATE_RATE = 0.8
+#: How parallel two steps must be for the extrapolation: ``|s_k - r s_(k-1)|`` at most
+#: this fraction of ``max |s_k|`` in every component.
+EXTRAPOLATE_PARALLEL = 0.1
 
 
 class BandedV:
@@ -224,15 +229,23 @@ def banded_v(op, lam, d, perm=None, cache=None):
     return Vs
 
 
-def _projector(Vs, A):
-    """``P v = V^-1 v - V^-1 A (A' V^-1 A)^-1 A' V^-1 v`` and ``(A' V^-1 A)^-1``."""
-    ViA = Vs.solve(A)
+def _projector(Vs, A, also=None):
+    """``P v = V^-1 v - V^-1 A (A' V^-1 A)^-1 A' V^-1 v`` and ``(A' V^-1 A)^-1``; with
+    `also` (n, k), ``P also`` too, its ``V^-1`` solved with ``A``'s (one pass through
+    the factor instead of two)."""
+    if also is None:
+        ViA = Vs.solve(A)
+    else:
+        X = Vs.solve(np.column_stack([A, also]))
+        ViA, Vi_also = X[:, :A.shape[1]], X[:, A.shape[1]:]
     cov_x = np.linalg.inv(A.T @ ViA)
 
-    def P(v):
-        Viv = Vs.solve(v)
+    def P(v, Viv=None):
+        Viv = Vs.solve(v) if Viv is None else Viv
         return Viv - ViA @ (cov_x @ (A.T @ Viv))
-    return P, cov_x
+    if also is None:
+        return P, cov_x
+    return P, cov_x, P(also, Vi_also)
 
 
 def _diverged(y, A, op, theta):
@@ -285,9 +298,8 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
     def stats(theta):
         d = sum(t * g for t, g in zip(theta[1:], Gd)) + floor
         Vs = banded_v(op, max(theta[0], 0.0), d, perm, cache)
-        P, cov_x = _projector(Vs, A)
-        Py = P(y)
-        PZ = P(Z)
+        P, cov_x, PyZ = _projector(Vs, A, np.column_stack([y, Z]))
+        Py, PZ = PyZ[:, 0], PyZ[:, 1:]
         tr_d = np.array([np.mean(np.sum(Z * PZ * g[:, None], axis=0)) for g in Gd])
         tr_c = (n - A.shape[1] - theta[1:] @ tr_d) / max(theta[0], 1e-300)
         w = np.column_stack([op.apply(Py)] + [g * Py for g in Gd])
@@ -310,6 +322,7 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
     last = None
     clipped = np.zeros(4, int)               # steps clipped toward 0 in a row
     prev_l = prev_live = None                # the last step in log(theta)
+    prev_sig = None                          # and its largest component in sigmas
     for _ in range(max_iter):
         if last is None:
             last = stats(theta)
@@ -326,8 +339,11 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         new[gone] = 0.0                  # a variance at its bound: held at 0
         with np.errstate(invalid="ignore"):
             sig_live = np.sqrt(np.diag(np.linalg.inv(AIl)))
-        small = np.all(np.abs(new[live] - t) <= STEP_SIGMA * sig_live)
-        done = small or np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new),
+        in_sig = np.max(np.abs(new[live] - t) / sig_live, initial=0.0)
+        stalled = (prev_sig is not None and in_sig <= STEP_SIGMA
+                   and in_sig >= 0.5 * prev_sig)
+        prev_sig = in_sig
+        done = stalled or np.all(np.abs(new - theta) <= tol * np.maximum(np.abs(new),
                                                                          1e-3 * np.max(new)))
         down = np.zeros(4, bool)
         down[np.flatnonzero(live)[rel < -1.5]] = True
@@ -343,7 +359,7 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
                 and np.array_equal(prev_live, live) and prev_l @ prev_l > 0):
             r = float(lstep @ prev_l) / float(prev_l @ prev_l)
             if 0 < r < EXTRAPOLATE_RATE and np.all(np.abs(lstep - r * prev_l)
-                                                   <= 0.1 * np.max(np.abs(lstep))):
+                                                   <= EXTRAPOLATE_PARALLEL * np.max(np.abs(lstep))):
                 new[live] = theta[live] * np.exp(np.clip(lstep[live] / (1 - r), -1.5, 1.5))
                 lstep = None
         prev_l, prev_live = lstep, live.copy()
