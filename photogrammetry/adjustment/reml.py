@@ -53,6 +53,9 @@ EXTRAPOLATE_RATE = 0.8
 #: How parallel two steps must be for the extrapolation: ``|s_k - r s_(k-1)|`` at most
 #: this fraction of ``max |s_k|`` in every component.
 EXTRAPOLATE_PARALLEL = 0.1
+#: Steps not parallel but each component's own ratio in (0, EXTRAPOLATE_RATE):
+#: each extrapolated with its own ratio.
+EXTRAPOLATE_EACH = True
 
 
 class BandedV:
@@ -358,9 +361,14 @@ def gls_reml_banded(y, A, op, groups, scale, fixed=None, theta0=None, max_iter=6
         if (prev_l is not None and not gone.any() and not down.any()
                 and np.array_equal(prev_live, live) and prev_l @ prev_l > 0):
             r = float(lstep @ prev_l) / float(prev_l @ prev_l)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ri = lstep[live] / prev_l[live]          # each component's own rate
             if 0 < r < EXTRAPOLATE_RATE and np.all(np.abs(lstep - r * prev_l)
                                                    <= EXTRAPOLATE_PARALLEL * np.max(np.abs(lstep))):
                 new[live] = theta[live] * np.exp(np.clip(lstep[live] / (1 - r), -1.5, 1.5))
+                lstep = None
+            elif EXTRAPOLATE_EACH and np.all((ri > 0) & (ri < EXTRAPOLATE_RATE)):
+                new[live] = theta[live] * np.exp(np.clip(lstep[live] / (1 - ri), -1.5, 1.5))
                 lstep = None
         prev_l, prev_live = lstep, live.copy()
         theta, last = new, None
