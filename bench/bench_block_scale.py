@@ -18,29 +18,31 @@ runs them (``--block-dir D`` keeps the flights for the next run).  Measured (2-c
 shared with other jobs, load 6-7, 2026-12-02; CPU s):
 
     stage                                    470 images  987 images   (before: 470, 987)
-    start-up (imports, compiled kernels)           1.10        1.10     0.99   0.91
-    read inputs (EO, tie points, camera)           0.34        0.59     0.25   0.66
-      tie-point assembly (pairs)                   0.18        0.50     0.12   0.37
-    block adjustment                               5.58       14.88     4.94  13.02
-      pair screening (MSAC)                        0.76        1.58     0.62   1.42
-      normal equations (J'WJ)                      2.80        6.98     2.52   6.17
-        joint weights                              0.81        1.70     0.71   1.69
-      factor + solve                               1.44        3.94     1.20   3.45
-      sigmas (selected inverse)                    0.38        1.90     0.43   1.56
-    accuracy: INS assessment (REML)                9.18       26.13    83.12  56.87
-    report                                         1.22        1.54     1.37   1.92
-      residuals plot (with the import)             0.89        1.02     1.15   1.52
-    total CPU                                     17.65       44.82    90.84  73.83
-    per image above start-up, ms                   35.2        44.3    191.2   73.9
-    peak resident memory, MB                        378         728      387    741
+    start-up (imports, compiled kernels)           1.10        1.10     1.10   1.14
+    read inputs (EO, tie points, camera)           0.34        0.59     0.37   0.65
+      tie-point assembly (pairs)                   0.18        0.50     0.16   0.47
+    block adjustment                               5.58       14.88     5.63  15.86
+      pair screening (MSAC)                        0.76        1.58     0.76   1.73
+      normal equations (J'WJ)                      2.80        6.98     2.79   7.51
+        joint weights                              0.81        1.70     0.81   1.78
+      factor + solve                               1.44        3.94     1.44   4.17
+      sigmas (selected inverse)                    0.38        1.90     0.44   1.93
+    accuracy: INS assessment (REML)                9.18       26.13    96.72  60.75
+    report                                         1.22        1.54     1.49   1.88
+      residuals plot (with the import)             0.89        1.02     1.21   1.56
+    total CPU                                     17.65       44.82   105.52  80.84
+    per image above start-up, ms                   35.2        44.3    222.2   80.7
+    peak resident memory, MB                        378         728      386    769
 
-(The stages that did not change cost 10-25 % more than in the "before" run: the load.)
+("Before": the same script on the code before 2026-12-02, right after, same load.  On a
+quieter machine, load 2-5, the before run gave 191 and 74 ms per image, the after one
+26 and 33 with a looser REML stop that broke the one-tile-equals-block identity.)
 The assessment was the cost: its REML fits ran to ``max_iter`` (60 iterations, a
 factorization of the block's covariance each) because the solves of the augmented
 system of a component at its bound lost 1e-5 relative (SuperLU's own order with partial
 pivoting); now in the order of :func:`photogrammetry.adjustment.reml._interleaved_order`
 (accurate to 1e-11), a component heading to 0 tried at its bound, linear convergence
-extrapolated: 24 evaluations at 470 images where there were 166.  At 987 images the old
+extrapolated: 22 evaluations of V at 470 images where there were 166 (987: 25, 37).  At 987 the old
 REML had stopped at a wrong point (lambda 2.77, every INS noise "not estimable",
 chi2 2059 for 2952 degrees of freedom); now lambda 1.28 +- 0.07, kappa noise 28.7 arcsec,
 chi2 = 2952.0.  The refined angles and sigmas are the same to the bit at both sizes.
