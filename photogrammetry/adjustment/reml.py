@@ -73,7 +73,8 @@ class BandedV:
     ``H / (lambda sigma0^2) + diag(D^-1, 0)`` (sparse LU), whose Schur complement of the bases is
     ``S / (lambda sigma0^2) + D^-1``; else the quasi-definite augmented system
     ``[[H / (lambda sigma0^2), E], [E', -D]] [z; x] = [0; -v]`` (``E`` selects the
-    angles; sparse LU) gives ``x = V^-1 v``; ``lambda = 0``: ``V = D``."""
+    angles; sparse L D L' in the order of :func:`_interleaved_order`) gives
+    ``x = V^-1 v``; ``lambda = 0``: ``V = D``."""
 
     def __init__(self, op, lam, d, perm=None):
         self.op, self.lam, self.d = op, float(lam), np.asarray(d, float)
