@@ -5,10 +5,52 @@
         [--method known-base,relative,base-free] [--datum auto]
     .venv/bin/python bench/bench_block_scale.py --cli 470,1000 [--method base-free]
 
-``--cli``: per size, in a fresh process, the block below written as files (EO CSV, tie
-points CSV, camera TOML), then the command with its defaults (base-free, datum first)
-and ``--report`` (Markdown, residual and correction plots), each stage's CPU time
-(``getrusage``; inclusive, the indented ones within the stage above).  Measured
+``--cli``: per size, in a fresh process, the block as files (EO CSV, tie points CSV,
+camera TOML), then the command with its defaults (base-free, datum first) and
+``--report`` (Markdown, residual and correction plots), each stage's CPU time
+(``getrusage``; inclusive, the indented ones within the stage above), the peak resident
+memory and the refined angles (``--save F.json``: to compare two versions).  The block
+(``--block sim``, default): the demo chain on a plan derived from
+``data/flights/demo.toml`` with ``round(N / 47)`` strips of 7.5 km (10 strips: 470
+images, 21: 987), ``ins simulate`` (its own tie points), ``ins process --forward``,
+``photogrammetry eo`` with the camera file less its boresight, as ``tools/demo.py``
+runs them (``--block-dir D`` keeps the flights for the next run).  Measured (2-core VM
+shared with other jobs, load 6-7, 2026-12-02; CPU s):
+
+    stage                                    470 images  987 images   (before: 470, 987)
+    start-up (imports, compiled kernels)           1.10        1.10     1.10   1.14
+    read inputs (EO, tie points, camera)           0.34        0.59     0.37   0.65
+      tie-point assembly (pairs)                   0.18        0.50     0.16   0.47
+    block adjustment                               5.58       14.88     5.63  15.86
+      pair screening (MSAC)                        0.76        1.58     0.76   1.73
+      normal equations (J'WJ)                      2.80        6.98     2.79   7.51
+        joint weights                              0.81        1.70     0.81   1.78
+      factor + solve                               1.44        3.94     1.44   4.17
+      sigmas (selected inverse)                    0.38        1.90     0.44   1.93
+    accuracy: INS assessment (REML)                9.18       26.13    96.72  60.75
+    report                                         1.22        1.54     1.49   1.88
+      residuals plot (with the import)             0.89        1.02     1.21   1.56
+    total CPU                                     17.65       44.82   105.52  80.84
+    per image above start-up, ms                   35.2        44.3    222.2   80.7
+    peak resident memory, MB                        378         728      386    769
+
+("Before": the same script on the code before 2026-12-02, right after, same load.  On a
+quieter machine, load 2-5, the before run gave 191 and 74 ms per image, the after one
+26 and 33 with a looser REML stop that broke the one-tile-equals-block identity.)
+The assessment was the cost: its REML fits ran to ``max_iter`` (60 iterations, a
+factorization of the block's covariance each) because the solves of the augmented
+system of a component at its bound lost 1e-5 relative (SuperLU's own order with partial
+pivoting); now in the order of :func:`photogrammetry.adjustment.reml._interleaved_order`
+(accurate to 1e-11), a component heading to 0 tried at its bound, linear convergence
+extrapolated: 22 evaluations of V at 470 images where there were 166 (987: 25, 37).  At 987 the old
+REML had stopped at a wrong point (lambda 2.77, every INS noise "not estimable",
+chi2 2059 for 2952 degrees of freedom); now lambda 1.28 +- 0.07, kappa noise 28.7 arcsec,
+chi2 = 2952.0.  The refined angles and sigmas are the same to the bit at both sizes.
+What is left is SuperLU (about 27 sparse factorizations at 470 images: the block's 12,
+the assessment's 15; a supernodal Cholesky such as CHOLMOD would be several times
+faster, but scikit-sparse has no wheel here) and the joint weights' compiled eigh.
+
+``--block scenario``: ``tests/scenario.py``'s ``make_large_block`` (below).  Measured
 (2-core VM shared with 6 other jobs, load 2-5, 2026-11-27; kernels then numba, cache warm):
 
     stage                                    470 images  1000 images   (before)
@@ -150,15 +192,15 @@ def one(n, method, datum):
 #: timed by :func:`cli_stages`; labels indented under the stage that calls them.
 CLI_STAGES = [
     ("photogrammetry.cli.refine", "_task", None, "read inputs (EO, tie points, camera)"),
-    ("photogrammetry.imagery.tiepoints", "pairs", "TiePoints", "  pairs from the tie points"),
+    ("photogrammetry.imagery.tiepoints", "pairs", "TiePoints", "  tie-point assembly (pairs)"),
     ("photogrammetry.adjustment.batch", "adjust_block", None, "block adjustment"),
     ("photogrammetry.adjustment.block", "_screen_pairs", None, "  pair screening (MSAC)"),
     ("photogrammetry.adjustment.block", "_conditions", None, "  conditions"),
-    ("photogrammetry.adjustment.block", "_linearize", None, "  linearize (weights, J'WJ)"),
+    ("photogrammetry.adjustment.block", "_linearize", None, "  normal equations (J'WJ)"),
     ("photogrammetry.adjustment.block", "_joint_weights", None, "    joint weights"),
     ("photogrammetry.adjustment.block", "_solve_step", None, "  factor + solve"),
     ("photogrammetry.adjustment.block", "banded_covariance", None, "  sigmas (selected inverse)"),
-    ("photogrammetry.adjustment.batch", "assess", None, "INS assessment (REML)"),
+    ("photogrammetry.adjustment.batch", "assess", None, "accuracy: INS assessment (REML)"),
     ("photogrammetry.orientation.exposure", "write_eo_csv", None, "write refined CSV"),
     ("photogrammetry.adjustment.report", "write_report", None, "report"),
     ("ins.common.plotstyle", "pyplot", None, "  import matplotlib"),
@@ -167,16 +209,61 @@ CLI_STAGES = [
     ("photogrammetry.adjustment.report", "report_text", None, "  report text"),
 ]
 
+#: The flight plan whose strips ``--block sim`` lengthens and multiplies.
+DEMO_PLAN = HERE.parent / "data" / "flights" / "demo.toml"
+#: Strip length (m) of ``--block sim``; 47 images a strip (demo camera, 60 % forward).
+SIM_STRIP_M = 7500.0
+SIM_IMAGES_PER_STRIP = 47
 
-def cli_stages(n, method, datum):
+
+def sim_block_files(n, folder):
+    """The demo chain on a longer flight: a plan derived from ``data/flights/demo.toml``
+    with strips of :data:`SIM_STRIP_M` and ``round(n / 47)`` of them (10 strips: 470
+    images), then ``ins simulate`` (its own tie points), ``ins process --forward`` and
+    ``photogrammetry eo`` with the camera file without its boresight, as ``tools/demo.py``
+    runs them.  Files are kept in `folder` and reused when present (the chain takes about
+    20 s at 470 images).  Returns the paths of the EO, tie-point and camera files."""
+    import re
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    eo, tp, cam = folder / "eo_ins.csv", folder / "flight" / "tiepoints.csv", folder / "camera.toml"
+    if eo.exists() and tp.exists() and cam.exists():
+        return str(eo), str(tp), str(cam)
+    strips = max(1, round(n / SIM_IMAGES_PER_STRIP))
+    plan = DEMO_PLAN.read_text()
+    plan = re.sub(r"(?m)^strip_length_m = .*$", f"strip_length_m = {SIM_STRIP_M}", plan)
+    plan = re.sub(r"(?m)^n_strips = .*$", f"n_strips = {strips}", plan)
+    (folder / "plan.toml").write_text(plan)
+    bindir = Path(sys.executable).parent
+    ins, pg = str(bindir / "ins"), str(bindir / "photogrammetry")
+    flight, proc = folder / "flight", folder / "process"
+    for cmd in ([ins, "simulate", folder / "plan.toml", "-o", flight, "--seed", "1", "--force",
+                 "-q"],
+                [ins, "process", flight, "-o", proc, "--forward", "--force", "-q"]):
+        subprocess.run([str(c) for c in cmd], check=True, stdout=subprocess.DEVNULL)
+    sys.path.insert(0, str(HERE.parent / "tools"))
+    import demo
+    demo.uncalibrated_camera(flight, cam)
+    subprocess.run([pg, "eo", str(flight), "--trajectory", str(proc / "solution.nav"),
+                    "--sigma", str(proc / "solution_std.txt"), "--camera", str(cam), "-o",
+                    str(eo)], check=True, stdout=subprocess.DEVNULL)
+    return str(eo), str(tp), str(cam)
+
+
+def cli_stages(n, method, datum, block="sim", block_dir=None):
     """``photogrammetry refine`` as a user runs it (files in, refined CSV, report and
     plots out) on a simulated block of `n` images, in this process; returns the CPU
-    time (s) of the start-up and of each stage of :data:`CLI_STAGES` (inclusive)."""
+    time (s) of the start-up and of each stage of :data:`CLI_STAGES` (inclusive), the
+    peak resident memory and the refined angles (deg).  `block`: ``sim`` the demo chain
+    (:func:`sim_block_files`, kept in `block_dir` when given), ``scenario``
+    ``tests/scenario.py``'s ``make_large_block``."""
     import functools
     import importlib
     import resource
     import tempfile
     import time
+
+    import numpy as np
 
     def cpu():
         r = resource.getrusage(resource.RUSAGE_SELF)
@@ -185,7 +272,11 @@ def cli_stages(n, method, datum):
     sys.path.insert(0, str(HERE.parent / "tests"))
     import scenario as sc
     with tempfile.TemporaryDirectory() as tmp:
-        eo, tp, cam = sc.write_block_files(sc.make_large_block(n, seed=1), tmp)
+        if block == "sim":
+            eo, tp, cam = sim_block_files(n, Path(block_dir or tmp) / f"sim{n}")
+        else:
+            eo, tp, cam = sc.write_block_files(sc.make_large_block(n, seed=1), tmp)
+        n = sum(1 for line in open(eo) if line.strip() and not line.startswith("#")) - 1
         c0 = cpu()
         from photogrammetry.cli.main import main
         times = {}
@@ -207,26 +298,38 @@ def cli_stages(n, method, datum):
                      "-o", os.path.join(tmp, "refined.csv"), "--report",
                      os.path.join(tmp, "report.md"), "-q"])
         run_s, wall = cpu() - t0, time.perf_counter() - w0
+        angles = []
+        if code == 0:
+            from photogrammetry.orientation.exposure import read_eo_csv
+            ref = read_eo_csv(os.path.join(tmp, "refined.csv"))
+            angles = np.degrees(ref.angles).tolist()
     return {"images": n, "exit": code, "startup_s": startup, "run_s": run_s, "wall_s": wall,
-            "stages": [(label, times.get(label, 0.0)) for *_, label in CLI_STAGES]}
+            "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "stages": [(label, times.get(label, 0.0)) for *_, label in CLI_STAGES],
+            "angles_deg": angles}
 
 
-def run_cli(method, datum, sizes):
-    """One fresh process per size: the CLI's CPU time per stage."""
+def run_cli(method, datum, sizes, block="sim", block_dir=None, save=None):
+    """One fresh process per size: the CLI's CPU time per stage (`save`: a JSON file for
+    the figures and refined angles, to compare two versions of the code)."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
                MKL_NUM_THREADS="1", PYTHONWARNINGS="ignore")
     rows = []
     for n in sizes:
         out = subprocess.run([sys.executable, __file__, "--cli-one", str(n), "--method",
-                              method, "--datum", datum], env=env, capture_output=True,
-                             text=True)
+                              method, "--datum", datum, "--block", block]
+                             + (["--block-dir", block_dir] if block_dir else []),
+                             env=env, capture_output=True, text=True)
         if out.returncode:
             print(f"{n}: failed: {out.stderr.strip().splitlines()[-1]}")
             continue
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
     if not rows:
         return
-    print(f"photogrammetry refine --method {method} --datum {datum} --report (CPU s; "
+    if save:
+        Path(save).write_text(json.dumps(rows))
+    print(f"block: {block}; photogrammetry refine --method {method} --datum {datum} "
+          "--report (CPU s; "
           "stages inclusive, indented: within the stage above)")
     print(f"{'stage':<40}" + "".join(f"{r['images']:>9}" for r in rows))
     print(f"{'start-up (imports, compiled kernels)':<40}"
@@ -238,6 +341,7 @@ def run_cli(method, datum, sizes):
     print(f"{'per image above start-up, ms':<40}"
           + "".join(f"{1e3 * r['run_s'] / r['images']:9.1f}" for r in rows))
     print(f"{'wall, s (run)':<40}" + "".join(f"{r['wall_s']:9.2f}" for r in rows))
+    print(f"{'peak resident memory, MB':<40}" + "".join(f"{r['peak_MB']:9.0f}" for r in rows))
     print(f"{'exit code':<40}" + "".join(f"{r['exit']:9d}" for r in rows))
 
 
@@ -300,6 +404,13 @@ def main():
                          "plots) at these sizes, CPU time per stage (e.g. 470,1000; method "
                          "default base-free, datum first: the command's defaults)")
     ap.add_argument("--cli-one", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--block", choices=["sim", "scenario"], default="sim",
+                    help="--cli block: sim the demo chain on a plan of round(N/47) strips "
+                         "of 7.5 km (default), scenario tests/scenario.py's make_large_block")
+    ap.add_argument("--block-dir", metavar="DIR",
+                    help="--cli block sim: keep (and reuse) the simulated flights here")
+    ap.add_argument("--save", metavar="JSON",
+                    help="--cli: write the figures and the refined angles to this file")
     ap.add_argument("--dask", metavar="BLOCKSxIMAGES",
                     help="instead: BLOCKS flights of IMAGES each as Dask tasks (10x1000)")
     ap.add_argument("--workers", type=int, default=2)
@@ -316,9 +427,11 @@ def main():
         datum = args.datum if args.datum != "auto" else (
             "none" if method == "known-base" else "first")
         if args.cli_one:
-            print(json.dumps(cli_stages(args.cli_one, method, datum)))
+            print(json.dumps(cli_stages(args.cli_one, method, datum, args.block,
+                                        args.block_dir)))
         else:
-            run_cli(method, datum, [int(v) for v in args.cli.split(",")])
+            run_cli(method, datum, [int(v) for v in args.cli.split(",")], args.block,
+                    args.block_dir, args.save)
         return
     args.method = args.method or "known-base"
     for method in args.method.split(","):

@@ -251,14 +251,17 @@ def _remember(key, order):
 
 
 def _find_entries(indptr, indices, cols, rows):
-    """Positions of the entries ``(rows, cols)`` in a CSC pattern with sorted rows."""
-    starts, ends = indptr[cols], indptr[cols + 1]
-    idx = np.empty(len(cols), dtype=np.int64)
-    found = np.zeros(len(cols), bool)
-    for t, (a, b, r) in enumerate(zip(starts, ends, rows)):
-        k = a + np.searchsorted(indices[a:b], r)
-        idx[t] = k
-        found[t] = k < b and indices[k] == r
+    """Positions of the entries ``(rows, cols)`` in a CSC pattern with sorted rows: one
+    search of the keys ``col * n + row``, which a sorted CSC pattern holds in order."""
+    cols = np.asarray(cols, dtype=np.int64)
+    rows = np.asarray(rows, dtype=np.int64)
+    n = max(len(indptr) - 1, int(np.max(rows, initial=0)) + 1)
+    counts = np.diff(indptr)
+    keys = np.repeat(np.arange(len(counts), dtype=np.int64), counts) * n + indices
+    idx = np.searchsorted(keys, cols * n + rows)
+    ends = np.asarray(indptr, dtype=np.int64)[cols + 1]
+    found = idx < ends
+    found[found] = np.asarray(indices)[idx[found]] == rows[found]
     return idx, found
 
 
