@@ -216,6 +216,7 @@ def run_one(args, stage, input, name):
     import traceback
 
     from ins.cli import process as cli
+    from ins.cli.process_summary import summary
     from ins.common import interrupts
     from ins.common.errors import QualityError
     from ins.common.fileio import atomic_open
@@ -234,7 +235,7 @@ def run_one(args, stage, input, name):
         rec.rejected_pct = 100 * float(q.get("rejected_fraction", float("nan")))
         rec.sigma_h_m, rec.sigma_v_m = _sigmas(result)
         text = io.StringIO()
-        cli._summary(result, cfg, paths + [os.path.join(args.output, "summary.txt")],
+        summary(result, cfg, paths + [os.path.join(args.output, "summary.txt")],
                      t_proc, t_write, out=text)
         with atomic_open(os.path.join(stage, "summary.txt"), "w") as fh:
             fh.write(text.getvalue())

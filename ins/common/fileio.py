@@ -342,14 +342,16 @@ def make_staging(path, force=False):
     name = os.path.basename(os.path.abspath(path))
     clear_stale_staging(path)
     tmp = None
-    with interrupts.deferred():       # Ctrl-C cannot fall between making and owning it
-        try:
+    try:
+        with interrupts.deferred():   # Ctrl-C cannot fall between making and owning it
             tmp = tempfile.mkdtemp(prefix=f".{name}.", suffix=".part", dir=parent)
             _write_owner(tmp)
-        except OSError as exc:
-            if tmp is not None:
-                shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException as exc:      # the held-back Ctrl-C comes at the block's end:
+        if tmp is not None:           # the caller never gets tmp, so it goes here
+            shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError):
             raise _fs_error(exc, path) from None
+        raise
     return tmp
 
 
