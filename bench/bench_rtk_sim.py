@@ -79,14 +79,17 @@ def main(folder):
         print(f"| {name} | " + " | ".join(f"{f:.3f} / {s:.3f}" for f, s in zip(*cells))
               + f" | {rms[0]:.3f} / {rms[1]:.3f} | {c.get('fix_rate', '-')} | "
               f"{c.get('cycle_slips', '-')} | {refix} | {cpu:.1f} |")
-        if carrier:
-            up = res.fwd.updater
-            n_amb = res.fwd.layout.n_ambiguities
-            print(f"\n{len(up.epochs)} epochs, satellites per epoch mean "
-                  f"{c['satellites_mean']:.1f}, {n_amb} ambiguity slots (n = "
-                  f"{res.fwd.layout.n} states): {1e3 * cpu / max(len(up.epochs), 1):.1f} ms "
-                  f"of CPU per epoch for the whole run (IMU at "
-                  f"{man['flight']['imu_rate_hz']:g} Hz included)")
+    print(f"\nTime per epoch (RTK, the whole run's CPU over its GNSS epochs, the "
+          f"{man['flight']['imu_rate_hz']:g} Hz IMU included):")
+    print("| systems | satellites per epoch, mean | ambiguity slots | states n | "
+          "fix rate | CPU ms per epoch |")
+    print("|---|---|---|---|---|---|")
+    for subset in (systems[:1], systems[:1] + systems[2:3], systems):
+        res, cpu = run(folder, "tight", True, subset)
+        up, L = res.fwd.updater, res.fwd.layout
+        print(f"| {'+'.join(subset)} | {res.counts['satellites_mean']:.1f} | "
+              f"{L.n_ambiguities} | {L.n} | {res.counts.get('fix_rate')} | "
+              f"{1e3 * cpu / max(len(up.epochs), 1):.1f} |")
 
 
 if __name__ == "__main__":

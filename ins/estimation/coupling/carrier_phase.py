@@ -42,7 +42,7 @@ its carrier double differences fail the per-satellite w-test against the INS's
 prediction before the update (:func:`ins.estimation.coupling.double_difference.screen`);
 each re-initialization of a tracked satellite counts as a slip.  With two frequencies
 the geometry-free combination of the single differences flags a jump beyond
-:data:`GF_JUMP_M` (no Melbourne-Wuebbena test: the second frequency's code is not
+:data:`GF_SIGMAS` of its sigma and :data:`GF_JUMP_M` (no Melbourne-Wuebbena test: the second frequency's code is not
 read); the INS's prediction does the rest (a slip of one cycle is 19 or 24 cm against
 centimetres of predicted range).
 
@@ -77,10 +77,12 @@ __all__ = ["CarrierOptions", "CarrierPhaseUpdater", "INITIAL_SIGMA_CYC", "HOLD_S
 INITIAL_SIGMA_CYC = 160.0
 #: Sigma of the fixed double differences applied as measurements (fix and hold), cycles.
 HOLD_SIGMA_CYC = 0.01
-#: A jump of the geometry-free combination between two epochs beyond this is a slip, m
-#: (the ionosphere's change over a second is millimetres; one cycle on both GPS
-#: frequencies moves it by 5.4 cm).
-GF_JUMP_M = 0.03
+#: A jump of the geometry-free combination between two epochs beyond this many of its
+#: sigmas (from ``carrier_sigma_m``), and beyond :data:`GF_JUMP_M`, is a slip (the
+#: ionosphere's change over a second is millimetres; one cycle on both GPS frequencies
+#: moves it by 5.4 cm, which the INS's w-test catches when this does not).
+GF_SIGMAS = 5.0
+GF_JUMP_M = 0.05  # m, RTKLIB's slip threshold of the geometry-free combination
 #: Constellations whose ambiguities stay float: GLONASS (FDMA: the receivers' phase
 #: offsets in cycles differ per channel, so its double differences are no integers
 #: without an inter-frequency bias calibration).
@@ -269,9 +271,9 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
     def _geometry_free(self, c, obs):
         """Slips seen by the geometry-free combination of the two carriers: the single
         differences' ``y1 - y2`` (m: the ionosphere's and the ambiguities' combination,
-        no geometry, no clock) moves by more than :data:`GF_JUMP_M` since the satellite's
-        last epoch (within the arc gap): both frequencies flagged as by a loss of lock
-        (bit 1 of ``lli``).  A slip of the same cycles on both frequencies moves it by
+        no geometry, no clock) moves since the satellite's last epoch (within the arc
+        gap) by more than :data:`GF_SIGMAS` of its sigma and :data:`GF_JUMP_M`: both
+        frequencies flagged as by a loss of lock (bit 0 of ``lli``).  A slip of the same cycles on both frequencies moves it by
         ``n (lambda1 - lambda2)``, 5.4 cm a cycle on GPS L1/L2."""
         o1, o2 = obs
         gf = o1["y"] - o2["y"]
@@ -284,7 +286,9 @@ class CarrierPhaseUpdater(DoubleDifferenceUpdater):
             self.gf[s] = (t, gf[i])
             if last is None or t - last[0] > self.max_gap_s:
                 continue
-            if abs(gf[i] - last[1]) > GF_JUMP_M:
+            # the jump's sigma: two epochs of two carriers' single differences
+            sigma = np.sqrt(2.0 * (o1["var"][i] + o2["var"][i]))
+            if abs(gf[i] - last[1]) > max(GF_JUMP_M, GF_SIGMAS * sigma):
                 o1["lli"][i] |= 1
                 o2["lli"][i] |= 1
                 self.gf_slips += 1
