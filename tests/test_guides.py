@@ -196,6 +196,9 @@ REFUSALS = [
     ("ins/cli/strip_check.py", "_cmd_strip_check", {"QualityError"}),
     ("ins/gnss/rtklib_engine.py", "poor_reason", {"all"}),
     ("ins/cli/gnss.py", "_cmd_gnss", {"QualityError"}),
+    ("ins/cli/align.py", "_cmd_align", {"QualityError"}),
+    ("ins/cli/align.py", "_gyro_error_text", {"all"}),
+    ("ins/cli/allan.py", "_cmd_allan", {"QualityError"}),
 ]
 
 
@@ -276,6 +279,30 @@ def test_every_refusal_message_is_on_the_refusals_page(path, function, what):
     assert not missing, (f"docs/refusals.md lacks these pieces of the messages of "
                          f"{path}:{function} (quote them as the code writes them):\n"
                          + "\n".join(repr(p) for p in missing))
+
+
+def test_every_function_that_refuses_is_listed():
+    """A new ``raise QualityError("...")`` anywhere in the packages must be added to
+    :data:`REFUSALS` (and so its message to docs/refusals.md)."""
+    import ast
+    listed = {(p, f) for p, f, _ in REFUSALS}
+    missing = []
+    for package in ("ins", "photogrammetry"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            tree = ast.parse(path.read_text())
+            for fn in ast.walk(tree):
+                if not isinstance(fn, ast.FunctionDef):
+                    continue
+                for n in ast.walk(fn):
+                    if (isinstance(n, ast.Raise) and isinstance(n.exc, ast.Call)
+                            and getattr(n.exc.func, "id", None) == "QualityError"
+                            and any(" " in t for t in _strings(n.exc))):
+                        rel = str(path.relative_to(ROOT))
+                        if (rel, fn.name) not in listed:
+                            missing.append(f"{rel}:{fn.name}")
+                        break
+    assert not missing, ("refusals not in REFUSALS (add them, and their messages to "
+                         "docs/refusals.md): " + ", ".join(sorted(set(missing))))
 
 
 def test_pair_status_texts_are_on_the_refusals_page():
