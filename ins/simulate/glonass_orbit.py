@@ -62,9 +62,8 @@ _GPS_EPOCH = _dt.datetime(1980, 1, 6)
 
 
 def glonass_frequencies(k):
-    """G1 and G2 carrier frequencies of channel ``k``, Hz (ICD 3.3.1.4)::
-
-        f_G1 = 1602 MHz + k 0.5625 MHz,  f_G2 = 1246 MHz + k 0.4375 MHz
+    """G1 and G2 carrier frequencies of channel ``k``, Hz (ICD 3.3.1.4):
+    ``f_G1 = 1602 MHz + k 0.5625 MHz``, ``f_G2 = 1246 MHz + k 0.4375 MHz``.
     """
     k = np.asarray(k, dtype=float)
     return 1602.0e6 + k * 0.5625e6, 1246.0e6 + k * 0.4375e6
