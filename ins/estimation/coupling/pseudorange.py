@@ -140,6 +140,10 @@ class TightOptions:
         pseudorange variance (0: off), m.
     use_doppler : bool
         Use the range rates.
+    noise : ins.estimation.coupling.range_noise.RangeNoise, optional
+        Noise models per receiver (estimated from the data) in place of the sigmas
+        above, and the IGG-III down-weighting of the accepted rows
+        (:mod:`ins.estimation.coupling.range_noise`).
     """
 
     elevation_mask_deg: float = 10.0
@@ -148,6 +152,7 @@ class TightOptions:
     snr_ref_dbhz: float = 45.0
     snr_sigma_m: float = 0.0
     use_doppler: bool = True
+    noise: object = None
 
 
 def range_rows(point, r_sat_e, v_sat_e, time):
@@ -229,9 +234,14 @@ class TightUpdater(Updater):
         self._clock_set = False
         self.epochs = []
         self.clock_jumps = []          # (time s, jump m) of the receiver clock
+        # (kind 0 code / 1 range rate, el rad, snr dB-Hz, innovation, H P H^T) of every
+        # tested row: what range_noise.fit_receiver estimates the noise from
+        self.samples = []
 
     def _sigmas(self, el, snr):
         o = self.opt
+        if o.noise is not None:
+            return o.noise.receiver("rover").variances(el, snr)
         s_el = np.maximum(np.sin(el), 1e-3)
         var_r = o.range_sigma_m[0] ** 2 + (o.range_sigma_m[1] / s_el) ** 2
         if o.snr_sigma_m > 0 and snr is not None:
@@ -288,10 +298,18 @@ class TightUpdater(Updater):
             cand += [(i, "range_rate", "m/s", rate[i] - y_d[i], H_d[i], var_d[i]) for i in
                      np.flatnonzero(up & np.isfinite(y_d))]
         used = set()
+        robust = self.opt.noise is not None and self.opt.noise.robust
         for i, name, unit, zi, h, r in cand:
-            s = float(h @ P @ h + r)
+            hph = float(h @ P @ h)
+            s = hph + r
             nis = zi * zi / s
             ok = bool(nis <= thr)
+            self.samples.append((int(name == "range_rate"), float(el[i]),
+                                 np.nan if snr is None else float(snr[i]), zi, hph))
+            if ok and robust:
+                from ins.estimation.coupling.range_noise import igg3_inflation
+                r = r * float(igg3_inflation(np.sqrt(nis), np.sqrt(thr),
+                                             self.opt.noise.k0))
             self.records.append(UpdateRecord(name, (names[i],), unit, tg, np.array([zi]),
                                              np.array([np.sqrt(s)]), nis, ok))
             if ok:
