@@ -379,19 +379,15 @@ class DoubleDifferenceUpdater(Updater):
         return H_all, z_all, R_blocks
 
     def _sample(self, n_kind, kind, sub, c, P):
-        """Keep the rover's samples of one kind (:attr:`samples`): the SD innovations of
-        the satellites ``sub`` less their median (the receivers' clock difference),
-        scaled by ``sqrt(n / (n - 1))``; known variance ``H P H^T`` plus the base's."""
-        n = len(sub)
-        if n < 3 or kind.var_b is None:
+        """Keep the rover's samples of one kind (:attr:`samples`): its SD innovations
+        less their median (the receivers' clock difference), the base's model as known
+        variance (:func:`ins.estimation.coupling.range_noise.epoch_samples`)."""
+        if kind.var_b is None or kind.name not in _ROBUST_KINDS:
             return
-        z = kind.z[sub]
-        z = (z - np.median(z)) * np.sqrt(n / (n - 1.0))
-        hph = np.einsum("ij,jk,ik->i", kind.H[sub], P, kind.H[sub])
-        snr = np.full(n, np.nan) if c.snr is None else c.snr[sub]
-        self.samples += [(int(n_kind == 1), float(c.el[i]), float(s), float(zi),
-                          float(h + vb)) for i, s, zi, h, vb in
-                         zip(sub, snr, z, hph, kind.var_b[sub])]
+        from ins.estimation.coupling.range_noise import epoch_samples
+        self.samples += epoch_samples(int(n_kind == 1), c.el[sub],
+                                      None if c.snr is None else c.snr[sub], kind.z[sub],
+                                      kind.H[sub], P, kind.var_b[sub])
 
     def _robust_var(self, kind, idx, r, D, H, z, P, thr):
         """The SD variances of the kept satellites ``idx`` (reference at ``r``),

@@ -297,6 +297,7 @@ class TightUpdater(Updater):
         if self.opt.use_doppler:
             cand += [(i, "range_rate", "m/s", rate[i] - y_d[i], H_d[i], var_d[i]) for i in
                      np.flatnonzero(up & np.isfinite(y_d))]
+        self._sample(cand, el, snr, P)
         used = set()
         robust = self.opt.noise is not None and self.opt.noise.robust
         for i, name, unit, zi, h, r in cand:
@@ -304,8 +305,6 @@ class TightUpdater(Updater):
             s = hph + r
             nis = zi * zi / s
             ok = bool(nis <= thr)
-            self.samples.append((int(name == "range_rate"), float(el[i]),
-                                 np.nan if snr is None else float(snr[i]), zi, hph))
             if ok and robust:
                 from ins.estimation.coupling.range_noise import igg3_inflation
                 r = r * float(igg3_inflation(np.sqrt(nis), np.sqrt(thr),
@@ -327,6 +326,18 @@ class TightUpdater(Updater):
         return apply_rows(self, point, P, np.array(rows), np.diag(R), np.array(z), k)
 
     name = "gnss_tight"
+
+    def _sample(self, cand, el, snr, P):
+        """Keep the epoch's innovations for the noise estimation (:attr:`samples`,
+        :func:`ins.estimation.coupling.range_noise.epoch_samples`)."""
+        from ins.estimation.coupling.range_noise import epoch_samples
+        for kind, name in enumerate(("pseudorange", "range_rate")):
+            c = [x for x in cand if x[1] == name]
+            if len(c) >= 3:
+                i = [x[0] for x in c]
+                self.samples += epoch_samples(kind, el[i], None if snr is None else
+                                              np.asarray(snr, float)[i],
+                                              [x[3] for x in c], np.array([x[4] for x in c]), P)
 
     def _clock_jump(self, t, sensors, P, rho, y_r, var_r, up):
         """A receiver clock that jumped (a millisecond reset of a u-blox or phone

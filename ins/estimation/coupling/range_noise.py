@@ -46,14 +46,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NoiseModel", "RangeNoise", "fit_model", "igg3_inflation", "static_residuals",
-           "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
+__all__ = ["NoiseModel", "RangeNoise", "fit_model", "fit_receiver", "igg3_inflation",
+           "static_residuals", "epoch_samples", "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
 
 #: ``1.4826``: the standard deviation of a normal distribution per median absolute
 #: deviation.
 MAD_TO_SIGMA = 1.482602218505602
 #: IGG-III: standardized innovations up to this are taken at face value.
-IGG_K0 = 1.5
+IGG_K0 = 2.0
 #: Elevation bin edges of the fit, deg; C/N0 bins are ``CN0_BIN_DBHZ`` wide.
 EL_EDGES_DEG = (0.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 75.0, 90.1)
 CN0_BIN_DBHZ = 3.0
@@ -223,6 +223,31 @@ def fit_model(el, snr, z, known_var=None, snr_ref_dbhz=45.0, use_snr=True):
     if not np.any(x > 0):                     # all bins at zero noise: a floor
         x[0] = max(float(np.median(y)), 1e-12)
     return tuple(float(v) for v in np.sqrt(x)), n_used
+
+
+def epoch_samples(kind, el, snr, z, H, P, known_var=None):
+    """Samples of one epoch's rows of one kind (0 code, 1 range rate) for
+    :func:`fit_receiver`: the innovations ``z`` (k,) less their median, so that what is
+    common to the epoch (the receiver clock's prediction error, a clock difference not
+    carried as a state) leaves them, scaled by ``sqrt(k / (k - 1))`` for the removed
+    mean; the known variance is the diagonal of ``C (H P H^T + diag(known_var)) C^T``
+    (``C = I - 1 1^T / k``), scaled alike.  ``el`` rad, ``snr`` dB-Hz (or None), ``H``
+    (k, n), ``P`` (n, n), ``known_var`` (k,) another receiver's variances.  Fewer than 3
+    rows give none.  Returns a list of ``(kind, el, snr, z, known_var)``."""
+    k = len(z)
+    if k < 3:
+        return []
+    z = np.asarray(z, float)
+    S = H @ P @ H.T
+    if known_var is not None:
+        S = S + np.diag(np.asarray(known_var, float))
+    C = np.eye(k) - 1.0 / k
+    f = k / (k - 1.0)
+    kv = np.einsum("ij,jk,ik->i", C, S, C) * f
+    zc = (z - np.median(z)) * np.sqrt(f)
+    snr = np.full(k, np.nan) if snr is None else np.asarray(snr, float)
+    return [(int(kind), float(e), float(s), float(a), float(b))
+            for e, s, a, b in zip(el, snr, zc, kv)]
 
 
 def samples_by_kind(samples, kind):
