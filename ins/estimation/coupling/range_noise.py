@@ -31,7 +31,8 @@ bins' variances by non-negative least squares weighted by ``n_bin / var_bin^2`` 
 variance from ``n`` samples has a relative error of about ``sqrt(2 / n)``).  Terms the
 data do not support come out 0.  Where the innovations come from is the caller's
 choice: a first tight pass (:attr:`ins.estimation.coupling.pseudorange.TightUpdater.samples`),
-or residuals against a known position (a static base, :func:`static_residuals`).
+or residuals against a known position (a static base,
+:func:`ins.estimation.coupling.base_residuals.static_residuals`).
 
 Robust weighting (:func:`igg3_inflation`)
 -----------------------------------------
@@ -47,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["NoiseModel", "RangeNoise", "fit_model", "fit_receiver", "igg3_inflation",
-           "static_residuals", "epoch_samples", "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
+           "epoch_samples", "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
 
 #: ``1.4826``: the standard deviation of a normal distribution per median absolute
 #: deviation.
@@ -275,40 +276,3 @@ def fit_receiver(samples, snr_ref_dbhz=45.0, fallback=None):
         out.append(tuple(fb) if not np.all(np.isfinite(abc)) else abc)
         ns.append(n)
     return NoiseModel(out[0], out[1], snr_ref_dbhz, tuple(ns))
-
-
-def static_residuals(epochs, r_e, elevation_mask_deg=10.0):
-    """Samples of a static receiver at a known ECEF position ``r_e`` (m): per epoch the
-    corrected ranges (range rates) less the Sagnac range (rate), less the epoch's median
-    (the receiver clock bias, drift), scaled by ``sqrt(n / (n - 1))`` for the removed
-    mean; ``epochs`` has the attributes of :class:`ins.gnss.raw_epochs.RawEpochs`.
-    Returns ``(kind, el, snr, z, 0)`` tuples for :func:`fit_receiver`."""
-    from ins.estimation.coupling.pseudorange import (
-        line_of_sight,
-        sagnac_range,
-        sagnac_range_rate,
-    )
-    r_e = np.asarray(r_e, float)
-    import pymap3d
-    lla = np.array(pymap3d.ecef2geodetic(*r_e, deg=False))
-    out = []
-    mask = np.deg2rad(elevation_mask_deg)
-    for k in range(len(epochs.time)):
-        r_s = np.asarray(epochs.sat_pos_e[k], float).reshape(-1, 3)
-        if len(r_s) < 3:
-            continue
-        _, el = line_of_sight(r_s, lla)
-        snr = (np.full(len(r_s), np.nan) if epochs.snr_dbhz is None
-               else np.asarray(epochs.snr_dbhz[k], float))
-        res = [np.asarray(epochs.range_m[k], float) - sagnac_range(r_s, r_e),
-               np.asarray(epochs.range_rate_mps[k], float)
-               - sagnac_range_rate(r_s, np.asarray(epochs.sat_vel_e[k], float), r_e,
-                                   np.zeros(3))]
-        for kind, d in enumerate(res):
-            ok = np.isfinite(d) & (el >= mask)
-            n = np.count_nonzero(ok)
-            if n < 3:
-                continue
-            d = (d - np.median(d[ok])) * np.sqrt(n / (n - 1.0))
-            out += [(kind, el[i], snr[i], d[i], 0.0) for i in np.flatnonzero(ok)]
-    return out

@@ -43,7 +43,7 @@ from ins.estimation.core.error_model import StateLayout
 from ins.estimation.coupling.pseudorange import CLOCKS, TightOptions, TightUpdater, clock_psd
 from ins.nav import earth
 
-__all__ = ["COUPLINGS", "tight_inputs", "tight_counts"]
+__all__ = ["COUPLINGS", "tight_inputs", "tight_counts", "fitted_noise", "noise_summary"]
 
 COUPLINGS = ("loose", "tight")
 
@@ -87,9 +87,7 @@ def tight_inputs(cfg, gnss, settings):
     raw = _read(raw_in, _positions(gnss))
     if cfg.gnss_time_shift_s:
         raw.time = raw.time + cfg.gnss_time_shift_s
-    options = TightOptions(elevation_mask_deg=cfg.elevation_mask_deg,
-                           range_sigma_m=tuple(cfg.range_sigma_m),
-                           range_rate_sigma_mps=tuple(cfg.range_rate_sigma_mps))
+    options = _options(cfg)
     if raw_in.base:
         from ins.estimation.coupling.double_difference import DoubleDifferenceUpdater
         slots = _ambiguity_slots(raw) if getattr(cfg, "carrier_phase", True) else 0
@@ -108,6 +106,78 @@ def tight_inputs(cfg, gnss, settings):
     layout = StateLayout(tuple(settings.layout.groups) + ("clock",))
     return raw, replace(settings, layout=layout, clock_psd=clock_psd(*CLOCKS[cfg.receiver_clock]),
                         updater=functools.partial(TightUpdater, options=options))
+
+
+def _options(cfg):
+    """The tight options of ``cfg``: ``range_sigma_m``, ``range_rate_sigma_mps`` (with
+    ``range_noise = "auto"`` the first pass's, not robust-weighted), and with ``"fixed"``
+    and ``robust_weighting`` that model with the IGG-III weighting."""
+    from ins.estimation.coupling.range_noise import NoiseModel, RangeNoise
+    noise = None
+    if getattr(cfg, "range_noise", "auto") == "fixed" and getattr(cfg, "robust_weighting",
+                                                                  True):
+        noise = RangeNoise(NoiseModel((*cfg.range_sigma_m, 0.0),
+                                      (*cfg.range_rate_sigma_mps, 0.0)), robust=True)
+    return TightOptions(elevation_mask_deg=cfg.elevation_mask_deg,
+                        range_sigma_m=tuple(cfg.range_sigma_m),
+                        range_rate_sigma_mps=tuple(cfg.range_rate_sigma_mps), noise=noise)
+
+
+def fitted_noise(cfg, raw, settings, first_pass):
+    """``[gnss] range_noise = "auto"``: the receivers' noise models
+    (:mod:`ins.estimation.coupling.range_noise`) fitted to the innovations of a first
+    tight pass (the rover) and to the residuals of the base at its known position, and
+    the settings of the run with them (``robust_weighting``: with IGG-III).
+
+    Parameters
+    ----------
+    cfg : ProcessConfig
+    raw : RawEpochs
+        The tight input (:func:`tight_inputs`), its ``base`` for double differences.
+    settings : FilterSettings
+        :func:`tight_inputs`' settings (the first pass's).
+    first_pass : callable
+        ``first_pass(settings) -> ForwardResult``: the forward filter on these settings.
+
+    Returns
+    -------
+    FilterSettings
+        With the fitted models in the updater's ``TightOptions.noise``.
+    """
+    from dataclasses import replace
+
+    from ins.estimation.coupling.base_residuals import static_residuals
+    from ins.estimation.coupling.range_noise import NoiseModel, RangeNoise, fit_receiver
+    part = settings.updater
+    opt = part.keywords["options"]
+    fallback = NoiseModel((*cfg.range_sigma_m, 0.0), (*cfg.range_rate_sigma_mps, 0.0))
+    base = getattr(raw, "base", None)
+    base_model = None
+    if base is not None:
+        base_model = fit_receiver(static_residuals(base, base.r_e, cfg.elevation_mask_deg),
+                                  fallback=fallback)
+        part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
+            opt, noise=RangeNoise(fallback, base_model, robust=False))})
+    fwd = first_pass(replace(settings, updater=part))
+    rover = fit_receiver(fwd.updater.samples, fallback=fallback)
+    noise = RangeNoise(rover, base_model, robust=getattr(cfg, "robust_weighting", True))
+    new = functools.partial(part.func, *part.args,
+                            **{**part.keywords, "options": replace(opt, noise=noise)})
+    return replace(settings, updater=new)
+
+
+def noise_summary(cfg, updater):
+    """The summary's ``range_noise`` entry: the mode, the robust weighting and each
+    receiver's model (:meth:`NoiseModel.as_dict`); ``None`` without a model."""
+    opt = getattr(updater, "opt", None)
+    noise = getattr(opt, "noise", None)
+    if noise is None:
+        return None
+    out = {"mode": getattr(cfg, "range_noise", "auto"), "robust": bool(noise.robust),
+           "rover": noise.rover.as_dict(), "rover_text": noise.rover.describe()}
+    if noise.base is not None:
+        out.update(base=noise.base.as_dict(), base_text=noise.base.describe())
+    return out
 
 
 def _rover_format(raw_in, detect):
