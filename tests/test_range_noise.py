@@ -182,3 +182,64 @@ def test_robust_weighting_carries_three_satellites_through_a_reflection(ublox):
     plain = _tight(ublox, hit, RangeNoise(model, robust=False))
     assert rob[1] < 0.35 and rob[1] <= loose[1], (rob, loose)
     assert plain[1] > 0.35, plain          # the bound is what the weighting buys
+
+
+# ---------------------------------------------------------------------------------------
+# the pipeline: [gnss] range_noise, robust_weighting
+
+def test_config_range_noise_keys(tmp_path):
+    from ins.common.errors import InputError
+    from ins.estimation.pipeline.config import load_config
+    from ins.estimation.pipeline.tight import _options
+    p = tmp_path / "c.toml"
+    base = '[files]\nimu = "imu.txt"\nrover = "r.obs"\nnav = "r.nav"\n[gnss]\ncoupling = "tight"\n'
+    p.write_text(base)
+    cfg = load_config(p)
+    assert (cfg.range_noise, cfg.robust_weighting) == ("auto", True)
+    assert _options(cfg).noise is None            # the first pass: the sigmas as given
+    p.write_text(base + 'range_noise = "fixed"\nrange_sigma_m = [1, 2]\n')
+    cfg = load_config(p)
+    o = _options(cfg)
+    assert o.noise.robust and o.noise.rover.code == (1.0, 2.0, 0.0)
+    p.write_text(base + 'range_noise = "fixed"\nrobust_weighting = false\n')
+    assert _options(load_config(p)).noise is None  # exactly the old weighting
+    for bad, match in (('range_noise = "fitted"', r"c\.toml: \[gnss\] range_noise: expected "
+                                                  r"\"auto\""),
+                       ('robust_weighting = 1', r"robust_weighting: expected true or false")):
+        p.write_text(base + bad + "\n")
+        with pytest.raises(InputError, match=match):
+            load_config(p)
+
+
+def test_process_auto_noise_two_passes(monkeypatch):
+    """``process`` with coupling = "tight" and the default range_noise = "auto" on the
+    simulated flight with u-blox-like raw epochs (the RINEX reading replaced, RTKLIB's
+    solution by the flight's GNSS log): the summary names the fitted rover model, whose
+    C/N0 term is the simulation's, and the run uses it with IGG-III.  (The flight's
+    GNSS log is far more precise than these ranges: the trust checks against it
+    complain, hence ``accept_poor``.)"""
+    from test_filter import PLAN, given_config, short_flight
+
+    from ins.estimation.pipeline import process as process_module
+    from ins.estimation.pipeline import tight
+    from ins.estimation.pipeline.gnss_source import RawGnss
+    from ins.estimation.pipeline.process import process
+    from ins.io.gnss import read_gnss
+    folder = short_flight(3, PLAN.replace('grade = "navigation"', 'grade = "tactical"'))
+    cfg = given_config(folder, varying=False)
+    imu, truth, noise, t0 = ts.flight()
+    cfg.end_s = t0 + 200.0
+    cfg.coupling = "tight"
+    cfg.gnss_raw = RawGnss(rover="rover.obs", nav=("brdc.nav",))
+    times = np.arange(t0 + 1.0, t0 + 200.0, 1.0)
+    synth, _, _ = us.make_ublox_epochs(truth, times, cfg.lever_bp + cfg.lever_ap, seed=4)
+    monkeypatch.setattr(tight, "_read", lambda raw_in, positions: synth)
+    monkeypatch.setattr(process_module, "_gnss", lambda c, folder: (read_gnss(c.gnss), None))
+    result = process(cfg, accept_poor=True)
+    rn = result.counts["range_noise"]
+    assert rn["mode"] == "auto" and rn["robust"] and "base" not in rn
+    assert 1.0 < rn["rover"]["code_abc_m"][2] < 2.0, rn
+    assert rn["rover"]["samples"][0] > 1000
+    np.testing.assert_allclose(result.fwd.updater.opt.noise.rover.code,
+                               rn["rover"]["code_abc_m"], atol=1e-4)
+    assert result.fwd.updater.opt.noise.robust
