@@ -5,13 +5,15 @@ Doppler noise (kept apart from :mod:`~ins.estimation.coupling.range_noise`, whic
 import numpy as np
 
 from ins.estimation.coupling.pseudorange import line_of_sight, sagnac_range, sagnac_range_rate
+from ins.estimation.coupling.range_noise import centre
 
 __all__ = ["static_residuals"]
 
 
 def static_residuals(epochs, r_e, elevation_mask_deg=10.0):
     """Samples of a static receiver at a known ECEF position ``r_e`` (m): per epoch the
-    corrected ranges (range rates) less the Sagnac range (rate), less the epoch's median
+    corrected ranges (range rates) less the Sagnac range (rate), less the epoch's centre
+    (:func:`ins.estimation.coupling.range_noise.centre`)
     (the receiver clock bias, drift), scaled by ``sqrt(n / (n - 1))`` for the removed
     mean; ``epochs`` has the attributes of :class:`ins.gnss.raw_epochs.RawEpochs`.
     Returns ``(kind, el, snr, z, 0)`` tuples for
@@ -37,6 +39,6 @@ def static_residuals(epochs, r_e, elevation_mask_deg=10.0):
             n = np.count_nonzero(ok)
             if n < 3:
                 continue
-            d = (d - np.median(d[ok])) * np.sqrt(n / (n - 1.0))
+            d = (d - centre(d[ok])) * np.sqrt(n / (n - 1.0))
             out += [(kind, el[i], snr[i], d[i], 0.0) for i in np.flatnonzero(ok)]
     return out

@@ -235,7 +235,7 @@ class DoubleDifferenceUpdater(Updater):
         self.ref_changes = 0
         self._ref = None
         self.used = {}                 # kind name -> satellites in its last accepted DDs
-        # rover samples (kind, el, snr, SD innovation less the epoch's median, H P H^T +
+        # rover samples (kind, el, snr, SD innovation less the epoch's centre, H P H^T +
         # the base's variance) for range_noise.fit_receiver
         self.samples = []
         import pymap3d
@@ -380,7 +380,7 @@ class DoubleDifferenceUpdater(Updater):
 
     def _sample(self, n_kind, kind, sub, c, P):
         """Keep the rover's samples of one kind (:attr:`samples`): its SD innovations
-        less their median (the receivers' clock difference), the base's model as known
+        less their centre (the receivers' clock difference), the base's model as known
         variance (:func:`ins.estimation.coupling.range_noise.epoch_samples`)."""
         if kind.var_b is None or kind.name not in _ROBUST_KINDS:
             return

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["NoiseModel", "RangeNoise", "fit_model", "fit_receiver", "igg3_inflation",
-           "epoch_samples", "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
+           "centre", "epoch_samples", "samples_by_kind", "MAD_TO_SIGMA", "IGG_K0"]
 
 #: ``1.4826``: the standard deviation of a normal distribution per median absolute
 #: deviation.
@@ -200,7 +200,7 @@ def fit_model(el, snr, z, known_var=None, snr_ref_dbhz=45.0, use_snr=True):
     el, z, kv = el[ok], z[ok], kv[ok]
     s = None if s is None else s[ok]
     b = _bins(el, s)
-    rows, rhs, wts, n_used = [], [], [], 0
+    rows, rhs, ns, n_used = [], [], [], 0
     for key in np.unique(b):
         m = b == key
         if np.count_nonzero(m) < MIN_BIN:
@@ -213,11 +213,16 @@ def fit_model(el, snr, z, known_var=None, snr_ref_dbhz=45.0, use_snr=True):
         rows.append([1.0, 1.0 / sin2, g])
         rhs.append(var)
         n = np.count_nonzero(m)
-        wts.append(np.sqrt(n) / max(var, 1e-12 + 1e-3 * np.max(np.abs(zz)) ** 2))
+        ns.append(n)
         n_used += n
     if not rows:
         return (np.nan, np.nan, np.nan), 0
-    A, y, w = np.array(rows), np.array(rhs), np.array(wts)
+    A, y = np.array(rows), np.array(rhs)
+    # weights n / var^2 (a variance's relative error is sqrt(2 / n)), the variances
+    # floored at a tenth of the bins' median: a bin of (near) zero spread must not
+    # take the whole fit
+    floor = max(0.1 * float(np.median(y)), 1e-12)
+    w = np.sqrt(np.array(ns, float)) / np.maximum(y, floor)
     cols = [0, 1, 2] if s is not None else [0, 1]
     x = np.zeros(3)
     x[cols], _ = nnls(A[:, cols] * w[:, None], y * w)
@@ -226,9 +231,20 @@ def fit_model(el, snr, z, known_var=None, snr_ref_dbhz=45.0, use_snr=True):
     return tuple(float(v) for v in np.sqrt(x)), n_used
 
 
+def centre(z):
+    """A robust centre of one epoch's innovations that is not one of them (the median
+    of an odd count is, and would leave an exact zero in every epoch): the mean of
+    those within 3 MAD-sigmas of the median (all when the MAD is 0)."""
+    z = np.asarray(z, float)
+    med = np.median(z)
+    s = MAD_TO_SIGMA * np.median(np.abs(z - med))
+    keep = np.abs(z - med) <= 3.0 * s if s > 0 else np.ones(len(z), bool)
+    return float(np.mean(z[keep]))
+
+
 def epoch_samples(kind, el, snr, z, H, P, known_var=None):
     """Samples of one epoch's rows of one kind (0 code, 1 range rate) for
-    :func:`fit_receiver`: the innovations ``z`` (k,) less their median, so that what is
+    :func:`fit_receiver`: the innovations ``z`` (k,) less their :func:`centre`, so that what is
     common to the epoch (the receiver clock's prediction error, a clock difference not
     carried as a state) leaves them, scaled by ``sqrt(k / (k - 1))`` for the removed
     mean; the known variance is the diagonal of ``C (H P H^T + diag(known_var)) C^T``
@@ -245,7 +261,7 @@ def epoch_samples(kind, el, snr, z, H, P, known_var=None):
     C = np.eye(k) - 1.0 / k
     f = k / (k - 1.0)
     kv = np.einsum("ij,jk,ik->i", C, S, C) * f
-    zc = (z - np.median(z)) * np.sqrt(f)
+    zc = (z - centre(z)) * np.sqrt(f)
     snr = np.full(k, np.nan) if snr is None else np.asarray(snr, float)
     return [(int(kind), float(e), float(s), float(a), float(b))
             for e, s, a, b in zip(el, snr, zc, kv)]
