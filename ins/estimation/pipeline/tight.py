@@ -108,6 +108,12 @@ def tight_inputs(cfg, gnss, settings):
                         updater=functools.partial(TightUpdater, options=options))
 
 
+#: The base's residuals less their running median over this window, s
+#: (:func:`ins.estimation.coupling.base_residuals.static_residuals`): the atmosphere's
+#: model errors, which cancel in the double differences, out of the base's noise.
+BASE_DETREND_S = 300.0
+
+
 def _options(cfg):
     """The tight options of ``cfg``: ``range_sigma_m``, ``range_rate_sigma_mps`` (with
     ``range_noise = "auto"`` the first pass's, not robust-weighted), and with ``"fixed"``
@@ -154,8 +160,8 @@ def fitted_noise(cfg, raw, settings, first_pass):
     base = getattr(raw, "base", None)
     base_model = None
     if base is not None:
-        base_model = fit_receiver(static_residuals(base, base.r_e, cfg.elevation_mask_deg),
-                                  fallback=fallback)
+        base_model = fit_receiver(static_residuals(base, base.r_e, cfg.elevation_mask_deg,
+                                                   BASE_DETREND_S), fallback=fallback)
         part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
             opt, noise=RangeNoise(fallback, base_model, robust=False))})
     fwd = first_pass(replace(settings, updater=part))
