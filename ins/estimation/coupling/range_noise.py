@@ -26,8 +26,9 @@ part of their variance that is not the measurement's (``H P H^T`` of the filter'
 and for single differences the other receiver's model) known: the samples are binned
 by elevation and C/N0, the variance of each bin estimated robustly as
 ``(1.4826 MAD)^2`` less the median known part (an outlier of 50 m moves a median by one
-sample, a mean of squares by 2500 m^2 / n), and the three coefficients fitted to the
-bins' variances by non-negative least squares weighted by ``n_bin / var_bin^2`` (a
+sample, a mean of squares by 2500 m^2 / n), but at least :data:`MIN_SHARE` of it, and
+the three coefficients fitted to the bins' variances by non-negative least squares
+weighted by ``n_bin / var_bin^2`` (floored; a
 variance from ``n`` samples has a relative error of about ``sqrt(2 / n)``).  Terms the
 data do not support come out 0.  Where the innovations come from is the caller's
 choice: a first tight pass (:attr:`ins.estimation.coupling.pseudorange.TightUpdater.samples`),
@@ -60,6 +61,10 @@ EL_EDGES_DEG = (0.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0, 75.0, 90.1)
 CN0_BIN_DBHZ = 3.0
 #: Fewest samples of a bin used in the fit.
 MIN_BIN = 20
+#: A bin's noise variance is at least this share of its samples' spread: a first pass
+#: with pessimistic sigmas has a pessimistic ``H P H^T`` that can exceed what the
+#: innovations show, and a receiver left with no noise would be trusted without bound.
+MIN_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -207,7 +212,8 @@ def fit_model(el, snr, z, known_var=None, snr_ref_dbhz=45.0, use_snr=True):
             continue
         zz = z[m]
         mad = np.median(np.abs(zz - np.median(zz)))
-        var = max((MAD_TO_SIGMA * mad) ** 2 - float(np.median(kv[m])), 0.0)
+        spread = (MAD_TO_SIGMA * mad) ** 2
+        var = max(spread - float(np.median(kv[m])), MIN_SHARE * spread)
         sin2 = float(np.median(np.maximum(np.sin(el[m]), 1e-3) ** 2))
         g = 0.0 if s is None else float(np.median(10.0 ** (-0.1 * (s[m] - snr_ref_dbhz))))
         rows.append([1.0, 1.0 / sin2, g])
