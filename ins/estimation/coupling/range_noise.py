@@ -82,12 +82,19 @@ class NoiseModel:
         C/N0 of the ``c`` term, dB-Hz; without C/N0 the term is taken at the reference.
     samples : (int, int)
         Samples the fit used (code, range rate); 0 for a model given by hand.
+    code_floor : (float, float), optional
+        ``(a, b)``: the code variance is at least ``a^2 + b^2 / sin^2 el``, m.  Code
+        errors that vary slowly (multipath, the atmosphere's and the orbits' model
+        errors) are partly taken up by the filter's states and so missing from its
+        innovations: a fit can come out below what the solution should assume (on
+        PSINS's real car log 2 cm at zenith, where RTKLIB's fixes scatter 0.36 m).
     """
 
     code: tuple = (0.3, 0.3, 0.0)
     rate: tuple = (0.05, 0.05, 0.0)
     snr_ref_dbhz: float = 45.0
     samples: tuple = (0, 0)
+    code_floor: tuple = None
 
     def variances(self, el, snr=None):
         """Code (m^2) and range-rate ((m/s)^2) variances at elevations ``el`` (rad) and
@@ -103,19 +110,24 @@ class NoiseModel:
         out = []
         for a, b, c in (self.code, self.rate):
             out.append(a * a + b * b / s2 + c * c * g)
+        if self.code_floor is not None:
+            out[0] = np.maximum(out[0], self.code_floor[0] ** 2 + self.code_floor[1] ** 2 / s2)
         return out[0], out[1]
 
     def describe(self):
         """One line: ``code a/b/c m, range rate a/b/c m/s (ref dB-Hz, n samples)``."""
-        c, r = self.code, self.rate
+        c, r, f = self.code, self.rate, self.code_floor
+        fl = "" if f is None else f" (at least {f[0]:.2f}^2 + {f[1]:.2f}^2/sin^2 el)"
         return (f"code sigma^2 = {c[0]:.2f}^2 + {c[1]:.2f}^2/sin^2 el + {c[2]:.2f}^2 "
-                f"10^(-(C/N0-{self.snr_ref_dbhz:g})/10) m^2, range rate {r[0]:.3f}^2 + "
+                f"10^(-(C/N0-{self.snr_ref_dbhz:g})/10) m^2{fl}, range rate {r[0]:.3f}^2 + "
                 f"{r[1]:.3f}^2/sin^2 el + {r[2]:.3f}^2 10^(..) (m/s)^2 "
                 f"({self.samples[0]}/{self.samples[1]} samples)")
 
     def as_dict(self):
         """The model for a summary (JSON-ready)."""
         return {"code_abc_m": [round(float(v), 4) for v in self.code],
+                "code_floor_ab_m": None if self.code_floor is None else
+                [float(v) for v in self.code_floor],
                 "rate_abc_mps": [round(float(v), 5) for v in self.rate],
                 "snr_ref_dbhz": float(self.snr_ref_dbhz),
                 "samples": [int(v) for v in self.samples]}
@@ -283,10 +295,10 @@ def samples_by_kind(samples, kind):
     return a[:, 0], a[:, 1], a[:, 2], a[:, 3]
 
 
-def fit_receiver(samples, snr_ref_dbhz=45.0, fallback=None):
+def fit_receiver(samples, snr_ref_dbhz=45.0, fallback=None, code_floor=None):
     """A :class:`NoiseModel` from a receiver's samples (:func:`samples_by_kind`); a term
     that cannot be fitted (too few samples) keeps ``fallback``'s (default
-    :class:`NoiseModel`)."""
+    :class:`NoiseModel`); ``code_floor`` as :class:`NoiseModel`'s."""
     fallback = fallback or NoiseModel(snr_ref_dbhz=snr_ref_dbhz)
     out, ns = [], []
     for kind, fb in ((0, fallback.code), (1, fallback.rate)):
@@ -297,4 +309,4 @@ def fit_receiver(samples, snr_ref_dbhz=45.0, fallback=None):
                            z, kv, snr_ref_dbhz)
         out.append(tuple(fb) if not np.all(np.isfinite(abc)) else abc)
         ns.append(n)
-    return NoiseModel(out[0], out[1], snr_ref_dbhz, tuple(ns))
+    return NoiseModel(out[0], out[1], snr_ref_dbhz, tuple(ns), code_floor)

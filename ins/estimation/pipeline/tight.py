@@ -144,7 +144,9 @@ def fitted_noise(cfg, raw, settings, first_pass):
     """``[gnss] range_noise = "auto"``: the receivers' noise models
     (:mod:`ins.estimation.coupling.range_noise`) fitted to the innovations of a first
     tight pass (the rover) and to the residuals of the base at its known position, and
-    the settings of the run with them (``robust_weighting``: with IGG-III).
+    the settings of the run with them (``robust_weighting``: with IGG-III).  The code
+    variances are at least ``range_sigma_m``'s (:attr:`NoiseModel.code_floor`: slowly
+    varying code errors hide from the innovations); the Doppler's are as fitted.
 
     Parameters
     ----------
@@ -172,11 +174,13 @@ def fitted_noise(cfg, raw, settings, first_pass):
     base_model = None
     if base is not None:
         base_model = fit_receiver(static_residuals(base, base.r_e, cfg.elevation_mask_deg,
-                                                   BASE_DETREND_S), fallback=fallback)
+                                                   BASE_DETREND_S), fallback=fallback,
+                                  code_floor=tuple(cfg.range_sigma_m))
         part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
             opt, noise=RangeNoise(fallback, base_model, robust=False))})
     fwd = first_pass(replace(settings, updater=part))
-    rover = fit_receiver(fwd.updater.samples, fallback=fallback)
+    rover = fit_receiver(fwd.updater.samples, fallback=fallback,
+                         code_floor=tuple(cfg.range_sigma_m))
     noise = RangeNoise(rover, base_model, robust=getattr(cfg, "robust_weighting", True))
     new = functools.partial(part.func, *part.args,
                             **{**part.keywords, "options": replace(opt, noise=noise)})
