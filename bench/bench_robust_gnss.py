@@ -50,8 +50,8 @@ def fitted(imu, truth, noise, t0, epochs, options, passes=1):
     opt = options
     model = None
     for _ in range(passes):
-        fwd, _ = ts.run(imu, truth, noise, t0, t0 + RUN_S, epochs, True, options=opt,
-                        clock_psd=us.TCXO)
+        fwd, _ = ts.run(imu, truth, noise, t0, t0 + RUN_S, epochs, True,
+                        options=replace(opt, keep_samples=True), clock_psd=us.TCXO)
         model = fit_receiver(fwd.updater.samples)
         opt = replace(options, noise=RangeNoise(model, robust=opt.noise is not None
                                                 and opt.noise.robust))

@@ -120,7 +120,7 @@ def ublox():
     epochs, _, _ = us.make_ublox_epochs(truth, times, ts.L_B, seed=4)
     span = (t0 + WIN[0], t0 + WIN[1])
     win = ts.masked(epochs, span, 3, truth.lla[np.searchsorted(truth.time, span[0])])
-    first = replace(TightOptions(), noise=RangeNoise(
+    first = replace(TightOptions(), keep_samples=True, noise=RangeNoise(
         NoiseModel((1.0, 1.0, 0.0), (0.1, 0.1, 0.0)), robust=False))
     fwd, _ = ts.run(imu, truth, noise, t0, t0 + RUN_S, win, True, options=first,
                     clock_psd=us.TCXO)

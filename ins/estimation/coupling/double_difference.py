@@ -346,7 +346,8 @@ class DoubleDifferenceUpdater(Updater):
         names, tg, ep = c.names, c.tg, c.ep
         for n_kind, (kind, ok) in enumerate(kinds):
             sub = np.flatnonzero(ok)
-            self._sample(n_kind, kind, sub, c, P)
+            if self.opt.keep_samples:
+                self._sample(n_kind, kind, sub, c, P)
             pref = int(np.searchsorted(sub, c.ref0)) if c.ref0 in sub else -1
             kept, ref, rejected = screen(kind.z[sub], kind.H[sub], kind.var[sub], P, pref,
                                          thr, c.el[sub])

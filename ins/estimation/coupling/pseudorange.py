@@ -144,6 +144,8 @@ class TightOptions:
         Noise models per receiver (estimated from the data) in place of the sigmas
         above, and the IGG-III down-weighting of the accepted rows
         (:mod:`ins.estimation.coupling.range_noise`).
+    keep_samples : bool
+        Keep every tested row's innovation for the noise fit (``updater.samples``).
     """
 
     elevation_mask_deg: float = 10.0
@@ -153,6 +155,7 @@ class TightOptions:
     snr_sigma_m: float = 0.0
     use_doppler: bool = True
     noise: object = None
+    keep_samples: bool = False
 
 
 def range_rows(point, r_sat_e, v_sat_e, time):
@@ -297,7 +300,8 @@ class TightUpdater(Updater):
         if self.opt.use_doppler:
             cand += [(i, "range_rate", "m/s", rate[i] - y_d[i], H_d[i], var_d[i]) for i in
                      np.flatnonzero(up & np.isfinite(y_d))]
-        self._sample(cand, el, snr, P)
+        if self.opt.keep_samples:
+            self._sample(cand, el, snr, P)
         used = set()
         robust = self.opt.noise is not None and self.opt.noise.robust
         for i, name, unit, zi, h, r in cand:

@@ -169,6 +169,8 @@ def fitted_noise(cfg, raw, settings, first_pass):
     from ins.estimation.coupling.range_noise import NoiseModel, RangeNoise, fit_receiver
     part = settings.updater
     opt = part.keywords["options"]
+    part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
+        opt, keep_samples=True)})
     fallback = NoiseModel((*cfg.range_sigma_m, 0.0), (*cfg.range_rate_sigma_mps, 0.0))
     base = getattr(raw, "base", None)
     base_model = None
@@ -177,7 +179,7 @@ def fitted_noise(cfg, raw, settings, first_pass):
                                                    BASE_DETREND_S), fallback=fallback,
                                   code_floor=tuple(cfg.range_sigma_m))
         part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
-            opt, noise=RangeNoise(fallback, base_model, robust=False))})
+            opt, keep_samples=True, noise=RangeNoise(fallback, base_model, robust=False))})
     fwd = first_pass(replace(settings, updater=part))
     rover = fit_receiver(fwd.updater.samples, fallback=fallback,
                          code_floor=tuple(cfg.range_sigma_m))
