@@ -144,9 +144,10 @@ def fitted_noise(cfg, raw, settings, first_pass):
     """``[gnss] range_noise = "auto"``: the receivers' noise models
     (:mod:`ins.estimation.coupling.range_noise`) fitted to the innovations of a first
     tight pass (the rover) and to the residuals of the base at its known position, and
-    the settings of the run with them (``robust_weighting``: with IGG-III).  The code
-    variances are at least ``range_sigma_m``'s (:attr:`NoiseModel.code_floor`: slowly
-    varying code errors hide from the innovations); the Doppler's are as fitted.
+    the settings of the run with them (``robust_weighting``: with IGG-III).  The
+    variances are at least those of ``range_sigma_m`` and ``range_rate_sigma_mps``
+    (:class:`NoiseModel`'s ``code_floor``, ``rate_floor``: slowly varying errors hide
+    from the innovations; the fit can only add to the configured weights).
 
     Parameters
     ----------
@@ -177,12 +178,14 @@ def fitted_noise(cfg, raw, settings, first_pass):
     if base is not None:
         base_model = fit_receiver(static_residuals(base, base.r_e, cfg.elevation_mask_deg,
                                                    BASE_DETREND_S), fallback=fallback,
-                                  code_floor=tuple(cfg.range_sigma_m))
+                                  code_floor=tuple(cfg.range_sigma_m),
+                                  rate_floor=tuple(cfg.range_rate_sigma_mps))
         part = functools.partial(part.func, *part.args, **{**part.keywords, "options": replace(
             opt, keep_samples=True, noise=RangeNoise(fallback, base_model, robust=False))})
     fwd = first_pass(replace(settings, updater=part))
     rover = fit_receiver(fwd.updater.samples, fallback=fallback,
-                         code_floor=tuple(cfg.range_sigma_m))
+                         code_floor=tuple(cfg.range_sigma_m),
+                         rate_floor=tuple(cfg.range_rate_sigma_mps))
     noise = RangeNoise(rover, base_model, robust=getattr(cfg, "robust_weighting", True))
     new = functools.partial(part.func, *part.args,
                             **{**part.keywords, "options": replace(opt, noise=noise)})
