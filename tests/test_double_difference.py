@@ -232,6 +232,10 @@ def _process(folder, base):
                                elevation_mask_deg=10.0))
     cfg.coupling = "tight"
     cfg.carrier_phase = False       # the code and Doppler DDs (carrier: test_carrier_phase)
+    # DD against single point under the same fixed weights (the simulation's white 0.3 m):
+    # the fitted noise ([gnss] range_noise = "auto") makes the single-point run's one
+    # satellite far more useful than the DD run's free inertial; tests/test_range_noise.py
+    cfg.range_noise, cfg.robust_weighting = "fixed", False
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return process(cfg, accept_poor=True), cfg

@@ -86,6 +86,13 @@ def summary(result, cfg, paths, t_proc, t_write, out=None):
         for t, jump in c.get("clock_jumps", []):
             print(f"receiver clock jump at {t:.2f} s: {jump:+.1f} m ({jump / 299792.458:+.4f} "
                   f"ms) common to the pseudoranges; the clock bias set again", file=out)
+    rn = c.get("range_noise")
+    if rn:
+        how = "fitted to a first pass" if rn["mode"] == "auto" else "as configured"
+        rob = ", IGG-III down-weighting" if rn["robust"] else ""
+        print(f"code/Doppler noise ({how}{rob}): rover {rn['rover_text']}", file=out)
+        if rn.get("base_text"):
+            print(f"code/Doppler noise: base {rn['base_text']}", file=out)
     for a, b, n, factor in getattr(result.fwd, "recoveries", []):
         print(f"recovery: {n} position fixes in a row rejected from {a:.2f} to {b:.2f} s; "
               f"the navigation covariance inflated x{factor:.3g} and the fix at {b:.2f} s "

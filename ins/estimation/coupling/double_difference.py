@@ -189,6 +189,10 @@ def screen(z_sd, H_sd, var_sd, P, ref, threshold, el=None):
     return [], None, rejected
 
 
+#: The kinds IGG-III down-weights (code and Doppler, not the carrier).
+_ROBUST_KINDS = ("dd_pseudorange", "dd_range_rate")
+
+
 @dataclass
 class _Kind:
     """One observation type of an epoch: SD innovations, rows, variances."""
@@ -198,6 +202,7 @@ class _Kind:
     z: np.ndarray
     H: np.ndarray
     var: np.ndarray
+    var_b: np.ndarray = None       # the base's part of var (noise estimation)
 
 
 class DoubleDifferenceUpdater(Updater):
@@ -231,11 +236,19 @@ class DoubleDifferenceUpdater(Updater):
         self.ref_changes = 0
         self._refs = {}                # system letter -> reference satellite
         self.used = {}                 # kind name -> satellites in its last accepted DDs
+        # rover samples (kind, el, snr, SD innovation less the epoch's centre, H P H^T +
+        # the base's variance) for range_noise.fit_receiver
+        self.samples = []
         import pymap3d
         self._base_lla = np.array(pymap3d.ecef2geodetic(*gnss.base.r_e, deg=False))
 
     # ------------------------------------------------------------------ model
-    def _var(self, el, sigma):
+    def _var(self, el, sigma, which=None, kind=0, snr=None):
+        """Variances at elevations ``el`` (rad): ``a^2 + b^2 / sin^2 el`` of ``sigma``,
+        or with a receiver ``which`` (``"rover"``, ``"base"``) and ``TightOptions.noise``
+        its model for ``kind`` (0 code, 1 range rate)."""
+        if which is not None and self.opt.noise is not None:
+            return self.opt.noise.receiver(which).variances(el, snr)[kind]
         s_el = np.maximum(np.sin(el), 1e-3)
         return sigma[0] ** 2 + (sigma[1] / s_el) ** 2
 
@@ -309,9 +322,13 @@ class DoubleDifferenceUpdater(Updater):
         mask = np.deg2rad(self.opt.elevation_mask_deg)
         up = (el >= mask) & (el_b >= mask)
         y_r, y_rb = np.asarray(g.range_m[k], float)[ir], np.asarray(b.range_m[k], float)[ib]
+        snr_r = None if g.snr_dbhz is None else np.asarray(g.snr_dbhz[k], float)[ir]
+        snr_b = (None if getattr(b, "snr_dbhz", None) is None
+                 else np.asarray(b.snr_dbhz[k], float)[ib])
+        var_b = self._var(el_b, self.opt.range_sigma_m, "base", 0, snr_b)
         kinds = [(_Kind("dd_pseudorange", "m", sd_r - (y_r - y_rb), H_r,
-                        self._var(el, self.opt.range_sigma_m)
-                        + self._var(el_b, self.opt.range_sigma_m)), up)]
+                        self._var(el, self.opt.range_sigma_m, "rover", 0, snr_r) + var_b,
+                        var_b), up)]
         if self.opt.use_doppler:
             y_d = np.asarray(g.range_rate_mps[k], float)[ir]
             y_db = np.asarray(b.range_rate_mps[k], float)[ib]
@@ -319,9 +336,10 @@ class DoubleDifferenceUpdater(Updater):
             # the satellite clock drift's error, mm/s), with no variance of its own
             has_b = np.isfinite(y_db)
             y_db = np.where(has_b, y_db, sagnac_range_rate(rs_b, vs_b, b.r_e, np.zeros(3)))
+            vd_b = has_b * self._var(el_b, self.opt.range_rate_sigma_mps, "base", 1, snr_b)
             kinds.append((_Kind("dd_range_rate", "m/s", sd_d - (y_d - y_db), H_d,
-                                self._var(el, self.opt.range_rate_sigma_mps)
-                                + has_b * self._var(el_b, self.opt.range_rate_sigma_mps)),
+                                self._var(el, self.opt.range_rate_sigma_mps, "rover", 1,
+                                          snr_r) + vd_b, vd_b),
                           up & np.isfinite(y_d)))
         if np.count_nonzero(up) < 2:
             return None
@@ -329,7 +347,7 @@ class DoubleDifferenceUpdater(Updater):
         sysl = np.array([n[0] for n in names])
         return SimpleNamespace(k=k, tg=tg, point=point, ep=ep, names=names, ir=ir, ib=ib,
                                sd_r=sd_r, H_r=H_r, el=el, el_b=el_b, up=up, kinds=kinds,
-                               refs=refs, sys=sysl)
+                               refs=refs, sys=sysl, snr=snr_r)
 
     def _screened(self, c, kinds, P):
         """Screen each kind's double differences (:func:`screen`), within each
@@ -345,6 +363,8 @@ class DoubleDifferenceUpdater(Updater):
                 sub = np.flatnonzero(ok & (c.sys == system))
                 if len(sub) < 2:           # one satellite of a system: no DD
                     continue
+                if self.opt.keep_samples:
+                    self._sample(n_kind, kind, sub, c, P)
                 r0 = c.refs.get(system)
                 pref = int(np.searchsorted(sub, r0)) if r0 in sub else -1
                 kept, ref, rejected = screen(kind.z[sub], kind.H[sub], kind.var[sub], P,
@@ -361,7 +381,8 @@ class DoubleDifferenceUpdater(Updater):
                 r = idx.index(ref)
                 D = dd_operator(len(idx), r)
                 H, z = D @ kind.H[idx], D @ kind.z[idx]
-                R = dd_covariance(kind.var[idx], r)
+                var = self._robust_var(kind, idx, r, D, H, z, P, thr)
+                R = dd_covariance(var, r)
                 s = np.sqrt(np.diag(H @ P @ H.T + R))
                 for row, i in enumerate(i for i in idx if i != ref):
                     self.records.append(UpdateRecord(
@@ -379,6 +400,29 @@ class DoubleDifferenceUpdater(Updater):
             if used:
                 self.used[kind.name] = used
         return H_all, z_all, R_blocks
+
+    def _sample(self, n_kind, kind, sub, c, P):
+        """Keep the rover's samples of one kind (:attr:`samples`): its SD innovations
+        less their centre (the receivers' clock difference), the base's model as known
+        variance (:func:`ins.estimation.coupling.range_noise.epoch_samples`)."""
+        if kind.var_b is None or kind.name not in _ROBUST_KINDS:
+            return
+        from ins.estimation.coupling.range_noise import epoch_samples
+        self.samples += epoch_samples(int(n_kind == 1), c.el[sub],
+                                      None if c.snr is None else c.snr[sub], kind.z[sub],
+                                      kind.H[sub], P, kind.var_b[sub])
+
+    def _robust_var(self, kind, idx, r, D, H, z, P, thr):
+        """The SD variances of the kept satellites ``idx`` (reference at ``r``),
+        inflated by IGG-III (:func:`ins.estimation.coupling.range_noise.igg3_inflation`)
+        of each satellite's w statistic when ``TightOptions.noise.robust``."""
+        var = kind.var[idx]
+        nz = self.opt.noise
+        if nz is None or not nz.robust or kind.name not in _ROBUST_KINDS:
+            return var
+        from ins.estimation.coupling.range_noise import igg3_inflation
+        w = w_test(z, H @ P @ H.T + dd_covariance(var, r), D)
+        return var * igg3_inflation(np.sqrt(w), np.sqrt(thr), nz.k0)
 
     def satellites_used(self):
         """``(min, mean, max)`` satellites in the pseudorange DDs per epoch (reference

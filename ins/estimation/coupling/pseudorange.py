@@ -145,6 +145,12 @@ class TightOptions:
         pseudorange variance (0: off), m.
     use_doppler : bool
         Use the range rates.
+    noise : ins.estimation.coupling.range_noise.RangeNoise, optional
+        Noise models per receiver (estimated from the data) in place of the sigmas
+        above, and the IGG-III down-weighting of the accepted rows
+        (:mod:`ins.estimation.coupling.range_noise`).
+    keep_samples : bool
+        Keep every tested row's innovation for the noise fit (``updater.samples``).
     """
 
     elevation_mask_deg: float = 10.0
@@ -153,6 +159,8 @@ class TightOptions:
     snr_ref_dbhz: float = 45.0
     snr_sigma_m: float = 0.0
     use_doppler: bool = True
+    noise: object = None
+    keep_samples: bool = False
 
 
 def range_rows(point, r_sat_e, v_sat_e, time, systems=None):
@@ -245,9 +253,14 @@ class TightUpdater(Updater):
         self._clock_set = False
         self.epochs = []
         self.clock_jumps = []          # (time s, jump m) of the receiver clock
+        # (kind 0 code / 1 range rate, el rad, snr dB-Hz, innovation, H P H^T) of every
+        # tested row: what range_noise.fit_receiver estimates the noise from
+        self.samples = []
 
     def _sigmas(self, el, snr):
         o = self.opt
+        if o.noise is not None:
+            return o.noise.receiver("rover").variances(el, snr)
         s_el = np.maximum(np.sin(el), 1e-3)
         var_r = o.range_sigma_m[0] ** 2 + (o.range_sigma_m[1] / s_el) ** 2
         if o.snr_sigma_m > 0 and snr is not None:
@@ -304,11 +317,19 @@ class TightUpdater(Updater):
         if self.opt.use_doppler:
             cand += [(i, "range_rate", "m/s", rate[i] - y_d[i], H_d[i], var_d[i]) for i in
                      np.flatnonzero(up & np.isfinite(y_d))]
+        if self.opt.keep_samples:
+            self._sample(cand, el, snr, P)
         used = set()
+        robust = self.opt.noise is not None and self.opt.noise.robust
         for i, name, unit, zi, h, r in cand:
-            s = float(h @ P @ h + r)
+            hph = float(h @ P @ h)
+            s = hph + r
             nis = zi * zi / s
             ok = bool(nis <= thr)
+            if ok and robust:
+                from ins.estimation.coupling.range_noise import igg3_inflation
+                r = r * float(igg3_inflation(np.sqrt(nis), np.sqrt(thr),
+                                             self.opt.noise.k0))
             self.records.append(UpdateRecord(name, (names[i],), unit, tg, np.array([zi]),
                                              np.array([np.sqrt(s)]), nis, ok))
             if ok:
@@ -326,6 +347,18 @@ class TightUpdater(Updater):
         return apply_rows(self, point, P, np.array(rows), np.diag(R), np.array(z), k)
 
     name = "gnss_tight"
+
+    def _sample(self, cand, el, snr, P):
+        """Keep the epoch's innovations for the noise estimation (:attr:`samples`,
+        :func:`ins.estimation.coupling.range_noise.epoch_samples`)."""
+        from ins.estimation.coupling.range_noise import epoch_samples
+        for kind, name in enumerate(("pseudorange", "range_rate")):
+            c = [x for x in cand if x[1] == name]
+            if len(c) >= 3:
+                i = [x[0] for x in c]
+                self.samples += epoch_samples(kind, el[i], None if snr is None else
+                                              np.asarray(snr, float)[i],
+                                              [x[3] for x in c], np.array([x[4] for x in c]), P)
 
     def _clock_jump(self, t, sensors, P, rho, y_r, var_r, up):
         """A receiver clock that jumped (a millisecond reset of a u-blox or phone

@@ -88,7 +88,8 @@ _SECTIONS = {
              "time_shift_s", "velocity_time_shift_s", "quality", "quality_scale",
              "coupling", "elevation_mask_deg", "range_sigma_m", "range_rate_sigma_mps",
              "receiver_clock", "geoid", "carrier_phase", "carrier_sigma_m",
-             "ambiguity_ratio", "ambiguity_success_rate"},
+             "ambiguity_ratio", "ambiguity_success_rate", "range_noise",
+             "robust_weighting"},
     "mount": {"imu_to_platform_centre_b_m", "platform_centre_to_antenna_a_m"},
     "alignment": {"method", "static_window_s"},
     "filter": {"start_s", "end_s", "node_interval_s", "smooth", "recover", "identify"},
@@ -156,6 +157,9 @@ class ProcessConfig:
     range_sigma_m: tuple = (0.3, 0.3)          # tight: (a, b) of sqrt(a^2 + b^2 / sin^2 el)
     range_rate_sigma_mps: tuple = (0.05, 0.05)
     receiver_clock: str = "tcxo"               # tight: the clock states' noise
+    range_noise: str = "auto"                  # tight: "auto" (fitted, two passes) or "fixed"
+    robust_weighting: bool = None              # tight: IGG-III on code and Doppler rows
+    #                                            (None: with range_noise = "auto" only)
     carrier_phase: bool = True                 # tight with a base: RTK (carrier DDs)
     carrier_sigma_m: tuple = (0.003, 0.003)
     ambiguity_ratio: float = 3.0
@@ -447,6 +451,17 @@ def _coupling(cfg, gnss, where):
                                  f"and not both 0 (sigma^2 = a^2 + b^2 / sin^2 elevation), "
                                  f"got {gnss[key]!r}")
             setattr(cfg, key, tuple(float(x) for x in v))
+    if "range_noise" in gnss:
+        if gnss["range_noise"] not in ("auto", "fixed"):
+            raise InputError(f"{where('gnss', 'range_noise')}: expected \"auto\" (fitted "
+                             f"from a first pass) or \"fixed\" (range_sigma_m, "
+                             f"range_rate_sigma_mps), got {gnss['range_noise']!r}")
+        cfg.range_noise = gnss["range_noise"]
+    if "robust_weighting" in gnss:
+        if not isinstance(gnss["robust_weighting"], bool):
+            raise InputError(f"{where('gnss', 'robust_weighting')}: expected true or false, "
+                             f"got {gnss['robust_weighting']!r}")
+        cfg.robust_weighting = gnss["robust_weighting"]
     if "receiver_clock" in gnss:
         from ins.estimation.coupling.pseudorange import CLOCKS
         if gnss["receiver_clock"] not in CLOCKS:

@@ -466,6 +466,11 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     if cfg.coupling == "tight":
         from ins.estimation.pipeline.tight import tight_inputs
         gnss_in, settings = tight_inputs(cfg, gnss, settings)
+        if getattr(cfg, "range_noise", "auto") == "auto":      # a first pass: the noise
+            from ins.estimation.pipeline.tight import fitted_noise
+            settings = fitted_noise(cfg, gnss_in, settings, lambda s: run_forward(
+                _imu_blocks(cfg), gnss_in, state, s, start=start, end=cfg.end_s,
+                initial_time=st.initial_time))
     try:
         fwd = run_forward(blocks, gnss_in, state, settings, start=start, end=cfg.end_s,
                           progress=progress, workdir=workdir, initial_time=st.initial_time)
@@ -484,6 +489,9 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
               "reanchors": len(fwd.reanchors), "gnss_steps": fwd.n_gnss_steps}
     from ins.estimation.pipeline.tight import tight_counts
     counts.update(tight_counts(fwd))
+    if cfg.coupling == "tight":
+        from ins.estimation.pipeline.tight import noise_summary
+        counts["range_noise"] = noise_summary(cfg, fwd.updater)
     result = ProcessResult(fwd, xs, s_std, al, counts)
     result.start_check = start_check
     result.start_how = st.how
@@ -510,13 +518,18 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     return result
 
 
+def _imu_blocks(cfg):
+    """The IMU blocks of ``cfg``, read lazily and shifted by ``[imu] time_shift_s``."""
+    return prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
+                                            rates=cfg.imu_rates, axes=cfg.imu_axes),
+                                   cfg.imu_time_shift_s))
+
+
 def _prepare(cfg, gnss, lever):
     """The IMU blocks (read lazily, shifted by ``[imu] time_shift_s``), the start, its
     check against the GNSS, the filter settings and the start time of a run."""
     import warnings
-    blocks = prefetch(shifted_blocks(iter_imu(cfg.imu, format=cfg.imu_format,
-                                              rates=cfg.imu_rates, axes=cfg.imu_axes),
-                                     cfg.imu_time_shift_s))
+    blocks = _imu_blocks(cfg)
     st = _start(cfg, blocks, gnss, lever)
     state, t0, al = st.state, st.time, st.alignment
     std = {"pos_std_ned_m": (0.05, 0.05, 0.05), "vel_std_ned_mps": (0.02, 0.02, 0.02),
