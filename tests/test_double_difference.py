@@ -252,7 +252,7 @@ def dd_runs(dd_flight):
 def test_dd_beats_single_point_on_the_simulated_flight(dd_flight, dd_runs, capsys):
     import tomllib
 
-    from ins.cli.process import _summary
+    from ins.cli.process_summary import summary
     from ins.io.navfiles import read_nav
     folder = dd_flight
     man = tomllib.loads((folder / "manifest.toml").read_text())
@@ -286,7 +286,7 @@ def test_dd_beats_single_point_on_the_simulated_flight(dd_flight, dd_runs, capsy
     assert dd.fwd.layout.clock is None and spp.fwd.layout.clock is not None
     c = dd.counts
     assert c["base"] == "base.obs" and c["satellites_min"] == 0
-    _summary(dd, cfg, [], 1.0, 1.0)
+    summary(dd, cfg, [], 1.0, 1.0)
     assert "tight coupling (double differences against base.obs)" in capsys.readouterr().out
 
 

@@ -195,14 +195,14 @@ def test_config_range_noise_keys(tmp_path):
     base = '[files]\nimu = "imu.txt"\nrover = "r.obs"\nnav = "r.nav"\n[gnss]\ncoupling = "tight"\n'
     p.write_text(base)
     cfg = load_config(p)
-    assert (cfg.range_noise, cfg.robust_weighting) == ("auto", True)
+    assert (cfg.range_noise, cfg.robust_weighting) == ("auto", None)   # None: with auto
     assert _options(cfg).noise is None            # the first pass: the sigmas as given
     p.write_text(base + 'range_noise = "fixed"\nrange_sigma_m = [1, 2]\n')
-    cfg = load_config(p)
-    o = _options(cfg)
+    assert _options(load_config(p)).noise is None  # fixed: exactly the old weighting
+    p.write_text(base + 'range_noise = "fixed"\nrange_sigma_m = [1, 2]\n'
+                        'robust_weighting = true\n')
+    o = _options(load_config(p))                   # fixed, IGG-III asked for
     assert o.noise.robust and o.noise.rover.code == (1.0, 2.0, 0.0)
-    p.write_text(base + 'range_noise = "fixed"\nrobust_weighting = false\n')
-    assert _options(load_config(p)).noise is None  # exactly the old weighting
     for bad, match in (('range_noise = "fitted"', r"c\.toml: \[gnss\] range_noise: expected "
                                                   r"\"auto\""),
                        ('robust_weighting = 1', r"robust_weighting: expected true or false")):
