@@ -74,8 +74,9 @@ class RawEpochs:
     wavelength_m : float
         The carrier's wavelength, m.
     phase2_m, lli2 : list of ndarray (k_i,), optional
-        The same for the second frequency (GPS L2; its ionospheric advance scaled by
-        ``(f1 / f2)^2``), when observed.
+        The same for the second frequency (RTKLIB's index 1: GPS L2, GLONASS G2, Galileo
+        E5b, BeiDou B2I; else index 2: GPS L5, Galileo E5a, BeiDou B2a; the Klobuchar
+        advance scaled by ``(f_L1 / f)^2``), when observed.
     wavelength2_m : float
         Its wavelength, m.
     lam_m, lam2_m : list of ndarray (k_i,), optional
@@ -262,11 +263,14 @@ def _epochs(rtk, obs, nav, receiver_ecef, el_min_deg, systems=SYSTEMS):
                                  if d.L[0] != 0.0 else np.nan)
             ep["lli"].append(int(d.LLI[0]))
             ep["lam_m"].append(lam1)
-            f2 = rtk.sat2freq(d.sat, d.code[1], nav) if d.L[1] != 0.0 else 0.0
+            # the second frequency: RTKLIB's index 1 (GPS L2, GLONASS G2, Galileo E5b,
+            # BeiDou B2I), else index 2 (GPS L5, Galileo E5a, BeiDou B2a)
+            j2 = next((j for j in range(1, min(int(rtk.NFREQ), 3)) if d.L[j] != 0.0), None)
+            f2 = rtk.sat2freq(d.sat, d.code[j2], nav) if j2 is not None else 0.0
             lam2 = c / f2 if f2 > 0.0 else np.nan
-            ep["phase2_m"].append(lam2 * d.L[1] + c * dts[0] + klob * (GPS_L1_HZ / f2) ** 2
+            ep["phase2_m"].append(lam2 * d.L[j2] + c * dts[0] + klob * (GPS_L1_HZ / f2) ** 2
                                   - trop if f2 > 0.0 else np.nan)
-            ep["lli2"].append(int(d.LLI[1]))
+            ep["lli2"].append(int(d.LLI[j2]) if j2 is not None else 0)
             ep["lam2_m"].append(lam2)
         i = j
         if not ep["sats"]:
