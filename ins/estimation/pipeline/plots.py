@@ -207,9 +207,10 @@ def plot_innovations(result, path):
     fig, axes = plt.subplots(len(kinds), 1, figsize=(10, 2.6 * len(kinds) + 1), sharex=True,
                              squeeze=False)
     for ax, kind in zip(axes[:, 0], kinds):
+        rms_of, handles = {}, {}
         for axis, (t, z, ok) in _series([r for r in recs if r.name == kind], t0).items():
-            rms = np.sqrt(np.mean(z[ok] ** 2)) if np.any(ok) else np.nan
-            ax.plot(t[ok], z[ok], ".", ms=2, label=f"{axis}: RMS {rms:.2f}")
+            rms_of[axis] = np.sqrt(np.mean(z[ok] ** 2)) if np.any(ok) else np.nan
+            (handles[axis],) = ax.plot(t[ok], z[ok], ".", ms=2)
             if np.any(~ok):
                 ax.plot(t[~ok], np.clip(z[~ok], -10, 10), "x", ms=4, color="k")
         ax.axhline(3, color="0.5", lw=0.8, ls="--")
@@ -223,7 +224,7 @@ def plot_innovations(result, path):
         ax.set_ylim(-6, 6)
         ax.set_ylabel(f"{kind}\ninnovation / sigma")
         ax.grid(alpha=0.3)
-        legend_right(ax, fontsize=7)
+        _legend_largest(ax, rms_of, handles, "{:.2f}", fontsize=7)
     xlabel, origin = time_label(t0)
     axes[-1, 0].set_xlabel(xlabel)
     red = (f"; red: {len(recoveries)} recoveries from runs of rejected fixes"
@@ -249,7 +250,9 @@ def _series(records, t0, standardized=True):
 
 
 _SAT_KINDS = (("pseudorange", "m"), ("range_rate", "m/s"), ("dd_pseudorange", "m"),
-              ("dd_range_rate", "m/s"))
+              ("dd_range_rate", "m/s"), ("dd_carrier_L1", "m"), ("dd_carrier_L2", "m"))
+#: Series named in a panel's legend at most (the largest RMS first; the others counted).
+LEGEND_SERIES = 14
 
 
 def satellites_used(records):
@@ -264,6 +267,21 @@ def satellites_used(records):
             dd_rows[r.time] = dd_rows.get(r.time, 0) + bool(r.accepted)
     used.update({k: n + 1 if n else 0 for k, n in dd_rows.items()})
     return used
+
+
+def _legend_largest(ax, rms_of, handles, fmt, fontsize):
+    """Legend right of ``ax``: every series when there are at most
+    :data:`LEGEND_SERIES`, else those with the largest RMS (series with no accepted
+    value last) and a count of the others."""
+    named = list(rms_of)                # a few: in their order (N, E, D; the satellites)
+    if len(named) > LEGEND_SERIES:
+        named.sort(key=lambda k: (np.isnan(rms_of[k]), -np.nan_to_num(rms_of[k])))
+    labels = [f"{k}: RMS {fmt.format(rms_of[k])}" for k in named[:LEGEND_SERIES]]
+    hs = [handles[k] for k in named[:LEGEND_SERIES]]
+    if len(named) > LEGEND_SERIES:
+        hs.append(ax.plot([], [], " ")[0])
+        labels.append(f"+{len(named) - LEGEND_SERIES} more (smaller RMS)")
+    legend_right(ax, hs, labels, fontsize=fontsize)
 
 
 def plot_satellite_residuals(result, path):
@@ -283,14 +301,14 @@ def plot_satellite_residuals(result, path):
     cmap = plt.get_cmap("tab20")
     for ax, (kind, unit) in zip(axes[:, 0], kinds):
         series = _series([r for r in recs if r.name == kind], t0, standardized=False)
-        lim = []
+        lim, rms_of, handles = [], {}, {}
         for j, (sat, (t, v, ok)) in enumerate(series.items()):
             rms = np.sqrt(np.mean(v[ok] ** 2)) if np.any(ok) else np.nan
-            ax.plot(t[ok], v[ok], ".", ms=2, color=cmap(j % 20),
-                    label=f"{sat}: RMS {rms:.2f}")
+            (h,) = ax.plot(t[ok], v[ok], ".", ms=2, color=cmap(j % 20))
             if np.any(~ok):
                 ax.plot(t[~ok], v[~ok], "x", ms=4, color=cmap(j % 20))
             lim.append(v[ok])
+            rms_of[sat], handles[sat] = rms, h
         vals = np.concatenate(lim) if lim else np.zeros(0)
         if vals.size:                     # the accepted residuals, a blunder or two outside
             lo, hi = np.percentile(vals, [0.2, 99.8])
@@ -298,7 +316,7 @@ def plot_satellite_residuals(result, path):
             ax.set_ylim(lo - pad, hi + pad)
         ax.set_ylabel(f"{kind}\ninnovation, {unit}")
         ax.grid(alpha=0.3)
-        legend_right(ax, fontsize=6)
+        _legend_largest(ax, rms_of, handles, "{:.3g}", fontsize=6)
     up = getattr(result.fwd, "updater", None)
     used = ({ep.time: ep.used for ep in up.epochs} if getattr(up, "epochs", None)
             else satellites_used(recs))     # the updater's: epochs with no record too
