@@ -309,7 +309,7 @@ def test_gnss_on_another_time_scale_names_the_time_base(flight, tmp_path, capsys
 def test_summary_table_columns_never_run_together(values):
     """Issue 12: `308166.78249427.70` (two columns run together).  Every cell keeps its
     width and a separator, whatever the magnitude, and reads back as the value."""
-    from ins.cli.process import _table
+    from ins.cli.process_summary import _table
     cols = ("N mm", "E mm", "D mm", "tiltN as", "tiltE as", "head as")
     lines = _table("RMS vs truth", cols, [("forward", values), ("smoothed", values)])
     assert len({len(line) for line in lines}) == 1               # aligned
