@@ -691,3 +691,31 @@ def test_stale_staging_removed_only_when_its_owner_is_gone(tmp_path):
                for w in again) and len(again) == 4       # and the three left alone
     assert fileio.owner_state(alive)[0] == "alive"
     assert fileio.owner_state(tmp_path / "nothing-here")[0] == "unknown"
+
+
+def test_an_interrupt_never_cuts_the_tempdir_probe(tmp_path, monkeypatch, handler_installed):
+    """SIGINT while tempfile's first gettempdir() probes TMPDIR (it opens a file with a
+    bare random name, writes and removes it): the handler sends the signal again a moment
+    later instead of raising there, so no empty probe file is left; the interrupt then
+    takes effect (the CI once found such a file after a Ctrl-C of refine)."""
+    import signal as signal_
+    import tempfile
+    import time
+
+    from ins.common import interrupts
+    real_open = tempfile._os.open
+    fired = []
+
+    def open_then_interrupt(*a, **k):
+        fd = real_open(*a, **k)
+        if not fired:                          # the signal arrives just after the open
+            fired.append(True)
+            interrupts.handler(signal_.SIGINT, sys._getframe())
+        return fd
+    monkeypatch.setattr(tempfile._os, "open", open_then_interrupt)
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    with pytest.raises(KeyboardInterrupt):
+        tempfile.gettempdir()                  # the probe completes...
+        time.sleep(1.0)                        # ...and the retried signal comes here
+    assert fired and os.listdir(tmp_path) == []

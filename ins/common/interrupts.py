@@ -88,6 +88,11 @@ def close():
 #: every :data:`RETRY_S`.
 UNSAFE_PACKAGES = ("llvmlite", "numba")
 UNSAFE_FILES = ("<frozen importlib",)
+#: Standard-library functions an exception must not cut: ``(file name, function)``.
+#: tempfile's first ``gettempdir()`` probes the folder with a file it opens, writes and
+#: removes; an interrupt just after the open leaves that empty file (a bare 8-letter
+#: name) in the user's TMPDIR.
+UNSAFE_FUNCTIONS = (("tempfile.py", "_get_default_tempdir"),)
 RETRY_S = 0.02
 
 
@@ -95,7 +100,9 @@ def _in_unsafe_code(frame):
     while frame is not None:
         name = frame.f_code.co_filename
         if any(f"{os.sep}{p}{os.sep}" in name for p in UNSAFE_PACKAGES) or \
-                name.startswith(UNSAFE_FILES):
+                name.startswith(UNSAFE_FILES) or \
+                any(os.path.basename(name) == f and frame.f_code.co_name == fn
+                    for f, fn in UNSAFE_FUNCTIONS):
             return True
         frame = frame.f_back
     return False
