@@ -1,4 +1,4 @@
-"""``ins process A B C ... -o OUT``: many logs at once, each into OUT/<name>, as Dask tasks
+"""``ins process A B C -o OUT`` (any number of inputs): many logs at once, each into OUT/<name>, as Dask tasks
 (``--workers N``, ``--scheduler ADDRESS``) or one after another in this process.
 
 Each input (a flight folder, or a per-log config with ``[files]``) is one run of
