@@ -1,5 +1,6 @@
-"""``ins process A B C -o OUT`` (any number of inputs): many logs at once, each into OUT/<name>, as Dask tasks
-(``--workers N``, ``--scheduler ADDRESS``) or one after another in this process.
+"""``ins process A B C -o OUT`` (any number of inputs): many logs at once, each into
+OUT/<name>, as Dask tasks (``--workers N``, ``--scheduler ADDRESS``) or one after
+another in this process.
 
 Each input (a flight folder, or a per-log config with ``[files]``) is one run of
 :func:`ins.cli.process.run_into` on its own: its own output folder, its own summary
