@@ -136,7 +136,9 @@ def run_raw_gnss(cfg, folder):
     screen = sol.log.screen
     poor = poor_reason(sol)
     if poor:
-        warnings.warn(f"{out}: RTKLIB's solution: {poor}", QualityWarning, stacklevel=2)
+        # named as the user finds it (folder is the run's hidden staging folder)
+        warnings.warn(f"{GNSS_POS} (the output folder's): RTKLIB's solution: {poor}",
+                      QualityWarning, stacklevel=2)
     sep = None
     if opts.mode == "kinematic":
         from ins.gnss.separation import forward_backward, plot_separation, write_separation
