@@ -23,9 +23,13 @@ assumption on how the IMU is mounted.
    horizontal velocity (starting, braking, turning): the window grows from the first
    motion until the change reaches :data:`EXCITATION_MPS` (plus
    :data:`SETTLE_S`), at most :data:`MAX_WINDOW_S`.
-3. A start while moving levels with the mean specific force of the first second less
-   the GNSS acceleration (iterated with the heading: the acceleration is known in NED,
-   the level in the body).
+3. A start while moving levels first with the mean specific force of the first
+   :data:`LEVEL_WINDOW_S` (as if unaccelerated), then by the drift of the velocity
+   mismatch over the whole matching window (:func:`_level_drift`, iterated with the
+   heading): a tilt error makes the integrated velocity drift by ``g`` times it.  The
+   window is tens of seconds, so positions differenced into velocities (a file without
+   them: 1 m of noise at 1 Hz) still level to a tenth of a degree, where the GNSS
+   acceleration over the first seconds left errors of 10 deg stated as 1.
 
 4. A log that never moves (at rest to the end of the GNSS or of the IMU given: a
    surveyor's static test, a van waiting for the fix) has no velocity change to match:
@@ -61,7 +65,7 @@ assumption on how the IMU is mounted.
 The sigmas state what the data support: the heading's from the residual of the fit
 against the excitation (times :data:`HEADING_SIGMA_FACTOR` for what the model leaves
 out, at least :data:`MIN_HEADING_STD_DEG`); the level's from the accelerometer bias
-prior.
+prior and, moving, the drift's fit (times the same factor).
 """
 from dataclasses import dataclass
 
@@ -220,6 +224,29 @@ def _match(t_imu, dv_L, t_g, v_n, t_a, t_e, g, order=1):
     return psi, sigma_v / np.sqrt(excite)
 
 
+def _level_drift(t_imu, dv_L, t_g, v_n, t_a, t_e, g, psi, order=1):
+    """Tilt of the level at ``t_a`` (rad, n: a small rotation that takes the computed
+    specific force onto the true one) and its sigma (rad) from the horizontal drift of
+    the velocity mismatch ``Rz(psi) dv_L - dv_n`` over the matching window (module
+    notes, 3.): a tilt ``phi`` adds ``f x phi``, with ``f`` about ``-g`` down, to the
+    computed acceleration, so the mismatch's slope at ``t_a`` is ``(g phi_E, -g phi_N)``
+    (with an accelerometer bias, which it cannot be told from: the level's sigma holds
+    it)."""
+    sel = (t_g >= t_a) & (t_g <= t_e)
+    tg = t_g[sel]
+    x = np.column_stack([np.interp(tg, t_imu, dv_L[:, i]) for i in range(2)])
+    c, s = np.cos(psi), np.sin(psi)
+    d = x @ np.array([[c, s], [-s, c]]) - (v_n[sel][:, :2] - v_n[sel][0, :2])
+    A = np.vander(tg - t_a, order + 1, increasing=True)       # 1, t (, t^2)
+    coef, *_ = np.linalg.lstsq(A, d, rcond=None)
+    r = d - A @ coef
+    dof = max(2 * (len(tg) - order - 1), 1)
+    s_slope = np.sqrt(np.sum(r ** 2) / dof * np.linalg.inv(A.T @ A)[1, 1])
+    delta = np.array([coef[1, 0], coef[1, 1], 0.0])
+    tilt = np.cross(delta, np.array([0.0, 0.0, -g])) / g ** 2
+    return tilt, float(s_slope / g)
+
+
 def align_anywhere(imu, gnss, t_start=None, noise=None, fix_delay_s=FIX_DELAY_S):
     """Initial attitude, velocity and position at the first IMU epoch >= ``t_start``
     from the IMU and the GNSS alone (module notes).
@@ -313,15 +340,10 @@ def align_anywhere(imu, gnss, t_start=None, noise=None, fix_delay_s=FIX_DELAY_S)
             break
         if bias_b is not None:                    # the rest's level needs no iteration
             break
-        # level while moving: mean specific force of the first second vs a_n - g_n
-        sel = (t_g >= t0 - 0.5) & (t_g <= t0 + LEVEL_WINDOW_S + 0.5)
-        if sel.sum() >= 2:
-            a_n = np.polyfit(t_g[sel] - t0, v_n[sel], 1)[0]
-        else:
-            a_n = np.zeros(3)
-        f_n = a_n - np.array([0.0, 0.0, g])
+        # level while moving: the drift of the velocity mismatch over the window
+        tilt, s_tilt = _level_drift(imu.time[ia:ie + 1], dv_L, t_g, v_n, t_a, t_e, g, psi,
+                                    order)
         C_nb = euler_to_dcm([roll, pitch, psi])
-        tilt = np.cross(C_nb @ f_b, f_n) / np.dot(f_n, f_n)   # small rotation f_b -> f_n
         C_nb = (np.eye(3) + np.array([[0.0, -tilt[2], tilt[1]], [tilt[2], 0.0, -tilt[0]],
                                       [-tilt[1], tilt[0], 0.0]])) @ C_nb
         roll = float(np.arctan2(C_nb[2, 1], C_nb[2, 2]))
@@ -339,6 +361,8 @@ def align_anywhere(imu, gnss, t_start=None, noise=None, fix_delay_s=FIX_DELAY_S)
     head_std = max(np.rad2deg(s_psi) * HEADING_SIGMA_FACTOR, MIN_HEADING_STD_DEG)
     b_a = (30.0 * 980.665 if noise is None else float(np.max(noise.accel_bias_std_mgal))) * MGAL
     level_std = np.rad2deg(b_a / g) + (0.0 if bias_b is not None else 1.0)
+    if bias_b is None:                 # the drift's own sigma (module notes, 3.)
+        level_std = float(np.hypot(level_std, np.rad2deg(HEADING_SIGMA_FACTOR * s_tilt)))
     q = euler_to_quat([roll, pitch, psi])
     if bias_b is not None:
         v0, lla0 = np.zeros(3), gnss.lla[k0].copy()
