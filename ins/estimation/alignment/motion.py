@@ -313,8 +313,8 @@ def align_anywhere(imu, gnss, t_start=None, noise=None, fix_delay_s=FIX_DELAY_S)
         f_b = imu.dvel_b[i0 + 1:i1 + 1].sum(axis=0) / span
         roll, pitch, _ = static_attitude(f_b, np.zeros(3))
         t_a = t0
-        how = (f"moving at the start: level from the first {LEVEL_WINDOW_S:g} s less the GNSS "
-               "acceleration")
+        how = ("moving at the start: level from the drift of the velocity mismatch over "
+               "the matching window")
     t_e = _window_end(t_g, v_n[:, :2], t_a)
     ia = int(np.searchsorted(imu.time, t_a - 1e-9))
     ie = int(np.searchsorted(imu.time, t_e, side="right")) - 1
