@@ -11,7 +11,10 @@ from ins.common.errors import InputError
 EPILOG = """\
 input: a GnssLogger text log (Google's GnssLogger app, 'gnss_log_*.txt': '# Raw,...'
   header comments, then Raw, Fix, UncalAccel, UncalGyro, Accel, Gyro records; other
-  records are skipped).
+  records are skipped).  Columns by their header's names (those of GnssLogger 1.4,
+  2016, too: Fix Latitude, Longitude, Altitude, Accuracy, (UTC)TimeInMs); a record cut
+  short or with a field that is no number is left out and counted in the summary.
+  Leap seconds: the log's LeapSecond column, else the table at its first epoch.
 
 outputs (in -o DIR, new or empty; --force replaces it):
   gnss.obs   RINEX 3.04 of the Raw records, every system and signal (GPS, GLONASS,
@@ -32,7 +35,10 @@ outputs (in -o DIR, new or empty; --force replaces it):
              the accelerometer interpolated linearly to the gyro's stamps.  Time: the
              sensors' elapsedRealtimeNanos mapped to GPS time by the least-squares line
              through the Raw epochs' ChipsetElapsedRealtimeNanos and their GPS times
-             (else through the GPS fixes' elapsedRealtimeNanos and UTC time).  'ins
+             (else through the GPS fixes' elapsedRealtimeNanos and UTC time; else,
+             logs before Android 10, through the sensor records' own utcTimeMillis:
+             the phone's system clock, off GPS time by an unknown NTP error of tens
+             of ms, which the summary says: 'ins time-offset' estimates it).  'ins
              process --imu imu.csv' reads it (rates into increments over the real
              intervals).
   fix.pos    the phone's fixes (provider gps; fused/network when there is no gps fix)
@@ -85,6 +91,10 @@ def run(args):
         fix_line = write_fixes(log, raw, os.path.join(stage, "fix.pos"))
         if fix_line:
             summary.append(fix_line)
+    if log.skipped:
+        no, why = log.skipped[0]
+        summary.append(f"{len(log.skipped)} malformed record(s) left out, the first: line "
+                       f"{no}: {why}")
     if not args.quiet:
         print(f"{args.log}: GPS week {raw.week}, leap seconds {raw.leap_s}")
         for line in summary:
