@@ -22,9 +22,10 @@ outputs (in -o DIR, new or empty; --force replaces it):
              ReceivedSvTimeNanos) c, the receive time TimeNanos + TimeOffsetNanos -
              (FullBiasNanos + BiasNanos) of each epoch in the system's time scale, kept
              when State says the code is locked and the satellite time known (TOW /
-             GLONASS time of day); carrier phase cycles = AccumulatedDeltaRangeMeters /
-             wavelength when its state is VALID (RESET/CYCLE_SLIP set the loss-of-lock
-             flag); Doppler Hz = -PseudorangeRateMetersPerSecond / wavelength; C/N0
+             GLONASS time of day) and ReceivedSvTimeUncertaintyNanos <= 500; carrier
+             phase cycles = AccumulatedDeltaRangeMeters / wavelength when its state is
+             VALID (RESET/CYCLE_SLIP, or a change of HardwareClockDiscontinuityCount,
+             set the loss-of-lock flag); Doppler Hz = -PseudorangeRateMetersPerSecond / wavelength; C/N0
              dB-Hz.  Epochs in GPS time (the phone's estimate).  'ins gnss gnss.obs --nav
              BRDC' solves it.
   imu.csv    time_s (GPS s of week), gyro_x/y/z_radps, accel_x/y/z_mps2 in the body
@@ -84,7 +85,8 @@ def run(args):
                                raw.epochs, leap_seconds=raw.leap_s, comments=[note])
         sigs = sorted({f"{s}{c}" for ep in raw.epochs for s, _, c in ep})
         summary.append(f"gnss.obs: {n} epochs, signals {' '.join(sigs)}; {raw.dropped} "
-                       f"measurements left out (time unknown, no code lock, unknown signal)")
+                       f"measurements left out (time unknown, no code lock, unknown signal, "
+                       f"ReceivedSvTimeUncertaintyNanos > 500)")
         imu_line = write_imu(log, raw, os.path.join(stage, "imu.csv"))
         if imu_line:
             summary.append(imu_line)

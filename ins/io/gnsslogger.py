@@ -19,7 +19,10 @@ Pseudoranges (Google's "Raw GNSS measurements" white paper, 2017, and the
 - ``pseudorange = (t_rx - ReceivedSvTimeNanos) * c``, kept when the ``State`` says the
   satellite time is known: TOW decoded or known (bits 3, 14) for GPS/QZSS/Galileo/
   BeiDou, time of day decoded or known (bits 7, 15) for GLONASS, and the code locked
-  (bit 0);
+  (bit 0), and ``ReceivedSvTimeUncertaintyNanos`` is at most
+  :data:`MAX_SV_TIME_UNCERTAINTY_NS` (500 ns, 150 m: the default of Google's GPS
+  Measurement Tools; the 600-700 ns of a weak signal in the phones' logs are a
+  pseudorange in error by hundreds of m);
 - carrier phase ``AccumulatedDeltaRangeMeters / wavelength`` (cycles) when
   ``AccumulatedDeltaRangeState`` has VALID (bit 0); RESET or CYCLE_SLIP (bits 1, 2), or
   a change of ``HardwareClockDiscontinuityCount`` since the previous epoch (the
@@ -39,7 +42,8 @@ import numpy as np
 from ins.common.errors import InputError
 
 __all__ = ["read_gnsslogger", "GnssLoggerLog", "raw_observations", "RawObservations",
-           "sensor_to_gps", "unix_ms_to_gps", "CLIGHT", "SIGNALS"]
+           "sensor_to_gps", "unix_ms_to_gps", "leap_seconds_at_gps_ns", "CLIGHT", "SIGNALS",
+           "MAX_SV_TIME_UNCERTAINTY_NS"]
 
 CLIGHT = 299792458.0
 WEEK_NS = 604800 * 10 ** 9
@@ -54,6 +58,9 @@ SIGNALS = {("G", "L1"): "1C", ("G", "L5"): "5Q", ("J", "L1"): "1C", ("J", "L5"):
 _STATE_CODE_LOCK, _STATE_TOW_DECODED, _STATE_TOW_KNOWN = 1, 8, 16384
 _STATE_GLO_TOD_DECODED, _STATE_GLO_TOD_KNOWN = 128, 32768
 _ADR_VALID, _ADR_RESET, _ADR_SLIP = 1, 2, 4
+#: Largest ReceivedSvTimeUncertaintyNanos kept (150 m of pseudorange; the default of
+#: Google's GPS Measurement Tools, SetDataFilter.m).
+MAX_SV_TIME_UNCERTAINTY_NS = 500.0
 _TYPES = ("Raw", "Fix", "UncalAccel", "UncalGyro", "Accel", "Gyro")
 
 
@@ -218,7 +225,8 @@ class RawObservations:
         GPS - UTC of the log (its ``LeapSecond`` column, else the leap-second table at
         its first epoch).
     dropped : int
-        Measurements left out (time unknown, no code lock, an unknown signal).
+        Measurements left out (time unknown, no code lock, an unknown signal, a
+        ReceivedSvTimeUncertaintyNanos above 500 ns).
     """
 
     def __init__(self, week, time_s, epochs, elapsed_ns, leap_s, dropped):
@@ -266,6 +274,8 @@ def raw_observations(log, leap_s=None):
     adr = t.get("AccumulatedDeltaRangeMeters", np.full(len(lines), np.nan))
     adr_state = t.get("AccumulatedDeltaRangeState", np.zeros(len(lines)))
     hcd = t.get("HardwareClockDiscontinuityCount", np.full(len(lines), np.nan))
+    sv_unc = np.nan_to_num(t.get("ReceivedSvTimeUncertaintyNanos", np.zeros(len(lines))),
+                           nan=0.0)
     epochs, times, els = [], [], []
     key_prev = None
     hcd_prev, hcd_jump = None, False
@@ -302,7 +312,8 @@ def raw_observations(log, leap_s=None):
             known = state & (_STATE_TOW_DECODED | _STATE_TOW_KNOWN)
             period = WEEK_NS
             shift = -14 * 10 ** 9 if sys == "C" else 0
-        if code is None or not known or not state & _STATE_CODE_LOCK:
+        if (code is None or not known or not state & _STATE_CODE_LOCK
+                or sv_unc[i] > MAX_SV_TIME_UNCERTAINTY_NS):
             dropped += 1
             continue
         t_sys = (t_rx_int + shift) % period
