@@ -25,9 +25,9 @@ outputs (in -o DIR, new or empty; --force replaces it):
              GLONASS time of day) and ReceivedSvTimeUncertaintyNanos <= 500; carrier
              phase cycles = AccumulatedDeltaRangeMeters / wavelength when its state is
              VALID (RESET/CYCLE_SLIP, or a change of HardwareClockDiscontinuityCount,
-             set the loss-of-lock flag); Doppler Hz = -PseudorangeRateMetersPerSecond / wavelength; C/N0
-             dB-Hz.  Epochs in GPS time (the phone's estimate).  'ins gnss gnss.obs --nav
-             BRDC' solves it.
+             set the loss-of-lock flag); Doppler Hz = -PseudorangeRateMetersPerSecond
+             / wavelength; C/N0 dB-Hz.  Epochs in GPS time (the phone's estimate).
+             'ins gnss gnss.obs --nav BRDC' solves it.
   imu.csv    time_s (GPS s of week), gyro_x/y/z_radps, accel_x/y/z_mps2 in the body
              frame FRD: forward = the phone's y (top edge), right = its x, down = -z
              (out of the screen), i.e. the phone flat, screen up, top forward; mount it

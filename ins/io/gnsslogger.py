@@ -162,8 +162,8 @@ def read_gnsslogger(path):
         what = (f"; {len(skipped)} malformed records, the first: line {skipped[0][0]}: "
                 f"{skipped[0][1]}") if skipped else ""
         raise InputError("no Raw, Fix, UncalAccel/UncalGyro or Accel/Gyro record that "
-                         "could be read (expected a GnssLogger log: '# Raw,utcTimeMillis,TimeNanos,...' "
-                         f"headers and records){what}", path=path)
+                         "could be read (expected a GnssLogger log: '# Raw,utcTimeMillis,"
+                         f"TimeNanos,...' headers and records){what}", path=path)
     return GnssLoggerLog(path, tables, lines, skipped)
 
 
