@@ -80,6 +80,21 @@ def test_pixel4_pseudoranges_are_googles(tmp_path, capsys):
     assert n == 28 and worst <= 0.0015, worst           # both printed to the mm
 
 
+def test_pixel4_glonass_channels(tmp_path, capsys):
+    """The GLONASS SLOT / FRQ # record from the carrier frequencies: the channels of the
+    constellation's published plan (slots 11, 12, 13, 21, 22, 23, 24: 0, -1, -2, 4, -3,
+    3, 2), which RTKLIB reads with the file."""
+    _need(PIXEL4)
+    _import(PIXEL4, tmp_path / "out", capsys)
+    head = (tmp_path / "out" / "gnss.obs").read_text().split("END OF HEADER")[0]
+    rec = next(line for line in head.splitlines() if line.endswith("GLONASS SLOT / FRQ #"))
+    assert rec[:60].split() == ["7", "R11", "0", "R12", "-1", "R13", "-2", "R21", "4",
+                                "R22", "-3", "R23", "3", "R24", "2"]
+    rtk = pytest.importorskip("pyrtklib5", reason="RTKLIB reads the RINEX too")
+    from ins.gnss.rtklib_engine import count_epochs
+    assert count_epochs(tmp_path / "out" / "gnss.obs", rtk) == 1
+
+
 def test_pixel4_sensors_on_the_system_clock(tmp_path, capsys):
     """No ChipsetElapsedRealtimeNanos in the Raw records, no elapsedRealtimeNanos in
     the fixes (app v2.0.4.2): the IMU goes on GPS time through the sensors' own

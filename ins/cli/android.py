@@ -82,7 +82,8 @@ def run(args):
         from ins.io.rinex_obs_multi import write_rinex3_multi
         note = f"ins import-android {os.path.basename(args.log)}"[:60]
         n = write_rinex3_multi(os.path.join(stage, "gnss.obs"), raw.week, raw.time_s,
-                               raw.epochs, leap_seconds=raw.leap_s, comments=[note])
+                               raw.epochs, leap_seconds=raw.leap_s, comments=[note],
+                               glonass_fcn=raw.glonass_fcn)
         sigs = sorted({f"{s}{c}" for ep in raw.epochs for s, _, c in ep})
         summary.append(f"gnss.obs: {n} epochs, signals {' '.join(sigs)}; {raw.dropped} "
                        f"measurements left out (time unknown, no code lock, unknown signal, "

@@ -227,11 +227,16 @@ class RawObservations:
     dropped : int
         Measurements left out (time unknown, no code lock, an unknown signal, a
         ReceivedSvTimeUncertaintyNanos above 500 ns).
+    glonass_fcn : dict
+        ``{slot: frequency channel k}`` of the GLONASS satellites, from their G1
+        ``CarrierFrequencyHz`` = 1602 MHz + k 0.5625 MHz (the RINEX header's
+        ``GLONASS SLOT / FRQ #``).
     """
 
-    def __init__(self, week, time_s, epochs, elapsed_ns, leap_s, dropped):
+    def __init__(self, week, time_s, epochs, elapsed_ns, leap_s, dropped, glonass_fcn=None):
         self.week, self.time_s, self.epochs = week, time_s, epochs
         self.elapsed_ns, self.leap_s, self.dropped = elapsed_ns, leap_s, dropped
+        self.glonass_fcn = dict(glonass_fcn or {})
 
 
 def raw_observations(log, leap_s=None):
@@ -279,6 +284,7 @@ def raw_observations(log, leap_s=None):
     epochs, times, els = [], [], []
     key_prev = None
     hcd_prev, hcd_jump = None, False
+    fcn = {}
     dropped = 0
     week0 = None
     for i in range(len(lines)):
@@ -326,10 +332,14 @@ def raw_observations(log, leap_s=None):
         lli = 1 if st & (_ADR_RESET | _ADR_SLIP) or hcd_jump else 0
         dop = -t["PseudorangeRateMetersPerSecond"][i] / lam
         epochs[-1][(sys, int(t["Svid"][i]), code)] = (pr, phase, dop, t["Cn0DbHz"][i], lli)
+        if sys == "R":
+            k = (freq[i] - 1602e6) / 0.5625e6
+            if abs(k - round(k)) < 0.01 and -7 <= round(k) <= 6:
+                fcn[int(t["Svid"][i])] = int(round(k))
     if not epochs:
         raise InputError("no Raw record with a known clock", path=path)
     el = None if any(v is None for v in els) else np.array(els, dtype=np.int64)
-    return RawObservations(week0, np.array(times), epochs, el, leap_s, dropped)
+    return RawObservations(week0, np.array(times), epochs, el, leap_s, dropped, fcn)
 
 
 def sensor_to_gps(raw, log):
