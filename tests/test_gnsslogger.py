@@ -49,7 +49,7 @@ def _simulate(n=6):
     return out
 
 
-def _write_log(path, truth, with_elapsed=True):
+def _write_log(path, truth, with_elapsed=True, discontinuity_at=None):
     lines = ["# Version: v3.0.6.0 Platform: 13 Manufacturer: test Model: sim",
              "# Raw," + ",".join(RAW_COLS),
              "# Fix,Provider,LatitudeDegrees,LongitudeDegrees,AltitudeMeters,SpeedMps,"
@@ -87,7 +87,9 @@ def _write_log(path, truth, with_elapsed=True):
             row.update(utcTimeMillis=str((gps_ns // 10 ** 6) + GPS_EPOCH_UNIX_MS - LEAP * 1000),
                        TimeNanos=str(time_nanos), LeapSecond=str(LEAP),
                        FullBiasNanos=str(full_bias), BiasNanos=repr(float(bias)),
-                       HardwareClockDiscontinuityCount="0", Svid=str(svid),
+                       HardwareClockDiscontinuityCount=str(
+                           int(discontinuity_at is not None and k >= discontinuity_at)),
+                       Svid=str(svid),
                        TimeOffsetNanos=repr(offset), State=str(state),
                        ReceivedSvTimeNanos=str(rx_sv), Cn0DbHz=repr(float(cn0)),
                        PseudorangeRateMetersPerSecond=repr(float(-dop * lam)),
@@ -203,3 +205,43 @@ def test_gnsslogger_errors(tmp_path):
     bad.write_text("# Raw,utcTimeMillis,TimeNanos\nRaw,1,2\n")
     with pytest.raises(InputError, match=r"Raw records have no FullBiasNanos"):
         raw_observations(read_gnsslogger(bad))
+
+
+def test_clock_discontinuity_breaks_the_phases(tmp_path):
+    """HardwareClockDiscontinuityCount 0 -> 1 at epoch 4: every phase of epoch 4 has
+    its loss-of-lock flag (the ADR state says nothing), none of the others but the
+    logged slip (G05 L1, epoch 3)."""
+    from ins.io.gnsslogger import raw_observations, read_gnsslogger
+    log = tmp_path / "log.txt"
+    _write_log(log, _simulate(), discontinuity_at=4)
+    raw = raw_observations(read_gnsslogger(log))
+    for k, ep in enumerate(raw.epochs):
+        for key, (_, phase, _, _, lli) in ep.items():
+            assert np.isfinite(phase)
+            want = k == 4 or (k == 3 and key == ("G", 5, "1C"))
+            assert lli == int(want), (k, key)
+
+
+def test_cut_and_corrupt_records_are_left_out(tmp_path):
+    """A last line cut short (the app stopped while writing) and a field that is no
+    number lose those records only, listed with their lines; a weak signal's
+    ReceivedSvTimeUncertaintyNanos above 500 ns drops that measurement."""
+    from ins.io.gnsslogger import raw_observations, read_gnsslogger
+    log = tmp_path / "log.txt"
+    _write_log(log, _simulate())
+    lines = log.read_text().splitlines()
+    first_raw = next(i for i, line in enumerate(lines) if line.startswith("Raw,"))
+    f = lines[first_raw].split(",")
+    f[1 + RAW_COLS.index("ReceivedSvTimeUncertaintyNanos")] = "667"
+    lines[first_raw] = ",".join(f)
+    fix = next(i for i, line in enumerate(lines) if line.startswith("Fix,"))
+    lines[fix] = lines[fix].replace(",139.5,", ",139.5x,")
+    lines.append(lines[first_raw + 1][:40])
+    log.write_text("\n".join(lines) + "\n")
+    g = read_gnsslogger(log)
+    assert [no for no, _ in g.skipped] == [fix + 1, len(lines)]
+    assert "Fix LongitudeDegrees: expected a number, got '139.5x'" in g.skipped[0][1]
+    assert "fields, its header names" in g.skipped[1][1]
+    assert len(g.lines["Fix"]) == 5
+    raw = raw_observations(g)
+    assert ("G", 5, "1C") not in raw.epochs[0] and ("G", 5, "5Q") in raw.epochs[0]

@@ -11,7 +11,10 @@ from ins.common.errors import InputError
 EPILOG = """\
 input: a GnssLogger text log (Google's GnssLogger app, 'gnss_log_*.txt': '# Raw,...'
   header comments, then Raw, Fix, UncalAccel, UncalGyro, Accel, Gyro records; other
-  records are skipped).
+  records are skipped).  Columns by their header's names (those of GnssLogger 1.4,
+  2016, too: Fix Latitude, Longitude, Altitude, Accuracy, (UTC)TimeInMs); a record cut
+  short or with a field that is no number is left out and counted in the summary.
+  Leap seconds: the log's LeapSecond column, else the table at its first epoch.
 
 outputs (in -o DIR, new or empty; --force replaces it):
   gnss.obs   RINEX 3.04 of the Raw records, every system and signal (GPS, GLONASS,
@@ -19,11 +22,12 @@ outputs (in -o DIR, new or empty; --force replaces it):
              ReceivedSvTimeNanos) c, the receive time TimeNanos + TimeOffsetNanos -
              (FullBiasNanos + BiasNanos) of each epoch in the system's time scale, kept
              when State says the code is locked and the satellite time known (TOW /
-             GLONASS time of day); carrier phase cycles = AccumulatedDeltaRangeMeters /
-             wavelength when its state is VALID (RESET/CYCLE_SLIP set the loss-of-lock
-             flag); Doppler Hz = -PseudorangeRateMetersPerSecond / wavelength; C/N0
-             dB-Hz.  Epochs in GPS time (the phone's estimate).  'ins gnss gnss.obs --nav
-             BRDC' solves it.
+             GLONASS time of day) and ReceivedSvTimeUncertaintyNanos <= 500; carrier
+             phase cycles = AccumulatedDeltaRangeMeters / wavelength when its state is
+             VALID (RESET/CYCLE_SLIP, or a change of HardwareClockDiscontinuityCount,
+             set the loss-of-lock flag); Doppler Hz = -PseudorangeRateMetersPerSecond
+             / wavelength; C/N0 dB-Hz.  Epochs in GPS time (the phone's estimate).
+             'ins gnss gnss.obs --nav BRDC' solves it.
   imu.csv    time_s (GPS s of week), gyro_x/y/z_radps, accel_x/y/z_mps2 in the body
              frame FRD: forward = the phone's y (top edge), right = its x, down = -z
              (out of the screen), i.e. the phone flat, screen up, top forward; mount it
@@ -32,7 +36,10 @@ outputs (in -o DIR, new or empty; --force replaces it):
              the accelerometer interpolated linearly to the gyro's stamps.  Time: the
              sensors' elapsedRealtimeNanos mapped to GPS time by the least-squares line
              through the Raw epochs' ChipsetElapsedRealtimeNanos and their GPS times
-             (else through the GPS fixes' elapsedRealtimeNanos and UTC time).  'ins
+             (else through the GPS fixes' elapsedRealtimeNanos and UTC time; else,
+             logs before Android 10, through the sensor records' own utcTimeMillis:
+             the phone's system clock, off GPS time by an unknown NTP error of tens
+             of ms, which the summary says: 'ins time-offset' estimates it).  'ins
              process --imu imu.csv' reads it (rates into increments over the real
              intervals).
   fix.pos    the phone's fixes (provider gps; fused/network when there is no gps fix)
@@ -75,16 +82,22 @@ def run(args):
         from ins.io.rinex_obs_multi import write_rinex3_multi
         note = f"ins import-android {os.path.basename(args.log)}"[:60]
         n = write_rinex3_multi(os.path.join(stage, "gnss.obs"), raw.week, raw.time_s,
-                               raw.epochs, leap_seconds=raw.leap_s, comments=[note])
+                               raw.epochs, leap_seconds=raw.leap_s, comments=[note],
+                               glonass_fcn=raw.glonass_fcn)
         sigs = sorted({f"{s}{c}" for ep in raw.epochs for s, _, c in ep})
         summary.append(f"gnss.obs: {n} epochs, signals {' '.join(sigs)}; {raw.dropped} "
-                       f"measurements left out (time unknown, no code lock, unknown signal)")
+                       f"measurements left out (time unknown, no code lock, unknown signal, "
+                       f"ReceivedSvTimeUncertaintyNanos > 500)")
         imu_line = write_imu(log, raw, os.path.join(stage, "imu.csv"))
         if imu_line:
             summary.append(imu_line)
         fix_line = write_fixes(log, raw, os.path.join(stage, "fix.pos"))
         if fix_line:
             summary.append(fix_line)
+    if log.skipped:
+        no, why = log.skipped[0]
+        summary.append(f"{len(log.skipped)} malformed record(s) left out, the first: line "
+                       f"{no}: {why}")
     if not args.quiet:
         print(f"{args.log}: GPS week {raw.week}, leap seconds {raw.leap_s}")
         for line in summary:

@@ -16,7 +16,8 @@ _SYSTEM_ORDER = "GRECJIS"
 
 
 def write_rinex3_multi(path, week, time_s, epochs, program="ins import-android",
-                       marker="ANDROID", receiver="ANDROID", comments=(), leap_seconds=None):
+                       marker="ANDROID", receiver="ANDROID", comments=(), leap_seconds=None,
+                       glonass_fcn=None):
     """Write observations of any systems as RINEX 3.04.
 
     Parameters
@@ -31,6 +32,9 @@ def write_rinex3_multi(path, week, time_s, epochs, program="ins import-android",
         lli)}``; NaN values are left blank.
     comments : sequence of str
         ``COMMENT`` lines.
+    glonass_fcn : dict, optional
+        ``{GLONASS slot: frequency channel -7..6}``: the ``GLONASS SLOT / FRQ #``
+        record (RINEX 3.04 asks it of a file with GLONASS observations).
 
     Returns
     -------
@@ -69,6 +73,12 @@ def write_rinex3_multi(path, week, time_s, epochs, program="ins import-android",
     for sname in systems:
         head += [_hline(f"{sname} {x}", "SYS / PHASE SHIFT") for x in types[sname]
                  if x.startswith("L")]
+    if "R" in systems and glonass_fcn:
+        slots = sorted(glonass_fcn.items())
+        for k in range(0, len(slots), 8):
+            lead = f"{len(slots):3d} " if k == 0 else " " * 4
+            head.append(_hline(lead + "".join(f"R{p:02d} {c:2d} " for p, c in
+                                              slots[k:k + 8]), "GLONASS SLOT / FRQ #"))
     if "R" in systems:
         head.append(_hline(" C1C    0.000 C1P    0.000 C2C    0.000 C2P    0.000",
                            "GLONASS COD/PHS/BIS"))
