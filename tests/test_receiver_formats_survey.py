@@ -85,7 +85,8 @@ def _sbf_rover(tmp_path, rtk):
 def _check_rinex_values(obs, path, shifts, types):
     """Every value of the RINEX 2 file ``path`` (``types``: (RINEX 2 type, RINEX 3 type,
     band)) equal in the converted ``obs`` to the RINEX millimetre, the phases shifted
-    back by their arcs' integer cycles; the number of values compared."""
+    back by their arcs' integer cycles (``shifts`` empty: none); the number of values
+    compared."""
     orig = {tow: rows for _, tow, rows in read_rinex2_obs(path)}
     conv = read_rinex3_obs(obs)
     assert len(conv) == len(orig)
@@ -103,7 +104,7 @@ def _check_rinex_values(obs, path, shifts, types):
                     key = (int(sat[1:]), band)
                     if (*key, tow) in shifts:
                         arc[key] = shifts[(*key, tow)]
-                    b += arc[key]
+                    b += arc.get(key, 0.0)
                 assert abs(a - b) < 5e-4 + 1e-9, (tow, sat, t2, a, b)
                 compared += 1
     return compared
@@ -163,3 +164,125 @@ def test_pair_with_an_sbf_rover_gives_the_rinex_solution(tmp_path):
     cli = read_pos(tmp_path / "cli.pos")
     assert np.array_equal(cli.quality, a.log.quality)
     assert np.max(np.abs(ned_offset(a.log.lla, cli.lla))) < 5e-4
+
+
+# ---------------------------------------------------------------------------------------
+# Unicore
+
+@pytest.mark.parametrize("l2", ["L2P", "L2C"])
+def test_unicore_obsvmb_decodes_to_the_simulation(tmp_path, l2):
+    """OBSVMB keeps double pseudoranges and phases (to the RINEX millimetre / 0.001
+    cycle), float Doppler, C/N0 in 0.01 dB-Hz; L2 P(Y) (signal type 9) as 2W and L2C
+    (17) as 2L, both kept by RTKLIB; the format and week from the content."""
+    rtk = _rtk()
+    import receiver_frames_unicore as unc
+    from ins.gnss.receiver_formats import convert_raw, detect_format, first_epoch
+    log = tmp_path / "sim.bin"
+    sig, code = (unc.SIG_L2P, "2W") if l2 == "L2P" else (unc.SIG_L2C, "2L")
+    log.write_bytes(unc.simulation_log(_sim(), l2_sig=sig))
+    assert detect_format(log) == "unicore"
+    assert first_epoch(log, "unicore") == (WEEK, TOW0)
+    obs, nav = convert_raw(log, str(tmp_path), rtk)
+    assert nav is None
+    err = _compare(obs, {"L1": "1C", "L2": code},
+                   {"C": 5e-4 + 1e-6, "L": 5e-4 + 1e-6, "D": 1e-3, "S": 0.005 + 1e-6})
+    assert set(err) == set("CLDS")
+    print(f"Unicore ({l2}) worst |RINEX - truth|:", err)
+
+
+def _unicore_rover_sbf_base(tmp_path, rtk):
+    """The rover as Unicore OBSVMB with GPSEPHB ephemerides after the first epoch, the
+    base as SBF (no position in its log)."""
+    import receiver_frames_unicore as unc
+    data = unc.rinex2_to_obsvmb(ROVER)
+    eph, ephs = unc.nav_to_gpsephb(NAV, rtk)
+    k = 24 + int.from_bytes(data[6:8], "little") + 4
+    rover = tmp_path / "rover.log"
+    rover.write_bytes(data[:k] + eph + data[k:])
+    base = tmp_path / "base.log"
+    base.write_bytes(sbf.rinex2_to_sbf(BASE)[0])
+    return rover, base, ephs
+
+
+def _base_lla(rtk):
+    """The base's RINEX header position as (lat deg, lon deg, h m), by RTKLIB's
+    ecef2pos."""
+    xyz, pos = rtk.Arr1Ddouble(3), rtk.Arr1Ddouble(3)
+    for i, v in enumerate((-3978242.4348, 3382841.1715, 3649902.7667)):
+        xyz[i] = v
+    rtk.ecef2pos(xyz, pos)
+    return (float(np.degrees(pos[0])), float(np.degrees(pos[1])), float(pos[2]))
+
+
+@needs_pair
+def test_pair_as_unicore_and_sbf_gives_the_rinex_solution(tmp_path):
+    """The Unicore rover's values come back equal to the RINEX file's (phases unshifted:
+    adr is a double), its GPSEPHB logs give the broadcast orbits again; kinematic PPK of
+    the Unicore rover against the SBF base (its position given as base_lla_deg, the
+    RINEX header's: an SBF log has none) = that of the RINEX files, also with the
+    rover's ephemerides alone; a base log without a position is refused."""
+    rtk = _rtk()
+    from ins.common.errors import InputError
+    from ins.gnss.receiver_formats import convert_raw
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.nav.earth import ned_offset
+    rover, base, ephs = _unicore_rover_sbf_base(tmp_path, rtk)
+    obs, nav = convert_raw(rover, str(tmp_path), rtk, stem="r")
+    assert _check_rinex_values(obs, ROVER, {}, _TYPES) > 3000
+    conv, orig = _ephemerides(nav, rtk), _ephemerides(NAV, rtk)
+    assert set(conv) == set(orig)
+    for key, v in orig.items():               # toe, toc, sqrt A, e, M0, f0, f1
+        np.testing.assert_allclose(conv[key], v, rtol=1e-14, atol=0)
+    opts = RtklibOptions(systems=("gps",), base_lla_deg=_base_lla(rtk))
+    a = solve(ROVER, NAV, tmp_path / "rinex.pos", base=BASE,
+              options=RtklibOptions(systems=("gps",)))
+    for navs, tol_up in ((NAV, 1e-4), (None, 5e-3)):
+        b = solve(rover, navs, tmp_path / "raw.pos", base=base, options=opts)
+        assert b.rover_epochs == a.rover_epochs == 120
+        assert np.array_equal(a.log.time, b.log.time)
+        assert np.array_equal(a.log.quality, b.log.quality)
+        d = np.abs(ned_offset(a.log.lla, b.log.lla))
+        assert np.max(d[:, :2]) < 5e-4 and np.max(d[:, 2]) < tol_up, (navs, d.max(0))
+    with pytest.raises(InputError, match=r"base\.log.*no antenna position"):
+        solve(rover, NAV, tmp_path / "x.pos", base=base,
+              options=RtklibOptions(systems=("gps",)))
+
+
+@needs_pair
+def test_tight_coupling_and_process_take_unicore_and_sbf(tmp_path, capsys):
+    """Tight coupling's double differences from the Unicore rover and the SBF base (the
+    formats detected) = those from the RINEX files; ``ins process`` (loose) with them
+    gives RTKLIB's solution of the RINEX files as gnss.pos."""
+    rtk = _rtk()
+    from test_rawgnss import _config
+
+    from ins.cli.main import main
+    from ins.estimation.pipeline.gnss_source import RawGnss
+    from ins.estimation.pipeline.tight import _read
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.io.rtklib import read_pos
+    hdr = np.array([-3976219.5082, 3382372.5671, 3652512.9849])
+    rover, base, _ = _unicore_rover_sbf_base(tmp_path, rtk)
+    lla = _base_lla(rtk)
+    a = _read(RawGnss(rover=ROVER, base=BASE, nav=(NAV,)), lambda t: hdr)
+    b = _read(RawGnss(rover=str(rover), base=str(base), nav=(NAV,),
+                      options=RtklibOptions(base_lla_deg=lla)), lambda t: hdr)
+    assert len(a) == len(b) == 120
+    np.testing.assert_array_equal(a.base.time, b.base.time)
+    for k in range(len(a)):
+        np.testing.assert_array_equal(a.sats[k], b.sats[k])
+        np.testing.assert_allclose(a.range_m[k], b.range_m[k], atol=1e-3)
+        np.testing.assert_allclose(a.base.range_m[k], b.base.range_m[k], atol=1e-3)
+    cfg = _config(tmp_path, files=f'nav = ["{NAV}"]',
+                  rtklib=f"base_lla_deg = [{lla[0]!r}, {lla[1]!r}, {lla[2]!r}]")
+    out = tmp_path / "out"
+    assert main(["process", "--config", str(cfg), "--rover", str(rover), "--base",
+                 str(base), "--nav", NAV, "--no-plots", "-o", str(out)]) == 0
+    assert "115 of 120 rover epochs solved (fix 115)" in capsys.readouterr().out
+    ref = solve(ROVER, NAV, tmp_path / "ref.pos", base=BASE,
+                options=RtklibOptions(systems=("gps",))).log
+    got = read_pos(out / "gnss.pos")
+    assert np.array_equal(got.quality, ref.quality)
+    assert np.max(np.abs(got.lla[:, 2] - ref.lla[:, 2])) < 1e-4
