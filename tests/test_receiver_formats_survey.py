@@ -82,23 +82,24 @@ def _sbf_rover(tmp_path, rtk):
     return rover, shifts, ephs
 
 
-def _check_rinex_values(obs, path, shifts, types):
+def _check_rinex_values(obs, path, shifts, types, left=()):
     """Every value of the RINEX 2 file ``path`` (``types``: (RINEX 2 type, RINEX 3 type,
     band)) equal in the converted ``obs`` to the RINEX millimetre, the phases shifted
-    back by their arcs' integer cycles (``shifts`` empty: none); the number of values
-    compared."""
-    orig = {tow: rows for _, tow, rows in read_rinex2_obs(path)}
+    back by their arcs' integer cycles (``shifts`` empty: none), but for the signals
+    ``left`` out (``{(tow, "Gnn", band)}``); the number of values compared."""
+    orig = {round(tow, 5): (tow, rows) for _, tow, rows in read_rinex2_obs(path)}
     conv = read_rinex3_obs(obs)
     assert len(conv) == len(orig)
     arc, compared = {}, 0
-    for ymdhms, rows in conv:
-        tow = 518400.0 + 3600 * ymdhms[3] + 60 * ymdhms[4] + ymdhms[5]
-        for sat, v in orig[tow].items():
+    for ymdhms, rows in conv:      # (BINEX epochs come back to 0.1 us: RTKLIB's sum)
+        tow, epoch = orig[round(518400.0 + 3600 * ymdhms[3] + 60 * ymdhms[4] + ymdhms[5],
+                                5)]
+        for sat, v in epoch.items():
             if not sat.startswith("G") or np.isnan(v["C1"][0]):
                 continue
             for t2, t3, band in types:
                 a, b = v[t2][0], rows.get(sat, {}).get(t3, np.nan)
-                if np.isnan(a):
+                if np.isnan(a) or (tow, sat, band) in left:
                     continue
                 if t2[0] == "L":
                     key = (int(sat[1:]), band)

@@ -15,8 +15,9 @@ and ``swift`` (Swift Navigation SBP).
 Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in the
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
-SkyTraq, RT17); else BINEX (a record's sync byte ``C2``/``E2``/``C8``/``E8`` first) or
-Hemisphere (``$BIN`` records); else the extension (``.ubx``, ``.rtcm3``, ``.sbf``,
+SkyTraq, RT17, BINEX big-endian regular-CRC records); else BINEX of another kind (its
+sync byte ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so)
+or Hemisphere (``$BIN`` records); else the extension (``.ubx``, ``.rtcm3``, ``.sbf``,
 ``.jps``, ...).  RTCM2, Javad and NVS logs must be named (``--gnss-format``).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
@@ -242,6 +243,8 @@ def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None):
     const, what, needs = FORMATS[fmt]
     if not hasattr(rtk, const):
         raise InputError(f"this pyrtklib5 binding has no {what} decoder ({const})", path=path)
+    if fmt == "binex":
+        _check_binex(path)
     obs_path = os.path.join(folder, stem + ".obs")
     nav_path = os.path.join(folder, stem + ".nav")
     opt = rtk.rnxopt_t()
@@ -284,6 +287,26 @@ def observations(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None)
     if fmt == "rinex":
         return os.fspath(path), None
     return convert_raw(path, folder, rtk, stem, fmt, navs, epoch)
+
+
+def _check_binex(path):
+    """An InputError naming the log when it holds no BINEX record of the kind RTKLIB
+    decodes (big-endian, regular CRC, forward: sync byte E2) but starts with another
+    kind's sync byte."""
+    from ins.gnss.framing import count_frames
+    with open(path, "rb") as f:
+        data = f.read(_SNIFF_BYTES)
+    if count_frames(data).get("binex") or not data or data[0] == 0xE2:
+        return
+    kinds = {0xC2: "little-endian", 0xC8: "little-endian, enhanced CRC",
+             0xE8: "big-endian, enhanced CRC", 0xD2: "little-endian, reversed",
+             0xF2: "big-endian, reversed", 0xD8: "little-endian, enhanced CRC, reversed",
+             0xF8: "big-endian, enhanced CRC, reversed"}
+    if data[0] in kinds:
+        raise InputError(f"RTKLIB's BINEX decoder reads only big-endian, regular-CRC, "
+                         f"forward records (sync byte 0xE2); this log's records are "
+                         f"{kinds[data[0]]} (sync byte 0x{data[0]:02X}): convert it to "
+                         f"RINEX with another tool (e.g. teqc) first", path=path)
 
 
 def _has_observation(path):
