@@ -16,8 +16,8 @@ from ins.common.errors import InputError
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import receiver_frames_binex as bnx  # noqa: E402
 from receiver_frames_sbf import crc16_ccitt_spec  # noqa: E402
-from test_receiver_formats import BASE, BASE_XYZ, NAV, ROVER, TOW0, WEEK, _compare, \
-    _rtk, _sim, needs_pair  # noqa: E402
+from test_receiver_formats import BASE, BASE_XYZ, NAV, ROVER, _compare, _rtk, _sim, \
+    needs_pair  # noqa: E402
 from test_receiver_formats_survey import _TYPES, _check_rinex_values, \
     _ephemerides  # noqa: E402
 

@@ -3,7 +3,6 @@ by the tests from the public format descriptions (tests/receiver_frames_*.py) an
 decoded by RTKLIB's convrnx (ins.gnss.receiver_formats): detection from the content,
 the observations equal to the simulated truth to each format's resolution, and the
 real GEONET pair re-encoded giving RTKLIB's solution of the RINEX files."""
-import os
 import sys
 from pathlib import Path
 
@@ -11,7 +10,6 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import receiver_frames as rf  # noqa: E402
 import receiver_frames_sbf as sbf  # noqa: E402
 from test_receiver_formats import BASE, NAV, ROVER, TOW0, WEEK, _compare, _rtk, \
     _sim, needs_pair  # noqa: E402
@@ -61,7 +59,7 @@ def test_sbf_measepoch_decodes_to_the_simulation(tmp_path):
 def test_sbf_l2c_is_dropped_by_rtklib_without_an_option(tmp_path):
     """RTKLIB's SBF decoder (NEXOBS 0 in the binding) keeps GPS L2 P(Y) (2W) and drops
     L2C (2L) unless given -GL2L: an L2C-only log converts with L1 alone (a limitation
-    of the decoder, documented in docs/gnss-formats.md)."""
+    of the decoder, documented in docs/interfaces.md)."""
     rtk = _rtk()
     from ins.gnss.receiver_formats import convert_raw
     log = tmp_path / "l2c.sbf"

@@ -51,7 +51,7 @@ FORMATS = {
     "oem4": ("STRFMT_OEM4", "NovAtel OEM4/6/7 binary", "RANGEB or RANGECMPB logs"),
     "ubx": ("STRFMT_UBX", "u-blox UBX", "UBX RXM-RAWX messages: enable them on the "
             "receiver, e.g. with u-center"),
-    "sbf": ("STRFMT_SEPT", "Septentrio SBF", "MeasEpoch blocks"),
+    "sbf": ("STRFMT_SEPT", "Septentrio SBF", "MeasEpoch or Meas3Ranges blocks"),
     "hemisphere": ("STRFMT_CRES", "Hemisphere/Crescent binary", "$BIN 76/96 messages"),
     "skytraq": ("STRFMT_STQ", "SkyTraq binary", "raw measurement messages (0xDD/0xE5)"),
     "javad": ("STRFMT_JAVAD", "Javad GREIS", "RD/R1/PC/... messages"),
