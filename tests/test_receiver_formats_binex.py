@@ -52,14 +52,19 @@ def test_binex_decodes_to_the_simulation(tmp_path):
     0.1 mm from them, Doppler 1/256 Hz, C/N0 0.1 dB-Hz; detected from the content, also
     after leading bytes (a cut record) and with a chance frame of another format in
     the log (the detector once read BINEX only from the file's first byte, after the
-    frame counts)."""
+    frame counts), but not from a lone chance record in another format's log."""
     rtk = _rtk()
     from ins.gnss.receiver_formats import convert_raw, detect_format
     data = bnx.simulation_log(_sim())
-    for name, content in (("sim.bin", data), ("cut.bin", data[7:] + data),
-                          ("chance.bin", data[:40] + _sbp_frame(74, b"\x00" * 9) + data)):
+    noise = np.random.default_rng(3).integers(0, 256, 3000, dtype=np.uint8).tobytes()
+    lone = bnx.binex_record(0x7E, b"\x01\x02") + b"\x00"    # a chance record, alone
+    for name, content, want in (
+            ("sim.bin", data, "binex"), ("cut.bin", data[7:] + data, "binex"),
+            ("chance.bin", data[:40] + _sbp_frame(74, b"\x00" * 9) + data, "binex"),
+            ("log.jps", noise.replace(b"\xe2", b"\xe3") + 3 * (lone + noise[:99]),
+             "javad")):        # records not end to end: not BINEX (the extension)
         (tmp_path / name).write_bytes(content)
-        assert detect_format(tmp_path / name) == "binex", name
+        assert detect_format(tmp_path / name) == want, name
     obs, nav = convert_raw(tmp_path / "sim.bin", str(tmp_path), rtk)
     assert nav is None
     lam = {"L1": 299792458.0 / 1575.42e6, "L2": 299792458.0 / 1227.6e6}

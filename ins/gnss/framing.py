@@ -23,7 +23,8 @@ the file's.  The checksums are written from the formats' public descriptions:
 - BINEX (UNAVCO's description), the big-endian, regular-CRC, forward records RTKLIB
   decodes: ``E2``, record ID (00-03, 7D-7F), the message length as a 1-4 byte ubnxi,
   message, then over record ID..message (n bytes) an 8-bit XOR (n < 128) or CRC-16
-  CCITT, big-endian (n < 4096; RTKLIB reads no longer record).
+  CCITT, big-endian (n < 4096; RTKLIB reads no longer record); a record counts when
+  the next begins right after it (or the data ends).
 """
 import struct
 import zlib
@@ -213,9 +214,13 @@ def _binex(data, k):
         x = 0
         for byte in data[k + 1:end]:
             x ^= byte
-        return end + 1 if x == data[end] else 0
-    crc = int.from_bytes(data[end:end + 2], "big")
-    return end + 2 if crc16_ccitt(data[k + 1:end]) == crc else 0
+        stop = end + 1 if x == data[end] else 0
+    else:
+        crc = int.from_bytes(data[end:end + 2], "big")
+        stop = end + 2 if crc16_ccitt(data[k + 1:end]) == crc else 0
+    # a BINEX file is records end to end: one followed by another's sync (or the
+    # block's end) only, which the 8-bit XOR alone would pass once in 256 chances
+    return stop if stop and (stop == len(data) or data[stop] == 0xE2) else 0
 
 
 #: format name -> (sync bytes, frame check).

@@ -25,7 +25,9 @@ of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``,
 RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era.  The
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
-complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF), else to the first
+complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS: RTKLIB's
+Unicore and SBP decoders still pass the full week through ``adjgpsweek``, which
+without the clock set moves a log older than 2009 by 1024 weeks), else to the first
 ephemeris of the navigation files given with it.
 """
 import os
@@ -126,10 +128,10 @@ def detect_format(path):
 def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
-    and Unicore headers; SBF block headers), else None."""
+    and Unicore headers; SBF block headers; SBP MSG_OBS), else None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
-    if fmt not in ("oem4", "unicore", "sbf"):
+    if fmt not in ("oem4", "unicore", "sbf", "swift"):
         return None
     from ins.gnss.framing import RECOGNISERS
     with open(path, "rb") as f:
@@ -138,7 +140,12 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
     k = data.find(sync)
     while k >= 0:
         if check(data, k):
-            if fmt == "oem4":
+            if fmt == "swift":                  # MSG_OBS (0x004A): tow ms, ns, week
+                if struct.unpack_from("<H", data, k + 1)[0] != 0x004A or data[k + 5] < 10:
+                    k = data.find(sync, k + 1)
+                    continue
+                ms, _, week = struct.unpack_from("<IiH", data, k + 6)
+            elif fmt == "oem4":
                 week, ms = struct.unpack_from("<HI", data, k + 14)
             elif fmt == "unicore":
                 week, ms = struct.unpack_from("<HI", data, k + 10)
