@@ -25,10 +25,10 @@ of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``,
 RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era.  The
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
-complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS: RTKLIB's
-Unicore and SBP decoders still pass the full week through ``adjgpsweek``, which
-without the clock set moves a log older than 2009 by 1024 weeks), else to the first
-ephemeris of the navigation files given with it.
+complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS, SkyTraq
+0xE5/0xDC: RTKLIB's Unicore, SBP and SkyTraq decoders pass even a full week through
+``adjgpsweek``, which without the clock set moves a log older than 2009 by 1024
+weeks), else to the first ephemeris of the navigation files given with it.
 """
 import os
 import struct
@@ -128,10 +128,11 @@ def detect_format(path):
 def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
-    and Unicore headers; SBF block headers; SBP MSG_OBS), else None."""
+    and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC), else
+    None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
-    if fmt not in ("oem4", "unicore", "sbf", "swift"):
+    if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq"):
         return None
     from ins.gnss.framing import RECOGNISERS
     with open(path, "rb") as f:
@@ -145,6 +146,12 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
                     k = data.find(sync, k + 1)
                     continue
                 ms, _, week = struct.unpack_from("<IiH", data, k + 6)
+            elif fmt == "skytraq":              # 0xE5 raw (week, tow ms), 0xDC epoch
+                where = {0xE5: 7, 0xDC: 6}.get(data[k + 4])
+                if where is None or struct.unpack_from(">H", data, k + 2)[0] < where + 2:
+                    k = data.find(sync, k + 1)
+                    continue
+                week, ms = struct.unpack_from(">HI", data, k + where)
             elif fmt == "oem4":
                 week, ms = struct.unpack_from("<HI", data, k + 14)
             elif fmt == "unicore":
