@@ -24,14 +24,18 @@ the file's.  The checksums are written from the formats' public descriptions:
   decodes: ``E2``, record ID (00-03, 7D-7F), the message length as a 1-4 byte ubnxi,
   message, then over record ID..message (n bytes) an 8-bit XOR (n < 128) or CRC-16
   CCITT, big-endian (n < 4096; RTKLIB reads no longer record); a record counts when
-  the next begins right after it (or the data ends).
+  the next begins right after it (or the data ends);
+- Javad GREIS: the receiver-time message every epoch opens with, ``~~005``, its
+  milliseconds of the day (4 bytes) and the GREIS checksum (from 0: rotate left by 2,
+  XOR each byte of the ID, length and body; rotated once more).
 """
 import struct
 import zlib
 
 from ins.io.ublox import ubx_checksum
 
-__all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "count_frames", "RECOGNISERS"]
+__all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "greis_checksum", "count_frames",
+           "RECOGNISERS"]
 
 
 def _crc24q_table():
@@ -223,6 +227,21 @@ def _binex(data, k):
     return stop if stop and (stop == len(data) or data[stop] == 0xE2) else 0
 
 
+def greis_checksum(data):
+    """The 8-bit checksum of a Javad GREIS message (``data``: its ID, length and body
+    before the checksum byte)."""
+    cs = 0
+    for byte in data:
+        cs = (((cs << 2) | (cs >> 6)) & 0xFF) ^ byte
+    return ((cs << 2) | (cs >> 6)) & 0xFF
+
+
+def _javad(data, k):
+    if k + 10 > len(data) or data[k + 2:k + 5] != b"005":
+        return 0
+    return k + 10 if greis_checksum(data[k:k + 9]) == data[k + 9] else 0
+
+
 #: format name -> (sync bytes, frame check).
 RECOGNISERS = {
     "ubx": (b"\xb5\x62", _ubx),
@@ -234,6 +253,7 @@ RECOGNISERS = {
     "skytraq": (b"\xa0\xa1", _skytraq),
     "rt17": (b"\x02", _rt17),
     "binex": (b"\xe2", _binex),
+    "javad": (b"~~", _javad),
 }
 
 

@@ -15,10 +15,11 @@ and ``swift`` (Swift Navigation SBP).
 Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in the
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
-SkyTraq, RT17, BINEX big-endian regular-CRC records); else BINEX of another kind (its
+SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
+messages); else BINEX of another kind (its
 sync byte ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so)
 or Hemisphere (``$BIN`` records); else the extension (``.ubx``, ``.rtcm3``, ``.sbf``,
-``.jps``, ...).  RTCM2, Javad and NVS logs must be named (``--gnss-format``).
+``.jps``, ...).  RTCM2 and NVS logs must be named (``--gnss-format``).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
 of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
@@ -119,8 +120,8 @@ def detect_format(path):
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17 frame, no BINEX or $BIN record) nor from "
-                     f"the extension {ext or '(none)'!r}: name it with --gnss-format / "
+                     f"Unicore/SBP/SkyTraq/RT17/Javad frame, no BINEX or $BIN record) nor "
+                     f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
                      f"--base-format or [rtklib] rover_format / base_format, one of "
                      f"{format_names()}", path=path)
 
