@@ -110,21 +110,28 @@ def _check_rinex_values(obs, path, shifts, types, left=(), tol=None):
     return compared
 
 
-def _ephemerides(path, rtk):
-    """``{(sat, iode): (toe s, toc s, sqrt A, e, M0, f0, f1)}`` of the GPS ephemerides
-    of a RINEX navigation file (copied out before RTKLIB's arrays are freed)."""
+def _ephemeris_list(path, rtk):
+    """``[((sat, iode), (toe s, toc s, sqrt A, e, M0, f0, f1)), ...]`` of the GPS
+    ephemerides of a RINEX navigation file (copied out before RTKLIB's arrays are
+    freed)."""
     obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
     try:
         rtk.readrnx(str(path), 1, "", obs, nav, sta)
-        out = {}
+        out = []
         for i in range(nav.n):
             e = nav.eph[i]
-            out[(e.sat, e.iode)] = (e.toe.time, e.toc.time, round(np.sqrt(e.A), 6),
-                                    round(e.e, 12), round(e.M0, 12), e.f0, e.f1)
+            out.append(((e.sat, e.iode), (e.toe.time, e.toc.time, round(np.sqrt(e.A), 6),
+                                          round(e.e, 12), round(e.M0, 12), e.f0, e.f1)))
         return out
     finally:
         rtk.freeobs(obs)
         rtk.freenav(nav, 0xFF)
+
+
+def _ephemerides(path, rtk):
+    """``{(sat, iode): (toe s, toc s, sqrt A, e, M0, f0, f1)}`` (:func:`_ephemeris_list`;
+    of two with one IODE the later)."""
+    return dict(_ephemeris_list(path, rtk))
 
 
 _TYPES = (("C1", "C1C", "L1"), ("P2", "C2W", "L2"), ("L1", "L1C", "L1"), ("L2", "L2W", "L2"))

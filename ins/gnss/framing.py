@@ -25,6 +25,8 @@ the file's.  The checksums are written from the formats' public descriptions:
   message, then over record ID..message (n bytes) an 8-bit XOR (n < 128) or CRC-16
   CCITT, big-endian (n < 4096; RTKLIB reads no longer record); a record counts when
   the next begins right after it (or the data ends);
+- Hemisphere ``$BIN``: ``$BIN``, block ID, data length (U2 each), data, the 16-bit
+  sum of the data bytes, ``0D 0A``;
 - Javad GREIS: the receiver-time message every epoch opens with, ``~~005``, its
   milliseconds of the day (4 bytes) and the GREIS checksum (from 0: rotate left by 2,
   XOR each byte of the ID, length and body; rotated once more).
@@ -227,6 +229,16 @@ def _binex(data, k):
     return stop if stop and (stop == len(data) or data[stop] == 0xE2) else 0
 
 
+def _hemisphere(data, k):
+    if k + 12 > len(data):
+        return 0
+    end = k + 8 + struct.unpack_from("<H", data, k + 6)[0]
+    if end + 4 > len(data) or data[end + 2:end + 4] != b"\r\n":
+        return 0
+    total = sum(data[k + 8:end]) & 0xFFFF
+    return end + 4 if total == struct.unpack_from("<H", data, end)[0] else 0
+
+
 def greis_checksum(data):
     """The 8-bit checksum of a Javad GREIS message (``data``: its ID, length and body
     before the checksum byte)."""
@@ -254,6 +266,7 @@ RECOGNISERS = {
     "rt17": (b"\x02", _rt17),
     "binex": (b"\xe2", _binex),
     "javad": (b"~~", _javad),
+    "hemisphere": (b"$BIN", _hemisphere),
 }
 
 

@@ -16,10 +16,10 @@ Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in t
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
 SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
-messages); else BINEX of another kind (its
-sync byte ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so)
-or Hemisphere (``$BIN`` records); else the extension (``.ubx``, ``.rtcm3``, ``.sbf``,
-``.jps``, ...).  RTCM2 and NVS logs must be named (``--gnss-format``).
+messages, Hemisphere ``$BIN``); else BINEX of another kind (its sync byte
+``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so); else
+the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 and NVS logs
+must be named (``--gnss-format``).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
 of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
@@ -27,9 +27,11 @@ RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
 complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS, SkyTraq
-0xE5/0xDC: RTKLIB's Unicore, SBP and SkyTraq decoders pass even a full week through
-``adjgpsweek``, which without the clock set moves a log older than 2009 by 1024
-weeks), else to the first ephemeris of the navigation files given with it.
+0xE5/0xDC, Hemisphere Bin 76/96: RTKLIB's Unicore, SBP and SkyTraq decoders pass even
+a full week through ``adjgpsweek``, and the subframe decoders (SkyTraq 0xE0,
+Hemisphere Bin 95, ...) the 10-bit week, which without the clock set moves a log
+older than 2009 by 1024 weeks), else to the first ephemeris of the navigation files
+given with it.
 """
 import os
 import struct
@@ -113,14 +115,12 @@ def detect_format(path):
         return max(counts, key=counts.get)
     if len(data) > 1 and data[0] in _BINEX_SYNC and data[1] in _BINEX_RECORDS:
         return "binex"
-    if data.count(b"$BIN") >= 2:
-        return "hemisphere"
     ext = os.path.splitext(path)[1].lower()
     if ext in _EXTENSIONS:
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17/Javad frame, no BINEX or $BIN record) nor "
+                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN frame, no BINEX record) nor "
                      f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
                      f"--base-format or [rtklib] rover_format / base_format, one of "
                      f"{format_names()}", path=path)
@@ -129,11 +129,11 @@ def detect_format(path):
 def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
-    and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC), else
-    None."""
+    and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC;
+    Hemisphere Bin 76 / 96), else None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
-    if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq"):
+    if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq", "hemisphere"):
         return None
     from ins.gnss.framing import RECOGNISERS
     with open(path, "rb") as f:
@@ -147,6 +147,19 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
                     k = data.find(sync, k + 1)
                     continue
                 ms, _, week = struct.unpack_from("<IiH", data, k + 6)
+            elif fmt == "hemisphere":           # Bin 76 (tow F8, week), Bin 96 (week, tow)
+                block = struct.unpack_from("<H", data, k + 4)[0]
+                if block not in (76, 96):
+                    k = data.find(sync, k + 1)
+                    continue
+                if block == 76:
+                    tow, week = struct.unpack_from("<dH", data, k + 8)
+                else:
+                    week, tow = struct.unpack_from("<Hd", data, k + 10)
+                if 0 < week < 0xFFFF and 0.0 <= tow < 604800.0:
+                    return int(week), float(tow)
+                k = data.find(sync, k + 1)
+                continue
             elif fmt == "skytraq":              # 0xE5 raw (week, tow ms), 0xDC epoch
                 where = {0xE5: 7, 0xDC: 6}.get(data[k + 4])
                 if where is None or struct.unpack_from(">H", data, k + 2)[0] < where + 2:
