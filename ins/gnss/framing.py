@@ -19,14 +19,25 @@ the file's.  The checksums are written from the formats' public descriptions:
 - Swift SBP: ``55``, type, sender, length, CRC-16 CCITT over type..payload;
 - SkyTraq: ``A0 A1``, length (big-endian), payload, XOR of the payload, ``0D 0A``;
 - Trimble RT17 (GSOF-style packets): ``02`` status, type, length, data, checksum
-  (sum of status..data mod 256), ``03``.
+  (sum of status..data mod 256), ``03``;
+- BINEX (UNAVCO's description), the big-endian, regular-CRC, forward records RTKLIB
+  decodes: ``E2``, record ID (00-03, 7D-7F), the message length as a 1-4 byte ubnxi,
+  message, then over record ID..message (n bytes) an 8-bit XOR (n < 128) or CRC-16
+  CCITT, big-endian (n < 4096; RTKLIB reads no longer record); a record counts when
+  the next begins right after it (or the data ends);
+- Hemisphere ``$BIN``: ``$BIN``, block ID, data length (U2 each), data, the 16-bit
+  sum of the data bytes, ``0D 0A``;
+- Javad GREIS: the receiver-time message every epoch opens with, ``~~005``, its
+  milliseconds of the day (4 bytes) and the GREIS checksum (from 0: rotate left by 2,
+  XOR each byte of the ID, length and body; rotated once more).
 """
 import struct
 import zlib
 
 from ins.io.ublox import ubx_checksum
 
-__all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "count_frames", "RECOGNISERS"]
+__all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "greis_checksum", "count_frames",
+           "RECOGNISERS"]
 
 
 def _crc24q_table():
@@ -175,6 +186,74 @@ def _rt17(data, k):
     return end + 2 if sum(data[k + 1:end]) & 0xFF == data[end] else 0
 
 
+def ubnxi(data, k):
+    """``(value, number of bytes)`` of the BINEX 1-4 byte unsigned integer at ``k``
+    (7 bits a byte with a continuation bit, the 4th byte's 8 bits), or None past the
+    end."""
+    value = 0
+    for i in range(4):
+        if k + i >= len(data):
+            return None
+        byte = data[k + i]
+        if i == 3:
+            return (value << 8) | byte, 4
+        value = (value << 7) | (byte & 0x7F)
+        if not byte & 0x80:
+            return value, i + 1
+
+
+_BINEX_RECORDS = (0x00, 0x01, 0x02, 0x03, 0x7D, 0x7E, 0x7F)
+
+
+def _binex(data, k):
+    if k + 4 > len(data) or data[k + 1] not in _BINEX_RECORDS:
+        return 0
+    got = ubnxi(data, k + 2)
+    if got is None:
+        return 0
+    length, nlen = got
+    end = k + 2 + nlen + length                    # the message's end
+    n = end - (k + 1)
+    if n >= 4096 or end + (1 if n < 128 else 2) > len(data):
+        return 0
+    if n < 128:
+        x = 0
+        for byte in data[k + 1:end]:
+            x ^= byte
+        stop = end + 1 if x == data[end] else 0
+    else:
+        crc = int.from_bytes(data[end:end + 2], "big")
+        stop = end + 2 if crc16_ccitt(data[k + 1:end]) == crc else 0
+    # a BINEX file is records end to end: one followed by another's sync (or the
+    # block's end) only, which the 8-bit XOR alone would pass once in 256 chances
+    return stop if stop and (stop == len(data) or data[stop] == 0xE2) else 0
+
+
+def _hemisphere(data, k):
+    if k + 12 > len(data):
+        return 0
+    end = k + 8 + struct.unpack_from("<H", data, k + 6)[0]
+    if end + 4 > len(data) or data[end + 2:end + 4] != b"\r\n":
+        return 0
+    total = sum(data[k + 8:end]) & 0xFFFF
+    return end + 4 if total == struct.unpack_from("<H", data, end)[0] else 0
+
+
+def greis_checksum(data):
+    """The 8-bit checksum of a Javad GREIS message (``data``: its ID, length and body
+    before the checksum byte)."""
+    cs = 0
+    for byte in data:
+        cs = (((cs << 2) | (cs >> 6)) & 0xFF) ^ byte
+    return ((cs << 2) | (cs >> 6)) & 0xFF
+
+
+def _javad(data, k):
+    if k + 10 > len(data) or data[k + 2:k + 5] != b"005":
+        return 0
+    return k + 10 if greis_checksum(data[k:k + 9]) == data[k + 9] else 0
+
+
 #: format name -> (sync bytes, frame check).
 RECOGNISERS = {
     "ubx": (b"\xb5\x62", _ubx),
@@ -185,6 +264,9 @@ RECOGNISERS = {
     "swift": (b"\x55", _sbp),
     "skytraq": (b"\xa0\xa1", _skytraq),
     "rt17": (b"\x02", _rt17),
+    "binex": (b"\xe2", _binex),
+    "javad": (b"~~", _javad),
+    "hemisphere": (b"$BIN", _hemisphere),
 }
 
 

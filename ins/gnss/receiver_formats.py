@@ -15,17 +15,23 @@ and ``swift`` (Swift Navigation SBP).
 Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in the
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
-SkyTraq, RT17); else BINEX (a record's sync byte ``C2``/``E2``/``C8``/``E8`` first) or
-Hemisphere (``$BIN`` records); else the extension (``.ubx``, ``.rtcm3``, ``.sbf``,
-``.jps``, ...).  RTCM2, Javad and NVS logs must be named (``--gnss-format``).
+SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
+messages, Hemisphere ``$BIN``); else BINEX of another kind (its sync byte
+``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so); else
+the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 and NVS logs
+must be named (``--gnss-format``).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
 of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
 RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era.  The
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
-complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF), else to the first
-ephemeris of the navigation files given with it.
+complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS, SkyTraq
+0xE5/0xDC, Hemisphere Bin 76/96: RTKLIB's Unicore, SBP and SkyTraq decoders pass even
+a full week through ``adjgpsweek``, and the subframe decoders (SkyTraq 0xE0,
+Hemisphere Bin 95, ...) the 10-bit week, which without the clock set moves a log
+older than 2009 by 1024 weeks), else to the first ephemeris of the navigation files
+given with it.
 """
 import os
 import struct
@@ -50,7 +56,7 @@ FORMATS = {
     "oem4": ("STRFMT_OEM4", "NovAtel OEM4/6/7 binary", "RANGEB or RANGECMPB logs"),
     "ubx": ("STRFMT_UBX", "u-blox UBX", "UBX RXM-RAWX messages: enable them on the "
             "receiver, e.g. with u-center"),
-    "sbf": ("STRFMT_SEPT", "Septentrio SBF", "MeasEpoch blocks"),
+    "sbf": ("STRFMT_SEPT", "Septentrio SBF", "MeasEpoch or Meas3Ranges blocks"),
     "hemisphere": ("STRFMT_CRES", "Hemisphere/Crescent binary", "$BIN 76/96 messages"),
     "skytraq": ("STRFMT_STQ", "SkyTraq binary", "raw measurement messages (0xDD/0xE5)"),
     "javad": ("STRFMT_JAVAD", "Javad GREIS", "RD/R1/PC/... messages"),
@@ -109,15 +115,13 @@ def detect_format(path):
         return max(counts, key=counts.get)
     if len(data) > 1 and data[0] in _BINEX_SYNC and data[1] in _BINEX_RECORDS:
         return "binex"
-    if data.count(b"$BIN") >= 2:
-        return "hemisphere"
     ext = os.path.splitext(path)[1].lower()
     if ext in _EXTENSIONS:
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17 frame, no BINEX or $BIN record) nor from "
-                     f"the extension {ext or '(none)'!r}: name it with --gnss-format / "
+                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN frame, no BINEX record) nor "
+                     f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
                      f"--base-format or [rtklib] rover_format / base_format, one of "
                      f"{format_names()}", path=path)
 
@@ -125,10 +129,11 @@ def detect_format(path):
 def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
-    and Unicore headers; SBF block headers), else None."""
+    and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC;
+    Hemisphere Bin 76 / 96), else None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
-    if fmt not in ("oem4", "unicore", "sbf"):
+    if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq", "hemisphere"):
         return None
     from ins.gnss.framing import RECOGNISERS
     with open(path, "rb") as f:
@@ -137,7 +142,31 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
     k = data.find(sync)
     while k >= 0:
         if check(data, k):
-            if fmt == "oem4":
+            if fmt == "swift":                  # MSG_OBS (0x004A): tow ms, ns, week
+                if struct.unpack_from("<H", data, k + 1)[0] != 0x004A or data[k + 5] < 10:
+                    k = data.find(sync, k + 1)
+                    continue
+                ms, _, week = struct.unpack_from("<IiH", data, k + 6)
+            elif fmt == "hemisphere":           # Bin 76 (tow F8, week), Bin 96 (week, tow)
+                block = struct.unpack_from("<H", data, k + 4)[0]
+                if block not in (76, 96):
+                    k = data.find(sync, k + 1)
+                    continue
+                if block == 76:
+                    tow, week = struct.unpack_from("<dH", data, k + 8)
+                else:
+                    week, tow = struct.unpack_from("<Hd", data, k + 10)
+                if 0 < week < 0xFFFF and 0.0 <= tow < 604800.0:
+                    return int(week), float(tow)
+                k = data.find(sync, k + 1)
+                continue
+            elif fmt == "skytraq":              # 0xE5 raw (week, tow ms), 0xDC epoch
+                where = {0xE5: 7, 0xDC: 6}.get(data[k + 4])
+                if where is None or struct.unpack_from(">H", data, k + 2)[0] < where + 2:
+                    k = data.find(sync, k + 1)
+                    continue
+                week, ms = struct.unpack_from(">HI", data, k + where)
+            elif fmt == "oem4":
                 week, ms = struct.unpack_from("<HI", data, k + 14)
             elif fmt == "unicore":
                 week, ms = struct.unpack_from("<HI", data, k + 10)
@@ -242,6 +271,8 @@ def convert_raw(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None):
     const, what, needs = FORMATS[fmt]
     if not hasattr(rtk, const):
         raise InputError(f"this pyrtklib5 binding has no {what} decoder ({const})", path=path)
+    if fmt == "binex":
+        _check_binex(path)
     obs_path = os.path.join(folder, stem + ".obs")
     nav_path = os.path.join(folder, stem + ".nav")
     opt = rtk.rnxopt_t()
@@ -284,6 +315,26 @@ def observations(path, folder, rtk, stem="rover", fmt=None, navs=(), epoch=None)
     if fmt == "rinex":
         return os.fspath(path), None
     return convert_raw(path, folder, rtk, stem, fmt, navs, epoch)
+
+
+def _check_binex(path):
+    """An InputError naming the log when it holds no BINEX record of the kind RTKLIB
+    decodes (big-endian, regular CRC, forward: sync byte E2) but starts with another
+    kind's sync byte."""
+    from ins.gnss.framing import count_frames
+    with open(path, "rb") as f:
+        data = f.read(_SNIFF_BYTES)
+    if count_frames(data).get("binex") or not data or data[0] == 0xE2:
+        return
+    kinds = {0xC2: "little-endian", 0xC8: "little-endian, enhanced CRC",
+             0xE8: "big-endian, enhanced CRC", 0xD2: "little-endian, reversed",
+             0xF2: "big-endian, reversed", 0xD8: "little-endian, enhanced CRC, reversed",
+             0xF8: "big-endian, enhanced CRC, reversed"}
+    if data[0] in kinds:
+        raise InputError(f"RTKLIB's BINEX decoder reads only big-endian, regular-CRC, "
+                         f"forward records (sync byte 0xE2); this log's records are "
+                         f"{kinds[data[0]]} (sync byte 0x{data[0]:02X}): convert it to "
+                         f"RINEX with another tool (e.g. teqc) first", path=path)
 
 
 def _has_observation(path):
