@@ -173,6 +173,27 @@ def test_search_finds_a_time_offset_when_asked():
     assert "IMU-GNSS time offset 0 s: not separable by the data" in flat.describe()
 
 
+def test_an_offset_found_before_the_constraint_is_weighed_against_none_with_it():
+    """The PSINS car's case: without the constraint the NLL has a shallow dip of 4 at an
+    offset of -0.19 s; with it, no offset is 12 lower and an offset costs (300 / s^2).
+    The search meets the offset first and then rejects the constraint at it; weighed
+    again against none with the constraint decided again, the offset gains nothing
+    (-8, at least 10 needed): 0 kept, the constraint used, and the summary says why.
+    A deep dip (40) is kept."""
+    def nll_of(depth):
+        def nll(noise, nhc, vshift, toff):
+            t = toff or 0.0
+            f = (-12.0 + 300.0 * t ** 2) if nhc else -depth * np.exp(-((t + 0.19) / 0.15) ** 2)
+            return 100.0 * np.log(noise.arw_deg_sqrth[0] / 0.5) ** 2 + f
+        return nll
+    start = [("a", ImuNoise(arw_deg_sqrth=0.5))]
+    out = identify(nll_of(4.0), start, time_offset=True)
+    assert out.time_offset_s == 0.0 and out.nhc
+    assert "-190 ms found, but it lowers the NLL by only" in out.describe()
+    deep = identify(nll_of(40.0), start, time_offset=True)
+    assert deep.time_offset_s == pytest.approx(-0.19, abs=0.005) and not deep.nhc
+
+
 # --- the simulated twin of the real car ------------------------------------------------
 
 @pytest.fixture(scope="module")
