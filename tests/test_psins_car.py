@@ -16,21 +16,27 @@ pytestmark = pytest.mark.skipif(not (DATA / "transfer_align_fog_mems.mat").is_fi
 sys.path.insert(0, str(ROOT / "tools"))
 
 
-def test_psins_car_from_a_moving_start_against_the_fog(tmp_path):
+@pytest.mark.parametrize("preset", ["land", None], ids=["land", "no-preset"])
+def test_psins_car_from_a_moving_start_against_the_fog(tmp_path, preset):
+    """``--preset land``, and no preset (the noise identified from the log, as a TOML
+    config runs it)."""
     import psins_car
 
     from ins.estimation.pipeline.presets import apply_preset
     from ins.estimation.pipeline.process import process
     from ins.estimation.pipeline.config import load_config
     ref = psins_car.write_case(tmp_path, DATA, seed=0)
-    cfg = apply_preset(load_config(tmp_path / "config.toml"), "land")
+    cfg = load_config(tmp_path / "config.toml")
+    if preset:
+        cfg = apply_preset(cfg, preset)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = process(cfg)
     assert res.alignment.method == "anywhere" and "moving" in res.start_how
     f = psins_car.attitude_figures(res.smoothed, ref)
-    # measured: 0.25 m; tilt N/E 0.16/1.17 deg, heading 0.50 deg once the constant
-    # MEMS-to-FOG rotation (4.5 deg in yaw: the FOG's own mounting) is removed
-    assert f["horizontal_rms_m"] < 0.5
+    # measured (both): 0.24 m; land: tilt N/E 0.27/1.17 deg, heading 0.51 deg once the
+    # constant MEMS-to-FOG rotation (4.5 deg in yaw: the FOG's own mounting) is removed
+    # (over 8 draws of the emulated GNSS's noise: 0.42 m land, 0.46 m no preset)
+    assert f["horizontal_rms_m"] < 0.3
     tilt_n, tilt_e, head = f["mounting removed"]
     assert tilt_n < 0.5 and tilt_e < 2.0 and head < 1.5
