@@ -217,16 +217,20 @@ def calibrated_z2(lidar_flight):
 @pytest.mark.slow
 def test_point_sigmas_after_the_strip_calibration_counted_once(calibrated_z2):
     """Counting the calibration's common attitude error once brings the horizontal
-    z^2 from 0.11 / 0.23 (counted twice) to 0.40 / 0.43 (N, E; D 0.59 -> 0.93)."""
+    z^2 from 0.11 / 0.23 (counted twice) to 0.42 / 0.47 (N, E; D 0.59 -> 0.93; 0.40 /
+    0.43 while the boresight's adjustment sigma was added on top of the rotation left,
+    which holds it)."""
     z2, twice = calibrated_z2["split"], calibrated_z2["twice"]
     assert np.all(z2 > 0.3) and np.all(z2 < 1.5), (z2, twice)
     assert np.all(twice[:2] < 0.6 * z2[:2]), (z2, twice)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 35 item 3 not reached on this 2-strip flight: "
-                   "after the calibration z^2 N/E 0.40/0.43 (conservative; the attitude "
-                   "error left is over-estimated where the strips see little of it)")
+@pytest.mark.xfail(strict=True, reason="one flight is no test of the band, and this one's "
+                   "geometry (2 strips on one line) leaves rz not estimable (strip-check "
+                   "exit 3): z^2 N/E 0.42/0.47 here; 1.55/2.12 pooled over 10 drawn "
+                   "flights of this plan; in the band (1.05/0.99/0.91) over 12 drawn "
+                   "flights of the 3-strip demo plan (bench_lidar_sigmas.py --calibrated)")
 def test_point_sigmas_after_the_strip_calibration_within_the_issue_band(calibrated_z2):
     z2 = calibrated_z2["split"]
     assert np.all(z2 > 0.7) and np.all(z2 < 1.5), z2

@@ -30,10 +30,11 @@ common part whole, a weighted mean ``G v`` of the rest, and the adjustment's err
 total sigma (``cov_rad2``: the adjustment's plus ``H B_s Var_s B_s^T H^T``), which is
 the right one for the boresight on ANOTHER flight, but counting it and the
 trajectory's whole attitude sigma in this flight's points counts ``c`` twice (mean z^2
-0.03-0.08 horizontally on the simulated flights).  The right split for this flight's
-points is ``n`` (the adjustment's sigma) plus ``Var(v(t) - G v)``, the attitude error
-left, which the strips' height differences measure where they see it
-(:func:`strip_attitude`, per segment of each strip; written by ``ins strip-check
+0.03-0.08 horizontally on the simulated flights).  The right sigma for this flight's
+points is that of ``v(t) - G v + n``, the rotation left, which the strips' height
+differences measure where they see it (:func:`strip_attitude`, per segment of each
+strip: the posterior of ``e_s + b_hat - b``, so ``n`` is in it and is not added again;
+written by ``ins strip-check
 --scanner-out`` as the scanner file's ``[calibration]``,
 :class:`ins.lidar.scanner.BoresightCalibration`, and used by
 :func:`ins.lidar.georeference.georeference`).
