@@ -44,7 +44,10 @@ south (-33.9, 18.5), strips at 20 deg, seeds 5-7: true scanner 0.25 / 1.88 / 0.8
 calibrated 0.49 / 0.80 / 0.85 (RMS after 19-22 / 34-36 / 21 mm);
 west (45.5, -73.6), strips at 135 deg, seeds 9-11: true scanner 1.68 / 0.43 / 0.83,
 calibrated 0.65 / 0.73 / 0.91 (seed 11: rz not estimable, strip-check exit 3; with
---accept-poor RMS 157 / 157 / 22 mm, z^2 1.16 / 1.16 / 0.90).
+--accept-poor RMS 157 / 157 / 22 mm, z^2 1.16 / 1.16 / 0.90).  Re-measured 2026-12-02
+after the boresight's own error was counted once and the rotation left took the
+boresight angles' body axes: the same to 0.01 (west calibrated N 0.74; the adjustment's
+boresight sigma is 0.2-3 arcsec on this plan).
 Counted twice (before the [calibration] split) the calibrated z^2 was 0.03-0.08
 horizontally.  The true-scanner rows are one draw of the INS's slow error per flight
 (the seeds share the tactical grade's injected IMU errors: the along-track axis is high
