@@ -217,16 +217,50 @@ def calibrated_z2(lidar_flight):
 @pytest.mark.slow
 def test_point_sigmas_after_the_strip_calibration_counted_once(calibrated_z2):
     """Counting the calibration's common attitude error once brings the horizontal
-    z^2 from 0.11 / 0.23 (counted twice) to 0.40 / 0.43 (N, E; D 0.59 -> 0.93)."""
+    z^2 from 0.11 / 0.23 (counted twice) to 0.42 / 0.47 (N, E; D 0.59 -> 0.93; 0.40 /
+    0.43 while the boresight's adjustment sigma was added on top of the rotation left,
+    which holds it)."""
     z2, twice = calibrated_z2["split"], calibrated_z2["twice"]
     assert np.all(z2 > 0.3) and np.all(z2 < 1.5), (z2, twice)
     assert np.all(twice[:2] < 0.6 * z2[:2]), (z2, twice)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 35 item 3 not reached on this 2-strip flight: "
-                   "after the calibration z^2 N/E 0.40/0.43 (conservative; the attitude "
-                   "error left is over-estimated where the strips see little of it)")
+@pytest.mark.xfail(strict=True, reason="one flight is no test of the band, and this one's "
+                   "geometry (2 strips on one line) leaves rz not estimable (strip-check "
+                   "exit 3): z^2 N/E 0.42/0.47 here; 1.58/2.24 pooled over 10 drawn "
+                   "flights of this plan; in the band (1.05/0.99/0.91) over 12 drawn "
+                   "flights of the 3-strip demo plan (bench_lidar_sigmas.py --calibrated)")
 def test_point_sigmas_after_the_strip_calibration_within_the_issue_band(calibrated_z2):
     z2 = calibrated_z2["split"]
     assert np.all(z2 > 0.7) and np.all(z2 < 1.5), z2
+
+
+@pytest.mark.slow
+def test_rotation_left_of_a_scanner_mounted_backwards(lidar_flight):
+    """The rotation left after the calibration is ``e_s + U (b_hat - b)`` with ``U`` the
+    body axes of the boresight angles: a scanner mounted backwards (axes = Rz(180 deg),
+    its rx a body roll of the opposite sign) on the TRUE trajectory (no attitude error:
+    what is left is the boresight's own error) gets the roll and pitch left of the same
+    scanner mounted forwards (measured 5.1 / 14.1 against 5.5 / 16.4 arcsec; 27 / 27
+    while eps was added to the Euler angles as if U = I)."""
+    from ins.lidar.strip_check import boresight_from_strips
+    from ins.simulate.lidar import SineTerrain, simulate_returns, strip_windows
+    f = lidar_flight
+    truth = f["truth"]
+    left = {}
+    for name, axes in (("forwards", np.eye(3)), ("backwards", np.diag([-1.0, -1.0, 1.0]))):
+        rng = np.random.default_rng(3)
+        terrain = SineTerrain.random((np.deg2rad(30.5), np.deg2rad(114.3), 20.0), 20.0,
+                                     30.0, 500.0, rng)
+        nominal = f["nominal"].replace(axes=axes)
+        sim = simulate_returns(truth, nominal.with_boresight(B_TRUE), terrain,
+                               strip_windows(truth, 80.0), rng, pulse_rate_hz=3000.0,
+                               scan_rate_hz=20.0, field_of_view_deg=60.0)
+        r_s = returns_to_scanner(nominal, sim.range_m, sim.scan_angle_rad)
+        _, _, _, cal = boresight_from_strips(truth, sim.time, r_s, sim.strip, nominal,
+                                             std=f["std"], radius_m=4.0, k=6)
+        left[name] = cal.attitude_sigma_rad
+    ratio = left["backwards"][:2] / left["forwards"][:2]
+    assert np.all(ratio > 0.7) and np.all(ratio < 1.4), (np.rad2deg(left["forwards"]) * 3600,
+                                                        np.rad2deg(left["backwards"]) * 3600)

@@ -42,8 +42,10 @@ output (LAS 1.4, point format 6; LAZ by the .laz extension; written atomically):
   scan-angle sigmas.  A scanner file calibrated by ins strip-check on this flight (its
   [calibration] table, whose time span covers the returns) counts the trajectory's
   attitude error once: its common part is in the calibrated boresight, so those points
-  get the boresight's adjustment sigma and the attitude error the strip check left
-  ([calibration] attitude_sigma_deg) instead of the trajectory's.  The CRS is written
+  get the rotation the strip check left ([calibration] attitude_sigma_deg: the
+  trajectory's strip-to-strip part and the boresight's own error) instead of the
+  trajectory's attitude sigma and any boresight sigma (without --trajectory-std: the
+  boresight's adjustment sigma).  The CRS is written
   as a WKT VLR.
 
 example:

@@ -27,11 +27,12 @@ output:
   boresight (deg) with sigmas; --scanner-out writes the scanner file with the estimated
   boresight and its sigmas (other keys unchanged).  With --trajectory-std it adds a
   [calibration] table: the flight's time span, the boresight's adjustment sigma alone
-  and the trajectory's attitude error left in this flight's points after the
-  calibration (roll, pitch, yaw deg; estimated per 6 s segment of each strip from the
-  height differences, pitch's strip-to-strip part held at zero), which ins georeference
-  uses for this flight's points instead of the total boresight sigma and the
-  trajectory's attitude sigma (they hold the same error).
+  and the rotation left in this flight's points after the calibration (roll, pitch,
+  yaw deg: the trajectory's strip-to-strip attitude error and the boresight's own
+  error; estimated per 6 s segment of each strip from the height differences, pitch's
+  strip-to-strip part held at zero), which ins georeference uses for this flight's
+  points instead of the total boresight sigma and the trajectory's attitude sigma
+  (they hold the same error).
 
 example:
   ins strip-check points.laz --trajectory out/solution.nav \\
@@ -156,9 +157,9 @@ def _cmd_strip_check(args):
             boresight_rad=b, boresight_sigma_rad=est.sigma_rad, calibration=calibration))
         print(f"wrote {args.scanner_out}" + (
             "" if calibration is None else
-            " (with [calibration]: for this flight's points the boresight's own sigma "
-            + ", ".join(f"{v:.5f}" for v in np.rad2deg(calibration.boresight_sigma_rad))
-            + " deg and the trajectory's attitude error left, roll/pitch/yaw "
+            " (with [calibration]: for this flight's points the rotation left, roll/pitch/yaw "
             + ", ".join(f"{v:.5f}" for v in np.rad2deg(calibration.attitude_sigma_rad))
-            + " deg)"))
+            + " deg, the boresight's own error, sigma "
+            + ", ".join(f"{v:.5f}" for v in np.rad2deg(calibration.boresight_sigma_rad))
+            + " deg, included)"))
     return 0

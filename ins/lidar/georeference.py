@@ -42,15 +42,26 @@ the Jacobian of the body-frame rotation): the common part of the trajectory's er
 ``e(t)`` cancels against ``a`` and what is left is its strip-to-strip and faster
 part.  Counting the trajectory's whole attitude variance and the calibration's total
 sigma (which holds the variance of ``a``) counts the same error twice.  So for the
-points inside the calibration's time span the boresight's sigma is the adjustment's
-alone (``n``) and the trajectory's roll, pitch, yaw sigmas are replaced by the attitude
-error left after the calibration (``attitude_sigma_rad``, estimated by the strip check
-from the strips' height differences, :func:`ins.lidar.strip_check.strip_attitude`);
-points outside it (another flight) get the file's total boresight sigma and the
-trajectory's whole attitude sigma.  Limits (measured, ``bench/bench_lidar_sigmas.py
---table``): the strips see the part of the left error that makes them disagree; a
-pitch error fixed in the navigation frame and the error faster than the strip
-check's segments they do not see, so the left sigma can be short of it.
+points inside the calibration's time span the trajectory's roll, pitch, yaw sigmas are
+replaced by the attitude error left after the calibration (``attitude_sigma_rad``,
+estimated by the strip check from the strips' height differences,
+:func:`ins.lidar.strip_check.strip_attitude`), and no boresight sigma is added: that
+estimate is of the whole rotation left, ``e(t) + b_hat - b``, the adjustment's error
+``n`` included (adding ``n`` again counted it twice: mean z^2 N/E 0.40/0.43 instead of
+0.42/0.47 on the flight of ``tests/test_strip_check.py``).  Without trajectory sigmas
+those points get the adjustment's sigma ``n`` alone; points outside the span (another
+flight) get the file's total boresight sigma and the trajectory's whole attitude
+sigma.  Measured (``bench/bench_lidar_sigmas.py --calibrated 12``: drawn, processed
+and calibrated flights of the 3-strip demo plan at 3 places and headings): pooled
+mean z^2 N/E/D 1.05/0.99/0.91 (+- 0.20/0.20/0.02), one flight 0.28 .. 2.8.  Limits:
+the rotation left is estimated per segment from the strips' height differences,
+whose adjustment treats them as independent (they are not: the plane fits and the
+trajectory's faster errors correlate them), so its stated sigmas are far too small
+(the per-segment estimates' errors are 10-20 times them) and their squares carry
+that noise: the rotation left is over-stated on a flight whose strips see little of
+it and under-stated on another.  The strips do not see a pitch error fixed in the
+navigation frame, nor a common yaw when only two strips on one line overlap (rz not
+estimable, ``ins strip-check`` exit 3; there z^2 spreads over 0.01 .. 7 per flight).
 
 The work is done block by block (:func:`georeference_blocks`), the per-point algebra in
 a compiled kernel (Cython, :mod:`ins.lidar._georeference_kernels`).
@@ -186,8 +197,9 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None, 
     std : TrajectoryStd, optional
         Trajectory sigmas; without them only the scanner's own sigmas propagate.  With a
         scanner calibrated on this flight (``scanner.calibration`` covering the return
-        times) the attitude sigmas are replaced by the calibration's attitude error left
-        and the boresight's sigma by the adjustment's alone (module notes).
+        times) the attitude sigmas are replaced by the calibration's attitude error left,
+        which holds the boresight's own error (no boresight sigma added); without
+        ``std`` those points get the adjustment's boresight sigma (module notes).
     method : {"cubic", "slerp"}
         Attitude interpolation.
     path : str, optional
@@ -228,14 +240,16 @@ def georeference(traj, time, r_s, scanner, std=None, method="cubic", path=None, 
     M_x = scanner.axes @ rx
     P = np.ascontiguousarray(np.swapaxes(C_ap[index], 1, 2)) if use_P else np.zeros((1, 3, 3))
     r_k = r_s[index]
-    # a boresight calibrated on this flight: its own (adjustment) sigma, and of the
-    # trajectory's attitude error only the strip-to-strip part (module notes)
+    # a boresight calibrated on this flight: with the trajectory's sigmas, the attitude
+    # error left after the calibration, which holds the boresight's own error too (one
+    # rotation, counted once); without them the boresight's own sigma (module notes)
     cal = scanner.calibration
     same = cal.covers(t) if cal is not None else np.zeros(n, bool)
+    bore_same = None if cal is None else cal.boresight_sigma_rad
     if std is not None and same.any():
         s[same, 3:6] = cal.attitude_sigma_rad
-    for sel, bore_sig in ((~same, scanner.boresight_sigma_rad),
-                          (same, None if cal is None else cal.boresight_sigma_rad)):
+        bore_same = np.zeros(3)
+    for sel, bore_sig in ((~same, scanner.boresight_sigma_rad), (same, bore_same)):
         if not sel.any():
             continue
         k = np.flatnonzero(sel)

@@ -95,10 +95,11 @@ class BoresightCalibration:
     (in the body frame; absorbed: a boresight and a body-fixed attitude error move the
     points alike), ``n`` the adjustment's own error (the strips' noise).  For the points
     of THAT flight (times inside ``time_span_s``, the same trajectory) the absorbed part
-    cancels the trajectory's common error, so their sigmas count ``n``
-    (``boresight_sigma_rad``) and, of the trajectory's attitude error, only the part
-    that differs from strip to strip (``attitude_sigma_rad``, measured by the strip
-    check); for any other flight the scanner file's ``boresight_sigma_deg`` (``n`` and
+    cancels the trajectory's common error, so their sigmas count, with the trajectory's
+    sigmas, only the rotation left (``attitude_sigma_rad``, measured by the strip check:
+    the trajectory's part that differs from strip to strip and ``n`` together, so no
+    boresight sigma is added), without them ``n`` alone (``boresight_sigma_rad``); for
+    any other flight the scanner file's ``boresight_sigma_deg`` (``n`` and
     ``a`` together) and the trajectory's whole attitude sigma hold
     (:func:`ins.lidar.georeference.georeference`).
 
@@ -107,10 +108,11 @@ class BoresightCalibration:
     time_span_s : ndarray (2,)
         First and last time of the calibration flight's points, s (trajectory's scale).
     boresight_sigma_rad : ndarray (3,)
-        Sigma of ``n`` (rx, ry, rz), rad.
+        Sigma of ``n`` (rx, ry, rz), rad (used for that flight's points only without
+        trajectory sigmas).
     attitude_sigma_rad : ndarray (3,)
-        Roll, pitch, yaw error of the trajectory left in that flight's points after
-        the calibration (the strip-to-strip part), rad.
+        Roll, pitch, yaw rotation left in that flight's points after the calibration
+        (the trajectory's strip-to-strip part and the boresight's error ``n``), rad.
     """
 
     time_span_s: np.ndarray

@@ -30,10 +30,12 @@ common part whole, a weighted mean ``G v`` of the rest, and the adjustment's err
 total sigma (``cov_rad2``: the adjustment's plus ``H B_s Var_s B_s^T H^T``), which is
 the right one for the boresight on ANOTHER flight, but counting it and the
 trajectory's whole attitude sigma in this flight's points counts ``c`` twice (mean z^2
-0.03-0.08 horizontally on the simulated flights).  The right split for this flight's
-points is ``n`` (the adjustment's sigma) plus ``Var(v(t) - G v)``, the attitude error
-left, which the strips' height differences measure where they see it
-(:func:`strip_attitude`, per segment of each strip; written by ``ins strip-check
+0.03-0.08 horizontally on the simulated flights).  The right sigma for this flight's
+points is that of ``v(t) - G v + n``, the rotation left, which the strips' height
+differences measure where they see it (:func:`strip_attitude`, per segment of each
+strip: the posterior of ``e_s + U (b_hat - b)``, ``U`` the body axes of the
+boresight angles (:func:`boresight_axes`), so ``n`` is in it and is not added again;
+written by ``ins strip-check
 --scanner-out`` as the scanner file's ``[calibration]``,
 :class:`ins.lidar.scanner.BoresightCalibration`, and used by
 :func:`ins.lidar.georeference.georeference`).
@@ -43,8 +45,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ins.common.errors import InputError
+from ins.nav.rotation import rot_x, rot_y
 
 __all__ = ["PairDifferences", "BoresightEstimate", "StripAttitude", "strip_attitude",
+           "boresight_axes",
            "pair_differences", "estimate_boresight",
            "overlapping_pairs", "boresight_from_strips",
            "MAX_SIGMA_RAD"]
@@ -297,7 +301,7 @@ class StripAttitude:
 STRIP_AXES = (0, 2)
 
 
-def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None):
+def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None, boresight_axes=None):
     """The trajectory's attitude error left in each strip's points after the boresight
     of ``est`` (its pairs' rows must hold the trajectory's roll, pitch, yaw columns
     3..5): the posterior given the strips' height differences.
@@ -311,9 +315,12 @@ def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None):
     strips independent: the model of :func:`estimate_boresight`), ``B_s`` the rows of
     strip s's error (``+rows_a`` for strip a, ``-rows_b`` for b), noise of variance
     ``sigma0^2``.  A boresight and an attitude error fixed in the body frame move the
-    points alike, so what the points of strip s keep is ``r_s = e_s + eps``: the part of
-    the trajectory's error common to the strips cancels against the boresight that
-    absorbed it, what differs from strip to strip stays.  The data fix ``r_s`` where
+    points alike, so what the points of strip s keep is ``r_s = e_s + U eps`` (``U``
+    the body axes of the boresight's rotations, ``boresight_axes``: ``eps`` turns the
+    scanner about ITS axes, ``e_s`` the body about roll, pitch, yaw, so a scanner mounted
+    turned, e.g. backwards, has ``U != I``): the part of the trajectory's error common to
+    the strips cancels against the boresight that absorbed it, what differs from strip
+    to strip stays.  The data fix ``r_s`` where
     the geometry shows it (the common part, roll differences through the strips'
     separation, yaw differences through the slopes); where it does not (a pitch error
     fixed in the navigation frame shifts all strips alike) its prior would remain.
@@ -338,6 +345,11 @@ def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None):
         per strip or segment is then estimated beside the attitude (``+1`` for a, ``-1``
         for b), so that a height difference between the strips is not taken for a roll
         error.
+    boresight_axes : ndarray (3, 3), optional
+        ``U``: its column i is the body-frame axis of the boresight angle i's rotation
+        (``axes Rx e_x``, ``axes Rx Ry e_y``, ``C_bs e_z``; :func:`boresight_axes`),
+        which for a level IMU is the Euler axis it moves; default the identity (a
+        scanner with ``axes`` = I).
 
     Returns
     -------
@@ -392,13 +404,25 @@ def strip_attitude(est, attitude_var, axes=STRIP_AXES, height_var=None):
         th[use] = cov[np.ix_(use, use)] @ (b0 / sigma0 ** 2)
         r = dz - X @ th
         sigma0 = float(np.sqrt(r @ r / max(len(dz) - 3, 1)))
+    U = np.eye(3) if boresight_axes is None else np.asarray(boresight_axes, float)
     T = np.zeros((len(ids), 3, X.shape[1]))
     for i in range(len(ids)):
-        T[i, :, :3] = np.eye(3)
+        T[i, :, :3] = U
         T[i, :, 3 + 3 * i:3 + 3 * i + 3] = np.eye(3)
     e = np.einsum("sij,j->si", T, th)
     var = np.clip(np.einsum("sij,jk,sik->si", T, cov, T), 0, None)
     return StripAttitude(ids, e, np.sqrt(var), sigma0)
+
+
+def boresight_axes(scanner, boresight_rad):
+    """Body-frame axes of the rotations of the boresight angles ``(rx, ry, rz)`` of
+    ``scanner`` at ``boresight_rad``: columns ``axes Rx e_x``, ``axes Rx Ry e_y``,
+    ``C_bs e_z`` (``d(C_bs r)/d b_i = u_i x (C_bs r)``), shape (3, 3)."""
+    from ins.nav.rotation import rot_z
+    b = np.asarray(boresight_rad, float)
+    Mx = scanner.axes @ rot_x(b[0])
+    Mxy = Mx @ rot_y(b[1])
+    return np.column_stack([Mx[:, 0], Mxy[:, 1], (Mxy @ rot_z(b[2]))[:, 2]])
 
 
 def overlapping_pairs(strip):
@@ -499,7 +523,7 @@ def boresight_from_strips(traj, time, r_s, strip, scanner, std=None, origin_lla=
     calibration = None
     if att_var is not None:
         from ins.lidar.scanner import BoresightCalibration
-        sa = strip_attitude(est, seg_var)
+        sa = strip_attitude(est, seg_var, boresight_axes=boresight_axes(scanner, b))
         w = [np.count_nonzero(label == s_id) for s_id in sa.strips]
         left = sa.left_sigma_rad(w)
         # pitch's strip-to-strip part is not seen (strip_attitude): taken as roll's, the
