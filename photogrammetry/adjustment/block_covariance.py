@@ -29,7 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
+from scipy.linalg import lapack
 
+from ins.common.errors import InputError
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, bordered_order
 
 __all__ = ["BandedCovariance", "banded_covariance"]
@@ -98,6 +100,26 @@ class BandedCovariance:
             out = out + self.factor.solve(self.TX @ (self.TX.T @ x))
         return out
 
+    def dense(self):
+        """``C`` as a dense matrix (n, n), rad^2.  Bordered: ``sigma0^2 S^-1`` with the
+        reduced normal matrix ``S = H_aa - H_ab H_bb^-1 H_ba`` formed through the sparse
+        factor of the bases' block ``H_bb``
+        (:meth:`photogrammetry.adjustment.banded.SparseSPD.inverse_form`) and inverted by
+        LAPACK's Cholesky (470 base-free images: 0.2 s, where the solves of ``H`` with
+        the angles' unit vectors took 3 s); else ``C`` applied to the identity.  Memory
+        ``8 n^2`` bytes (with the temporaries, three times that)."""
+        n = self.n_angles
+        if not self.bordered:
+            return self.apply(np.eye(n))
+        H = sparse.csr_matrix(self.S)
+        try:
+            Hbb = SparseSPD(H[n:, n:], what="block normal matrix of the bases")
+            S = H[:n, :n].toarray()
+            S -= Hbb.inverse_form(H[n:, :n])
+        except ValueError:                         # no symmetric L D L' of H_bb
+            return self.apply(np.eye(n))
+        return self.sigma0 ** 2 * _inv_spd(S, "the block's reduced normal matrix")
+
     def K(self):
         """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1`` (not
         bordered only)."""
@@ -107,6 +129,18 @@ class BandedCovariance:
         if self.TX is not None:
             K = K + self.TX @ self.TX.T
         return sparse.csr_matrix(K)
+
+
+def _inv_spd(M, what):
+    """Inverse of a dense SPD matrix (LAPACK potrf + potri; `M` overwritten)."""
+    c, info = lapack.dpotrf(M, lower=1, clean=1, overwrite_a=1)
+    if info == 0:
+        c, info = lapack.dpotri(c, lower=1, overwrite_c=1)
+    if info != 0:
+        raise InputError(f"{what} is singular or not positive definite (part of the "
+                         "block not connected to the datum, or degenerate geometry)")
+    lower = np.tril(c)
+    return lower + np.tril(c, -1).T
 
 
 def _position_blocks(factor, TX, k, chunk=256):
