@@ -392,17 +392,27 @@ def test_banded_algebra_equals_dense(block, datum, position_sigma):
         band.correlation()
 
 
-@pytest.mark.parametrize("method,datum", [("relative", "first"), ("base-free", "ins"),
-                                          ("relative", "ins")])
-def test_bordered_banded_algebra_equals_dense(block, method, datum):
+@pytest.mark.parametrize("method,datum,keep_dense", [("relative", "first", True),
+                                                     ("base-free", "ins", True),
+                                                     ("relative", "ins", True),
+                                                     ("relative", "first", False),
+                                                     ("base-free", "ins", False)])
+def test_bordered_banded_algebra_equals_dense(block, method, datum, keep_dense,
+                                              monkeypatch):
     """Relative and base-free blocks: the whole normal matrix (angles, then two
-    base-direction parameters per pair) factored banded, its inverse's angle blocks by
-    Takahashi, against the dense Schur complement of the bases and its inverse: angles
-    (1e-12 rad), sigma0, sigmas and covariance blocks (1e-9), the operator's product
-    with a vector (1e-9 of its size); measured 1e-15 rad and 1e-11."""
+    base-direction parameters per pair) factored sparse, its inverse's angle blocks by
+    selected inversion (Takahashi) or, up to ``DENSE_MAX_ANGLES``, the dense covariance
+    from the bases' Schur complement by the sparse half solve, against the dense
+    algebra's Schur complement of the bases and its inverse: angles (1e-12 rad),
+    sigma0, sigmas and covariance blocks (1e-9), the operator's product with a vector
+    (1e-9 of its size); measured 1e-15 rad and 1e-11."""
+    from photogrammetry.adjustment import block_covariance
+    if not keep_dense:
+        monkeypatch.setattr(block_covariance, "DENSE_MAX_ANGLES", 0)
     dense = _run(block, method, datum, algebra="dense")
     band = _run(block, method, datum, algebra="banded")
     assert band.cov is None and band.cov_op.bordered and dense.cov_op is None
+    assert (band.cov_op.C is not None) == keep_dense
     assert band.cov_op.S.shape[0] > band.cov_op.n_angles == 3 * band.cov_op.free.sum()
     np.testing.assert_allclose(band.angles, dense.angles, atol=1e-12)
     assert band.sigma0 == pytest.approx(dense.sigma0, rel=1e-10)

@@ -34,7 +34,16 @@ from scipy.linalg import lapack
 from ins.common.errors import InputError
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, bordered_order
 
-__all__ = ["BandedCovariance", "banded_covariance"]
+__all__ = ["BandedCovariance", "banded_covariance", "DENSE_MAX_ANGLES"]
+
+#: A bordered block (relative, base-free) of at most this many angles keeps its
+#: covariance as a dense matrix too (``BandedCovariance.C``, ``8 n^2`` bytes: 70 MB at
+#: 1000 images, 160 MB at this bound): its sigmas are its diagonal (instead of the
+#: selected inverse of the sparse factor) and the INS assessment works on it
+#: (:class:`photogrammetry.adjustment.reml.DenseV`: a dense Cholesky of ``n^3 / 3``
+#: flops per REML evaluation, cheaper than the sparse augmented system up to here;
+#: figures in ``bench/bench_block_scale.py``).
+DENSE_MAX_ANGLES = 4500
 
 
 @dataclass
@@ -61,6 +70,9 @@ class BandedCovariance:
     solver : photogrammetry.adjustment.banded.SparseSPD or BandedSPD
         Solves with ``S`` (bordered: the sparse LU, cheaper than the band; else
         `factor`).
+    C : ndarray (n, n) or None
+        The covariance as a dense matrix, when it was formed (:meth:`dense`; bordered
+        blocks of up to :data:`DENSE_MAX_ANGLES` angles: their blocks are its diagonal).
     """
     S: object
     factor: object
@@ -70,6 +82,7 @@ class BandedCovariance:
     blocks: np.ndarray
     n_angles: int = None
     solver: object = None
+    C: object = None
 
     def __post_init__(self):
         if self.n_angles is None:
@@ -101,23 +114,23 @@ class BandedCovariance:
         return out
 
     def dense(self):
-        """``C`` as a dense matrix (n, n), rad^2.  Bordered: ``sigma0^2 S^-1`` with the
-        reduced normal matrix ``S = H_aa - H_ab H_bb^-1 H_ba`` formed through the sparse
-        factor of the bases' block ``H_bb``
+        """``C`` as a dense matrix (n, n), rad^2 (`C` when it was kept).  Bordered:
+        ``sigma0^2 S^-1`` with the reduced normal matrix ``S = H_aa - H_ab H_bb^-1 H_ba``
+        formed through the sparse factor of the bases' block ``H_bb``
         (:meth:`photogrammetry.adjustment.banded.SparseSPD.inverse_form`) and inverted by
-        LAPACK's Cholesky (470 base-free images: 0.2 s, where the solves of ``H`` with
-        the angles' unit vectors took 3 s); else ``C`` applied to the identity.  Memory
-        ``8 n^2`` bytes (with the temporaries, three times that)."""
+        LAPACK's Cholesky (470 base-free images: 0.4 s, where the solves of ``H`` with
+        the angles' unit vectors took 3 s); ValueError when SuperLU's factor of
+        ``H_bb`` is not ``L D L'`` of one ordering.  Else ``C`` applied to the identity.
+        Memory ``8 n^2`` bytes (with the temporaries, three times that)."""
+        if self.C is not None:
+            return self.C
         n = self.n_angles
         if not self.bordered:
             return self.apply(np.eye(n))
         H = sparse.csr_matrix(self.S)
-        try:
-            Hbb = SparseSPD(H[n:, n:], what="block normal matrix of the bases")
-            S = H[:n, :n].toarray()
-            S -= Hbb.inverse_form(H[n:, :n])
-        except ValueError:                         # no symmetric L D L' of H_bb
-            return self.apply(np.eye(n))
+        Hbb = SparseSPD(H[n:, n:], what="block normal matrix of the bases")
+        S = H[:n, :n].toarray()
+        S -= Hbb.inverse_form(H[n:, :n])
         return self.sigma0 ** 2 * _inv_spd(S, "the block's reduced normal matrix")
 
     def K(self):
@@ -129,6 +142,12 @@ class BandedCovariance:
         if self.TX is not None:
             K = K + self.TX @ self.TX.T
         return sparse.csr_matrix(K)
+
+
+def _diagonal_blocks(C):
+    """The 3x3 diagonal blocks (k, 3, 3) of a dense (3k, 3k) matrix."""
+    i = 3 * np.arange(len(C) // 3)[:, None, None] + np.arange(3)[None, :, None]
+    return C[i, i.transpose(0, 2, 1)]
 
 
 def _inv_spd(M, what):
@@ -184,6 +203,16 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
     if n_angles < S.shape[0]:           # bordered: selected inverse of the sparse factor
         solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
             S, what="block normal matrix")
+        if n_angles <= DENSE_MAX_ANGLES:    # the dense C, which the assessment uses
+            op = BandedCovariance(S, solver, float(sigma0), None, free, None, n_angles,
+                                  solver)
+            try:
+                op.C = op.dense()
+            except ValueError:              # no L D L' of the bases' block
+                op = None
+            if op is not None:
+                op.blocks = _diagonal_blocks(op.C)
+                return op
         if solver.has_selected_inverse():
             blocks = sigma0 ** 2 * solver.diagonal_blocks(3, k)
             return BandedCovariance(S, solver, float(sigma0), None, free, blocks,

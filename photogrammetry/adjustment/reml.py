@@ -23,6 +23,7 @@ from scipy.sparse.linalg import splu
 
 from ins.common.errors import InputError
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, rcm_order
+from photogrammetry.adjustment.block_covariance import DENSE_MAX_ANGLES
 
 __all__ = ["BandedV", "DenseV", "banded_v", "gls_reml_banded", "PROBES",
            "DENSE_V_MAX_ANGLES"]
@@ -30,11 +31,10 @@ __all__ = ["BandedV", "DenseV", "banded_v", "gls_reml_banded", "PROBES",
 #: Hutchinson probes of the traces (Rademacher, seed 0).
 PROBES = 64
 #: A bordered block (relative, base-free) of at most this many angles is assessed on
-#: its covariance as a dense matrix (:class:`DenseV`: ``8 n^2`` bytes, 70 MB at 1000
-#: images, and a dense Cholesky of ``n^3 / 3`` flops per ``V``), a larger one on the
-#: sparse augmented system (:class:`BandedV`).  Measured: see
-#: ``bench/bench_block_scale.py``.
-DENSE_V_MAX_ANGLES = 4500
+#: its covariance as a dense matrix (:class:`DenseV`), a larger one on the sparse
+#: augmented system (:class:`BandedV`): the bound up to which the block keeps it
+#: (:data:`photogrammetry.adjustment.block_covariance.DENSE_MAX_ANGLES`).
+DENSE_V_MAX_ANGLES = DENSE_MAX_ANGLES
 #: Smallest INS variance (relative to the largest adjustment variance) for the
 #: Woodbury form of ``V^-1``.
 WOODBURY_MIN = 1e-6
@@ -181,10 +181,15 @@ def _dense_c(op, cache):
     :data:`DENSE_V_MAX_ANGLES` angles), kept in `cache` for the next ``V``; else None."""
     if not (getattr(op, "bordered", False) and op.n_angles <= DENSE_V_MAX_ANGLES):
         return None
+    if op.C is not None:                    # kept by the block
+        return op.C
     kept = None if cache is None else cache.get("C")
     if kept is not None and kept[0] is op:
         return kept[1]
-    C = op.dense()
+    try:
+        C = op.dense()
+    except ValueError:                      # no L D L' of the bases' block: sparse
+        return None
     if cache is not None:
         cache["C"] = (op, C)
     return C
