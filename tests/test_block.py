@@ -428,6 +428,26 @@ def test_bordered_banded_algebra_equals_dense(block, method, datum, keep_dense,
         band.cov_op.K()
 
 
+def test_cholmod_steps_give_the_superlu_angles(block, monkeypatch):
+    """A base-free block's Gauss-Newton steps factored by CHOLMOD (optional, cvxopt) and
+    by SuperLU: the same angles (1e-12 rad; measured 1e-16), sigma0 and sigmas."""
+    pytest.importorskip("cvxopt")
+    from photogrammetry.adjustment import block as block_mod
+    from photogrammetry.adjustment import cholmod
+    made = []
+    real = cholmod.CholmodSPD
+    monkeypatch.setattr(cholmod, "CholmodSPD", lambda *a, **k: made.append(1) or real(*a, **k))
+    fast = _run(block, "base-free", "first", algebra="banded")
+    assert made and block_mod.cholmod is cholmod
+    monkeypatch.setattr(cholmod, "USE_CHOLMOD", False)
+    n_made = len(made)
+    slow = _run(block, "base-free", "first", algebra="banded")
+    assert len(made) == n_made
+    np.testing.assert_allclose(fast.angles, slow.angles, rtol=0, atol=1e-12)
+    assert fast.sigma0 == pytest.approx(slow.sigma0, rel=1e-10)
+    np.testing.assert_allclose(fast.sigma, slow.sigma, rtol=1e-9)
+
+
 def test_quality_judges_known_base_changes_without_the_boresight():
     """Known-base, datum none: a 1 deg boresight (common camera-frame rotation; 7x the
     INS sigma) is not an implausible change (it is what the assessment estimates), one

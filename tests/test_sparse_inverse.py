@@ -136,3 +136,21 @@ def test_gram_rows_and_lower_solve_against_numpy(panel):
     ref = np.linalg.solve(np.eye(n) + L.toarray(), B.toarray())
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
     assert np.all(np.diff(yi[yp[0]:yp[1]]) > 0)              # rows sorted
+
+
+def test_cholmod_factor_solves_like_numpy():
+    """The optional CHOLMOD factor (cvxopt) against numpy's dense solve, a vector and a
+    matrix right-hand side, and its refusal of a matrix that is not positive definite."""
+    pytest.importorskip("cvxopt")
+    from ins.common.errors import InputError
+    from photogrammetry.adjustment.cholmod import CholmodSPD
+    A = _grid_spd(11, 13, 8)
+    rng = np.random.default_rng(9)
+    b = rng.normal(size=(A.shape[0], 3))
+    f = CholmodSPD(A)
+    ref = np.linalg.solve(A.toarray(), b)
+    np.testing.assert_allclose(f.solve(b), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(f.solve(b[:, 0]), ref[:, 0], rtol=0,
+                               atol=1e-12 * np.abs(ref).max())
+    with pytest.raises(InputError, match="not positive definite"):
+        CholmodSPD(A - 10 * sparse.eye(A.shape[0]), what="test matrix")

@@ -191,7 +191,8 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
         Angle unknowns (default all of ``H``: known-base).
     factor : photogrammetry.adjustment.banded.SparseSPD, optional
         The sparse factor of `H` if already computed (bordered blocks: the last
-        Gauss-Newton step's).
+        Gauss-Newton step's; a :class:`photogrammetry.adjustment.cholmod.CholmodSPD`
+        serves the dense covariance's solves, a SuperLU factor is made otherwise).
 
     Returns
     -------
@@ -201,9 +202,9 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
     n_angles = S.shape[0] if n_angles is None else int(n_angles)
     k = n_angles // 3
     if n_angles < S.shape[0]:           # bordered: selected inverse of the sparse factor
-        solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
-            S, what="block normal matrix")
         if n_angles <= DENSE_MAX_ANGLES:    # the dense C, which the assessment uses
+            solver = factor if factor is not None else SparseSPD(
+                S, what="block normal matrix")   # (any factor that solves)
             op = BandedCovariance(S, solver, float(sigma0), None, free, None, n_angles,
                                   solver)
             try:
@@ -213,6 +214,8 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
             if op is not None:
                 op.blocks = _diagonal_blocks(op.C)
                 return op
+        solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
+            S, what="block normal matrix")
         if solver.has_selected_inverse():
             blocks = sigma0 ** 2 * solver.diagonal_blocks(3, k)
             return BandedCovariance(S, solver, float(sigma0), None, free, blocks,

@@ -207,6 +207,9 @@ def _interleaved_order(op, n):
     block's solver has no such order (banded)."""
     solver = getattr(op, "solver", None)
     pc = getattr(solver, "perm_c", None)
+    if pc is None and getattr(op, "bordered", False):   # a CHOLMOD factor: SuperLU's
+        op.solver = SparseSPD(op.S, what="block normal matrix")
+        pc = op.solver.perm_c
     N = op.S.shape[0]
     if pc is None or len(pc) != N:
         return None
