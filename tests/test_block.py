@@ -245,6 +245,38 @@ def test_block_derivatives_and_joint_weights_against_differences(system):
     _close(got, Tm @ np.diag(ps.ravel() ** 2) @ Tm.T)
 
 
+def test_compiled_condition_terms_equal_the_numpy_expressions():
+    """The compiled condition terms against the numpy expressions they replaced (cross
+    products and einsums over all conditions of random images, rays and bases): equal to
+    1e-15 relative (bit for bit where numpy adds in the kernel's order)."""
+    from photogrammetry.adjustment import _coplanarity_kernels as K
+    from photogrammetry.adjustment.block_conditions import _condition_terms
+    rng = np.random.default_rng(40)
+    m, P, C = 7, 9, 300
+    R, M = K.rotation_and_axes(rng.uniform(-0.3, 0.3, (m, 3)), "omega-phi-kappa")
+    img = rng.integers(0, m, (C, 2))
+    bp = rng.integers(0, P, C)
+    b = rng.normal(size=(P, 3))
+    U = np.concatenate([rng.uniform(-50, 50, (C, 2, 2)), np.full((C, 2, 1), -100.0)], 2)
+    R_i, R_j = R[img[:, 0]], R[img[:, 1]]
+    r_i = np.einsum("cab,cb->ca", R_i, U[:, 0])
+    r_j = np.einsum("cab,cb->ca", R_j, U[:, 1])
+    N = np.cross(r_i, r_j)
+    g = np.einsum("ci,ci->c", N, b[bp])
+    d_i = np.einsum("cji,cj->ci", R_i, np.cross(r_j, b[bp]))[:, :2]
+    d_j = np.einsum("cji,cj->ci", R_j, np.cross(b[bp], r_i))[:, :2]
+    A_i = np.cross(r_i, np.cross(r_j, b[bp]))
+    A_j = np.cross(r_j, np.cross(b[bp], r_i))
+    J = np.concatenate([np.einsum("ca,cak->ck", A_i, M[img[:, 0]]),
+                        np.einsum("ca,cak->ck", A_j, M[img[:, 1]])], axis=1)
+    got = _condition_terms(U, img, bp, R, M, b)
+    for name, x, ref in zip("g d J N".split(), got, (g, np.stack([d_i, d_j], 1), J, N)):
+        np.testing.assert_allclose(x, ref, rtol=0, atol=1e-15 * np.abs(ref).max(),
+                                   err_msg=name)
+    with pytest.raises(IndexError):
+        _condition_terms(U, img + m, bp, R, M, b)
+
+
 def test_pair_whose_screening_did_not_converge_is_left_out_with_a_warning(block, monkeypatch):
     """A pair whose pair-wise screening did not converge has no valid outlier tests: it
     is left out with a QualityWarning naming it (it used to enter the block silently),

@@ -13,6 +13,7 @@ from scipy.sparse.linalg import splu
 
 from ins.common.errors import InputError, InputWarning
 from photogrammetry.adjustment import _coplanarity_kernels as K
+from photogrammetry.adjustment._pair_kernels import block_condition_terms
 
 __all__ = ["pad_pairs"]
 
@@ -112,16 +113,14 @@ def _joint_weights(buckets, obs, d, s2, n_cond, tol):
 
 def _condition_terms(U, img, bp, R, M, b):
     """Per condition: misclosure g (C,), d (C, 2, 2) by the photo coordinates, the
-    Jacobian rows by the angles of the two images (C, 6) and ``N`` (C, 3) = dg/db."""
-    R_i, R_j = R[img[:, 0]], R[img[:, 1]]
-    r_i = np.einsum("cab,cb->ca", R_i, U[:, 0])[:, None]
-    r_j = np.einsum("cab,cb->ca", R_j, U[:, 1])[:, None]
-    g, _, N, A_j = K.condition_terms(r_i, r_j, b[bp], R_i, R_j, 1.0)
-    d_i, d_j = K.obs_derivatives(r_i, r_j, b[bp], R_i, R_j)
-    A_i = np.cross(r_i, np.cross(r_j, b[bp][:, None, :]))[:, 0]
-    J = np.concatenate([np.einsum("ca,cak->ck", A_i, M[img[:, 0]]),
-                        np.einsum("ca,cak->ck", A_j[:, 0], M[img[:, 1]])], axis=1)
-    return g[:, 0], np.stack([d_i[:, 0], d_j[:, 0]], axis=1), J, N[:, 0]
+    Jacobian rows by the angles of the two images (C, 6) and ``N`` (C, 3) = dg/db
+    (compiled, one pass: :func:`photogrammetry.adjustment._pair_kernels.block_condition_terms`,
+    its sums in the order of the numpy expressions it replaced, equal to them bit for
+    bit on the 470-image simulated block)."""
+    c = np.ascontiguousarray
+    return block_condition_terms(c(U, dtype=float), c(img, dtype=np.int64),
+                                 c(bp, dtype=np.int64), c(R, dtype=float),
+                                 c(M, dtype=float), c(b, dtype=float))
 
 
 @dataclass
