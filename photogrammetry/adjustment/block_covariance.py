@@ -129,9 +129,12 @@ class BandedCovariance:
             return self.apply(np.eye(n))
         H = sparse.csr_matrix(self.S)
         Hbb = SparseSPD(H[n:, n:], what="block normal matrix of the bases")
-        S = H[:n, :n].toarray()
-        S -= Hbb.inverse_form(H[n:, :n])
-        return self.sigma0 ** 2 * _inv_spd(S, "the block's reduced normal matrix")
+        S = Hbb.inverse_form(H[n:, :n])
+        S *= -1.0
+        S += H[:n, :n].toarray()
+        C = _inv_spd(S.T, "the block's reduced normal matrix")   # (in place: F order)
+        C *= self.sigma0 ** 2
+        return C
 
     def K(self):
         """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1`` (not
@@ -151,15 +154,20 @@ def _diagonal_blocks(C):
 
 
 def _inv_spd(M, what):
-    """Inverse of a dense SPD matrix (LAPACK potrf + potri; `M` overwritten)."""
+    """Inverse of a dense SPD matrix (LAPACK potrf + potri on its lower triangle; `M`
+    overwritten when it is in Fortran order)."""
     c, info = lapack.dpotrf(M, lower=1, clean=1, overwrite_a=1)
     if info == 0:
         c, info = lapack.dpotri(c, lower=1, overwrite_c=1)
     if info != 0:
         raise InputError(f"{what} is singular or not positive definite (part of the "
                          "block not connected to the datum, or degenerate geometry)")
-    lower = np.tril(c)
-    return lower + np.tril(c, -1).T
+    for s in range(0, len(c), 512):          # the lower triangle mirrored in place
+        e = s + 512
+        d = c[s:e, s:e]
+        d[...] = np.tril(d) + np.tril(d, -1).T
+        c[s:e, e:] = c[e:, s:e].T
+    return c
 
 
 def _position_blocks(factor, TX, k, chunk=256):
