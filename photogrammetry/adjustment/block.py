@@ -243,11 +243,13 @@ def _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot, p
     g, d, J_ang, N = _condition_terms(cond.U, cond.img, cond.p, R, M, b)
     W, rank, var = _joint_weights(cond.buckets if joint else cond.buckets_1,
                                   cond.obs if joint else cond.obs_1,
-                                  d, sigma_mm ** 2, len(g), RANK_TOL[mode])
+                                  d, sigma_mm ** 2, len(g), RANK_TOL[mode],
+                                  cond.kept.setdefault("W" if joint else "W1", {}))
     _check_variance(var, cond, point_ids, sigma_mm)
     E = None if mode == "known" else K.tangent_basis(b)
     NE = None if E is None else np.einsum("ca,cak->ck", N, E[cond.p])
-    J = _jacobian(J_ang, NE, cond.img, bslot[cond.p], col, n_ang, n_ang + n_base)
+    J = _jacobian(J_ang, NE, cond.img, bslot[cond.p], col, n_ang, n_ang + n_base,
+                  cond.kept.setdefault("J", {}))
     WJ = W @ J
     Wg = W @ g
     # J' as CSR times W J (CSR): the same sums as (J.T @ WJ).tocsr(), whose CSC J.T made
