@@ -38,12 +38,14 @@ __all__ = ["BandedCovariance", "banded_covariance", "DENSE_MAX_ANGLES"]
 
 #: A bordered block (relative, base-free) of at most this many angles keeps its
 #: covariance as a dense matrix too (``BandedCovariance.C``, ``8 n^2`` bytes: 70 MB at
-#: 1000 images, 160 MB at this bound): its sigmas are its diagonal (instead of the
-#: selected inverse of the sparse factor) and the INS assessment works on it
-#: (:class:`photogrammetry.adjustment.reml.DenseV`: a dense Cholesky of ``n^3 / 3``
-#: flops per REML evaluation, cheaper than the sparse augmented system up to here;
-#: figures in ``bench/bench_block_scale.py``).
-DENSE_MAX_ANGLES = 4500
+#: 1000 images, 104 MB at this bound, 1200 images): its sigmas are its diagonal
+#: (instead of the selected inverse of the sparse factor) and the INS assessment works
+#: on it (:class:`photogrammetry.adjustment.reml.DenseV`: a dense Cholesky of ``n^3 / 3``
+#: flops per REML evaluation; 987 images: 0.3 s, three times cheaper than the sparse
+#: augmented system, whose cost grows more slowly).  Forming it and the assessment
+#: hold two such matrices at a time; the bound keeps them within a fifth of the 1 GB
+#: that a block of that size may use (``bench/bench_block_scale.py``).
+DENSE_MAX_ANGLES = 3600
 
 
 @dataclass
