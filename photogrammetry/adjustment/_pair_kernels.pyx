@@ -355,8 +355,10 @@ def block_condition_terms(const double[:, :, ::1] U, const long long[:, ::1] img
         for c in range(C):
             i, j, p = img[c, 0], img[c, 1], bp[c]
             for a in range(3):
-                ri[a] = _sum3(R[i, a, 0] * U[c, 0, 0], R[i, a, 1] * U[c, 0, 1], R[i, a, 2] * U[c, 0, 2])
-                rj[a] = _sum3(R[j, a, 0] * U[c, 1, 0], R[j, a, 1] * U[c, 1, 1], R[j, a, 2] * U[c, 1, 2])
+                ri[a] = _sum3(R[i, a, 0] * U[c, 0, 0], R[i, a, 1] * U[c, 0, 1],
+                              R[i, a, 2] * U[c, 0, 2])
+                rj[a] = _sum3(R[j, a, 0] * U[c, 1, 0], R[j, a, 1] * U[c, 1, 1],
+                              R[j, a, 2] * U[c, 1, 2])
                 bb[a] = b[p, a]
             _cross(ri, rj, n3)
             g[c] = _sum3(n3[0] * bb[0], n3[1] * bb[1], n3[2] * bb[2])

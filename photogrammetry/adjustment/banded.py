@@ -239,8 +239,8 @@ class SparseSPD:
         ``Y' D^-1 Y`` as a sparse product.  Cost: the non-zeros that ``L`` spreads ``B``
         to, where the dense solve of ``A`` with ``B``'s columns costs the whole factor per
         column (a 470-image base-free block's Schur complement of the bases: 0.1 s against
-        1.7 s); the rows of ``Y`` fuller than :data:`DENSE_ROW` by BLAS.  Needs SuperLU's diagonal pivots in one symmetric ordering (ValueError
-        otherwise)."""
+        1.7 s); the rows of ``Y`` fuller than :data:`DENSE_ROW` by BLAS.  Needs SuperLU's
+        diagonal pivots in one symmetric ordering (ValueError otherwise)."""
         if not np.array_equal(self.lu.perm_r, self.lu.perm_c):
             raise ValueError("the factor is not L D L' of one symmetric ordering")
         iperm = np.empty_like(self.perm_c)
