@@ -15,40 +15,52 @@ memory and the refined angles (``--save F.json``: to compare two versions).  The
 images, 21: 987), ``ins simulate`` (its own tie points), ``ins process --forward``,
 ``photogrammetry eo`` with the camera file less its boresight, as ``tools/demo.py``
 runs them (``--block-dir D`` keeps the flights for the next run).  Measured (2-core VM
-shared with other jobs, load 6-7, 2026-12-02; CPU s):
+shared with other jobs, load 5-6, 2026-12-02, the three runs one after the other; CPU s):
 
-    stage                                    470 images  987 images   (before: 470, 987)
-    start-up (imports, compiled kernels)           1.10        1.10     1.10   1.14
-    read inputs (EO, tie points, camera)           0.34        0.59     0.37   0.65
-      tie-point assembly (pairs)                   0.18        0.50     0.16   0.47
-    block adjustment                               5.58       14.88     5.63  15.86
-      pair screening (MSAC)                        0.76        1.58     0.76   1.73
-      normal equations (J'WJ)                      2.80        6.98     2.79   7.51
-        joint weights                              0.81        1.70     0.81   1.78
-      factor + solve                               1.44        3.94     1.44   4.17
-      sigmas (selected inverse)                    0.38        1.90     0.44   1.93
-    accuracy: INS assessment (REML)                9.18       26.13    96.72  60.75
-    report                                         1.22        1.54     1.49   1.88
-      residuals plot (with the import)             0.89        1.02     1.21   1.56
-    total CPU                                     17.65       44.82   105.52  80.84
-    per image above start-up, ms                   35.2        44.3    222.2   80.7
-    peak resident memory, MB                        378         728      386    769
+    stage                                    470 images      987 images     before
+                                           SuperLU CHOLMOD SuperLU CHOLMOD  470    987
+    start-up (imports, compiled kernels)     0.91   1.14    0.88   0.99    1.14   0.89
+    read inputs (EO, tie points, camera)     0.33   0.36    0.45   0.60    0.32   0.51
+      tie-point assembly (pairs)             0.18   0.17    0.37   0.38    0.14   0.35
+    block adjustment                         4.24   3.81   10.69   9.65    5.12  13.10
+      pair screening (MSAC)                  0.68   0.72    1.30   1.47    0.71   1.40
+      conditions                             0.11   0.12    0.24   0.22    0.13   0.29
+      normal equations (J'WJ)                1.66   1.83    3.33   3.71    2.51   5.98
+        joint weights                        0.69   0.72    1.37   1.50    0.72   1.65
+      factor + solve                         1.29   0.77    3.28   1.87    1.28   3.50
+      sigmas (covariance blocks)             0.45   0.32    2.44   2.30    0.43   1.80
+    accuracy: INS assessment (REML)          1.00   0.99    6.99   7.22    8.37  22.36
+    report                                   1.16   1.15    1.37   1.15    1.04   1.20
+      residuals plot (with the import)       0.88   0.85    0.93   0.82    0.79   0.91
+    total CPU                                7.87   7.68   20.85  20.06   16.19  38.48
+    per image above start-up, ms             14.8   13.9    20.2   19.3    32.0   38.1
+    peak resident memory, MB                  360    340     770    716     377    682
 
-("Before": the same script on the code before 2026-12-02, right after, same load.  On a
-quieter machine, load 2-5, the before run gave 191 and 74 ms per image, the after one
-26 and 33 with a looser REML stop that broke the one-tile-equals-block identity.)
-The assessment was the cost: its REML fits ran to ``max_iter`` (60 iterations, a
-factorization of the block's covariance each) because the solves of the augmented
-system of a component at its bound lost 1e-5 relative (SuperLU's own order with partial
-pivoting); now in the order of :func:`photogrammetry.adjustment.reml._interleaved_order`
-(accurate to 1e-11), a component heading to 0 tried at its bound, linear convergence
-extrapolated: 22 evaluations of V at 470 images where there were 166 (987: 25, 37).  At 987 the old
-REML had stopped at a wrong point (lambda 2.77, every INS noise "not estimable",
-chi2 2059 for 2952 degrees of freedom); now lambda 1.28 +- 0.07, kappa noise 28.7 arcsec,
-chi2 = 2952.0.  The refined angles and sigmas are the same to the bit at both sizes.
-What is left is SuperLU (about 27 sparse factorizations at 470 images: the block's 12,
-the assessment's 15; a supernodal Cholesky such as CHOLMOD would be several times
-faster, but scikit-sparse has no wheel here) and the joint weights' compiled eigh.
+("Before": the same script on the code before this change (a second session of
+2026-12-02), right before, same load; the session before had measured 35.2 and 44.3 ms
+at load 6-7, 222 and 81 ms before it.  CHOLMOD: with the optional extra ``fast``
+(cvxopt), :mod:`photogrammetry.adjustment.cholmod`.)  The refined angles are the same
+to the bit with SuperLU (the block's result in rad and the refined CSV, both sizes);
+with CHOLMOD within 3e-15 rad (one 1e-10 deg digit of the CSV at 987).  Sigmas within
+3e-10 (470) and 1.2e-9 (987) relative: the dense inverse in place of the selected
+inverse; the assessment's figures within 2e-10 and 1.4e-9 relative (the same REML
+iterations; kappa noise 22.46 and 28.67 arcsec, lambda 1.248 and 1.283, the other
+noises not estimable, as before).
+What changed: the assessment works on the block's covariance as a dense matrix
+(``BandedCovariance.C``, up to
+:data:`photogrammetry.adjustment.block_covariance.DENSE_MAX_ANGLES` angles): the
+reduced normal matrix ``H_aa - H_ab H_bb^-1 H_ba`` by a sparse half solve of the bases'
+factor (compiled: ``lower_solve_sparse``, ``gram_rows``), inverted once by LAPACK, and
+per REML evaluation a dense Cholesky of ``V`` (1407 angles: 0.035 s, where the sparse
+augmented system took 0.2 s to factor and 0.07 s to solve the probes; the same 20
+evaluations); its diagonal blocks are the sigmas (no selected inverse).  The block:
+the condition terms in one compiled pass (30 -> 2 ms an iteration), ``J'`` as CSR
+times ``W J`` (scipy converted ``W J`` to CSC and back: 45 ms an iteration), the CSR
+structures of ``W`` and ``J`` made once per set of conditions.  What is left: 12
+Gauss-Newton iterations of joint weights (a 15 x 15 eigh per point seen in six images)
+and sparse products, SuperLU's 12 factorizations (0.1 s each; CHOLMOD 0.04 s), and at
+987 images the dense algebra's ``n^3`` (2961 angles: 0.3 s a Cholesky, 25 of them; the
+inverse 1.4 s), still three times cheaper than the sparse augmented system there.
 
 ``--block scenario``: ``tests/scenario.py``'s ``make_large_block`` (below).  Measured
 (2-core VM shared with 6 other jobs, load 2-5, 2026-11-27; kernels then numba, cache warm):
@@ -183,7 +195,7 @@ def one(n, method, datum):
             "peak_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
             "cpu_s": r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime,
             "factor": ("dense" if f is None else f"b={f.b}" if hasattr(f, "b")
-                       else f"L={f.nnz / 1e6:.2f}M"),
+                       else f"L={f.nnz / 1e6:.2f}M" if hasattr(f, "nnz") else "CHOLMOD"),
             "sigma0": res.sigma0, "boresight_err_sigmas": np.round(err, 2).tolist(),
             "ins_noise_arcsec": np.round(a.ins_noise * 206264.8, 1).tolist()}
 
@@ -199,7 +211,7 @@ CLI_STAGES = [
     ("photogrammetry.adjustment.block", "_linearize", None, "  normal equations (J'WJ)"),
     ("photogrammetry.adjustment.block", "_joint_weights", None, "    joint weights"),
     ("photogrammetry.adjustment.block", "_solve_step", None, "  factor + solve"),
-    ("photogrammetry.adjustment.block", "banded_covariance", None, "  sigmas (selected inverse)"),
+    ("photogrammetry.adjustment.block", "banded_covariance", None, "  sigmas (covariance blocks)"),
     ("photogrammetry.adjustment.batch", "assess", None, "accuracy: INS assessment (REML)"),
     ("photogrammetry.orientation.exposure", "write_eo_csv", None, "write refined CSV"),
     ("photogrammetry.adjustment.report", "write_report", None, "report"),

@@ -6,7 +6,8 @@ import scenario as sc
 
 from photogrammetry.adjustment.assessment import assess
 from photogrammetry.adjustment.block import adjust_block
-from photogrammetry.adjustment.reml import BandedV
+from photogrammetry.adjustment import reml
+from photogrammetry.adjustment.reml import BandedV, DenseV
 from photogrammetry.adjustment.report import report_text
 
 
@@ -179,6 +180,58 @@ def test_bordered_assessment_operator_against_the_dense_covariance():
         else:        # V's condition number ~1e9 here: its backward error
             assert np.abs(V @ x - v).max() < 1e-6 * np.abs(v).max()
         np.testing.assert_allclose(Vs.dot(v), V @ v, rtol=0, atol=1e-10 * np.abs(V @ v).max())
+
+
+def test_dense_covariance_of_a_bordered_block_against_the_dense_algebra():
+    """The bordered operator's dense ``C`` (the Schur complement of the bases by the
+    sparse half solve, inverted) against the dense algebra's covariance (the reduced
+    normal matrix formed and inverted on its own), and :class:`DenseV` against numpy's
+    solve with that covariance, a component at its bound included."""
+    B = sc.make_block(n_strips=3, n_per_strip=10, seed=71)
+    kw = dict(positions=B["positions"], sigma_mm=B["sigma_mm"], point_ids=B["point_ids"])
+    args = (B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"], "base-free",
+            "first")
+    d = adjust_block(*args, algebra="dense", **kw)
+    b = adjust_block(*args, algebra="banded", **kw)
+    fr = np.repeat(b.cov_op.free, 3)
+    C = d.cov[np.ix_(fr, fr)]
+    Cb = b.cov_op.dense()
+    np.testing.assert_allclose(Cb, C, rtol=0, atol=1e-9 * np.abs(C).max())
+    np.testing.assert_array_equal(Cb, Cb.T)
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(len(C), 2))
+    for lam, dd in [(1.3, rng.uniform(1e-7, 1e-5, len(C))), (0.7, np.full(len(C), 1e-15))]:
+        V = lam * C + np.diag(dd)
+        Vs = DenseV(b.cov_op, Cb, lam, dd)
+        x = Vs.solve(v)
+        assert np.abs(V @ x - v).max() < 1e-6 * np.abs(v).max()
+        np.testing.assert_allclose(Vs.dot(v), V @ v, rtol=0, atol=1e-9 * np.abs(V @ v).max())
+
+
+def test_dense_and_sparse_assessment_of_a_bordered_block_agree(monkeypatch):
+    """The REML of a base-free block on the dense ``C`` (:class:`DenseV`, up to
+    ``DENSE_V_MAX_ANGLES``) and on the sparse augmented system (:class:`BandedV`): the
+    same iterations and estimates to the solves' rounding (the same Hutchinson probes)."""
+    B = sc.make_block(n_strips=4, n_per_strip=10, seed=72)
+    res = adjust_block(B["prior"], B["pairs"], B["pair_points"], B["f_mm"], B["system"],
+                       "base-free", "first", positions=B["positions"],
+                       sigma_mm=B["sigma_mm"], point_ids=B["point_ids"], algebra="banded")
+    made = []
+    monkeypatch.setattr(reml, "DenseV", lambda *a: made.append(1) or DenseV(*a))
+    dense = assess(res, B["prior"], B["system"], "first", "base-free")
+    assert made
+    monkeypatch.setattr(reml, "DENSE_V_MAX_ANGLES", 0)
+    n_made = len(made)
+    sparse_ = assess(res, B["prior"], B["system"], "first", "base-free")
+    assert len(made) == n_made                      # the sparse path only
+    assert dense.boresight_iterations == sparse_.boresight_iterations
+    np.testing.assert_array_equal(dense.ins_noise_negative, sparse_.ins_noise_negative)
+    for name in ("ins_noise_var", "ins_noise_sigma", "gls_mean", "gls_mean_sigma",
+                 "mean_sigma", "residual_rms"):
+        np.testing.assert_allclose(getattr(dense, name), getattr(sparse_, name),
+                                   rtol=1e-7, err_msg=name)
+    assert abs(dense.chi2 - sparse_.chi2) < 1e-7 * sparse_.chi2
+    assert abs(dense.cov_factor - sparse_.cov_factor) < 1e-8
 
 
 @pytest.mark.parametrize("method,datum,ins_sigma", [("base-free", "first", 0.005),

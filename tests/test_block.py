@@ -245,6 +245,38 @@ def test_block_derivatives_and_joint_weights_against_differences(system):
     _close(got, Tm @ np.diag(ps.ravel() ** 2) @ Tm.T)
 
 
+def test_compiled_condition_terms_equal_the_numpy_expressions():
+    """The compiled condition terms against the numpy expressions they replaced (cross
+    products and einsums over all conditions of random images, rays and bases): equal to
+    1e-15 relative (bit for bit where numpy adds in the kernel's order)."""
+    from photogrammetry.adjustment import _coplanarity_kernels as K
+    from photogrammetry.adjustment.block_conditions import _condition_terms
+    rng = np.random.default_rng(40)
+    m, P, C = 7, 9, 300
+    R, M = K.rotation_and_axes(rng.uniform(-0.3, 0.3, (m, 3)), "omega-phi-kappa")
+    img = rng.integers(0, m, (C, 2))
+    bp = rng.integers(0, P, C)
+    b = rng.normal(size=(P, 3))
+    U = np.concatenate([rng.uniform(-50, 50, (C, 2, 2)), np.full((C, 2, 1), -100.0)], 2)
+    R_i, R_j = R[img[:, 0]], R[img[:, 1]]
+    r_i = np.einsum("cab,cb->ca", R_i, U[:, 0])
+    r_j = np.einsum("cab,cb->ca", R_j, U[:, 1])
+    N = np.cross(r_i, r_j)
+    g = np.einsum("ci,ci->c", N, b[bp])
+    d_i = np.einsum("cji,cj->ci", R_i, np.cross(r_j, b[bp]))[:, :2]
+    d_j = np.einsum("cji,cj->ci", R_j, np.cross(b[bp], r_i))[:, :2]
+    A_i = np.cross(r_i, np.cross(r_j, b[bp]))
+    A_j = np.cross(r_j, np.cross(b[bp], r_i))
+    J = np.concatenate([np.einsum("ca,cak->ck", A_i, M[img[:, 0]]),
+                        np.einsum("ca,cak->ck", A_j, M[img[:, 1]])], axis=1)
+    got = _condition_terms(U, img, bp, R, M, b)
+    for name, x, ref in zip("g d J N".split(), got, (g, np.stack([d_i, d_j], 1), J, N)):
+        np.testing.assert_allclose(x, ref, rtol=0, atol=1e-15 * np.abs(ref).max(),
+                                   err_msg=name)
+    with pytest.raises(IndexError):
+        _condition_terms(U, img + m, bp, R, M, b)
+
+
 def test_pair_whose_screening_did_not_converge_is_left_out_with_a_warning(block, monkeypatch):
     """A pair whose pair-wise screening did not converge has no valid outlier tests: it
     is left out with a QualityWarning naming it (it used to enter the block silently),
@@ -392,17 +424,27 @@ def test_banded_algebra_equals_dense(block, datum, position_sigma):
         band.correlation()
 
 
-@pytest.mark.parametrize("method,datum", [("relative", "first"), ("base-free", "ins"),
-                                          ("relative", "ins")])
-def test_bordered_banded_algebra_equals_dense(block, method, datum):
+@pytest.mark.parametrize("method,datum,keep_dense", [("relative", "first", True),
+                                                     ("base-free", "ins", True),
+                                                     ("relative", "ins", True),
+                                                     ("relative", "first", False),
+                                                     ("base-free", "ins", False)])
+def test_bordered_banded_algebra_equals_dense(block, method, datum, keep_dense,
+                                              monkeypatch):
     """Relative and base-free blocks: the whole normal matrix (angles, then two
-    base-direction parameters per pair) factored banded, its inverse's angle blocks by
-    Takahashi, against the dense Schur complement of the bases and its inverse: angles
-    (1e-12 rad), sigma0, sigmas and covariance blocks (1e-9), the operator's product
-    with a vector (1e-9 of its size); measured 1e-15 rad and 1e-11."""
+    base-direction parameters per pair) factored sparse, its inverse's angle blocks by
+    selected inversion (Takahashi) or, up to ``DENSE_MAX_ANGLES``, the dense covariance
+    from the bases' Schur complement by the sparse half solve, against the dense
+    algebra's Schur complement of the bases and its inverse: angles (1e-12 rad),
+    sigma0, sigmas and covariance blocks (1e-9), the operator's product with a vector
+    (1e-9 of its size); measured 1e-15 rad and 1e-11."""
+    from photogrammetry.adjustment import block_covariance
+    if not keep_dense:
+        monkeypatch.setattr(block_covariance, "DENSE_MAX_ANGLES", 0)
     dense = _run(block, method, datum, algebra="dense")
     band = _run(block, method, datum, algebra="banded")
     assert band.cov is None and band.cov_op.bordered and dense.cov_op is None
+    assert (band.cov_op.C is not None) == keep_dense
     assert band.cov_op.S.shape[0] > band.cov_op.n_angles == 3 * band.cov_op.free.sum()
     np.testing.assert_allclose(band.angles, dense.angles, atol=1e-12)
     assert band.sigma0 == pytest.approx(dense.sigma0, rel=1e-10)
@@ -416,6 +458,26 @@ def test_bordered_banded_algebra_equals_dense(block, method, datum):
                                atol=1e-9 * np.abs(Cv).max())
     with pytest.raises(ValueError, match="not sparse"):
         band.cov_op.K()
+
+
+def test_cholmod_steps_give_the_superlu_angles(block, monkeypatch):
+    """A base-free block's Gauss-Newton steps factored by CHOLMOD (optional, cvxopt) and
+    by SuperLU: the same angles (1e-12 rad; measured 1e-16), sigma0 and sigmas."""
+    pytest.importorskip("cvxopt")
+    from photogrammetry.adjustment import block as block_mod
+    from photogrammetry.adjustment import cholmod
+    made = []
+    real = cholmod.CholmodSPD
+    monkeypatch.setattr(cholmod, "CholmodSPD", lambda *a, **k: made.append(1) or real(*a, **k))
+    fast = _run(block, "base-free", "first", algebra="banded")
+    assert made and block_mod.cholmod is cholmod
+    monkeypatch.setattr(cholmod, "USE_CHOLMOD", False)
+    n_made = len(made)
+    slow = _run(block, "base-free", "first", algebra="banded")
+    assert len(made) == n_made
+    np.testing.assert_allclose(fast.angles, slow.angles, rtol=0, atol=1e-12)
+    assert fast.sigma0 == pytest.approx(slow.sigma0, rel=1e-10)
+    np.testing.assert_allclose(fast.sigma, slow.sigma, rtol=1e-9)
 
 
 def test_quality_judges_known_base_changes_without_the_boresight():

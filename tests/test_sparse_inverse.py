@@ -84,3 +84,73 @@ def test_same_pattern_reuses_the_ordering_with_the_same_results():
     coo = sparse.tril(B).tocoo()
     np.testing.assert_allclose(g.inverse_entries(coo.row, coo.col), Z[coo.row, coo.col],
                                rtol=1e-9, atol=1e-12 * np.abs(Z).max())
+
+
+def test_inverse_form_matches_dense_solve():
+    """``B' A^-1 B`` by the sparse half solve ``Y = L^-1 Q B`` and ``Y' D^-1 Y``
+    (:meth:`SparseSPD.inverse_form`, both its sparse and its dense rows) against numpy's
+    dense solve, with A's own ordering and with the ordering reused for its pattern."""
+    A = _grid_spd(14, 16, 5)
+    n = A.shape[0]
+    rng = np.random.default_rng(6)
+    B = sparse.random(n, 37, density=0.03, random_state=7, format="csc")
+    B = B + sparse.csc_matrix((rng.normal(size=37), (rng.integers(0, n, 37),
+                                                      np.arange(37))), shape=(n, 37))
+    ref = B.T.toarray() @ np.linalg.solve(A.toarray(), B.toarray())
+    for _ in range(2):                        # the second factor reuses the ordering
+        got = SparseSPD(A).inverse_form(B)
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+        np.testing.assert_array_equal(got, got.T)
+
+
+@pytest.mark.parametrize("panel", [1, 5, 32, 64])
+def test_gram_rows_and_lower_solve_against_numpy(panel):
+    """The compiled kernels against numpy: ``Y' diag(w) Y`` of a sparse ``Y`` with empty
+    and full rows (any panel width, one that does not divide k), and ``L^-1 B`` of a
+    unit lower triangular ``L`` with unsorted rows and duplicate entries in ``B``."""
+    from photogrammetry.adjustment._sparse_kernels import gram_rows, lower_solve_sparse
+    rng = np.random.default_rng(panel)
+    Y = sparse.random(60, 23, density=0.2, random_state=panel, format="lil")
+    Y[5, :] = 0.0
+    Y[7, :] = rng.normal(size=23)
+    Y = sparse.csr_matrix(Y)
+    Y.sort_indices()
+    w = rng.uniform(0.5, 2.0, 60)
+    G = gram_rows(Y.indptr, Y.indices, Y.data, w, 23, panel)
+    Yd = Y.toarray()
+    np.testing.assert_allclose(G, Yd.T @ (w[:, None] * Yd), rtol=1e-13, atol=1e-14)
+    n = 40
+    L = sparse.tril(sparse.random(n, n, density=0.1, random_state=3), k=-1, format="csc")
+    perm = rng.permutation(L.nnz)             # rows unsorted within columns
+    cols = np.repeat(np.arange(n), np.diff(L.indptr))
+    order = np.lexsort((perm, cols))
+    Lu = sparse.csc_matrix((L.data[order], L.indices[order], L.indptr), shape=(n, n))
+    r, c = rng.integers(0, n, 30), rng.integers(0, 6, 30)
+    B = sparse.coo_matrix((rng.normal(size=30), (r, c)), shape=(n, 6)).tocsc()
+    B.has_canonical_format = False
+    B = sparse.csc_matrix((np.repeat(B.data, 2) / 2, np.repeat(B.indices, 2),
+                           2 * B.indptr), shape=(n, 6))   # every entry split in two
+    yp, yi, yx = lower_solve_sparse(Lu.indptr, Lu.indices, Lu.data, B.indptr, B.indices,
+                                    B.data, n)
+    got = sparse.csc_matrix((yx, yi, yp), shape=(n, 6)).toarray()
+    ref = np.linalg.solve(np.eye(n) + L.toarray(), B.toarray())
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+    assert np.all(np.diff(yi[yp[0]:yp[1]]) > 0)              # rows sorted
+
+
+def test_cholmod_factor_solves_like_numpy():
+    """The optional CHOLMOD factor (cvxopt) against numpy's dense solve, a vector and a
+    matrix right-hand side, and its refusal of a matrix that is not positive definite."""
+    pytest.importorskip("cvxopt")
+    from ins.common.errors import InputError
+    from photogrammetry.adjustment.cholmod import CholmodSPD
+    A = _grid_spd(11, 13, 8)
+    rng = np.random.default_rng(9)
+    b = rng.normal(size=(A.shape[0], 3))
+    f = CholmodSPD(A)
+    ref = np.linalg.solve(A.toarray(), b)
+    np.testing.assert_allclose(f.solve(b), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(f.solve(b[:, 0]), ref[:, 0], rtol=0,
+                               atol=1e-12 * np.abs(ref).max())
+    with pytest.raises(InputError, match="not positive definite"):
+        CholmodSPD(A - 10 * sparse.eye(A.shape[0]), what="test matrix")

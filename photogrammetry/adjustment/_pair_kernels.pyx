@@ -1,6 +1,7 @@
 """Compiled kernels of the coplanarity adjustment (private; Cython): the Gauss-Newton of
 :func:`photogrammetry.adjustment._coplanarity_kernels.solve_pairs` one pair at a time (no
-temporaries), and the joint weight blocks of the block conditions.
+temporaries), the joint weight blocks of the block conditions and the block's condition
+terms.
 
 The condition terms are the inline C of ``_coplanarity.pxd``; the small eigenproblems,
 solves and inverses go to scipy's LAPACK there, as numba's ``np.linalg`` did in the
@@ -289,3 +290,89 @@ def joint_weight_blocks(const long long[:, :] idx, const long long[:, :] obs,
             for b in range(c):
                 vals[t, a, b] *= inv[a] * inv[b]
     return vals_arr, rank
+
+
+cdef inline double _sum3(double x0, double x1, double x2) noexcept nogil:
+    """``x0 + x1 + x2`` as numpy's einsum adds three terms: ``(x0 + x2) + x1``."""
+    return (x0 + x2) + x1
+
+
+cdef inline void _cross(const double *a, const double *b, double *out) noexcept nogil:
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+def block_condition_terms(const double[:, :, ::1] U, const long long[:, ::1] img,
+                          const long long[::1] bp, const double[:, :, ::1] R,
+                          const double[:, :, ::1] M, const double[:, ::1] b):
+    """Per condition ``det[b, R_i u_i, R_j u_j]`` of a block and its derivatives, in one
+    pass (:func:`photogrammetry.adjustment.block_conditions._condition_terms`; numpy's
+    dozen passes through (C, 3) temporaries were a tenth of an iteration).  The sums in
+    the order of those numpy expressions: ``R u`` and ``N . b`` as einsum adds three
+    terms (:func:`_sum3`), the others left to right; the crosses as ``np.cross``.
+
+    Parameters
+    ----------
+    U : ndarray (C, 2, 3)
+        Rays in the two images, mm.
+    img : ndarray of int (C, 2); bp : ndarray of int (C,)
+        The images and the pair (row of `b`) of every condition.
+    R, M : ndarray (m, 3, 3)
+        Rotation and model-frame axes of the angles of every image.
+    b : ndarray (P, 3)
+        Base of every pair.
+
+    Returns
+    -------
+    g : ndarray (C,)
+        ``b . (r_i x r_j)``, ``r = R u``.
+    d : ndarray (C, 2, 2)
+        By the photo coordinates (x, y) in image i (``R_i' (r_j x b)``) and in image j
+        (``R_j' (b x r_i)``).
+    J : ndarray (C, 6)
+        By the angles of image i and of image j: ``(r_i x (r_j x b)) M_i`` and
+        ``(r_j x (b x r_i)) M_j``.
+    N : ndarray (C, 3)
+        ``r_i x r_j = dg/db``.
+    """
+    cdef Py_ssize_t C = U.shape[0], c, a, k, i, j, p
+    cdef double ri[3], rj[3], bb[3], t[3], Ai[3], Aj[3], n3[3]
+    if img.shape[0] != C or bp.shape[0] != C or U.shape[1] < 2 or U.shape[2] < 3:
+        raise ValueError("block_condition_terms: U (C, 2, 3), img (C, 2), bp (C,)")
+    for c in range(C):
+        if not (0 <= img[c, 0] < R.shape[0] and 0 <= img[c, 1] < R.shape[0]
+                and 0 <= bp[c] < b.shape[0]):
+            raise IndexError(f"block_condition_terms: condition {c} out of range")
+    g_arr = np.empty(C)
+    d_arr = np.empty((C, 2, 2))
+    J_arr = np.empty((C, 6))
+    N_arr = np.empty((C, 3))
+    cdef double[::1] g = g_arr
+    cdef double[:, :, ::1] d = d_arr
+    cdef double[:, ::1] J = J_arr, N = N_arr
+    with nogil:
+        for c in range(C):
+            i, j, p = img[c, 0], img[c, 1], bp[c]
+            for a in range(3):
+                ri[a] = _sum3(R[i, a, 0] * U[c, 0, 0], R[i, a, 1] * U[c, 0, 1],
+                              R[i, a, 2] * U[c, 0, 2])
+                rj[a] = _sum3(R[j, a, 0] * U[c, 1, 0], R[j, a, 1] * U[c, 1, 1],
+                              R[j, a, 2] * U[c, 1, 2])
+                bb[a] = b[p, a]
+            _cross(ri, rj, n3)
+            g[c] = _sum3(n3[0] * bb[0], n3[1] * bb[1], n3[2] * bb[2])
+            for a in range(3):
+                N[c, a] = n3[a]
+            _cross(rj, bb, t)                          # r_j x b
+            for k in range(2):
+                d[c, 0, k] = R[i, 0, k] * t[0] + R[i, 1, k] * t[1] + R[i, 2, k] * t[2]
+            _cross(ri, t, Ai)
+            _cross(bb, ri, t)                          # b x r_i
+            for k in range(2):
+                d[c, 1, k] = R[j, 0, k] * t[0] + R[j, 1, k] * t[1] + R[j, 2, k] * t[2]
+            _cross(rj, t, Aj)
+            for k in range(3):
+                J[c, k] = Ai[0] * M[i, 0, k] + Ai[1] * M[i, 1, k] + Ai[2] * M[i, 2, k]
+                J[c, 3 + k] = Aj[0] * M[j, 0, k] + Aj[1] * M[j, 1, k] + Aj[2] * M[j, 2, k]
+    return g_arr, d_arr, J_arr, N_arr

@@ -1,6 +1,7 @@
 """Compiled kernels of :mod:`photogrammetry.adjustment.banded` (private; Cython): the
 selected inverse of a sparse ``L D L^T`` factor and the check that its pattern is closed,
-and the entries of a banded factor's inverse within the band."""
+the entries of a banded factor's inverse within the band, and the solve of a unit lower
+triangular sparse factor with a sparse right-hand side (sparse result)."""
 import numpy as np
 
 #: Index arrays of a scipy sparse matrix: int32 or int64.
@@ -127,3 +128,105 @@ def band_inverse(const double[:, :] cb, Py_ssize_t b):
                 dd -= cb[j - i, i] * zt[i, j - i]
             zt[i, 0] = dd / lii
     return zt_arr
+
+
+def lower_solve_sparse(const index_t[:] indptr, const index_t[:] indices, const double[:] Lx,
+                       const index_t[:] bptr, const index_t[:] bind, const double[:] bx,
+                       Py_ssize_t n):
+    """``Y = L^-1 B`` for a unit lower triangular ``L`` and a sparse ``B``, both CSC.
+
+    ``L`` by its strictly lower part (``indptr``, ``indices``, ``Lx``; rows need not be
+    sorted), ``B`` (n, k) by ``bptr``, ``bind``, ``bx``.  Column by column: ``B``'s column
+    scattered into a dense work vector, then for every row ``r`` from the column's first
+    non-zero on, ``x[L rows of r] -= L[., r] x[r]`` where ``x[r]`` is non-zero (cost: the
+    rows below the first non-zero, plus the flops of the non-zeros reached); the
+    non-zeros of ``x`` are ``Y``'s column (an entry cancelled to exactly 0 is left out).
+
+    Returns
+    -------
+    yptr : ndarray of int64 (k + 1,); yind : ndarray of int64; yx : ndarray of float
+        ``Y`` in CSC, rows sorted.
+    """
+    cdef Py_ssize_t k = bptr.shape[0] - 1, j, t, r, u, lo, cap, nnz = 0
+    cdef double xr
+    if indptr.shape[0] < n + 1:
+        raise ValueError(f"lower_solve_sparse: indptr must hold n + 1 = {n + 1} values")
+    x_arr = np.zeros(n)
+    cdef double[:] x = x_arr
+    yptr_arr = np.zeros(k + 1, np.int64)
+    cdef long long[:] yptr = yptr_arr
+    cap = max(16, 4 * bind.shape[0])
+    yind_arr = np.empty(cap, np.int64)
+    yx_arr = np.empty(cap)
+    cdef long long[:] yind = yind_arr
+    cdef double[:] yx = yx_arr
+    for j in range(k):
+        lo = n
+        for t in range(bptr[j], bptr[j + 1]):
+            x[bind[t]] += bx[t]
+            if bind[t] < lo:
+                lo = bind[t]
+        if nnz + n - lo > cap:                     # room for the whole tail
+            cap = max(2 * cap, nnz + n - lo)
+            yind_arr = np.resize(yind_arr, cap)
+            yx_arr = np.resize(yx_arr, cap)
+            yind = yind_arr
+            yx = yx_arr
+        with nogil:
+            for r in range(lo, n):
+                xr = x[r]
+                if xr == 0.0:
+                    continue
+                for u in range(indptr[r], indptr[r + 1]):
+                    x[indices[u]] -= Lx[u] * xr
+                yind[nnz] = r
+                yx[nnz] = xr
+                nnz += 1
+                x[r] = 0.0
+        yptr[j + 1] = nnz
+    return yptr_arr, yind_arr[:nnz].copy(), yx_arr[:nnz].copy()
+
+
+def gram_rows(const index_t[:] indptr, const index_t[:] indices, const double[:] yx,
+              const double[:] w, Py_ssize_t k, Py_ssize_t panel=32):
+    """``G = Y' diag(w) Y`` (dense k x k) of a sparse ``Y`` (m, k) given by rows (CSR:
+    ``indptr``, ``indices`` sorted within rows, ``yx``).  By panels of `panel` columns
+    ``b`` of ``G``: for every row of ``Y``, its entries ``b`` in the panel times its
+    entries ``a <= b`` added to ``G[a, b]`` (the panel, ``k * panel`` values, stays in
+    cache: the rows' outer products scattered into the whole ``G`` missed it on every
+    entry, ten times slower); then the upper triangle mirrored.  Cost: the sum over the
+    rows of half their non-zeros squared."""
+    cdef Py_ssize_t m = w.shape[0], r, s, t, a, b, c0, c1, e
+    cdef double yb
+    if indptr.shape[0] < m + 1:
+        raise ValueError(f"gram_rows: indptr must hold m + 1 = {m + 1} values")
+    if panel < 1:
+        raise ValueError("gram_rows: panel must be positive")
+    g_arr = np.zeros((k, k))
+    gp_arr = np.zeros((panel, k))
+    cur_arr = np.zeros(m, np.int64)
+    cdef double[:, :] g = g_arr, gp = gp_arr
+    cdef long long[:] cur = cur_arr
+    with nogil:
+        for r in range(m):
+            cur[r] = indptr[r]
+        c0 = 0
+        while c0 < k:
+            c1 = min(c0 + panel, k)
+            for r in range(m):
+                e = indptr[r + 1]
+                s = cur[r]
+                while s < e and indices[s] < c1:
+                    b = indices[s]
+                    yb = yx[s] * w[r]
+                    for t in range(indptr[r], s + 1):       # a <= b: sorted rows
+                        gp[b - c0, indices[t]] += yb * yx[t]
+                    s += 1
+                cur[r] = s
+            for b in range(c0, c1):
+                for a in range(b + 1):
+                    g[a, b] = gp[b - c0, a]
+                    g[b, a] = gp[b - c0, a]
+                    gp[b - c0, a] = 0.0
+            c0 = c1
+    return g_arr

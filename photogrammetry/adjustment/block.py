@@ -40,6 +40,7 @@ from scipy import sparse
 from ins.common.errors import InputError, InputWarning, QualityWarning
 from ins.nav.rotation import wrap_to_pi
 from photogrammetry.adjustment import _coplanarity_kernels as K
+from photogrammetry.adjustment import cholmod
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD
 from photogrammetry.adjustment.block_conditions import (
     _check_variance,
@@ -242,14 +243,18 @@ def _linearize(angles, prior, free, b, cond, joint, col, n_ang, n_base, bslot, p
     g, d, J_ang, N = _condition_terms(cond.U, cond.img, cond.p, R, M, b)
     W, rank, var = _joint_weights(cond.buckets if joint else cond.buckets_1,
                                   cond.obs if joint else cond.obs_1,
-                                  d, sigma_mm ** 2, len(g), RANK_TOL[mode])
+                                  d, sigma_mm ** 2, len(g), RANK_TOL[mode],
+                                  cond.kept.setdefault("W" if joint else "W1", {}))
     _check_variance(var, cond, point_ids, sigma_mm)
     E = None if mode == "known" else K.tangent_basis(b)
     NE = None if E is None else np.einsum("ca,cak->ck", N, E[cond.p])
-    J = _jacobian(J_ang, NE, cond.img, bslot[cond.p], col, n_ang, n_ang + n_base)
+    J = _jacobian(J_ang, NE, cond.img, bslot[cond.p], col, n_ang, n_ang + n_base,
+                  cond.kept.setdefault("J", {}))
     WJ = W @ J
     Wg = W @ g
-    H = (J.T @ WJ).tocsr()
+    # J' as CSR times W J (CSR): the same sums as (J.T @ WJ).tocsr(), whose CSC J.T made
+    # scipy convert W J (four times J's non-zeros) to CSC and the product back
+    H = J.T.tocsr() @ WJ
     grad = J.T @ Wg
     dl = (angles[free] - prior[free]).ravel()
     vtpv = float(g @ Wg + np.sum(prior_w * dl ** 2))
@@ -264,8 +269,12 @@ def _solve_step(lin, n_ang, banded=False):
     base-direction parameters' step (None for known-base).  Banded: the whole normal
     matrix (angles, then bases: bordered) is factored, no Schur complement formed."""
     if banded:
-        factor = (SparseSPD(lin.H, what="block normal matrix") if lin.H.shape[0] > n_ang
-                  else BandedSPD(lin.H, what="block normal matrix"))
+        if lin.H.shape[0] == n_ang:
+            factor = BandedSPD(lin.H, what="block normal matrix")
+        elif cholmod.available():                 # optional, several times faster
+            factor = cholmod.CholmodSPD(lin.H, what="block normal matrix")
+        else:
+            factor = SparseSPD(lin.H, what="block normal matrix")
         full = factor.solve(-lin.grad)
         return full[:n_ang], factor, (full[n_ang:] if len(full) > n_ang else None)
     S, rhs, back = _reduced_normals(lin.H.tocsr(), lin.grad, n_ang)

@@ -29,10 +29,23 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
+from scipy.linalg import lapack
 
+from ins.common.errors import InputError
 from photogrammetry.adjustment.banded import BandedSPD, SparseSPD, bordered_order
 
-__all__ = ["BandedCovariance", "banded_covariance"]
+__all__ = ["BandedCovariance", "banded_covariance", "DENSE_MAX_ANGLES"]
+
+#: A bordered block (relative, base-free) of at most this many angles keeps its
+#: covariance as a dense matrix too (``BandedCovariance.C``, ``8 n^2`` bytes: 70 MB at
+#: 1000 images, 104 MB at this bound, 1200 images): its sigmas are its diagonal
+#: (instead of the selected inverse of the sparse factor) and the INS assessment works
+#: on it (:class:`photogrammetry.adjustment.reml.DenseV`: a dense Cholesky of ``n^3 / 3``
+#: flops per REML evaluation; 987 images: 0.3 s, three times cheaper than the sparse
+#: augmented system, whose cost grows more slowly).  Forming it and the assessment
+#: hold two such matrices at a time; the bound keeps them within a fifth of the 1 GB
+#: that a block of that size may use (``bench/bench_block_scale.py``).
+DENSE_MAX_ANGLES = 3600
 
 
 @dataclass
@@ -59,6 +72,9 @@ class BandedCovariance:
     solver : photogrammetry.adjustment.banded.SparseSPD or BandedSPD
         Solves with ``S`` (bordered: the sparse LU, cheaper than the band; else
         `factor`).
+    C : ndarray (n, n) or None
+        The covariance as a dense matrix, when it was formed (:meth:`dense`; bordered
+        blocks of up to :data:`DENSE_MAX_ANGLES` angles: their blocks are its diagonal).
     """
     S: object
     factor: object
@@ -68,6 +84,7 @@ class BandedCovariance:
     blocks: np.ndarray
     n_angles: int = None
     solver: object = None
+    C: object = None
 
     def __post_init__(self):
         if self.n_angles is None:
@@ -98,6 +115,29 @@ class BandedCovariance:
             out = out + self.factor.solve(self.TX @ (self.TX.T @ x))
         return out
 
+    def dense(self):
+        """``C`` as a dense matrix (n, n), rad^2 (`C` when it was kept).  Bordered:
+        ``sigma0^2 S^-1`` with the reduced normal matrix ``S = H_aa - H_ab H_bb^-1 H_ba``
+        formed through the sparse factor of the bases' block ``H_bb``
+        (:meth:`photogrammetry.adjustment.banded.SparseSPD.inverse_form`) and inverted by
+        LAPACK's Cholesky (470 base-free images: 0.4 s, where the solves of ``H`` with
+        the angles' unit vectors took 3 s); ValueError when SuperLU's factor of
+        ``H_bb`` is not ``L D L'`` of one ordering.  Else ``C`` applied to the identity.
+        Memory ``8 n^2`` bytes (with the temporaries, three times that)."""
+        if self.C is not None:
+            return self.C
+        n = self.n_angles
+        if not self.bordered:
+            return self.apply(np.eye(n))
+        H = sparse.csr_matrix(self.S)
+        Hbb = SparseSPD(H[n:, n:], what="block normal matrix of the bases")
+        S = Hbb.inverse_form(H[n:, :n])
+        S *= -1.0
+        S += H[:n, :n].toarray()
+        C = _inv_spd(S.T, "the block's reduced normal matrix")   # (in place: F order)
+        C *= self.sigma0 ** 2
+        return C
+
     def K(self):
         """``K = sigma0^2 S + T Sx T^T`` (sparse), so that ``C = S^-1 K S^-1`` (not
         bordered only)."""
@@ -107,6 +147,29 @@ class BandedCovariance:
         if self.TX is not None:
             K = K + self.TX @ self.TX.T
         return sparse.csr_matrix(K)
+
+
+def _diagonal_blocks(C):
+    """The 3x3 diagonal blocks (k, 3, 3) of a dense (3k, 3k) matrix."""
+    i = 3 * np.arange(len(C) // 3)[:, None, None] + np.arange(3)[None, :, None]
+    return C[i, i.transpose(0, 2, 1)]
+
+
+def _inv_spd(M, what):
+    """Inverse of a dense SPD matrix (LAPACK potrf + potri on its lower triangle; `M`
+    overwritten when it is in Fortran order)."""
+    c, info = lapack.dpotrf(M, lower=1, clean=1, overwrite_a=1)
+    if info == 0:
+        c, info = lapack.dpotri(c, lower=1, overwrite_c=1)
+    if info != 0:
+        raise InputError(f"{what} is singular or not positive definite (part of the "
+                         "block not connected to the datum, or degenerate geometry)")
+    for s in range(0, len(c), 512):          # the lower triangle mirrored in place
+        e = s + 512
+        d = c[s:e, s:e]
+        d[...] = np.tril(d) + np.tril(d, -1).T
+        c[s:e, e:] = c[e:, s:e].T
+    return c
 
 
 def _position_blocks(factor, TX, k, chunk=256):
@@ -138,7 +201,8 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
         Angle unknowns (default all of ``H``: known-base).
     factor : photogrammetry.adjustment.banded.SparseSPD, optional
         The sparse factor of `H` if already computed (bordered blocks: the last
-        Gauss-Newton step's).
+        Gauss-Newton step's; a :class:`photogrammetry.adjustment.cholmod.CholmodSPD`
+        serves the dense covariance's solves, a SuperLU factor is made otherwise).
 
     Returns
     -------
@@ -148,6 +212,18 @@ def banded_covariance(H, sigma0, free, WJ=None, N=None, img=None, position_sigma
     n_angles = S.shape[0] if n_angles is None else int(n_angles)
     k = n_angles // 3
     if n_angles < S.shape[0]:           # bordered: selected inverse of the sparse factor
+        if n_angles <= DENSE_MAX_ANGLES:    # the dense C, which the assessment uses
+            solver = factor if factor is not None else SparseSPD(
+                S, what="block normal matrix")   # (any factor that solves)
+            op = BandedCovariance(S, solver, float(sigma0), None, free, None, n_angles,
+                                  solver)
+            try:
+                op.C = op.dense()
+            except ValueError:              # no L D L' of the bases' block
+                op = None
+            if op is not None:
+                op.blocks = _diagonal_blocks(op.C)
+                return op
         solver = factor if isinstance(factor, SparseSPD) else SparseSPD(
             S, what="block normal matrix")
         if solver.has_selected_inverse():
