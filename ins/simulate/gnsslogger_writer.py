@@ -153,7 +153,7 @@ def _phone_raw():
     return RawSettings(rate_hz=1.0, elevation_mask_rad=np.deg2rad(10.0), sigma_code_m=2.0,
                        sigma_phase_m=0.003, sigma_doppler_hz=0.2, multipath_code_m=2.0,
                        multipath_phase_m=0.005, multipath_time_s=15.0, clock_bias_s=1.2e-6,
-                       clock_drift=8e-8, clock_bias_noise=3e-9, clock_drift_noise=2e-9,
+                       clock_drift=8e-8, clock_bias_noise=3e-10, clock_drift_noise=6e-10,
                        cn0_zenith_dbhz=45.0, cn0_horizon_dbhz=25.0)
 
 
