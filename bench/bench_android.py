@@ -10,11 +10,14 @@ log, then
     ins process --imu imp/imu.csv --rover imp/gnss.obs --nav rover.nav --config hw.toml
                 --preset consumer [--coupling tight] -o OUT
 
-Prints per seed the horizontal RMS (m) of the phone's fixes, RTKLIB's single point and
-the tight and loose solutions against the truth, and of the solutions against the
-phone's fixes (the solution interpolated to the fix epochs).
+``--journey car``: the consumer car of
+:data:`ins.simulate.gnsslogger_writer.ANDROID_CAR` instead (parked 40 s, 4 min of town
+driving, the phone in a cradle; ``[vehicle] mounting_rpy_deg`` in the config).  Prints
+per seed the horizontal RMS (m) of the phone's fixes, RTKLIB's single point and the
+tight and loose solutions against the truth, and of the solutions against the phone's
+fixes (the solution interpolated to the fix epochs).
 
-    .venv/bin/python bench/bench_android.py [--seeds 3] [--keep DIR]
+    .venv/bin/python bench/bench_android.py [--journey walk|car] [--seeds 3] [--keep DIR]
 """
 import argparse
 import subprocess
@@ -31,7 +34,11 @@ from ins.io.navfiles import read_nav  # noqa: E402
 from ins.io.rtklib import read_pos  # noqa: E402
 from ins.nav.interpolation import interpolate_trajectory  # noqa: E402
 from ins.nav.trajectory import Trajectory  # noqa: E402
-from ins.simulate.gnsslogger_writer import write_android_journey  # noqa: E402
+from ins.simulate.gnsslogger_writer import (ANDROID_CAR, ANDROID_WALK,  # noqa: E402
+                                            write_android_journey)
+
+JOURNEYS = {"walk": (ANDROID_WALK, ""),
+            "car": (ANDROID_CAR, "[vehicle]\nmounting_rpy_deg = [1.0, -2.0, 3.0]\n")}
 
 
 def _traj(path):
@@ -52,10 +59,11 @@ def horizontal_rms(est, ref):
     return float(np.sqrt(np.mean(dn ** 2 + de ** 2)))
 
 
-def run(seed, keep):
-    d = Path(keep) / f"walk_{seed}" if keep else Path(tempfile.mkdtemp())
-    write_android_journey(d, NAV, seed=seed)
-    (d / "hw.toml").write_text("[gnss]\nlever_arm_b_m = [0.0, 0.0, 0.0]\n")
+def run(name, seed, keep):
+    d = Path(keep) / f"{name}_{seed}" if keep else Path(tempfile.mkdtemp())
+    journey, facts = JOURNEYS[name]
+    write_android_journey(d, NAV, journey=journey, seed=seed)
+    (d / "hw.toml").write_text("[gnss]\nlever_arm_b_m = [0.0, 0.0, 0.0]\n" + facts)
     ins = [sys.executable, "-m", "ins.cli.main"]
     subprocess.run(ins + ["import-android", str(d / "gnss_log.txt"), "-o", str(d / "imp"),
                     "--force", "-q"], check=True)
@@ -85,12 +93,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--keep", help="keep the folders here")
+    ap.add_argument("--journey", choices=sorted(JOURNEYS), default="walk")
     a = ap.parse_args()
     print("horizontal RMS, m     fixes-truth  spp-truth  tight-truth  loose-truth  "
           "tight-fixes  loose-fixes")
     rows = []
     for seed in range(a.seeds):
-        r = run(seed, a.keep)
+        r = run(a.journey, seed, a.keep)
         rows.append(r)
         print(f"seed {seed:<16} {r['fixes']:11.2f} {r.get('spp', np.nan):10.2f} "
               f"{r['tight']:12.2f} {r['loose']:12.2f} {r['tight_fix']:12.2f} "

@@ -220,3 +220,19 @@ def test_twin_chain_against_the_truth(twin, coupling):
     print(f"{coupling}: solution {h:.2f} m, single point {spp:.2f} m, phone fixes "
           f"{_horizontal_rms(d, d / 'imp' / 'fix.pos'):.2f} m (horizontal RMS vs truth)")
     assert h < 3.0 and h < 0.6 * spp
+
+
+def test_twin_refuses_a_journey_outside_the_ephemerides(tmp_path):
+    """A journey the navigation file does not cover is refused at once, naming the file
+    and the span (before the truth is integrated); settings out of range likewise."""
+    from ins.common.errors import InputError
+    from ins.simulate.gnsslogger_writer import ANDROID_WALK, PhoneSettings, \
+        write_android_journey
+    if not NAV.is_file():
+        pytest.skip(f"{NAV}: the shared real data are not here")
+    with pytest.raises(InputError, match="do not cover the journey.*GPS week 1316, "
+                                         "100000-100240 s") as e:
+        write_android_journey(tmp_path / "x", NAV, journey=replace(ANDROID_WALK, t0=1e5))
+    assert "07590920.05n" in str(e.value) and not (tmp_path / "x").exists()
+    with pytest.raises(ValueError, match="bias_nanos: expected ns in"):
+        PhoneSettings(bias_nanos=1.5)

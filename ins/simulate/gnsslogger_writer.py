@@ -52,11 +52,12 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ins.common.errors import InputError
 from ins.common.fileio import atomic_open
 
 __all__ = ["PhoneSettings", "PHONE_RAW", "RAW_COLUMNS", "FIX_COLUMNS", "ACCEL_COLUMNS",
            "GYRO_COLUMNS", "write_android_journey", "elapsed_ns", "STATE_GPS_TRACKED",
-           "ANDROID_WALK"]
+           "ANDROID_WALK", "ANDROID_CAR"]
 
 C_LIGHT = 299792458.0
 WEEK_NS = 604800 * 10 ** 9
@@ -147,6 +148,20 @@ class PhoneSettings:
     fix_time_s: float = 30.0
     lever_b_m: tuple = (0.0, 0.0, 0.0)
 
+    def __post_init__(self):
+        checks = (("bias_nanos", 0.0 <= self.bias_nanos < 1.0, "ns in [0, 1)"),
+                  ("gyro_rate_hz", 0 < self.gyro_rate_hz <= 1000, "Hz in (0, 1000]"),
+                  ("accel_rate_hz", 0 < self.accel_rate_hz <= 1000, "Hz in (0, 1000]"),
+                  ("stamp_jitter_s", 0 <= self.stamp_jitter_s < 0.01, "s in [0, 0.01)"),
+                  ("noise_factor", self.noise_factor > 0, "a factor > 0"),
+                  ("fix_time_s", self.fix_time_s > 0, "s > 0"),
+                  ("time_nanos0", self.time_nanos0 >= 0, "ns >= 0"),
+                  ("boot_offset_ns", self.boot_offset_ns >= 0, "ns >= 0"))
+        for name, ok, want in checks:
+            if not ok:
+                raise ValueError(f"PhoneSettings {name}: expected {want}, got "
+                                 f"{getattr(self, name)!r}")
+
 
 def _phone_raw():
     from ins.simulate.gnss_raw import RawSettings
@@ -168,6 +183,15 @@ def _walk():
     return replace(WALK, lla0_deg=(35.1605, 139.6150, 72.0), t0=524400.0)
 
 
+def _car():
+    from ins.simulate.ground import CONSUMER_CAR
+    return replace(CONSUMER_CAR, lla0_deg=(35.1605, 139.6150, 72.0), t0=524400.0)
+
+
+#: The consumer car of :mod:`ins.simulate.ground` (parked 40 s, then 4 min of town
+#: driving; the phone in a cradle 1, -2, 3 deg off the car's axes) at the same place and
+#: time as :data:`ANDROID_WALK`.
+ANDROID_CAR = _car()
 #: The handheld walk of :mod:`ins.simulate.ground` moved beside the station of the
 #: 2005 day 092 navigation file of ``../shared/real/rtklib_static_pair`` (Japan, GPS
 #: week 1316, 524400 s: 7 satellites above 15 deg, GDOP 2.8).
@@ -227,7 +251,7 @@ def _raw_lines(obs, time_nanos, full_bias, tow_int, phone, raw, week, leap_s, t0
             code_ns = obs.code[k, j] / C_LIGHT * 1e9
             # t_rx = tow_int - b; (t_rx + off - sv) = code_ns with sv integer
             r = int(np.round(code_ns + b))
-            sv = int(tow_int[k]) - r
+            sv = (int(tow_int[k]) - r) % WEEK_NS          # the week's rollover
             off = code_ns + b - r
             sin_el = np.sin(obs.elevation[k, j])
             st = _ADR_VALID | (_ADR_SLIP if obs.lli[k, j] else 0)
@@ -346,15 +370,19 @@ def write_android_journey(folder, nav_file, journey=None, week=ANDROID_WEEK, see
     from ins.nav.trajectory import Trajectory
     from ins.simulate.ground import GroundTruth
     from ins.simulate.gnss_raw import simulate_raw
-    from ins.simulate.gnss_raw_product import check_span, load_orbits
+    from ins.simulate.gnss_raw_product import load_orbits
     from ins.simulate.sensor_errors import ImuErrorModel
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     journey = ANDROID_WALK if journey is None else journey
-    truth = GroundTruth(journey)
     raw = replace(raw, nav_file=str(nav_file))
     orbits = load_orbits(raw)
-    check_span(orbits, week, truth.t_start, truth.t_end)
+    if not orbits.covers(week, journey.t0, journey.t0 + journey.duration_s):
+        raise InputError(f"the broadcast ephemerides do not cover the journey (GPS week "
+                         f"{week}, {journey.t0:.0f}-{journey.t0 + journey.duration_s:.0f} s "
+                         f"of week): give a Journey whose t0 (GPS s of week) and a week "
+                         f"inside the file's span", path=str(nav_file))
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    truth = GroundTruth(journey)
     rng = np.random.default_rng(seed)
     time_nanos, full_bias, tow_int, t_rx = _epochs(truth.t_start, truth.t_end, raw, phone,
                                                    week)
