@@ -7,7 +7,6 @@ RTKLIB's single point.  Checked against the simulator's truth, never against the
 importer's formulas: the pseudoranges against the simulator's own (and against the
 physics of its truth file), the IMU's time base against the boot clock the simulator
 drew, the solutions against the truth trajectory."""
-import subprocess
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
