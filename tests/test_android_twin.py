@@ -235,3 +235,17 @@ def test_twin_refuses_a_journey_outside_the_ephemerides(tmp_path):
     assert "07590920.05n" in str(e.value) and not (tmp_path / "x").exists()
     with pytest.raises(ValueError, match="bias_nanos: expected ns in"):
         PhoneSettings(bias_nanos=1.5)
+
+
+def test_simulate_phone_refuses_a_missing_navigation_file(tmp_path, capsys):
+    """``ins simulate-phone``: a --nav that is not there is a bad input (exit 2, naming
+    it), and nothing is written."""
+    from ins.cli.main import main
+    try:
+        code = main(["simulate-phone", str(tmp_path / "out"), "--nav",
+                     str(tmp_path / "none.nav")])
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2
+    assert "none.nav: no such file" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

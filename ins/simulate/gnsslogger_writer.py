@@ -458,6 +458,8 @@ def write_android_journey(folder, nav_file, journey=None, week=ANDROID_WEEK, see
                     "stamp_jitter_s": phone.stamp_jitter_s,
                     "n_gyro": int(len(stamps["UncalGyro"][0])),
                     "n_accel": int(len(stamps["UncalAccel"][0]))},
+        "gnss": {"n_epochs": int(len(obs.time_rx)), "n_measurements": int(obs.observed.sum()),
+                 "satellites": sorted(int(p) for p in obs.prns[obs.observed.any(axis=0)])},
         "fixes": {"sigma_h_m": phone.fix_sigma_h_m, "sigma_v_m": phone.fix_sigma_v_m,
                   "time_s": phone.fix_time_s, "n": int(len(fix_t))},
         "raw": {k: v for k, v in asdict(raw).items()
