@@ -56,6 +56,7 @@ BASE = {
     ("ins", "allan"): ["imu.txt"],
     ("ins", "align"): ["imu.txt", "--lla", "1,2,3"],
     ("ins", "simulate"): ["plan.toml", "-o", "out"],
+    ("ins", "simulate-phone"): ["out", "--nav", "n.nav"],
     ("ins", "process"): ["flight", "-o", "out"],
     ("ins", "compare"): ["a.nav", "b.nav"],
     ("ins", "gnss"): ["rover.obs", "-o", "rover.pos"],

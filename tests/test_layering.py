@@ -55,7 +55,9 @@ GRAPH = {
     "ins.lidar": {"ins.common", "ins.nav", "ins.io"},
     # the simulator's GNSS antenna uses the lever-arm model, its scanner the georeferencing
     "ins.simulate": {"ins.common", "ins.nav", "ins.io", "ins.lidar", "ins.estimation.core"},
-    "ins.cli": {"ins", "ins.gnss"} | _INS_BELOW_CLI,     # ins.__version__
+    # ins.__version__; ins simulate-phone: the GnssLogger twin (ins.simulate's ground
+    # journeys and raw GNSS, no camera: ins simulate itself lives in photogrammetry.cli)
+    "ins.cli": {"ins", "ins.gnss", "ins.simulate"} | _INS_BELOW_CLI,
     "photogrammetry": {"ins.common"},        # the lazy public API (ins.common.lazy)
     "photogrammetry.imagery": {"ins.common"},
     "photogrammetry.orientation": {"ins.common", "ins.nav", "photogrammetry.imagery"},

@@ -251,6 +251,7 @@ COMMAND_MODULES = [
     "ins.cli.georeference",
     "ins.cli.gnss",
     "ins.cli.process_batch",        # ins process (one log: ins.cli.process; many)
+    "ins.cli.simulate_phone",
     "ins.cli.strip_check",
     "ins.cli.time_offset",
     "ins.cli.vehicle",

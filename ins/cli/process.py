@@ -218,7 +218,9 @@ def add_parser(sub):
                         "the checks; with FLIGHT_DIR its simulated raw GPS (rover.obs, "
                         "rover.nav)")
     p.add_argument("--config", metavar="F.toml", help="processing config (TOML)")
-    p.add_argument("--truth", metavar="F.nav", help="truth .nav: errors and error plots")
+    p.add_argument("--truth", metavar="F.nav",
+                   help="truth .nav: errors and error plots (on the shared epochs; a "
+                        "truth at other epochs is interpolated to the solution's)")
     p.add_argument("--no-smooth", action="store_true", help="forward filter only")
     p.add_argument("--forward", action="store_true",
                    help="also write forward.nav (the forward filter's trajectory)")

@@ -44,6 +44,15 @@ broadcast ephemeris even with precise products (its ``satposs`` takes the signal
 transmission time from the broadcast clock): a system without a broadcast file is
 not used.
 
+A single-point solution (``mode = "single"``) carries RTKLIB's Doppler velocity of each
+epoch (``pntpos``'s least squares over the Doppler shifts: ``vn ve vu`` and their sigmas
+in the ``.pos``): a receiver of metre noise (a phone) has no other velocity worth the
+name, its positions differenced over 1 s scatter by metres per second, so that its
+start at rest went unseen and a start while moving was levelled 9 deg off by the
+acceleration of those differences (the simulated phone walk of
+:mod:`ins.simulate.gnsslogger_writer`).  The other modes write no velocity (without
+``dynamics`` their filter has no velocity state to write).
+
 The PPP modes (RTKLIB's ``ppp-kine`` / ``ppp-static``) also switch on solid Earth
 tides, the carrier phase wind-up and the exclusion of satellites in eclipse; with an
 ANTEX file (``--atx``) the satellites' and the receiver's antenna phase centres (the
@@ -291,7 +300,7 @@ def fill_prcopt(opts, rtk, precise=False, atx=None, dcb=None):
     else:
         po.refpos = {"rinex": rtk.POSOPT_RINEX, "single": rtk.POSOPT_SINGLE}[opts.base_position]
     # solution file: lat/lon/height (deg, ellipsoidal, WGS84), GPS week and seconds,
-    # the header (column names, ref pos), no velocity
+    # the header (column names, ref pos); velocity only in single mode (module notes)
     so.posf = rtk.SOLF_LLH
     so.times = rtk.TIMES_GPST
     so.timef = 0
@@ -300,5 +309,5 @@ def fill_prcopt(opts, rtk, precise=False, atx=None, dcb=None):
     so.datum = 0
     so.outhead = 1
     so.outopt = 1
-    so.outvel = 0
+    so.outvel = 1 if opts.mode == "single" else 0
     return po, so, fo

@@ -34,6 +34,11 @@ gnss_multi, gnss_signals, kepler_orbit, glonass_orbit, rinex_mixed, gnss_multi_p
     by the ICD's RK4), Galileo (E1, E5a) and BeiDou (B1I, B2a, B3I; MEO, IGSO and GEO in
     BDT) from generated constellations: ``[gnss_raw] systems``, ``signals``; RINEX 3.04
     mixed observation and navigation files.
+ground, gnsslogger_writer
+    Ground journeys of low-cost users (a consumer car, a handheld walk) with their
+    truth in closed form, and the simulated twin of an Android phone carried along one:
+    a GnssLogger log (raw GPS, the inertial sensors on the phone's boot clock, the
+    phone's own fixes) with the truth of every clock and measurement.
 manifest
     ``manifest.toml``: the INS tables and the merge of the tables of product writers.
 folder
