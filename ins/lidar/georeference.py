@@ -52,8 +52,9 @@ estimate is of the whole rotation left, ``e(t) + b_hat - b``, the adjustment's e
 those points get the adjustment's sigma ``n`` alone; points outside the span (another
 flight) get the file's total boresight sigma and the trajectory's whole attitude
 sigma.  Measured (``bench/bench_lidar_sigmas.py --calibrated 12``: drawn, processed
-and calibrated flights of the 3-strip demo plan at 3 places and headings): pooled
-mean z^2 N/E/D 1.05/0.99/0.91 (+- 0.20/0.20/0.02), one flight 0.28 .. 2.8.  Limits:
+and calibrated flights of the 3-strip demo plan at 3 places and headings, 36
+flights): pooled mean z^2 N/E/D 0.95/0.94/0.89 (+- 0.12/0.12/0.01) calibrated,
+0.76/0.95/0.84 (+- 0.14/0.17/0.04) with the true scanner file.  Limits:
 the rotation left is estimated per segment from the strips' height differences,
 whose adjustment treats them as independent (they are not: the plane fits and the
 trajectory's faster errors correlate them), so its stated sigmas are far too small
