@@ -29,7 +29,12 @@ the file's.  The checksums are written from the formats' public descriptions:
   sum of the data bytes, ``0D 0A``;
 - Javad GREIS: the receiver-time message every epoch opens with, ``~~005``, its
   milliseconds of the day (4 bytes) and the GREIS checksum (from 0: rotate left by 2,
-  XOR each byte of the ID, length and body; rotated once more).
+  XOR each byte of the ID, length and body; rotated once more);
+- NVS BINR, which has no checksum: DLE (``10``), ID, data with each DLE doubled, DLE
+  ETX (``10 03``), followed by the next message's DLE (or the data's end); counted
+  only for the messages RTKLIB reads whose length and content fit their layout
+  (0xF5 raw data: 27 + 30 n bytes, week < 4096, signal types 1/2/4; 0xF7 ephemeris:
+  GPS 138 bytes, GLONASS at least 93).
 """
 import struct
 import zlib
@@ -37,7 +42,7 @@ import zlib
 from ins.io.ublox import ubx_checksum
 
 __all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "greis_checksum", "count_frames",
-           "RECOGNISERS"]
+           "unstuff_binr", "RECOGNISERS"]
 
 
 def _crc24q_table():
@@ -254,6 +259,45 @@ def _javad(data, k):
     return k + 10 if greis_checksum(data[k:k + 9]) == data[k + 9] else 0
 
 
+def unstuff_binr(data, k):
+    """``(message ID, data, end)`` of the NVS BINR message whose DLE is at ``k`` (the
+    doubled DLEs made single; ``end`` just after its DLE ETX), or None: no valid DLE
+    framing (a DLE inside followed by neither DLE nor ETX, or no end)."""
+    if k + 4 > len(data) or data[k + 1] in (0x10, 0x03):
+        return None
+    parts, i = [], k + 2
+    while True:
+        j = data.find(b"\x10", i)
+        if j < 0 or j + 1 >= len(data):
+            return None
+        parts.append(data[i:j])
+        if data[j + 1] == 0x03:
+            return data[k + 1], b"".join(parts), j + 2
+        if data[j + 1] != 0x10:
+            return None
+        parts.append(b"\x10")
+        i = j + 2
+
+
+def _nvs(data, k):
+    got = unstuff_binr(data, k)
+    if got is None:
+        return 0
+    ident, body, end = got
+    if end < len(data) and data[end] != 0x10:
+        return 0
+    if ident == 0xF5:
+        n, rest = divmod(len(body) - 27, 30)
+        if n < 0 or rest or struct.unpack_from("<H", body, 8)[0] >= 4096 or \
+                any(body[27 + 30 * i] not in (1, 2, 4) for i in range(n)):
+            return 0
+        return end
+    if ident == 0xF7 and len(body) >= 2 and (len(body) == 138 if body[0] == 1 else
+                                             body[0] == 2 and len(body) >= 93):
+        return end
+    return 0
+
+
 #: format name -> (sync bytes, frame check).
 RECOGNISERS = {
     "ubx": (b"\xb5\x62", _ubx),
@@ -267,6 +311,7 @@ RECOGNISERS = {
     "binex": (b"\xe2", _binex),
     "javad": (b"~~", _javad),
     "hemisphere": (b"$BIN", _hemisphere),
+    "nvs": (b"\x10", _nvs),
 }
 
 

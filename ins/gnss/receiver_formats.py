@@ -16,10 +16,10 @@ Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in t
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
 SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
-messages, Hemisphere ``$BIN``); else BINEX of another kind (its sync byte
+messages, Hemisphere ``$BIN``, NVS BINR 0xF5/0xF7 of their layout); else BINEX of another kind (its sync byte
 ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so); else
-the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 and NVS logs
-must be named (``--gnss-format``).
+the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 logs must be
+named (``--gnss-format``).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
 of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
@@ -27,9 +27,9 @@ RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
 complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS, SkyTraq
-0xE5/0xDC, Hemisphere Bin 76/96: RTKLIB's Unicore, SBP and SkyTraq decoders pass even
-a full week through ``adjgpsweek``, and the subframe decoders (SkyTraq 0xE0,
-Hemisphere Bin 95, ...) the 10-bit week, which without the clock set moves a log
+0xE5/0xDC, Hemisphere Bin 76/96, NVS 0xF5: RTKLIB's Unicore, SBP, SkyTraq and NVS
+decoders pass even a full week through ``adjgpsweek``, and the subframe decoders
+(SkyTraq 0xE0, Hemisphere Bin 95, ...) the 10-bit week, which without the clock set moves a log
 older than 2009 by 1024 weeks), else to the first ephemeris of the navigation files
 given with it.
 """
@@ -120,7 +120,7 @@ def detect_format(path):
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN frame, no BINEX record) nor "
+                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN/NVS frame, no BINEX record) nor "
                      f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
                      f"--base-format or [rtklib] rover_format / base_format, one of "
                      f"{format_names()}", path=path)
@@ -130,9 +130,11 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
     and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC;
-    Hemisphere Bin 76 / 96), else None."""
+    Hemisphere Bin 76 / 96; NVS 0xF5), else None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
+    if fmt == "nvs":
+        return _first_binr_epoch(path, limit_bytes)
     if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq", "hemisphere"):
         return None
     from ins.gnss.framing import RECOGNISERS
@@ -176,6 +178,26 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
             if 0 < week < 0xFFFF:
                 return int(week), ms / 1000.0
         k = data.find(sync, k + 1)
+    return None
+
+
+def _first_binr_epoch(path, limit_bytes):
+    """``(week, GPS tow_s)`` of the first NVS BINR 0xF5 raw data message (the UTC time
+    of measurement plus the GPS-UTC shift, ms), or None."""
+    from ins.gnss.framing import RECOGNISERS, unstuff_binr
+    check = RECOGNISERS["nvs"][1]
+    with open(path, "rb") as f:
+        data = f.read(limit_bytes)
+    k = data.find(b"\x10\xf5")
+    while k >= 0:
+        end = check(data, k)
+        if end:
+            _, body, _ = unstuff_binr(data, k)
+            utc_ms, week, shift_ms = struct.unpack_from("<dHd", body, 0)
+            tow = (utc_ms + shift_ms) / 1000.0
+            if 1024 <= week and 0.0 <= tow < 604800.0:     # a full week only
+                return int(week), tow
+        k = data.find(b"\x10\xf5", k + 1)
     return None
 
 
