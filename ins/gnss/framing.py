@@ -34,15 +34,23 @@ the file's.  The checksums are written from the formats' public descriptions:
   ETX (``10 03``), followed by the next message's DLE (or the data's end); counted
   only for the messages RTKLIB reads whose length and content fit their layout
   (0xF5 raw data: 27 + 30 n bytes, week < 4096, signal types 1/2/4; 0xF7 ephemeris:
-  GPS 138 bytes, GLONASS at least 93).
+  GPS 138 bytes, GLONASS at least 93);
+- RTCM 2 (RTCM 10402.3), a bit stream in the 6-of-8 format (bytes ``01xxxxxx``, the
+  6 bits first-sent in bit 0; other bytes skipped as RTKLIB does) of 30-bit words
+  with the GPS parity (IS-GPS-200 table 20-XIV; the data bits complemented after a
+  D30* of 1): a message counts when its header (preamble 0x66, the number of data
+  words) and every word pass the parity and the next message's header follows it
+  (or the data end).
 """
 import struct
 import zlib
 
+import numpy as np
+
 from ins.io.ublox import ubx_checksum
 
 __all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "greis_checksum", "count_frames",
-           "unstuff_binr", "RECOGNISERS"]
+           "unstuff_binr", "rtcm2_words", "RECOGNISERS"]
 
 
 def _crc24q_table():
@@ -298,6 +306,55 @@ def _nvs(data, k):
     return 0
 
 
+#: IS-GPS-200 table 20-XIV: the masks of the data bits d1..d24 (d1 the 24-bit word's
+#: top bit) in D25..D30, and whether D29* (0) or D30* (1) of the previous word enters.
+_PARITY = tuple((star, sum(1 << (24 - d) for d in bits)) for star, bits in (
+    (0, (1, 2, 3, 5, 6, 10, 11, 12, 13, 14, 17, 18, 20, 23)),
+    (1, (2, 3, 4, 6, 7, 11, 12, 13, 14, 15, 18, 19, 21, 24)),
+    (0, (1, 3, 4, 5, 7, 8, 12, 13, 14, 15, 16, 19, 20, 22)),
+    (1, (2, 4, 5, 6, 8, 9, 13, 14, 15, 16, 17, 20, 21, 23)),
+    (1, (1, 3, 5, 6, 7, 9, 10, 14, 15, 16, 17, 18, 21, 22, 24)),
+    (0, (3, 5, 6, 8, 9, 10, 11, 13, 15, 19, 22, 23, 24))))
+
+
+def rtcm2_words(data):
+    """``(valid, header, data24)`` at every bit of the RTCM 2 bit stream of ``data``
+    (bytes): the 30-bit word starting there passes the parity, it is a header's
+    first word (preamble 0x66), and its 24 data bits (uncomplemented)."""
+    arr = np.frombuffer(bytes(data), dtype=np.uint8)
+    arr = arr[(arr & 0xC0) == 0x40]
+    bits = ((arr[:, None] >> np.arange(6, dtype=np.uint8)) & 1).reshape(-1)
+    n = len(bits) - 29
+    if n <= 2:
+        return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, np.int64)
+    word = np.zeros(n, dtype=np.int64)
+    for j in range(30):
+        word = (word << 1) | bits[j:j + n]
+    d29 = np.concatenate(([0, 0], bits[:n - 2])).astype(np.int64)
+    d30 = np.concatenate(([0], bits[:n - 1])).astype(np.int64)
+    d = (word >> 6) ^ (d30 * 0xFFFFFF)
+    valid = np.ones(n, bool)
+    for k, (star, mask) in enumerate(_PARITY):
+        p = (np.bitwise_count(d & mask) & 1) ^ (d30 if star else d29)
+        valid &= p == ((word >> (5 - k)) & 1)
+    return valid, valid & ((d >> 16) == 0x66), d
+
+
+def _rtcm2_count(data):
+    """The RTCM 2 messages in ``data`` (module notes)."""
+    valid, header, d = rtcm2_words(data)
+    n, count, i = len(valid), 0, 0
+    starts = np.flatnonzero(header)
+    for k in starts:
+        if k < i or k + 30 >= n or not valid[k + 30]:
+            continue
+        end = k + 30 * (((d[k + 30] >> 3) & 0x1F) + 2)
+        if end <= n + 29 and all(valid[j] for j in range(k + 60, min(end, n), 30)) and \
+                (end >= n or header[end]):
+            count, i = count + 1, end
+    return count
+
+
 #: format name -> (sync bytes, frame check).
 RECOGNISERS = {
     "ubx": (b"\xb5\x62", _ubx),
@@ -319,4 +376,5 @@ def count_frames(data):
     """``{format: number of valid frames}`` in ``data`` (bytes) for the formats of
     :data:`RECOGNISERS` (zero counts left out)."""
     counts = {name: _scan(data, sync, check) for name, (sync, check) in RECOGNISERS.items()}
+    counts["rtcm2"] = _rtcm2_count(data)
     return {k: v for k, v in counts.items() if v}

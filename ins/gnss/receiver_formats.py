@@ -16,13 +16,13 @@ Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in t
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
 SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
-messages, Hemisphere ``$BIN``, NVS BINR 0xF5/0xF7 of their layout); else BINEX of another kind (its sync byte
+messages, Hemisphere ``$BIN``, NVS BINR 0xF5/0xF7 of their layout, RTCM 2 messages of
+30-bit words with the GPS parity); else BINEX of another kind (its sync byte
 ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so); else
-the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 logs must be
-named (``--gnss-format``).
+the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
-of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
+of week only, RTCM 2 the time within the hour), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
 RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era.  The
 conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
 RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
@@ -120,8 +120,8 @@ def detect_format(path):
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN/NVS frame, no BINEX record) nor "
-                     f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
+                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN/NVS/RTCM2 frame, no BINEX "
+                     f"record) nor from the extension {ext or '(none)'!r}: name it with --gnss-format / "
                      f"--base-format or [rtklib] rover_format / base_format, one of "
                      f"{format_names()}", path=path)
 
