@@ -99,11 +99,11 @@ def _phases_modulo(obs, path):
 
 @needs_pair
 def test_pair_with_an_rtcm2_base_gives_the_rinex_solution(tmp_path):
-    """The base's C1/P2/L1/L2 as types 18/19 come back to their resolution (0.02 m,
-    1/256 cycle; the phases modulo 2^23 cycles) and its position (type 3) to 0.01 m; kinematic PPK of the RINEX rover
-    against the RTCM 2 base (format from the content, week from the rover, position
-    from the log) = that against the RINEX base at type 3's position: epochs, Q, and
-    positions to 1 mm."""
+    """The base's C1/P2/L1/L2 as types 18/19 come back to their resolution (0.02 m, 1/256
+    cycle; the phases modulo 2^23 cycles) and its position (type 3) to 0.01 m, its date
+    from the rover's week; kinematic PPK of the RINEX rover against the RTCM 2 base
+    (format from the content, week from the rover, position from the log) = that against
+    the RINEX base at type 3's position: epochs, Q, and positions to 1 mm."""
     rtk = _rtk()
     from ins.gnss.receiver_formats import convert_raw
     from ins.gnss.rtklib_engine import solve
@@ -111,10 +111,11 @@ def test_pair_with_an_rtcm2_base_gives_the_rinex_solution(tmp_path):
     from ins.nav.earth import ned_offset
     base = tmp_path / "base.dat"
     base.write_bytes(r2.rinex2_to_rtcm2(BASE, BASE_XYZ))
-    obs, _ = convert_raw(base, str(tmp_path), rtk, stem="b", epoch=(1304, 518400.0))
+    obs, _ = convert_raw(base, str(tmp_path), rtk, stem="b", epoch=(1316, 518400.0))
     tol = {"C1": 0.01 + 5e-4, "P2": 0.01 + 5e-4}
     assert _check_rinex_values(obs, BASE, {}, _TYPES[:2], tol=tol) > 1500
     assert _phases_modulo(obs, BASE) > 1500
+    assert read_rinex3_obs(obs)[0][0] == (2005, 4, 2, 0, 0, 0.0)     # week 1316
     assert np.allclose(_approx_position(obs), np.round(BASE_XYZ, 2), atol=1e-6)
     lla = _type3_lla(obs, rtk)
     a = solve(ROVER, NAV, tmp_path / "rinex.pos", base=BASE,
@@ -163,8 +164,8 @@ def test_gnss_tight_and_process_take_an_nvs_rover_and_an_rtcm2_base(tmp_path, ca
     data, _ = nvs.rinex2_to_nvs(ROVER)
     k = RECOGNISERS["nvs"][1](data, 0)
     rover = tmp_path / "rover.log"
-    rover.write_bytes(nvs.raw_f5(1304, 518399.0, []) + data[:k] + data[k:])
-    obs, _ = convert_raw(base, str(tmp_path), rtk, stem="b", epoch=(1304, 518400.0))
+    rover.write_bytes(nvs.raw_f5(1316, 518399.0, []) + data[:k] + data[k:])
+    obs, _ = convert_raw(base, str(tmp_path), rtk, stem="b", epoch=(1316, 518400.0))
     lla = _type3_lla(obs, rtk)
     ref = solve(ROVER, NAV, tmp_path / "ref.pos", base=BASE,
                 options=RtklibOptions(systems=("gps",), frequencies=1,
