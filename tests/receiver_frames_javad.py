@@ -14,6 +14,11 @@ External Interface Specification"), to test the conversion of Javad logs
   opposite sign of RINEX's), [EC] / [E2] C/N0 (U1 dB-Hz), [TC] CA/L1 continuous
   tracking time (U2 s), then [::] epoch time (ms of the day U4).  No value: F8 0, I4
   0x7FFFFFFF, U1 255.
+- [GE] GPS ephemeris, the reference's ``GPSEphemeris``: sv U1, tow U4 (s), flags U1 (bit
+  0 curve fit interval, bit 1 L2 P data flag, bits 2-3 code on L2), iodc I2, toc I4 (s),
+  ura I1, health U1, week I2, tgd F4 (s), af2 F4, af1 F4, af0 F4, toe I4 (s), iode I2,
+  sqrt A F8, e F8, M0, Omega0, i0, omega F8 (semicircles), delta n, Omega dot, IDOT F4
+  (semicircles/s), crc, crs F4 (m), cuc, cus, cic, cis F4 (rad).
 - A log opens with the [JP] file identifier ("RLOGF JPS ..."), as a receiver writes
   it: RTKLIB's convrnx never runs the decoder's start-of-file step, so a log whose
   very first byte began a data message (no line feed before it) converted to blank
@@ -72,6 +77,32 @@ def _date_tod(week, tow_s):
     d = np.datetime64("1980-01-06") + np.timedelta64(days, "D")
     y, m, dd = (int(x) for x in str(d).split("-"))
     return (y, m, dd), round((tow_s % 86400) * 1000.0)
+
+
+SC2RAD = 3.1415926535898                  # IS-GPS-200's pi
+
+
+def ephemeris_ge(e, rtk):
+    """[GE] of a GPS ephemeris (an RTKLIB ``eph_t``)."""
+    w = rtk.Arr1Dint(1)
+    toc = rtk.time2gpst(e.toc, w)
+    tow = rtk.time2gpst(e.ttr, w)
+    flags = (1 if e.fit > 4.0 else 0) | (e.flag & 1) << 1 | (e.code & 3) << 2
+    body = struct.pack("<BIBhibBhffffihddddddfffffffff", e.sat, int(tow), flags, e.iodc,
+                       int(round(toc)), e.sva, e.svh, e.week, e.tgd[0], e.f2, e.f1, e.f0,
+                       int(round(e.toes)), e.iode, np.sqrt(e.A), e.e, e.M0 / SC2RAD,
+                       e.OMG0 / SC2RAD, e.i0 / SC2RAD, e.omg / SC2RAD, e.deln / SC2RAD,
+                       e.OMGd / SC2RAD, e.idot / SC2RAD, e.crc, e.crs, e.cuc, e.cus,
+                       e.cic, e.cis)
+    return greis_message("GE", body)
+
+
+def nav_to_javad(nav_path, rtk):
+    """[GE] of every GPS ephemeris of a RINEX navigation file, and the ephemerides."""
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    rtk.readrnx(str(nav_path), 1, "", obs, nav, sta)
+    ephs = [nav.eph[i] for i in range(nav.n)]
+    return b"".join(ephemeris_ge(e, rtk) for e in ephs), ephs
 
 
 FILE_ID = greis_message("JP", b"RLOGF JPS E/A/D/C/N GREIS test log")

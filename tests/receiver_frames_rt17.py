@@ -16,11 +16,19 @@ to test the conversion of RT-17 logs (ins.gnss.receiver_formats) against known v
   (dB x 4), pseudorange F8 m, continuous phase F8 cycles (Trimble's sign: the
   NEGATIVE of the RINEX phase), Doppler F4 Hz; [L2 data] signal strength U1, phase
   F8 cycles (negative), range minus the L1 range F4 m.
-The record gives no GPS week: RTKLIB takes it from the computer's clock (set by the
-conversion from the navigation files or, for a base, the rover's first epoch).
+- RETSVDATA 55h, subtype 1 GPS ephemeris: subtype U1, PRN U1, ephemeris week U2,
+  IODC U2, reserved U1, IODE U1, TOW I4 (s), toc I4 (s), toe U4 (s), then F8: T_GD
+  (s), a_f2, a_f1, a_f0, C_rs (m), delta n (semicircles/s), M0 (semicircles), C_uc
+  (semicircles), e, C_us, sqrt A, C_ic, Omega0, C_is, i0, C_rc, omega, Omega dot,
+  IDOT, then flags U4 (bit 0 L2 P data flag, bits 1-2 code on L2, bits 4-9 health,
+  bit 10 fit interval flag, bits 11-14 URA index).  Not paged.
+The record gives no GPS week: RTKLIB takes it from an ephemeris before it, else from
+the computer's clock (set by the conversion from the navigation files or, for a base,
+the rover's first epoch).
 """
 import struct
 
+import numpy as np
 from receiver_frames import _rinex2_arcs
 
 RAWDATA = 0x57
@@ -35,6 +43,43 @@ def rt17_packets(record_type, record, rif=0x01, reply=0, status=0):
         body = bytes([status, RAWDATA, len(data)]) + data
         out += b"\x02" + body + bytes([sum(body) & 0xFF, 0x03])
     return out
+
+
+RETSVDATA = 0x55
+SC2RAD = 3.1415926535898                  # IS-GPS-200's pi
+
+
+def rt17_packet(ptype, data, status=0):
+    body = bytes([status, ptype, len(data)]) + data
+    return b"\x02" + body + bytes([sum(body) & 0xFF, 0x03])
+
+
+def ephemeris_55(e, rtk):
+    """RETSVDATA GPS ephemeris packet of an RTKLIB ``eph_t``."""
+    w = rtk.Arr1Dint(1)
+    toc = rtk.time2gpst(e.toc, w)
+    tow = rtk.time2gpst(e.ttr, w)
+    flags = (e.flag & 1) | (e.code & 3) << 1 | (e.svh & 0x3F) << 4 | \
+        (1 << 10 if e.fit > 4.0 else 0) | (e.sva & 15) << 11
+    sc = (e.tgd[0], e.f2, e.f1, e.f0, e.crs, e.deln / SC2RAD, e.M0 / SC2RAD,
+          e.cuc / SC2RAD, e.e, e.cus / SC2RAD, np.sqrt(e.A), e.cic / SC2RAD,
+          e.OMG0 / SC2RAD, e.cis / SC2RAD, e.i0 / SC2RAD, e.crc, e.omg / SC2RAD,
+          e.OMGd / SC2RAD, e.idot / SC2RAD)
+    data = struct.pack(">BBHHBBiiI19dI", 1, e.sat, e.week, e.iodc, 0, e.iode & 0xFF,
+                       int(tow), int(round(toc)), int(round(e.toes)), *sc, flags)
+    return rt17_packet(RETSVDATA, data)
+
+
+def nav_to_rt17(nav_path, rtk):
+    """``[((week, tow) of transmission, RETSVDATA packet)]`` of every GPS ephemeris of
+    a RINEX navigation file (its week the toe's, as RINEX gives it)."""
+    obs, nav, sta = rtk.obs_t(), rtk.nav_t(), rtk.sta_t()
+    rtk.readrnx(str(nav_path), 1, "", obs, nav, sta)
+    out, w = [], rtk.Arr1Dint(1)
+    for i in range(nav.n):
+        tow = rtk.time2gpst(nav.eph[i].ttr, w)
+        out.append(((int(w[0]), float(tow)), ephemeris_55(nav.eph[i], rtk)))
+    return sorted(out, key=lambda x: x[0])
 
 
 def type17(tow_s, sats, reply=0):
@@ -63,16 +108,21 @@ def simulation_log(epochs):
                     for k, (_, tow, sats) in enumerate(epochs))
 
 
-def rinex2_to_rt17(path):
+def rinex2_to_rt17(path, ephemerides=()):
     """The GPS C1/L1 and P2/L2 observations of a RINEX 2.10 file as type 17 records
     (the phases shifted near the ranges like a receiver's new arcs, the slip flag at
     an arc's start; a double would hold the file's phases, the shift keeps the
     comparison the same as for the other formats); an L2 without its phase, or a
-    satellite without C1, left out.  Returns the packets, the shifts and the left out
+    satellite without C1, left out; ``ephemerides`` (:func:`nav_to_rt17`) each sent
+    before the first epoch at or after its transmission, as a receiver sends them
+    (those of later, at the end).  Returns the packets, the shifts and the left out
     ``{(tow, "Gnn", band)}``."""
+    pending = list(ephemerides)
     epochs, shifts = _rinex2_arcs(path, {"L1": ("C1", "L1"), "L2": ("P2", "L2")})
     data, left = b"", set()
-    for k, (_, tow, sats) in enumerate(epochs):
+    for k, (week, tow, sats) in enumerate(epochs):
+        while pending and pending[0][0] <= (week, tow):
+            data += pending.pop(0)[1]
         meas = {}
         for p, bands in sats.items():
             l1, l2 = bands.get("L1"), bands.get("L2")
@@ -87,5 +137,5 @@ def rinex2_to_rt17(path):
                     m["L2"] = (l2[0], l2[1], None, l2[3], l2[4] < 1.0)
             meas[p] = m
         data += type17(tow, meas, reply=k)
-    return data, shifts, left
+    return data + b"".join(p for _, p in pending), shifts, left
 

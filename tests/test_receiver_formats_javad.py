@@ -1,9 +1,10 @@
 """Javad GREIS logs encoded by the tests from Javad's GREIS reference
 (tests/receiver_frames_javad.py: [~~] [RD] [SI] [RC]/[R2] [PC]/[P2] [DC]/[D2]
-[EC]/[E2] [TC] [::]) and decoded by RTKLIB's convrnx: the GREIS checksum, detection
-from the content (the [~~] receiver-time messages), the observations equal to the
-simulated truth to the format's resolution, and the real GEONET pair's rover
-re-encoded giving RTKLIB's solution of the RINEX files."""
+[EC]/[E2] [TC] [::], [GE] ephemerides) and decoded by RTKLIB's convrnx: the GREIS
+checksum, detection from the content (the [~~] receiver-time messages), the
+observations equal to the simulated truth to the format's resolution, and the real
+GEONET pair's rover re-encoded giving RTKLIB's solution of the RINEX files with its
+own ephemerides or the nav file."""
 import sys
 from pathlib import Path
 
@@ -13,7 +14,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import receiver_frames_javad as jav  # noqa: E402
 from test_receiver_formats import BASE, NAV, ROVER, _compare, _rtk, _sim, \
     needs_pair  # noqa: E402
-from test_receiver_formats_survey import _TYPES, _check_rinex_values  # noqa: E402
+from test_receiver_formats_survey import _TYPES, _check_rinex_values, \
+    _ephemerides  # noqa: E402
 
 
 def test_greis_checksum_and_detection(tmp_path):
@@ -50,23 +52,33 @@ def test_javad_greis_decodes_to_the_simulation(tmp_path):
 
 @needs_pair
 def test_pair_with_a_javad_rover_gives_the_rinex_solution(tmp_path):
-    """The rover's values come back to the RINEX millimetre (phases as they are);
-    kinematic PPK of the Javad rover against the RINEX base = that of the RINEX files
-    (epochs, Q, positions to 0.1 mm), the format detected."""
+    """The rover's values come back to the RINEX millimetre (phases as they are), its
+    [GE] messages give the broadcast ephemerides again, in their week (RTKLIB's [GE]
+    decoder passes the full week through adjgpsweek: the clock set from [~~] + [RD],
+    without which a 2005 log's ephemerides came out 1024 weeks on); kinematic PPK of
+    the Javad rover against the RINEX base = that of the RINEX files (epochs, Q,
+    positions to 0.1 mm) with the nav file, and with the log's ephemerides alone (no
+    Klobuchar coefficients: 2 mm up), the format detected."""
     rtk = _rtk()
-    from ins.gnss.receiver_formats import convert_raw
+    from ins.gnss.receiver_formats import convert_raw, first_epoch
     from ins.gnss.rtklib_engine import solve
     from ins.gnss.rtklib_options import RtklibOptions
     from ins.nav.earth import ned_offset
+    data = jav.rinex2_to_javad(ROVER)
+    eph, _ = jav.nav_to_javad(NAV, rtk)
+    k = data.find(b"~~005", data.find(b"~~005") + 5)        # after the first epoch
     rover = tmp_path / "rover.log"
-    rover.write_bytes(jav.rinex2_to_javad(ROVER))
-    obs, _ = convert_raw(rover, str(tmp_path), rtk, stem="r")
+    rover.write_bytes(data[:k] + eph + data[k:])
+    assert first_epoch(rover, "javad") == (1316, 518400.0)
+    obs, nav = convert_raw(rover, str(tmp_path), rtk, stem="r")
     assert _check_rinex_values(obs, ROVER, {}, _TYPES) > 3000
+    assert _ephemerides(nav, rtk) == _ephemerides(NAV, rtk)
     opts = RtklibOptions(systems=("gps",))
     a = solve(ROVER, NAV, tmp_path / "rinex.pos", base=BASE, options=opts)
-    b = solve(rover, NAV, tmp_path / "raw.pos", base=BASE, options=opts)
-    assert b.rover_epochs == a.rover_epochs == 120
-    assert np.array_equal(a.log.time, b.log.time)
-    assert np.array_equal(a.log.quality, b.log.quality)
-    d = np.abs(ned_offset(a.log.lla, b.log.lla))
-    assert np.max(d) < 1e-4, d.max(0)
+    for navs, tol_up in ((NAV, 1e-4), (None, 2e-3)):
+        b = solve(rover, navs, tmp_path / "raw.pos", base=BASE, options=opts)
+        assert b.rover_epochs == a.rover_epochs == 120
+        assert np.array_equal(a.log.time, b.log.time)
+        assert np.array_equal(a.log.quality, b.log.quality)
+        d = np.abs(ned_offset(a.log.lla, b.log.lla))
+        assert np.max(d[:, :2]) < 5e-4 and np.max(d[:, 2]) < tol_up, (navs, d.max(0))

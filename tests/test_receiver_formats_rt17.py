@@ -1,9 +1,9 @@
 """Trimble RT-17 logs encoded by the tests from Trimble's Serial Reference
-Specification (tests/receiver_frames_rt17.py: RAWDATA type 17, concise) and decoded by
-RTKLIB's convrnx: detection from the content, the observations equal to the simulated
-truth to the format's resolution (the record has no GPS week: it comes from the epoch
-or navigation given), and the real GEONET pair re-encoded giving RTKLIB's solution of
-the RINEX files."""
+Specification (tests/receiver_frames_rt17.py: RAWDATA type 17, concise; RETSVDATA GPS
+ephemerides) and decoded by RTKLIB's convrnx: detection from the content, the
+observations equal to the simulated truth to the format's resolution (the record has
+no GPS week: it comes from the log's ephemerides, else the epoch or navigation given),
+and the real GEONET pair re-encoded giving RTKLIB's solution of the RINEX files."""
 import sys
 from pathlib import Path
 
@@ -13,8 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import receiver_frames_rt17 as rt  # noqa: E402
 from test_receiver_formats import BASE, NAV, ROVER, TOW0, WEEK, _compare, _rtk, _sim, \
     needs_pair  # noqa: E402
-from test_receiver_formats_survey import _TYPES, _base_lla, \
-    _check_rinex_values  # noqa: E402
+from test_receiver_formats_survey import _TYPES, _base_lla, _check_rinex_values, \
+    _ephemeris_list  # noqa: E402
+from ubx_frames import read_rinex3_obs  # noqa: E402
 
 
 def test_rt17_type17_decodes_to_the_simulation(tmp_path):
@@ -66,3 +67,35 @@ def test_pair_as_rt17_gives_the_rinex_solution(tmp_path):
     assert np.array_equal(a.log.quality, b.log.quality)
     d = np.abs(ned_offset(a.log.lla, b.log.lla))
     assert np.max(d) < 1e-4, d.max(0)
+
+
+@needs_pair
+def test_an_rt17_rover_with_its_ephemerides_needs_no_nav_file(tmp_path):
+    """RETSVDATA GPS ephemerides sent as a receiver sends them (each before the first
+    epoch after its transmission) give the type 17 records their week (RTKLIB takes
+    it from the ephemerides: no nav file, no epoch given) and the broadcast
+    ephemerides again (of two with one IODE, one); kinematic PPK with them alone =
+    that of the RINEX files (epochs, Q; 0.5 mm horizontally, 2 mm up: no Klobuchar
+    coefficients)."""
+    rtk = _rtk()
+    from ins.gnss.receiver_formats import convert_raw
+    from ins.gnss.rtklib_engine import solve
+    from ins.gnss.rtklib_options import RtklibOptions
+    from ins.nav.earth import ned_offset
+    data, shifts, _ = rt.rinex2_to_rt17(ROVER, rt.nav_to_rt17(NAV, rtk))
+    rover = tmp_path / "rover.dat"
+    rover.write_bytes(data)
+    obs, nav = convert_raw(rover, str(tmp_path), rtk, stem="r")
+    assert read_rinex3_obs(obs)[0][0] == (2005, 4, 2, 0, 0, 0.0)
+    assert _check_rinex_values(obs, ROVER, shifts, _TYPES) > 3000
+    a, b = _ephemeris_list(NAV, rtk), _ephemeris_list(nav, rtk)
+    assert {x[0] for x in a} == {x[0] for x in b}
+    assert all(x in a for x in b)
+    opts = RtklibOptions(systems=("gps",))
+    ref = solve(ROVER, NAV, tmp_path / "rinex.pos", base=BASE, options=opts)
+    got = solve(rover, None, tmp_path / "raw.pos", base=BASE, options=opts)
+    assert got.rover_epochs == ref.rover_epochs == 120
+    assert np.array_equal(ref.log.time, got.log.time)
+    assert np.array_equal(ref.log.quality, got.log.quality)
+    d = np.abs(ned_offset(ref.log.lla, got.log.lla))
+    assert np.max(d[:, :2]) < 5e-4 and np.max(d[:, 2]) < 2e-3, d.max(0)

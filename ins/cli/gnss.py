@@ -17,12 +17,13 @@ inputs:
   OEM4/6/7 binary RANGEB/RANGECMPB), ubx (u-blox RXM-RAWX, RXM-SFRBX), sbf
   (Septentrio), hemisphere, skytraq, javad, nvs, binex, rt17 (Trimble), unicore,
   swift (SBP).  The format is detected from the content (RINEX header; valid UBX,
-  RTCM3, NovAtel, Unicore, SBF, SBP, SkyTraq, RT17 frames with their checksums; BINEX,
-  $BIN) or the extension; rtcm2, javad and nvs logs must be named: --gnss-format
-  (the rover's) and --base-format, or [rtklib] rover_format / base_format.  RTCM3
-  carries no week: it is taken from the rover's first epoch (for a base) or the nav
-  file's first ephemeris.  A base log must give its antenna position (RTCM3 1005/
-  1006) unless base_position = "single" or base_lla_deg is set.
+  RTCM3, NovAtel, Unicore, SBF, SBP, SkyTraq, RT17, BINEX, Javad, $BIN, NVS frames,
+  RTCM2 words with their checksums or parity) or the extension, else it is named:
+  --gnss-format (the rover's) and --base-format, or [rtklib] rover_format /
+  base_format.  RTCM3 and RTCM2 carry no week: it is taken from the rover's first
+  epoch (for a base) or the nav file's first ephemeris.  A base log must give its
+  antenna position (RTCM3 1005/1006, RTCM2 type 3) unless base_position = "single"
+  or base_lla_deg is set.
   --nav: broadcast navigation (RINEX nav, repeatable; needed unless the logs hold
   ephemerides); --sp3, --clk: precise orbits and clocks
   (repeatable; given any, RTKLIB uses the precise ephemeris: they must cover the whole

@@ -29,15 +29,28 @@ the file's.  The checksums are written from the formats' public descriptions:
   sum of the data bytes, ``0D 0A``;
 - Javad GREIS: the receiver-time message every epoch opens with, ``~~005``, its
   milliseconds of the day (4 bytes) and the GREIS checksum (from 0: rotate left by 2,
-  XOR each byte of the ID, length and body; rotated once more).
+  XOR each byte of the ID, length and body; rotated once more);
+- NVS BINR, which has no checksum: DLE (``10``), ID, data with each DLE doubled, DLE
+  ETX (``10 03``), followed by the next message's DLE (or the data's end); counted
+  only for the messages RTKLIB reads whose length and content fit their layout
+  (0xF5 raw data: 27 + 30 n bytes, week < 4096, signal types 1/2/4; 0xF7 ephemeris:
+  GPS 138 bytes, GLONASS at least 93);
+- RTCM 2 (RTCM 10402.3), a bit stream in the 6-of-8 format (bytes ``01xxxxxx``, the
+  6 bits first-sent in bit 0; other bytes skipped as RTKLIB does) of 30-bit words
+  with the GPS parity (IS-GPS-200 table 20-XIV; the data bits complemented after a
+  D30* of 1): a message counts when its header (preamble 0x66, the number of data
+  words) and every word pass the parity and the next message's header follows it
+  (or the data end).
 """
 import struct
 import zlib
 
+import numpy as np
+
 from ins.io.ublox import ubx_checksum
 
 __all__ = ["crc24q", "crc32_novatel", "crc16_ccitt", "ubnxi", "greis_checksum", "count_frames",
-           "RECOGNISERS"]
+           "unstuff_binr", "rtcm2_words", "RECOGNISERS"]
 
 
 def _crc24q_table():
@@ -254,6 +267,94 @@ def _javad(data, k):
     return k + 10 if greis_checksum(data[k:k + 9]) == data[k + 9] else 0
 
 
+def unstuff_binr(data, k):
+    """``(message ID, data, end)`` of the NVS BINR message whose DLE is at ``k`` (the
+    doubled DLEs made single; ``end`` just after its DLE ETX), or None: no valid DLE
+    framing (a DLE inside followed by neither DLE nor ETX, or no end)."""
+    if k + 4 > len(data) or data[k + 1] in (0x10, 0x03):
+        return None
+    parts, i = [], k + 2
+    while True:
+        j = data.find(b"\x10", i)
+        if j < 0 or j + 1 >= len(data):
+            return None
+        parts.append(data[i:j])
+        if data[j + 1] == 0x03:
+            return data[k + 1], b"".join(parts), j + 2
+        if data[j + 1] != 0x10:
+            return None
+        parts.append(b"\x10")
+        i = j + 2
+
+
+def _nvs(data, k):
+    got = unstuff_binr(data, k)
+    if got is None:
+        return 0
+    ident, body, end = got
+    if end < len(data) and data[end] != 0x10:
+        return 0
+    if ident == 0xF5:
+        n, rest = divmod(len(body) - 27, 30)
+        if n < 0 or rest or struct.unpack_from("<H", body, 8)[0] >= 4096 or \
+                any(body[27 + 30 * i] not in (1, 2, 4) for i in range(n)):
+            return 0
+        return end
+    if ident == 0xF7 and len(body) >= 2 and (len(body) == 138 if body[0] == 1 else
+                                             body[0] == 2 and len(body) >= 93):
+        return end
+    return 0
+
+
+#: IS-GPS-200 table 20-XIV: the masks of the data bits d1..d24 (d1 the 24-bit word's
+#: top bit) in D25..D30, and whether D29* (0) or D30* (1) of the previous word enters.
+_PARITY = tuple((star, sum(1 << (24 - d) for d in bits)) for star, bits in (
+    (0, (1, 2, 3, 5, 6, 10, 11, 12, 13, 14, 17, 18, 20, 23)),
+    (1, (2, 3, 4, 6, 7, 11, 12, 13, 14, 15, 18, 19, 21, 24)),
+    (0, (1, 3, 4, 5, 7, 8, 12, 13, 14, 15, 16, 19, 20, 22)),
+    (1, (2, 4, 5, 6, 8, 9, 13, 14, 15, 16, 17, 20, 21, 23)),
+    (1, (1, 3, 5, 6, 7, 9, 10, 14, 15, 16, 17, 18, 21, 22, 24)),
+    (0, (3, 5, 6, 8, 9, 10, 11, 13, 15, 19, 22, 23, 24))))
+
+
+def rtcm2_words(data):
+    """``(valid, header, data24)`` at every bit of the RTCM 2 bit stream of ``data``
+    (bytes): the 30-bit word starting there passes the parity, it is a header's
+    first word (preamble 0x66), and its 24 data bits (uncomplemented)."""
+    arr = np.frombuffer(bytes(data), dtype=np.uint8)
+    arr = arr[(arr & 0xC0) == 0x40]
+    bits = ((arr[:, None] >> np.arange(6, dtype=np.uint8)) & 1).reshape(-1)
+    n = len(bits) - 29
+    if n <= 2:
+        return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, np.int64)
+    word = np.zeros(n, dtype=np.int64)
+    for j in range(30):
+        word = (word << 1) | bits[j:j + n]
+    d29 = np.concatenate(([0, 0], bits[:n - 2])).astype(np.int64)
+    d30 = np.concatenate(([0], bits[:n - 1])).astype(np.int64)
+    d = (word >> 6) ^ (d30 * 0xFFFFFF)
+    valid = np.ones(n, bool)
+    for k, (star, mask) in enumerate(_PARITY):
+        p = (np.bitwise_count(d & mask) & 1) ^ (d30 if star else d29)
+        valid &= p == ((word >> (5 - k)) & 1)
+    return valid, valid & ((d >> 16) == 0x66), d
+
+
+def _rtcm2_count(data):
+    """The RTCM 2 messages in ``data`` (module notes)."""
+    valid, header, d = rtcm2_words(data)
+    n, count, i = len(valid), 0, 0
+    starts = np.flatnonzero(header)
+    for k in starts:
+        if k < i or k + 30 >= n or not valid[k + 30]:
+            continue
+        end = k + 30 * (((d[k + 30] >> 3) & 0x1F) + 2)
+        if end <= n + 29 and all(valid[j] for j in range(k + 60, min(end, n), 30)) and \
+                (end >= n or header[end]):
+            count, i = count + 1, end
+    return count
+
+
 #: format name -> (sync bytes, frame check).
 RECOGNISERS = {
     "ubx": (b"\xb5\x62", _ubx),
@@ -267,6 +368,7 @@ RECOGNISERS = {
     "binex": (b"\xe2", _binex),
     "javad": (b"~~", _javad),
     "hemisphere": (b"$BIN", _hemisphere),
+    "nvs": (b"\x10", _nvs),
 }
 
 
@@ -274,4 +376,5 @@ def count_frames(data):
     """``{format: number of valid frames}`` in ``data`` (bytes) for the formats of
     :data:`RECOGNISERS` (zero counts left out)."""
     counts = {name: _scan(data, sync, check) for name, (sync, check) in RECOGNISERS.items()}
+    counts["rtcm2"] = _rtcm2_count(data)
     return {k: v for k, v in counts.items() if v}

@@ -16,22 +16,22 @@ Detection (:func:`detect_format`): a RINEX header (``RINEX VERSION / TYPE`` in t
 first line); else the binary format with the most frames of valid framing and checksum
 in the first 256 KiB (:mod:`ins.gnss.framing`: UBX, RTCM3, OEM4, Unicore, SBF, SBP,
 SkyTraq, RT17, BINEX big-endian regular-CRC records, Javad GREIS receiver-time
-messages, Hemisphere ``$BIN``); else BINEX of another kind (its sync byte
+messages, Hemisphere ``$BIN``, NVS BINR 0xF5/0xF7 of their layout, RTCM 2 messages of
+30-bit words with the GPS parity); else BINEX of another kind (its sync byte
 ``C2``/``C8``/``E8`` first: RTKLIB decodes none, :func:`convert_raw` says so); else
-the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).  RTCM2 and NVS logs
-must be named (``--gnss-format``).
+the extension (``.ubx``, ``.rtcm3``, ``.sbf``, ``.jps``, ...).
 
 Time: several formats give the week modulo 1024 or no week at all (RTCM3 gives the time
-of week only), which RTKLIB completes from the computer's clock (``adjgpsweek``, or for
-RTCM ``rnxopt_t.trtcm``): an old log would land in a wrong week or 1024-week era.  The
-conversion therefore sets RTKLIB's clock (``timeset``; reset after, callers serialize
-RTKLIB calls) and ``trtcm`` to the log's own first epoch where the format gives a
-complete week (UBX RXM-RAWX, OEM4 and Unicore headers, SBF, SBP MSG_OBS, SkyTraq
-0xE5/0xDC, Hemisphere Bin 76/96: RTKLIB's Unicore, SBP and SkyTraq decoders pass even
-a full week through ``adjgpsweek``, and the subframe decoders (SkyTraq 0xE0,
-Hemisphere Bin 95, ...) the 10-bit week, which without the clock set moves a log
-older than 2009 by 1024 weeks), else to the first ephemeris of the navigation files
-given with it.
+of week only, RTCM 2 the time within the hour), which RTKLIB completes from the
+computer's clock (``adjgpsweek``, or for RTCM ``rnxopt_t.trtcm``): an old log would land
+in a wrong week or 1024-week era. The conversion therefore sets RTKLIB's clock
+(``timeset``; reset after, callers serialize RTKLIB calls) and ``trtcm`` to the log's
+own first epoch where the format gives a complete week (UBX RXM-RAWX, OEM4 and Unicore
+headers, SBF, SBP MSG_OBS, SkyTraq 0xE5/0xDC, Hemisphere Bin 76/96, NVS 0xF5, Javad [~~]
++ [RD]: RTKLIB's Unicore, SBP, SkyTraq, NVS and Javad ephemeris decoders pass even a
+full week through ``adjgpsweek``, and the subframe decoders (SkyTraq 0xE0, Hemisphere
+Bin 95, ...) the 10-bit week, which without the clock set moves a log older than 2009 by
+1024 weeks), else to the first ephemeris of the navigation files given with it.
 """
 import os
 import struct
@@ -120,19 +120,23 @@ def detect_format(path):
         return _EXTENSIONS[ext]
     raise InputError(f"cannot tell the receiver format of these GNSS observations from "
                      f"their content (no RINEX header, no valid UBX/RTCM3/NovAtel/SBF/"
-                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN frame, no BINEX record) nor "
-                     f"from the extension {ext or '(none)'!r}: name it with --gnss-format / "
-                     f"--base-format or [rtklib] rover_format / base_format, one of "
-                     f"{format_names()}", path=path)
+                     f"Unicore/SBP/SkyTraq/RT17/Javad/$BIN/NVS/RTCM2 frame, no BINEX "
+                     f"record) nor from the extension {ext or '(none)'!r}: name it with "
+                     f"--gnss-format / --base-format or [rtklib] rover_format / "
+                     f"base_format, one of {format_names()}", path=path)
 
 
 def first_epoch(path, fmt, limit_bytes=1 << 22):
     """``(week, tow_s)`` of the first measurement epoch with a complete GPS week in the
     first ``limit_bytes`` of a log, for the formats that give one (UBX RXM-RAWX; OEM4
     and Unicore headers; SBF block headers; SBP MSG_OBS; SkyTraq 0xE5 / 0xDC;
-    Hemisphere Bin 76 / 96), else None."""
+    Hemisphere Bin 76 / 96; NVS 0xF5; Javad [~~] + [RD]), else None."""
     if fmt == "ubx":
         return first_rawx_time(path, limit_bytes)
+    if fmt == "nvs":
+        return _first_binr_epoch(path, limit_bytes)
+    if fmt == "javad":
+        return _first_greis_epoch(path, limit_bytes)
     if fmt not in ("oem4", "unicore", "sbf", "swift", "skytraq", "hemisphere"):
         return None
     from ins.gnss.framing import RECOGNISERS
@@ -176,6 +180,53 @@ def first_epoch(path, fmt, limit_bytes=1 << 22):
             if 0 < week < 0xFFFF:
                 return int(week), ms / 1000.0
         k = data.find(sync, k + 1)
+    return None
+
+
+def _first_binr_epoch(path, limit_bytes):
+    """``(week, GPS tow_s)`` of the first NVS BINR 0xF5 raw data message (the UTC time
+    of measurement plus the GPS-UTC shift, ms), or None."""
+    from ins.gnss.framing import RECOGNISERS, unstuff_binr
+    check = RECOGNISERS["nvs"][1]
+    with open(path, "rb") as f:
+        data = f.read(limit_bytes)
+    k = data.find(b"\x10\xf5")
+    while k >= 0:
+        end = check(data, k)
+        if end:
+            _, body, _ = unstuff_binr(data, k)
+            utc_ms, week, shift_ms = struct.unpack_from("<dHd", body, 0)
+            tow = (utc_ms + shift_ms) / 1000.0
+            if 1024 <= week and 0.0 <= tow < 604800.0:     # a full week only
+                return int(week), tow
+        k = data.find(b"\x10\xf5", k + 1)
+    return None
+
+
+def _first_greis_epoch(path, limit_bytes):
+    """``(week, tow_s)`` of the first Javad GREIS [~~] receiver time (ms of the day)
+    followed by an [RD] receiver date (year U2, month U1, day U1, time scale U1), both
+    with a valid checksum, or None."""
+    import datetime
+
+    from ins.gnss.framing import RECOGNISERS, greis_checksum
+    check = RECOGNISERS["javad"][1]
+    with open(path, "rb") as f:
+        data = f.read(limit_bytes)
+    k = data.find(b"~~005")
+    while k >= 0:
+        j = data.find(b"RD006", k + 10, k + 16)
+        if check(data, k) and j > 0 and j + 11 <= len(data) and \
+                greis_checksum(data[j:j + 10]) == data[j + 10]:
+            ms = struct.unpack_from("<I", data, k + 5)[0]
+            year, month, day = struct.unpack_from("<HBB", data, j + 5)
+            try:
+                days = (datetime.date(year, month, day) - datetime.date(1980, 1, 6)).days
+            except ValueError:
+                days = -1
+            if days >= 0 and ms < 86400000:
+                return days // 7, (days % 7) * 86400.0 + ms / 1000.0
+        k = data.find(b"~~005", k + 1)
     return None
 
 
