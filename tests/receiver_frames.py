@@ -371,3 +371,17 @@ def rtcm1005(station, xyz_m):
     b.put(2, 0)
     b.put(38, round(xyz_m[2] * 1e4))
     return rtcm3_frame(b.bytes())
+
+
+def assert_same_solution(reference, solved, horizontal_m, vertical_m, what=""):
+    """Two RTKLIB solutions of the GEONET pair (``ins.gnss.rtklib_engine.solve``
+    results): the same 120 epochs and fix flags, the positions within ``horizontal_m``
+    (north, east) and ``vertical_m`` (down) of each other; returns the largest
+    differences N/E/D (m)."""
+    from ins.nav.earth import ned_offset
+    assert solved.rover_epochs == reference.rover_epochs == 120
+    assert np.array_equal(reference.log.time, solved.log.time)
+    assert np.array_equal(reference.log.quality, solved.log.quality)
+    d = np.abs(ned_offset(reference.log.lla, solved.log.lla)).max(axis=0)
+    assert np.all(d[:2] < horizontal_m) and d[2] < vertical_m, (what, d)
+    return d
