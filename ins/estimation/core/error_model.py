@@ -102,6 +102,29 @@ SENSORS = _Layout(gyro_bias=slice(0, 3), accel_bias=slice(3, 6), gyro_scale=slic
 #: filter's ``node_states``): latitude, longitude (rad), height (m); ``v_n`` (m/s);
 #: ``q_nb`` as ``[qx, qy, qz, qw]``.
 NAV = _Layout(lla=slice(0, 3), vel=slice(3, 6), q_nb=slice(6, 10))
+#: Index arrays of the attitude block's three cross covariances in a state covariance,
+#: ``P[ATT_CROSS]`` = (P_NE, P_ND, P_ED) of the phi angles (rad^2); the stores keep them
+#: beside the sigmas so that the roll/pitch/yaw sigmas use the whole 3 x 3 block
+#: (:func:`attitude_block`).
+ATT_CROSS = (np.array([6, 6, 7]), np.array([7, 8, 8]))
+#: Last index of the attitude block: a covariance of ``n > ATT_STOP`` states has one
+#: (the stores give NaN cross covariances for smaller, non-navigation problems).
+ATT_STOP = 8
+
+
+def attitude_block(std_att, cross):
+    """The phi-angle covariances (m, 3, 3) (rad^2, N/E/D) from the attitude sigmas
+    ``std_att`` (m, 3) (rad) and the cross covariances ``cross`` (m, 3) (rad^2, the order
+    of :data:`ATT_CROSS`)."""
+    std_att, cross = np.asarray(std_att, dtype=float), np.asarray(cross, dtype=float)
+    P = np.empty((len(std_att), 3, 3))
+    k = np.arange(3)
+    P[:, k, k] = std_att ** 2
+    i, j = ATT_CROSS[0] - ATT.start, ATT_CROSS[1] - ATT.start
+    P[:, i, j] = P[:, j, i] = cross
+    return P
+
+
 STATE_NAMES = tuple(f"{q}_{a}" for q, axes in (("pos", "NED"), ("vel", "NED"), ("att", "NED"),
                                                ("gyro_bias", "xyz"), ("accel_bias", "xyz"),
                                                ("gyro_scale", "xyz"), ("accel_scale", "xyz"))

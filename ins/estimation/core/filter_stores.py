@@ -7,7 +7,7 @@ import tempfile
 import numpy as np
 
 from ins.estimation.core import _kalman_kernels
-from ins.estimation.core.error_model import VARIANCE_RTOL, checked_std
+from ins.estimation.core.error_model import ATT_CROSS, ATT_STOP, VARIANCE_RTOL, checked_std
 from ins.estimation.core.measurements import UpdateRecord
 
 #: Rows of a trajectory piece read back from disk (and of the pieces formatted into the
@@ -253,6 +253,9 @@ def measurement_stores(workdir=None):
             Rows((), np.int64, workdir=workdir), Rows((3,), workdir=workdir))
 
 
+#: The attitude cross covariances of a node store of fewer states than the attitude's.
+_NO_ATT = np.full(len(ATT_CROSS[0]), np.nan)
+
 #: Bytes of node matrices a :class:`NodeStore` on disk buffers between writes (the
 #: file is the same as with a write per node; 45 000 small writes cost 0.4 s).
 NODE_BUFFER_BYTES = 1 << 20
@@ -260,7 +263,9 @@ NODE_BUFFER_BYTES = 1 << 20
 
 class NodeStore:
     """``P_prior``, ``P_post`` and ``Phi`` (n x n each, n the number of error states) of
-    every node, kept for the RTS pass.
+    every node, kept for the RTS pass, with the posterior sigmas ``sqrt(diag(P_post))``
+    (:attr:`post_std`) and the posterior attitude cross covariances (:attr:`post_att_cross`,
+    :data:`ins.estimation.core.error_model.ATT_CROSS`) of every node.
 
     In memory, or, with ``workdir``, appended to an anonymous temporary file there (10.6
     kB a node: 380 MB for a 10 h flight at 1 Hz, on disk, not in memory) and read back
@@ -273,6 +278,7 @@ class NodeStore:
         self.count = 0
         self.n = None
         self._post_std = Rows(workdir=workdir)   # sqrt(diag(P_post)) of every node
+        self._post_att = Rows((len(ATT_CROSS[0]),), workdir=workdir)  # P_post[ATT_CROSS]
         self._mem = [] if workdir is None else None
         self._file = None if workdir is None else tempfile.TemporaryFile(dir=workdir)
         self._buf, self._n_buf = None, 0         # nodes not yet written to the file
@@ -294,6 +300,7 @@ class NodeStore:
             checked_std(d_prior, scale, time, what="forward filter's prior covariance")
             self._post_std.append(checked_std(d_post, scale, time,
                                               what="forward filter's posterior covariance"))
+        self._post_att.append(P_post[ATT_CROSS] if n > ATT_STOP else _NO_ATT)
         if self._mem is not None:
             self._mem.append(np.stack([P_prior, P_post, Phi]))
         else:                          # buffered: one write per NODE_BUFFER_BYTES
@@ -321,6 +328,17 @@ class NodeStore:
     def post_std_rows(self):
         """``sqrt(diag(P_post))`` of every node as :class:`Rows` (read in blocks)."""
         return self._post_std
+
+    @property
+    def post_att_cross(self):
+        """Posterior attitude cross covariances ``P_post[ATT_CROSS]`` of every node (rad^2:
+        N-E, N-D, E-D of the phi angles), array (count, 3) (read whole)."""
+        return self._post_att.array()
+
+    @property
+    def post_att_cross_rows(self):
+        """:attr:`post_att_cross` as :class:`Rows` (read in blocks)."""
+        return self._post_att
 
     def block(self, j0, j1):
         """Nodes ``j0 .. j1-1``: array (j1 - j0, 3, n, n) of P_prior, P_post, Phi."""

@@ -42,7 +42,7 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation.core import _filter_kernels
 from ins.estimation.core import _kalman_kernels
-from ins.estimation.core.error_model import STATE_NAMES, VARIANCE_RTOL, checked_std
+from ins.estimation.core.error_model import ATT_CROSS, ATT_STOP, STATE_NAMES, VARIANCE_RTOL, checked_std
 from ins.estimation.core.filter_stores import PIECE_ROWS, Table, read_rows
 
 
@@ -58,14 +58,17 @@ def _backward_nodes(fwd):
             yield j0 + i, block[i, 0], block[i, 1], block[i, 2]
 
 
-def rts_errors(fwd, full=True, workdir=None):
+def rts_errors(fwd, full=True, workdir=None, att_cross=False):
     """The backward recursion: smoothed errors ``xs+`` (m, 21) and covariances.
 
     ``fwd`` has ``dx`` and either ``nodes`` (:class:`ins.estimation.core.filter_stores.NodeStore`, read
     backwards block by block) or the sequences ``P_prior``, ``P_post``, ``Phi``.
     Returns ``(xs, Ps)`` with ``Ps`` (m, 21, 21), or with ``full=False`` ``(xs, std)``
-    with the smoothed standard deviations (m, 21) only (bounded memory).  With
-    ``workdir`` (and ``full=False``) ``xs`` and ``std`` are
+    with the smoothed standard deviations (m, 21) only (bounded memory), and with
+    ``att_cross=True`` (and ``full=False``) ``(xs, std, cross)`` with also the smoothed
+    attitude cross covariances ``Ps[ATT_CROSS]`` (m, 3) (rad^2: N-E, N-D, E-D of the phi
+    angles; :data:`ins.estimation.core.error_model.ATT_CROSS`), which with ``std`` give
+    the whole attitude block.  With ``workdir`` (and ``full=False``) the tables are
     :class:`ins.estimation.core.filter_stores.Table` s in temporary files there, written
     backwards block by block: memory does not grow with the number of nodes.
 
@@ -87,10 +90,12 @@ def rts_errors(fwd, full=True, workdir=None):
     n = read_rows(dx_src, 0, 1).shape[1]
     disk = workdir is not None and not full
     xs_tab, std_tab = Table(m, n, workdir if disk else None), Table(m, n, workdir if disk else None)
+    att_tab = Table(m, len(ATT_CROSS[0]), workdir if disk else None)
     Ps = np.empty((m, n, n)) if full else None
     names = _names(fwd, n)
     blk = _BLOCK
     xs_blk, std_blk, hi = np.zeros((blk, n)), np.empty((blk, n)), m   # rows lo .. hi-1
+    att_blk = np.empty((blk, len(ATT_CROSS[0])))
     lo = max(hi - blk, 0)
     dx_blk = read_rows(dx_src, lo, hi + 1)              # dx of nodes lo .. hi
     t_blk = None if t_src is None else read_rows(t_src, lo, hi)
@@ -100,6 +105,7 @@ def rts_errors(fwd, full=True, workdir=None):
         if j < lo:                                      # the next block back
             xs_tab.put(lo, xs_blk[:hi - lo])
             std_tab.put(lo, std_blk[:hi - lo])
+            att_tab.put(lo, att_blk[:hi - lo])
             hi, lo = lo, max(lo - blk, 0)
             dx_blk = read_rows(dx_src, lo, hi + 1)
             t_blk = None if t_src is None else read_rows(t_src, lo, hi)
@@ -123,15 +129,19 @@ def rts_errors(fwd, full=True, workdir=None):
         else:                                                   # NaN, or negative
             std_blk[i] = checked_std(var, scale, None if t_blk is None else t_blk[i],
                                      names=names, what="smoothed covariance")
+        att_blk[i] = Pj[ATT_CROSS] if n > ATT_STOP else np.nan   # NaN: no attitude
         x_next = xs_blk[i].copy()
         nxt = (np.ascontiguousarray(P_prior, dtype=float),
                np.ascontiguousarray(Phi, dtype=float), Pj)
     if m:
         xs_tab.put(lo, xs_blk[:hi - lo])
         std_tab.put(lo, std_blk[:hi - lo])
-    if disk:
-        return xs_tab, std_tab
-    return xs_tab.array(), (Ps if full else std_tab.array())
+        att_tab.put(lo, att_blk[:hi - lo])
+    if full:
+        return xs_tab.array(), Ps
+    out = (xs_tab, std_tab, att_tab) if disk else (xs_tab.array(), std_tab.array(),
+                                                   att_tab.array())
+    return out if att_cross else out[:2]
 
 
 #: Nodes per block of the smoother's reads and writes.

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from ins.estimation.core.error_model import NAV, SENSORS, STATE
+from ins.estimation.core.error_model import NAV, SENSORS, STATE, attitude_block
 
 
 def euler_std_deg(q_nb, P_att):
@@ -48,6 +48,11 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",), heig
     orthometric ``height`` (:class:`ins.io.geoid.HeightSystem`) also
     solution_orthometric.txt (:func:`write_orthometric`); the trajectories keep their
     ellipsoidal heights (the formats define them so).
+
+    The roll, pitch, yaw sigmas (solution_std.txt, smrmsg_solution.out) are
+    :func:`euler_std_deg` of the whole smoothed phi-angle block: the attitude sigmas and
+    cross covariances of the nodes (``smoothed_att_cross``, uncorrelated only for a
+    ``result`` given as arrays without it).
 
     The trajectories are written piece by piece as they are streamed (bounded memory).
     Returns the list of written paths.  Every file is written atomically.
@@ -92,10 +97,12 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",), heig
         f_err.write(err_header.encode())
         for c in _node_chunks(result):
             sd = c.smoothed_std
-            # attitude sigma from the smoothed covariance diagonal (phi-angle block)
-            P_att = np.zeros((len(sd), 3, 3))
-            idx = np.arange(3)
-            P_att[:, idx, idx] = sd[:, STATE.att] ** 2
+            # roll/pitch/yaw sigmas from the whole smoothed phi-angle block: the N/E/D
+            # errors are correlated (a level platform at a diagonal heading mixes the
+            # roll and pitch errors into N and E), their cross terms matter
+            cross = c.smoothed_att_cross
+            P_att = attitude_block(sd[:, STATE.att], np.zeros((len(sd), 3)) if cross is None
+                                   else cross)
             att = euler_std_deg(c.solution[:, NAV.q_nb], P_att)
             table = np.column_stack([c.time, sd[:, STATE.pos], sd[:, STATE.vel], att])
             f_std.write(textformat.format_fixed(table, std_dec).tobytes())
@@ -164,5 +171,6 @@ def _node_chunks(result):
         return
     from types import SimpleNamespace
     yield SimpleNamespace(j0=0, time=result.node_time, smoothed_std=result.smoothed_std,
+                          smoothed_att_cross=getattr(result, "smoothed_att_cross", None),
                           smoothed_sensors=result.smoothed_sensors,
                           solution=result.node_solution())

@@ -29,15 +29,8 @@ from ins.estimation.core.filter_settings import FilterSettings
 from ins.estimation.core.filter_stores import as_array, read_rows
 from ins.estimation.core.lever_arm import LeverArm
 from ins.estimation.pipeline.config import POSITION_KEYS, filter_options
-from ins.estimation.pipeline.trust import (
-    START_FIX_WINDOW_S,
-    START_SIGMAS,
-    assess_quality,
-    check_start,
-    first_fix_at,
-    fix_name,
-    start_report,
-)
+from ins.estimation.pipeline.trust import (START_FIX_WINDOW_S, START_SIGMAS, assess_quality,
+                                           check_start, first_fix_at, fix_name, start_report)
 from ins.estimation.core.smoother import iter_smoothed, rts_errors
 from ins.io.gnss import read_gnss
 from ins.io.imu_blocks import iter_imu, prefetch, with_location
@@ -57,7 +50,9 @@ class ProcessResult:
     :meth:`iter_smoothed` yield :class:`~ins.nav.trajectory.Trajectory` pieces in time order
     (from the forward pass's store, in memory or a temporary file); :attr:`forward` and
     :attr:`smoothed` give them whole (in memory).  ``node_time`` holds the filter nodes
-    with ``forward_std``/``smoothed_std`` (m, 21) and ``forward_sensors``/
+    with ``forward_std``/``smoothed_std`` (m, 21), ``forward_att_cross``/
+    ``smoothed_att_cross`` (m, 3: the attitude cross covariances, rad^2,
+    :data:`ins.estimation.core.error_model.ATT_CROSS`) and ``forward_sensors``/
     ``smoothed_sensors`` (m, 12: gyro bias rad/s, accel bias m/s^2, scales), arrays
     read whole when asked for (from temporary files with a work folder);
     :meth:`node_chunks` gives them block by block (bounded memory);
@@ -80,6 +75,7 @@ class ProcessResult:
     gnss_source: dict = None
     identified: object = None     # ins.estimation.tools.noise_identification.Identified or None
     gnss: object = None           # the GNSS log the filter took (ins.io.gnss_log.GnssLog)
+    s_att: object = None          # smoothed attitude cross covariances (m, 3): array or Table
 
     def iter_forward(self):
         for _, time, states in self.fwd.trajectory.chunks():
@@ -116,25 +112,30 @@ class ProcessResult:
 
     def node_chunks(self, size=1 << 13):
         """The per-node results block by block (bounded memory): namespaces with ``j0``
-        (first node), ``time``, ``forward_std``, ``smoothed_std``, ``forward_sensors``,
-        ``smoothed_sensors`` and ``solution`` (:meth:`node_solution`) of the block."""
+        (first node), ``time``, ``forward_std``, ``smoothed_std``, ``forward_att_cross``,
+        ``smoothed_att_cross`` (the smoothed ones the forward ones without a smoother or
+        without smoothed cross covariances), ``forward_sensors``, ``smoothed_sensors`` and
+        ``solution`` (:meth:`node_solution`) of the block."""
         from types import SimpleNamespace
         fwd = self.fwd
         for j0 in range(0, fwd.node_count, size):
             j1 = min(j0 + size, fwd.node_count)
             f_std = read_rows(fwd.nodes.post_std_rows, j0, j1)
+            f_att = read_rows(fwd.nodes.post_att_cross_rows, j0, j1)
             f_sens = fwd.node_rows_of("sensors", j0, j1)
             states = fwd.node_rows_of("node_states", j0, j1)
             if self.xs is None:
-                s_std, s_sens = f_std, f_sens
+                s_std, s_att, s_sens = f_std, f_att, f_sens
             else:
                 xs = read_rows(self.xs, j0, j1)
                 s_std = read_rows(self.s_std, j0, j1)
+                s_att = f_att if self.s_att is None else read_rows(self.s_att, j0, j1)
                 s_sens = f_sens + xs[:, fwd.layout.sensors]
                 for j in range(len(states)):
                     _filter_kernels.correct_state(states[j], xs[j, STATE.nav])
             yield SimpleNamespace(j0=j0, time=fwd.node_rows_of("node_time", j0, j1),
                                   forward_std=f_std, smoothed_std=s_std,
+                                  forward_att_cross=f_att, smoothed_att_cross=s_att,
                                   forward_sensors=f_sens, smoothed_sensors=s_sens,
                                   solution=states)
 
@@ -479,9 +480,9 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
             raise
         raise with_location(exc, cfg.imu, cfg.imu_format, cfg.imu_time_shift_s) from None
     if cfg.smooth:
-        xs, s_std = rts_errors(fwd, full=False, workdir=workdir)
+        xs, s_std, s_att = rts_errors(fwd, full=False, workdir=workdir, att_cross=True)
     else:
-        xs, s_std = None, None
+        xs, s_std, s_att = None, None, None
     counts = {"imu_epochs": len(fwd.trajectory), "gnss_records": len(gnss),
               "nodes": fwd.node_count, "updates": fwd.n_updates,
               "rejected": fwd.n_rejected, "outside_imu_span": fwd.n_outside,
@@ -492,7 +493,7 @@ def process(cfg, progress=None, workdir=None, accept_poor=False, gnss_dir=None):
     if cfg.coupling == "tight":
         from ins.estimation.pipeline.tight import noise_summary
         counts["range_noise"] = noise_summary(cfg, fwd.updater)
-    result = ProcessResult(fwd, xs, s_std, al, counts)
+    result = ProcessResult(fwd, xs, s_std, al, counts, s_att=s_att)
     result.start_check = start_check
     result.start_how = st.how
     result.gnss_source = gnss_source
