@@ -42,7 +42,8 @@ import numpy as np
 from ins.common.errors import QualityError
 from ins.estimation.core import _filter_kernels
 from ins.estimation.core import _kalman_kernels
-from ins.estimation.core.error_model import ATT_CROSS, ATT_STOP, STATE_NAMES, VARIANCE_RTOL, checked_std
+from ins.estimation.core.error_model import (ATT_CROSS, ATT_STOP, STATE_NAMES, VARIANCE_RTOL,
+                                             checked_std)
 from ins.estimation.core.filter_stores import PIECE_ROWS, Table, read_rows
 
 

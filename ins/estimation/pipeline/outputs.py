@@ -51,8 +51,8 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",), heig
 
     The roll, pitch, yaw sigmas (solution_std.txt, smrmsg_solution.out) are
     :func:`euler_std_deg` of the whole smoothed phi-angle block: the attitude sigmas and
-    cross covariances of the nodes (``smoothed_att_cross``, uncorrelated only for a
-    ``result`` given as arrays without it).
+    cross covariances of the nodes (``smoothed_att_cross``; uncorrelated only for a
+    ``result`` without them).
 
     The trajectories are written piece by piece as they are streamed (bounded memory).
     Returns the list of written paths.  Every file is written atomically.
@@ -100,7 +100,7 @@ def write_outputs(result, out_dir, week=0, forward=False, formats=("nav",), heig
             # roll/pitch/yaw sigmas from the whole smoothed phi-angle block: the N/E/D
             # errors are correlated (a level platform at a diagonal heading mixes the
             # roll and pitch errors into N and E), their cross terms matter
-            cross = c.smoothed_att_cross
+            cross = getattr(c, "smoothed_att_cross", None)
             P_att = attitude_block(sd[:, STATE.att], np.zeros((len(sd), 3)) if cross is None
                                    else cross)
             att = euler_std_deg(c.solution[:, NAV.q_nb], P_att)

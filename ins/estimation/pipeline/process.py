@@ -113,8 +113,8 @@ class ProcessResult:
     def node_chunks(self, size=1 << 13):
         """The per-node results block by block (bounded memory): namespaces with ``j0``
         (first node), ``time``, ``forward_std``, ``smoothed_std``, ``forward_att_cross``,
-        ``smoothed_att_cross`` (the smoothed ones the forward ones without a smoother or
-        without smoothed cross covariances), ``forward_sensors``, ``smoothed_sensors`` and
+        ``smoothed_att_cross`` (the forward ones without a smoother; ``None`` for a result
+        smoothed without them), ``forward_sensors``, ``smoothed_sensors`` and
         ``solution`` (:meth:`node_solution`) of the block."""
         from types import SimpleNamespace
         fwd = self.fwd
@@ -129,7 +129,7 @@ class ProcessResult:
             else:
                 xs = read_rows(self.xs, j0, j1)
                 s_std = read_rows(self.s_std, j0, j1)
-                s_att = f_att if self.s_att is None else read_rows(self.s_att, j0, j1)
+                s_att = None if self.s_att is None else read_rows(self.s_att, j0, j1)
                 s_sens = f_sens + xs[:, fwd.layout.sensors]
                 for j in range(len(states)):
                     _filter_kernels.correct_state(states[j], xs[j, STATE.nav])
