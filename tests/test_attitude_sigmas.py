@@ -81,9 +81,10 @@ def test_stored_cross_covariances_are_the_dense_ones(diagonal_run, tmp_path):
     P_post = res.fwd.nodes.block(0, res.fwd.node_count)[:, 1]
     np.testing.assert_array_equal(res.fwd.nodes.post_att_cross,
                                   P_post[:, ATT_CROSS[0], ATT_CROSS[1]])
-    # the N-E correlation at heading 135 deg is what the fix is about: not small
+    # the N-E correlation at heading 135 deg is what the fix is about: not zero (median
+    # |rho| 0.023 on this flight, up to 0.04; N-D, E-D up to 0.2)
     rho = dense[:, 0] / (res.smoothed_std[:, 6] * res.smoothed_std[:, 7])
-    assert np.median(np.abs(rho)) > 0.02
+    assert np.median(np.abs(rho)) > 0.01
 
 
 @pytest.mark.parametrize("smoothed", [True, False])
@@ -91,8 +92,8 @@ def test_written_attitude_sigmas_use_the_whole_block(diagonal_run, tmp_path, smo
     """solution_std.txt (8 decimals of deg) and smrmsg_solution.out (float64 arc
     minutes) hold euler_std_deg of the dense smoothed covariances (or, without the
     smoother, of the forward posteriors).  The diagonal of the block alone (the code
-    before) is off by about 1 % in roll and pitch on this flight: far beyond the file's
-    digits."""
+    before) is off by 1.4 % (median) in roll and pitch on this flight: far beyond the
+    file's digits."""
     from ins.estimation.core.smoother import rts_errors
     from ins.io.sbet import read_smrmsg
     res = diagonal_run
