@@ -65,29 +65,35 @@ stated sigma over the RMS error, pooled.  Measured (2026-12-03, 36 flights, 246 
 the first 12 in brackets, 41 s with the flights cached), pooled mean z^2 N/E/D (+- its
 standard error) and RMS:
 
-- true scanner: 0.76/0.95/0.84 (+- 0.14/0.17/0.04), RMS 66/75/25 mm [12: 0.77/0.61/
-  0.80 (+- 0.26/0.17/0.05), 67/60/24 mm]; one flight 0.05 .. 3.7, median 0.52/0.50/
-  0.73;
+- true scanner: 0.75/0.96/0.87 (+- 0.14/0.17/0.04), RMS 66/75/25 mm [12: 0.77/0.61/
+  0.80 (+- 0.26/0.17/0.05), 67/60/24 mm]; one flight 0.05 .. 3.7, median 0.50/0.52/
+  0.76;
 - calibrated: 0.95/0.94/0.89 (+- 0.12/0.12/0.01), RMS 52/83/21 mm [12: 1.05/0.99/
   0.91 (+- 0.20/0.20/0.02), 64/131/21 mm]; 2 of the first 12 have rz not estimable
   (exit 3 in the CLI); without them 1.00/0.79/0.92;
-- the smoothed attitude, z^2 roll/pitch/yaw 0.66/0.85/1.62 (+- 0.13/0.21/0.30), its
-  stated sigma 1.22/1.11/0.79 times its RMS error [12: 0.47/0.72/1.32, 1.46/1.20/0.87].
+- the smoothed attitude, z^2 roll/pitch/yaw 0.77/0.74/1.62 (+- 0.16/0.18/0.30), its
+  stated sigma 1.14/1.17/0.79 times its RMS error [12: 0.47/0.72/1.32, 1.46/1.20/0.87
+  before the fix below].
+  Re-measured 2026-12-02 (36 flights, 302 s) after solution_std.txt's roll/pitch sigmas
+  took the phi angles' N/E/D cross covariances (they were from the diagonal: roll 14 %
+  high and pitch 10 % low at 135 deg): the rows above; before it the true scanner was
+  0.76/0.95/0.84 and the attitude 0.66/0.85/1.62, stated 1.22/1.11/0.79; calibrated
+  unchanged.
 
 The 12-flight E of the true scanner (0.61) is below the band by less than its
 standard error; with 36 every axis is inside.  Its N (across the strips at 80 deg,
-roll) and D (roll at the swath's edges) stay below 1 because the smoothed roll sigma
-of this 2.5 min flight is conservative by about 20 % (z^2 0.66); yaw is optimistic by
-about 20 % (z^2 1.62; it moves points along the track in proportion to their
+roll) and D (roll at the swath's edges) stay below 1 because the smoothed roll and pitch
+sigmas of this 2.5 min flight are conservative by about 15 % (z^2 0.77/0.74); yaw is
+optimistic by about 20 % (z^2 1.62; it moves points along the track in proportion to their
 distance from it).  The propagation maps the trajectory's sigmas right (measured on
 the first 12 with a one-off script, 2026-12-03): the point errors are the
 trajectory's own position and attitude errors through ``dr = dpos + d x phi`` (what
 is left is the scanner's noise), and the points' variances from the smoother's whole
 6 x 6 position/attitude covariance (the correlations solution_std.txt drops) give
-0.76/0.61/0.83 instead of 0.78/0.61/0.80.  That file's roll/pitch sigmas are converted
-from the phi angles' N/E/D variances without their covariance: at heading 135 deg its
-roll sigma is 14 % above and pitch 10 % below the full covariance's (80 deg: 2 %, 20
-deg: 6 %); the points barely see it (the figures above: the tilt variances north and
+0.76/0.61/0.83 instead of 0.78/0.61/0.80.  That file's roll/pitch sigmas were converted
+(until 2026-12-02) from the phi angles' N/E/D variances without their covariance: at
+heading 135 deg its roll sigma was 14 % above and pitch 10 % below the full covariance's
+(80 deg: 2 %, 20 deg: 6 %; now the whole block); the points barely saw it (the figures above: the tilt variances north and
 east, which the points need, are about equal on these flights).  The boresight sigma
 that scanner_true.toml states (0.003/0.003/0.005 deg, while its boresight is exact)
 lowers the true-scanner z^2 by 0.02-0.04.
