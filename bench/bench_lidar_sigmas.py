@@ -93,8 +93,9 @@ is left is the scanner's noise), and the points' variances from the smoother's w
 0.76/0.61/0.83 instead of 0.78/0.61/0.80.  That file's roll/pitch sigmas were converted
 (until 2026-12-02) from the phi angles' N/E/D variances without their covariance: at
 heading 135 deg its roll sigma was 14 % above and pitch 10 % below the full covariance's
-(80 deg: 2 %, 20 deg: 6 %; now the whole block); the points barely saw it (the figures above: the tilt variances north and
-east, which the points need, are about equal on these flights).  The boresight sigma
+(80 deg: 2 %, 20 deg: 6 %; now the whole block); the points barely saw it (the
+figures above: the tilt variances north and east, which the points need, are about
+equal on these flights).  The boresight sigma
 that scanner_true.toml states (0.003/0.003/0.005 deg, while its boresight is exact)
 lowers the true-scanner z^2 by 0.02-0.04.
 Before 2026-12-02 the boresight's adjustment sigma was added on top of the rotation
