@@ -46,7 +46,10 @@ F_REL = -2.0 * np.sqrt(MU_GPS) / C_LIGHT ** 2
 MAX_AGE_S = 7200.0
 
 
-def _kepler(M, e):
+def eccentric_anomaly(M, e):
+    """Eccentric anomaly E (rad) of Kepler's equation ``M = E - e sin E`` by Newton's
+    iteration (to 1e-14 rad), for mean anomalies ``M`` (rad, array) and eccentricity
+    ``e``."""
     E = M.copy()
     for _ in range(30):
         dE = (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
@@ -83,7 +86,7 @@ def eph_state(eph, week, t):
     n = np.sqrt(MU_GPS / A ** 3) + eph.delta_n
     tk = t - eph.toe
     e = eph.e
-    E = _kepler(eph.m0 + n * tk, e)
+    E = eccentric_anomaly(eph.m0 + n * tk, e)
     sE, cE = np.sin(E), np.cos(E)
     one_ecE = 1.0 - e * cE
     q = np.sqrt(1.0 - e * e)

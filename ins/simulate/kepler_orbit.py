@@ -35,7 +35,7 @@ import numpy as np
 
 from ins.common.errors import InputError
 from ins.io.rinex_nav import SECONDS_PER_WEEK
-from ins.simulate.gps_orbit import C_LIGHT
+from ins.simulate.gps_orbit import C_LIGHT, eccentric_anomaly
 
 __all__ = ["KeplerEphemeris", "KeplerOrbits", "SYSTEM_CONSTANTS", "BDT_MINUS_GPST_S",
            "BDT_WEEK0_GPS", "kepler_state", "galileo_constellation", "beidou_constellation",
@@ -121,23 +121,13 @@ def to_system_time(system, gps_week, t_gps):
     return gps_week, np.asarray(t_gps, float)
 
 
-def _kepler(M, e):
-    E = M.copy()
-    for _ in range(30):
-        dE = (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
-        E = E - dE
-        if np.all(np.abs(dE) < 1e-14):
-            break
-    return E
-
-
 def _position_clock(eph, t):
     """ECEF position (m) and clock (s) at system times ``t`` (s of ``eph.week``)."""
     mu, we = SYSTEM_CONSTANTS[eph.system]
     A = eph.sqrt_a ** 2
     n = np.sqrt(mu / A ** 3) + eph.delta_n
     tk = t - eph.toe
-    E = _kepler(eph.m0 + n * tk, eph.e)
+    E = eccentric_anomaly(eph.m0 + n * tk, eph.e)
     sE, cE = np.sin(E), np.cos(E)
     nu = np.arctan2(np.sqrt(1.0 - eph.e ** 2) * sE, cE - eph.e)
     phi = nu + eph.omega
