@@ -38,21 +38,35 @@ def _hline(text, label):
     return f"{text:<60.60s}{label:<20s}\n"
 
 
+def header_start(file_type, calendar, marker, comments, program="ins simulate",
+                 observer=("simulator", "insphoto"), receiver="SIMULATED",
+                 antenna="SIMULATED", approx_xyz_m=(0.0, 0.0, 0.0)):
+    """The lines of a RINEX 3.04 observation header from RINEX VERSION / TYPE to
+    ANTENNA: DELTA H/E/N (a list of 81-character strings with the newline): ``file_type``
+    the satellite-system field (``"G"``, ``"M"``, ``"M (MIXED)"``), ``calendar`` the first
+    epoch's (year, month, day, hour, minute, s) in GPS time (:func:`gps_calendar`),
+    ``observer`` (observer, agency), ``approx_xyz_m`` the ECEF approximate position (m);
+    every field cut to its RINEX width."""
+    y, mo, d, h, mi, s = calendar
+    return [_hline(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{file_type:<20s}",
+                   "RINEX VERSION / TYPE"),
+            _hline(f"{program:<20.20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
+                   f"{h:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE"),
+            *[_hline(c, "COMMENT") for c in comments],
+            _hline(marker, "MARKER NAME"), _hline("NON_GEODETIC", "MARKER TYPE"),
+            _hline(f"{observer[0]:<20.20s}{observer[1]:<40.40s}", "OBSERVER / AGENCY"),
+            _hline(f"{'0':<20s}{receiver:<20.20s}", "REC # / TYPE / VERS"),
+            _hline(f"{'0':<20s}{antenna:<20.20s}", "ANT # / TYPE"),
+            _hline("".join(f"{v:14.4f}" for v in approx_xyz_m), "APPROX POSITION XYZ"),
+            _hline(f"{0.0:14.4f}{0.0:14.4f}{0.0:14.4f}", "ANTENNA: DELTA H/E/N")]
+
+
 def _header(obs_types, approx_xyz_m, week, first_sow, interval_s, marker, receiver,
             antenna, leap_seconds, comments, program="ins simulate"):
     y, mo, d, h, mi, s = gps_calendar(week, first_sow)
-    out = [_hline(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{'G':<20s}",
-                  "RINEX VERSION / TYPE"),
-           _hline(f"{program:<20.20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
-                  f"{h:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE")]
-    out += [_hline(c, "COMMENT") for c in comments]
-    out += [_hline(marker, "MARKER NAME"), _hline("NON_GEODETIC", "MARKER TYPE"),
-            _hline(f"{'simulator':<20s}{'insphoto':<40s}", "OBSERVER / AGENCY"),
-            _hline(f"{'0':<20s}{receiver:<20s}{'':<20s}", "REC # / TYPE / VERS"),
-            _hline(f"{'0':<20s}{antenna:<20s}", "ANT # / TYPE"),
-            _hline("".join(f"{v:14.4f}" for v in approx_xyz_m), "APPROX POSITION XYZ"),
-            _hline(f"{0.0:14.4f}{0.0:14.4f}{0.0:14.4f}", "ANTENNA: DELTA H/E/N"),
-            _hline(f"G{len(obs_types):5d}" + "".join(f" {t}" for t in obs_types),
+    out = header_start("G", (y, mo, d, h, mi, s), marker, comments, program=program,
+                       receiver=receiver, antenna=antenna, approx_xyz_m=approx_xyz_m)
+    out += [_hline(f"G{len(obs_types):5d}" + "".join(f" {t}" for t in obs_types),
                    "SYS / # / OBS TYPES"),
             _hline(f"{interval_s:10.3f}", "INTERVAL"),
             _hline(f"{y:6d}{mo:6d}{d:6d}{h:6d}{mi:6d}{s:13.7f}     GPS",

@@ -8,7 +8,7 @@ atomically (:func:`ins.common.fileio.atomic_open`)."""
 import numpy as np
 
 from ins.common.fileio import atomic_open
-from ins.io.rinex_obs import _field, _hline, gps_calendar
+from ins.io.rinex_obs import _field, _hline, gps_calendar, header_start
 
 __all__ = ["write_rinex3_multi"]
 
@@ -51,17 +51,8 @@ def write_rinex3_multi(path, week, time_s, epochs, program="ins import-android",
     types = {s: [q + c for c in codes[s] for q in "CLDS"] for s in systems}
     first = next((i for i, ep in enumerate(epochs) if ep), 0)
     y, mo, d, h, mi, s = gps_calendar(week, time_s[first] if len(time_s) else 0.0)
-    head = [_hline(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{'M':<20s}",
-                   "RINEX VERSION / TYPE"),
-            _hline(f"{program:<20.20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
-                   f"{h:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE")]
-    head += [_hline(c, "COMMENT") for c in comments]
-    head += [_hline(marker, "MARKER NAME"), _hline("NON_GEODETIC", "MARKER TYPE"),
-             _hline(f"{'':<20s}{'':<40s}", "OBSERVER / AGENCY"),
-             _hline(f"{'0':<20s}{receiver:<20.20s}{'':<20s}", "REC # / TYPE / VERS"),
-             _hline(f"{'0':<20s}{'ANDROID':<20s}", "ANT # / TYPE"),
-             _hline("".join(f"{0.0:14.4f}" for _ in range(3)), "APPROX POSITION XYZ"),
-             _hline(f"{0.0:14.4f}{0.0:14.4f}{0.0:14.4f}", "ANTENNA: DELTA H/E/N")]
+    head = header_start("M", (y, mo, d, h, mi, s), marker, comments, program=program,
+                        observer=("", ""), receiver=receiver, antenna="ANDROID")
     for sname in systems:
         t = types[sname]
         for k in range(0, len(t), 13):

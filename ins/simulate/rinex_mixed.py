@@ -20,7 +20,7 @@ import numpy as np
 
 from ins.common.fileio import atomic_open
 from ins.io.rinex_nav import SECONDS_PER_WEEK
-from ins.io.rinex_obs import gps_calendar
+from ins.io.rinex_obs import gps_calendar, header_start
 from ins.simulate.gnss_signals import SIGNALS, obs_types
 from ins.simulate.kepler_orbit import BDT_WEEK0_GPS
 
@@ -90,17 +90,8 @@ def write_mixed_obs(path, obs, glonass_channels, approx_xyz_m, interval_s, marke
     present = obs.observed
     first = int(np.argmax(present.any(axis=1))) if present.any() else 0
     y, mo, d, hh, mi, s = gps_calendar(obs.week, obs.time_rx[first])
-    head = [_h(f"{3.04:9.2f}{'':11s}{'OBSERVATION DATA':<20s}{'M (MIXED)':<20s}",
-               "RINEX VERSION / TYPE"),
-            _h(f"{'ins simulate':<20s}{'insphoto':<20s}{y:04d}{mo:02d}{d:02d} "
-               f"{hh:02d}{mi:02d}{int(s):02d} GPS", "PGM / RUN BY / DATE")]
-    head += [_h(c, "COMMENT") for c in comments]
-    head += [_h(marker, "MARKER NAME"), _h("NON_GEODETIC", "MARKER TYPE"),
-             _h(f"{'simulator':<20s}{'insphoto':<40s}", "OBSERVER / AGENCY"),
-             _h(f"{'0':<20s}{'SIMULATED':<20s}", "REC # / TYPE / VERS"),
-             _h(f"{'0':<20s}{'SIMULATED':<20s}", "ANT # / TYPE"),
-             _h("".join(f"{v:14.4f}" for v in approx_xyz_m), "APPROX POSITION XYZ"),
-             _h(f"{0.0:14.4f}{0.0:14.4f}{0.0:14.4f}", "ANTENNA: DELTA H/E/N")]
+    head = header_start("M (MIXED)", (y, mo, d, hh, mi, s), marker, comments,
+                        approx_xyz_m=approx_xyz_m)
     for sy in systems:
         head += _types_lines(sy, types[sy])
     head += [_h(f"{interval_s:10.3f}", "INTERVAL"),
